@@ -1,0 +1,103 @@
+"""The equations of motion of a rigid block on an inclined, moving plate (paper Eqs. 1–10).
+
+Everything here is a compiled scalar function shared by the reference solver and the fast engine,
+so that the two differ only in how they integrate and locate events.
+
+Conventions (ARCHITECTURE §2). Plate frame: x along the fall line, **+x downhill**, z normal to the
+plate, up; β > 0 is the inclination. Ground (table) accelerations ``ax`` (horizontal, positive
+towards the downhill side) and ``ay`` (vertical, positive up) are in m/s². θ is the rotation of the
+block relative to the plate: **θ > 0 tips the block towards +x** (rocking on its downhill corner),
+θ < 0 on its uphill corner. ``s`` is the pivot side (+1 downhill corner, −1 uphill corner).
+
+In the plate frame the block feels the effective gravity (per unit mass)::
+
+    gx = −ax cos β + (g + ay) sin β     along +x (downhill)
+    gz =  ax sin β + (g + ay) cos β     into the plate (the normal reaction at rest, Eq. 3)
+
+and the block then behaves as on a level plate under (gx, −gz). With ψ = α − |θ|:
+
+    θ'' = r/(i_g² + r²) · (gx cos ψ − s gz sin ψ)                    (Eq. 2 / Eq. 6)
+
+The paper writes Eq. 2 with the opposite sign of β (its x axis points uphill); with β → −β the two
+agree term by term. Uplift from rest towards +x needs gx > gz tan α, i.e. −ax > (g + ay) tan(α − β),
+which is Eq. 1.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+G = 9.81
+
+
+@njit(cache=True, inline="always")
+def plate_gravity(ax: float, ay: float, cb: float, sb: float) -> tuple[float, float]:
+    """Effective gravity in the plate frame (gx along +x, gz into the plate) [m/s²]."""
+    gv = G + ay
+    return -ax * cb + gv * sb, ax * sb + gv * cb
+
+
+@njit(cache=True, inline="always")
+def rocking_acceleration(theta: float, s: float, gx: float, gz: float, alpha: float, k: float) -> float:
+    """θ'' [rad/s²] of a block rocking on pivot ``s``; ``k`` = r/(i_g² + r²) [1/m] (= p²/g uniform)."""
+    psi = alpha - abs(theta)
+    return k * (gx * math.cos(psi) - s * gz * math.sin(psi))
+
+
+@njit(cache=True, inline="always")
+def rocking_acceleration_linear(
+    theta: float, s: float, gx: float, gz: float, alpha: float, k: float
+) -> float:
+    """Linearised θ'' (cos ψ ≈ 1, sin ψ ≈ ψ): Housner's linear model, uplift at α·g on a level plate."""
+    return k * (gx - gz * (s * alpha - theta))
+
+
+@njit(cache=True, inline="always")
+def uplift_margins(gx: float, gz: float, tan_alpha: float) -> tuple[float, float]:
+    """(m+, m−): positive when the resting block starts rocking towards +x, resp. −x (Eq. 1)."""
+    return gx - gz * tan_alpha, -gx - gz * tan_alpha
+
+
+@njit(cache=True, inline="always")
+def pivot_reactions(
+    theta: float, omega: float, alpha_dd: float, s: float, gx: float, gz: float, alpha: float, r: float
+) -> tuple[float, float]:
+    """Reactions per unit mass at a pivot that does not slip (R_t along +x, R_n normal) [m/s²].
+
+    From Newton's law for the centre of mass, which sits at r·(−s sin ψ, cos ψ) from the pivot.
+    The block leaves the plate when R_n < 0 (jump) and the pivot slips when |R_t| > μ R_n.
+    """
+    psi = alpha - abs(theta)
+    c = math.cos(psi)
+    sn = math.sin(psi)
+    rt = r * c * alpha_dd + s * r * sn * omega * omega - gx
+    rn = gz + s * r * sn * alpha_dd - r * c * omega * omega
+    return rt, rn
+
+
+@njit(cache=True, inline="always")
+def rocking_sliding_acceleration(
+    theta: float, omega: float, s: float, slip: float, gx: float, gz: float,
+    alpha: float, r: float, ig2: float, mu: float,
+) -> tuple[float, float, float]:
+    """Rotation with sliding (Eqs. 9–10): (θ'', pivot acceleration along +x, R_n).
+
+    ``slip`` is the sign of the pivot's sliding velocity (Coulomb friction R_t = −μ·slip·R_n).
+    """
+    psi = alpha - abs(theta)
+    c = math.cos(psi)
+    sn = math.sin(psi)
+    q = sn - mu * s * slip * c
+    theta_dd = s * r * q * (r * c * omega * omega - gz) / (ig2 + r * r * sn * q)
+    rn = gz + s * r * sn * theta_dd - r * c * omega * omega
+    rt = -mu * slip * rn
+    x_dd = gx + rt - (r * c * theta_dd + s * r * sn * omega * omega)
+    return theta_dd, x_dd, rn
+
+
+@njit(cache=True, inline="always")
+def sliding_acceleration(slip: float, gx: float, gz: float, mu: float) -> float:
+    """Pure sliding (Eq. 5): acceleration of the block along +x relative to the plate [m/s²]."""
+    return gx - mu * slip * gz

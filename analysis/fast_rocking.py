@@ -1,0 +1,191 @@
+"""Fast engine, rocking model (Eq. 2): compiled fixed-step RK4 with located events.
+
+One scene = one body, one record (one sign), one angle. What a scene does not need is skipped
+(ARCHITECTURE §3):
+
+* rest phases cost one scan of Eq. 1's margins, which are linear inside each sample interval
+  (the input is piecewise linear), so the next uplift is found exactly — a record that never
+  reaches Eq. 1 costs exactly that one scan (the pre-screen);
+* a scene stops at overturn;
+* chattering (impacts accumulating in finite time when e > 0) is summed analytically once a
+  flight is shorter than a quarter step and ends in rest.
+
+Rocking is integrated with classical RK4 on a grid of ``n_sub`` steps per sample interval (so
+the input is smooth inside every step); impacts and overturns are located on the step's cubic
+Hermite interpolant and the state at an impact is re-integrated with an RK4 step of that length.
+
+Inputs are in SI (m/s²); ``ax``/``ay`` carry one extra trailing zero sample, after which the input
+is zero: the free motion is followed for ``t_after`` seconds more or until rest/overturn.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from analysis import hermite
+from analysis.equations import plate_gravity, rocking_acceleration, uplift_margins
+
+REST = 0
+OVERTURNED = 1
+UNDECIDED = 2
+
+
+@njit(cache=True, inline="always")
+def _accel(
+    theta: float, t: float, ti: float, a0x: float, sx: float, a0y: float, sy: float,
+    s: float, alpha: float, k: float, cb: float, sb: float,
+) -> float:
+    gx, gz = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
+    return rocking_acceleration(theta, s, gx, gz, alpha, k)
+
+
+@njit(cache=True, inline="always")
+def _rk4(
+    theta: float, omega: float, t: float, H: float, ti: float, a0x: float, sx: float, a0y: float,
+    sy: float, s: float, alpha: float, k: float, cb: float, sb: float,
+) -> tuple[float, float]:
+    k1 = _accel(theta, t, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+    k2 = _accel(theta + 0.5 * H * omega, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+    om2 = omega + 0.5 * H * k1
+    k3 = _accel(theta + 0.5 * H * om2, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+    om3 = omega + 0.5 * H * k2
+    k4 = _accel(theta + H * om3, t + H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+    om4 = omega + H * k3
+    theta1 = theta + H / 6.0 * (omega + 2.0 * om2 + 2.0 * om3 + om4)
+    omega1 = omega + H / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+    return theta1, omega1
+
+
+@njit(cache=True)
+def _next_uplift(
+    ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, ta: float
+) -> tuple[float, float]:
+    """Earliest time ≥ t at which Eq. 1 is reached, and the side (+1/−1); (inf, 0) if never."""
+    n = ax.shape[0]
+    i = int(t / dt)
+    if i >= n - 1:
+        return math.inf, 0.0
+    frac = t / dt - i
+    ax_a = ax[i] + (ax[i + 1] - ax[i]) * frac
+    ay_a = ay[i] + (ay[i + 1] - ay[i]) * frac
+    gx, gz = plate_gravity(ax_a, ay_a, cb, sb)
+    mp_a, mm_a = uplift_margins(gx, gz, ta)
+    if mp_a > 0.0:
+        return t, 1.0
+    if mm_a > 0.0:
+        return t, -1.0
+    t_a = t
+    while i < n - 1:
+        gx, gz = plate_gravity(ax[i + 1], ay[i + 1], cb, sb)
+        mp_b, mm_b = uplift_margins(gx, gz, ta)
+        t_b = (i + 1) * dt
+        if mp_b > 0.0 or mm_b > 0.0:
+            tp = t_a + (t_b - t_a) * mp_a / (mp_a - mp_b) if mp_b > 0.0 else math.inf
+            tm = t_a + (t_b - t_a) * mm_a / (mm_a - mm_b) if mm_b > 0.0 else math.inf
+            if tp <= tm:
+                return tp, 1.0
+            return tm, -1.0
+        mp_a, mm_a, t_a = mp_b, mm_b, t_b
+        i += 1
+    return math.inf, 0.0
+
+
+@njit(cache=True)
+def simulate_rocking(
+    ax: np.ndarray, ay: np.ndarray, dt: float, alpha: float, k: float, beta: float, e: float,
+    n_sub: int, t_after: float, fall_plus: float, fall_minus: float, theta0: float, omega0: float,
+) -> tuple[int, float, float, int, float, int, int, bool]:
+    """Run one scene. Returns (direction, t_overturn, theta_max, impacts, t_end, status, steps,
+    settled_by_prescreen); t_end is the overturn time, or the time the body last came to rest. ``fall_plus``/``fall_minus``: |θ| that counts as overturned towards
+    +x/−x (π/2 for a fall; α − β / α + β for the static criterion)."""
+    n = ax.shape[0]
+    t_rec = (n - 1) * dt
+    t_stop = t_rec + t_after
+    cb, sb, ta = math.cos(beta), math.sin(beta), math.tan(alpha)
+    h = dt / n_sub
+    t = 0.0
+    theta, omega = theta0, omega0
+    resting = theta0 == 0.0 and omega0 == 0.0
+    s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
+    theta_max = abs(theta0)
+    impacts = 0
+    steps = 0
+    first_scan = True
+    t_rest = 0.0
+    while True:
+        if resting:
+            t_up, side = _next_uplift(ax, ay, dt, t, cb, sb, ta)
+            if side == 0.0:
+                return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan
+            first_scan = False
+            t, s, theta, omega, resting = t_up, side, 0.0, 0.0, False
+        first_scan = False
+        if t >= t_stop:
+            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
+        # the sample interval holding t, and the input's line on it
+        if t < t_rec:
+            i = int(t / dt)
+            if i >= n - 1:
+                i = n - 2
+            ti = i * dt
+            if (i + 1) * dt - t <= 1e-12 * dt:
+                i += 1
+                ti = i * dt
+        else:
+            i = n - 1
+            ti = t
+        if i < n - 1:
+            a0x, sx = ax[i], (ax[i + 1] - ax[i]) / dt
+            a0y, sy = ay[i], (ay[i + 1] - ay[i]) / dt
+            j = int((t - ti) / h + 1e-9) + 1
+            te = ti + j * h if j < n_sub else (i + 1) * dt
+            if te - t <= 1e-12 * dt:
+                te = min(te + h, (i + 1) * dt)
+        else:
+            a0x = sx = a0y = sy = 0.0
+            te = t + h
+        H = te - t
+        # a short return flight after an impact: sum it analytically (chattering)
+        if theta == 0.0 and omega != 0.0:
+            acc0 = _accel(0.0, t, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+            if s * acc0 < 0.0 and 2.0 * abs(omega) / abs(acc0) < 0.25 * H:
+                t += 2.0 * abs(omega) / abs(acc0)
+                impacts += 1
+                omega = -e * omega
+                if e == 0.0 or abs(omega) < 1e-12:
+                    resting, omega, t_rest = True, 0.0, t
+                else:
+                    s = -s
+                continue
+        theta1, omega1 = _rk4(theta, omega, t, H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+        steps += 1
+        fall = fall_plus if s > 0.0 else fall_minus
+        if s * theta1 >= fall:
+            c3, c2, c1, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
+            u = hermite.crossing(c3, c2, c1, c0, s, fall, 0.0)
+            return int(s), t + u * H, fall, impacts, t + u * H, OVERTURNED, steps, False
+        if s * theta1 < 0.0 or (theta1 == 0.0 and s * omega1 < 0.0):
+            c3, c2, c1, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
+            u_top = hermite.argmax_scaled(c3, c2, c1, c0, s)
+            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1, c0, u_top)))
+            u = hermite.crossing(c3, c2, c1, c0, s, 0.0, u_top)
+            tau = u * H
+            _, omega_minus = _rk4(theta, omega, t, tau, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+            t += tau
+            impacts += 1
+            omega = e * omega_minus
+            theta = 0.0
+            if e == 0.0 or abs(omega) < 1e-12:
+                resting, omega, t_rest = True, 0.0, t
+            else:
+                s = -s
+            continue
+        if omega * omega1 < 0.0:
+            c3, c2, c1, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
+            u_top = hermite.argmax_scaled(c3, c2, c1, c0, s)
+            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1, c0, u_top)))
+        theta_max = max(theta_max, abs(theta1))
+        theta, omega, t = theta1, omega1, te
