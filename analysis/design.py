@@ -22,7 +22,7 @@ from typing import Literal, Protocol
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy import optimize, stats
+from scipy import integrate, optimize, stats
 
 from analysis.body import Body
 from analysis.errors import AnalysisInputError
@@ -177,10 +177,10 @@ def table3_estimators(angles_rad: ArrayLike, observed: ArrayLike, fitted: ArrayL
     - ``error`` [%]: Eq. 12 × 100.
     """
     beta = np.asarray(angles_rad, dtype=float)
-    obs, fit, keep = _paired(observed, fitted, "table3_estimators")
     if beta.shape != np.shape(observed):
-        raise AnalysisInputError(f"table3_estimators: {beta.shape[0] if beta.ndim else 0} angles for "
-                                 f"{np.size(observed)} rates")
+        raise AnalysisInputError(f"table3_estimators: angles {beta.shape} and rates {np.shape(observed)} "
+                                 f"differ in shape")
+    obs, fit, keep = _paired(observed, fitted, "table3_estimators")
     beta = beta[keep]
     if not np.all(np.isfinite(beta)):
         raise AnalysisInputError("table3_estimators: angles must be finite")
@@ -193,7 +193,7 @@ def table3_estimators(angles_rad: ArrayLike, observed: ArrayLike, fitted: ArrayL
     worst = int(np.argmax(np.abs(diff_pct)))
     return {
         "max_difference": float(diff_pct[worst]),
-        "absolute_area": float(np.trapezoid(np.abs(diff_pct), beta_deg)) if beta.size > 1 else 0.0,
+        "absolute_area": float(integrate.trapezoid(np.abs(diff_pct), beta_deg)) if beta.size > 1 else 0.0,
         "error": 100.0 * eq12_error(obs, fit),
     }
 

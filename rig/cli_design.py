@@ -1,0 +1,97 @@
+"""``rig design``: the plate inclination that reaches a target controlled-overturning rate.
+
+Inverts the paper's Eq. 13 (SCOR, body-specific, default) or Eq. 11 (GCOR) with the paper's
+coefficients (``analysis.design``). Angles are in degrees at the CLI; the confidence is a fraction.
+``--json`` prints exactly one JSON object on stdout (ARCHITECTURE §7); errors go to stderr, exit 2.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from enum import StrEnum
+from typing import Annotated, cast
+
+import typer
+from rich.console import Console
+from rich.table import Table
+
+from analysis.body import Body
+from analysis.design import PAPER_GCOR, PAPER_SCOR, Equation, design_angle, design_coefficients
+from analysis.errors import AnalysisInputError
+
+EXIT_USAGE = 2
+
+
+class EquationName(StrEnum):
+    """The two design equations of the paper."""
+
+    SCOR = "SCOR"
+    GCOR = "GCOR"
+
+
+def design_result(body: Body, confidence: float, equation: Equation = "SCOR") -> dict[str, object]:
+    """The ``rig design --json`` object for ``body`` and ``confidence`` (fraction), paper coefficients."""
+    beta = design_angle(body, confidence, equation)
+    c1, c2 = design_coefficients(body, equation)
+    coefficients = (
+        {"k1": PAPER_SCOR[0], "k2": PAPER_SCOR[1], "k3": PAPER_SCOR[2], "c2": c2}
+        if equation == "SCOR"
+        else {"c1": PAPER_GCOR[0], "c2": PAPER_GCOR[1]}
+    )
+    return {
+        "angle_deg": math.degrees(beta),
+        "angle_rad": beta,
+        "equation": equation,
+        "c1": c1,
+        "c2": c2,
+        "confidence": confidence,
+        "body": {"b": body.b, "h": body.h},
+        "coefficients": coefficients,
+        "source": "paper",
+        "limit": 0.5 + c2,
+    }
+
+
+def _print_table(body: Body, result: dict[str, object]) -> None:
+    table = Table(title=f"Design inclination ({result['equation']})", show_header=False)
+    table.add_column("quantity")
+    table.add_column("value", justify="right")
+    table.add_row("body b × h", f"{body.b:g} m × {body.h:g} m")
+    table.add_row("target COR", f"{100 * cast(float, result['confidence']):.4g} %")
+    table.add_row("inclination", f"{result['angle_deg']:.3f}° ({result['angle_rad']:.5f} rad)")
+    table.add_row("c1, c2", f"{result['c1']:.5f} rad, {result['c2']:g}")
+    table.add_row("COR limit (0.5 + c2)", f"{100 * cast(float, result['limit']):.4g} %")
+    Console().print(table)
+
+
+def design(
+    body: Annotated[str, typer.Option("--body", help="Body b×h in metres, e.g. 0.10x0.50.")],
+    confidence: Annotated[
+        float,
+        typer.Option("--confidence", help="Target controlled-overturning rate as a fraction, e.g. 0.95."),
+    ],
+    equation: Annotated[
+        EquationName,
+        typer.Option(
+            "--equation", case_sensitive=False, help="SCOR (Eq. 13, body-specific) or GCOR (Eq. 11)."
+        ),
+    ] = EquationName.SCOR,
+    as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")] = False,
+) -> None:
+    """The smallest plate inclination whose controlled-overturning rate reaches CONFIDENCE."""
+    try:
+        parsed = Body.parse(body)
+        result = design_result(parsed, confidence, cast(Equation, equation.value))
+    except AnalysisInputError as exc:
+        typer.echo(f"rig design: error: {exc}", err=True)
+        raise typer.Exit(EXIT_USAGE) from None
+    if as_json:
+        typer.echo(json.dumps(result, allow_nan=False))
+    else:
+        _print_table(parsed, result)
+
+
+def register(app: typer.Typer) -> None:
+    """Add the ``design`` command to ``app``."""
+    app.command("design")(design)
