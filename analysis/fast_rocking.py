@@ -99,8 +99,9 @@ def simulate_rocking(
     n_sub: int, t_after: float, fall_plus: float, fall_minus: float, theta0: float, omega0: float,
 ) -> tuple[int, float, float, int, float, int, int, bool]:
     """Run one scene. Returns (direction, t_overturn, theta_max, impacts, t_end, status, steps,
-    settled_by_prescreen); t_end is the overturn time, or the time the body last came to rest. ``fall_plus``/``fall_minus``: |θ| that counts as overturned towards
-    +x/−x (π/2 for a fall; α − β / α + β for the static criterion)."""
+    settled_by_prescreen); t_end is the overturn time, or the time the body last came to rest.
+    ``fall_plus``/``fall_minus``: |θ| that counts as overturned towards +x/−x (π/2 for a fall;
+    α − β / α + β for the static criterion)."""
     n = ax.shape[0]
     t_rec = (n - 1) * dt
     t_stop = t_rec + t_after

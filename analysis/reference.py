@@ -187,7 +187,7 @@ def simulate_rocking_reference(
 
 
 def _settles(omega: float, now: float, inp: _Input, i: int, side: float, cb: float, sb: float,
-             alpha: float, k: float, acc_fn) -> bool:  # noqa: ANN001
+             alpha: float, k: float, acc_fn) -> bool:
     """Chattering: the next flight on the new pivot is shorter than 1e-9 s (the impact sequence
     has converged to its accumulation point within that), or the rebound speed is negligible."""
     if abs(omega) < 1e-12:

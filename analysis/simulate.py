@@ -15,7 +15,7 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike
 
-from analysis.body import G, Body
+from analysis.body import Body, G
 from analysis.errors import AnalysisInputError
 from analysis.reference import Trace
 

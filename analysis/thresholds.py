@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from analysis.body import G, Body
+from analysis.body import Body, G
 
 
 def uplift_thresholds(

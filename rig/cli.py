@@ -1,0 +1,188 @@
+"""The ``rig`` command line (ARCHITECTURE §7).
+
+``--json`` prints exactly one JSON object on stdout; errors go to stderr with exit code 2 and no
+traceback. Angles are in degrees here (radians inside).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from typing import Annotated, NoReturn
+
+import numpy as np
+import typer
+from rich import box
+from rich.console import Console
+from rich.table import Table
+
+from analysis import TABLE_I, AnalysisInputError, Body, simulate
+from analysis.study import StudyResult, study
+from rig import cli_design, cli_records
+from rig.records import RecordError, load_record, load_records
+
+app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
+                  no_args_is_help=True, add_completion=False)
+console = Console(width=None if sys.stdout.isatty() else 160)
+err_console = Console(stderr=True)
+
+
+def fail(message: str) -> NoReturn:
+    """Print the error on stderr and exit 2."""
+    err_console.print(f"[bold red]error:[/] {message}", highlight=False)
+    raise typer.Exit(code=2)
+
+
+def emit_json(obj: dict) -> None:
+    """One JSON object on stdout."""
+    sys.stdout.write(json.dumps(obj, default=_json_default) + "\n")
+
+
+def _json_default(o: object) -> object:
+    if isinstance(o, np.integer):
+        return int(o)
+    if isinstance(o, np.floating):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def parse_angles(text: str) -> list[float]:
+    """Degrees: ``"5"``, ``"0,4,4.5"`` or ``"START:STOP:STEP"`` (STOP included) → radians."""
+    try:
+        if ":" in text:
+            start, stop, step = (float(v) for v in text.split(":"))
+            if step <= 0:
+                raise ValueError
+            n = math.floor((stop - start) / step + 1e-9) + 1
+            degs = [start + i * step for i in range(n)]
+        else:
+            degs = [float(v) for v in text.split(",")]
+    except ValueError:
+        fail(f"--angles {text!r}: expected degrees as '5', '0,4,4.5' or 'START:STOP:STEP' with STEP > 0")
+    return [math.radians(d) for d in degs]
+
+
+def parse_bodies(text: str) -> list[Body]:
+    """``table1``, ``table1:1,4,12`` (1-based), or ``0.10x0.50,0.2x1.0``."""
+    try:
+        if text.lower().startswith("table1"):
+            _, _, sel = text.partition(":")
+            if not sel:
+                return list(TABLE_I)
+            return [TABLE_I[int(i) - 1] for i in sel.split(",")]
+        return [Body.parse(t) for t in text.split(",")]
+    except (ValueError, IndexError) as exc:
+        fail(f"--bodies {text!r}: {exc}; expected 'table1', 'table1:1,4' or '0.10x0.50,…'")
+
+
+@app.command("simulate")
+def simulate_cmd(
+    record: Annotated[str, typer.Argument(help="a record file (.AT2) or SUITE:NAME")],
+    body: Annotated[str, typer.Option(help="BxH in metres, e.g. 0.10x0.50")],
+    angle: Annotated[float, typer.Option(help="plate inclination β [deg]")] = 0.0,
+    model: Annotated[str, typer.Option(help="rocking | general")] = "rocking",
+    solver: Annotated[str, typer.Option(help="fast | reference")] = "fast",
+    restitution: Annotated[str, typer.Option(help="0 (plastic), 'housner' or a number in [0, 1]")] = "0",
+    friction: Annotated[float, typer.Option(help="friction coefficient (general model)")] = 1.0,
+    sign: Annotated[int, typer.Option(help="+1 the record as given along +x (downhill), -1 negated")] = 1,
+    criterion: Annotated[str, typer.Option(help="fall (|θ| = π/2) | static (α ∓ β)")] = "fall",
+    as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+) -> None:
+    """One body, one record, one angle."""
+    try:
+        rec = load_record(record)
+        b = Body.parse(body)
+        if sign not in (1, -1):
+            fail("--sign must be 1 or -1")
+        res = simulate(b, sign * rec.acc_h, rec.dt, beta=math.radians(angle), acc_v=rec.acc_v, model=model,
+                       solver=solver, restitution=restitution, friction=friction, criterion=criterion)
+    except (RecordError, AnalysisInputError) as exc:
+        fail(str(exc))
+    out = {**res.to_dict(), "record": rec.name, "body": {"b": b.b, "h": b.h}, "angle_deg": angle,
+           "sign": sign}
+    if as_json:
+        emit_json(out)
+        return
+    table = Table(title=f"{rec.name} · body {b.label()} · β = {angle:g}°")
+    for key in ("direction", "t_overturn", "theta_max", "status", "impacts", "model", "solver"):
+        table.add_row(key, str(out[key]))
+    console.print(table)
+
+
+@app.command("study")
+def study_cmd(
+    records: Annotated[str, typer.Option(help="fema | fema-farfield | fema-nearfield | SUITE:NAME | file")],
+    bodies: Annotated[str, typer.Option(help="table1, table1:1,4 or BxH,BxH")] = "table1",
+    angles: Annotated[str, typer.Option(help="degrees: '0:7:0.5' or '0,4,5'")] = "0:7:0.5",
+    model: Annotated[str, typer.Option(help="rocking | general")] = "rocking",
+    restitution: Annotated[str, typer.Option(help="0 (plastic), 'housner' or a number")] = "0",
+    friction: Annotated[float, typer.Option(help="friction coefficient (general model)")] = 1.0,
+    as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+) -> None:
+    """The paper's analytical study: bodies × records × both signs × angles; COR per body and angle."""
+    try:
+        recs = load_records(records)
+        res = study(parse_bodies(bodies), recs, parse_angles(angles), model=model,  # type: ignore[arg-type]
+                    restitution=restitution, friction=friction)
+    except (RecordError, AnalysisInputError) as exc:
+        fail(str(exc))
+    summary = res.summary()
+    if as_json:
+        emit_json(summary)
+        return
+    print_cor_table(res)
+
+
+def print_cor_table(res: StudyResult) -> None:
+    """COR (%) per angle (rows) and body (columns), the body average, the overturn count and Eq. 11
+    with the paper's and the fitted coefficients."""
+    from analysis.design import gcor
+
+    rows = res.cor()
+    avg = res.average_cor()
+    try:
+        fit = res.fit_gcor()
+    except AnalysisInputError:
+        fit = None
+    title = f"Controlled overturning rate (%) — {res.model} model, {res.scenes} scenes in {res.seconds:.2f} s"
+    caption = "bodies: " + ", ".join(f"{i + 1}={b.b:g}x{b.h:g}" for i, b in enumerate(res.bodies))
+    table = Table(box=box.SIMPLE_HEAD, title=title, caption=caption)
+    table.add_column("β°", justify="right")
+    for i in range(len(res.bodies)):
+        table.add_column(str(i + 1), justify="right")
+    for name in ("avg", "n", "Eq11", "fit"):
+        table.add_column(name, justify="right", style="bold" if name == "avg" else None)
+
+    def pct(x: float | None) -> str:
+        return "–" if x is None else f"{100 * x:.0f}"
+
+    for m, beta in enumerate(res.angles):
+        cells = [pct(rows[j * len(res.angles) + m]["cor"]) for j in range(len(res.bodies))]
+        table.add_row(f"{math.degrees(beta):g}", *cells, pct(avg[m]["cor"]), str(avg[m]["overturned"]),
+                      pct(float(gcor(beta))), pct(float(gcor(beta, fit.c1, fit.c2))) if fit else "–")
+    console.print(table)
+    if fit:
+        console.print(f"Eq. 11 fitted to the average: c1 = {fit.c1:.4f} (95 % CI {fit.c1_ci[0]:.4f}–"
+                      f"{fit.c1_ci[1]:.4f}), c2 = {fit.c2:.3f}; the paper: c1 = 0.048, c2 = 0.48.")
+
+
+@app.command("demo")
+def demo_cmd(
+    records: Annotated[str, typer.Option(help="record suite for the demo study")] = "fema",
+) -> None:
+    """The demo: until the emulated table lands, a study of the paper's 12 bodies on real records."""
+    console.print(f"[bold]shaketable-rig demo[/]: rocking-model study of the paper's Table I bodies on "
+                  f"the FEMA P695 records ({records}), both signs, 0–7°.")
+    study_cmd(records=records, bodies="table1", angles="0:7:0.5", model="rocking", restitution="0",
+              friction=1.0, as_json=False)
+
+
+cli_records.register(app)
+cli_design.register(app)
+
+
+def main() -> None:  # pragma: no cover - console entry
+    app()
