@@ -100,14 +100,24 @@ def simulate_rocking_reference(
     i = 0
     # margins are linear in time inside an interval: the uplift condition is exact
     uplift_tan = ta_ if not linearised else alpha
+    gx_all, gz_all = plate_gravity(ax, ay, cb, sb)
+    mp_all, mm_all = uplift_margins(gx_all, gz_all, uplift_tan)
+    positive = np.flatnonzero((mp_all > 0) | (mm_all > 0))
 
     while True:
         while i < len(t) - 1 and t[i + 1] <= now:
             i += 1
         t_a, t_b, a0x, sx, a0y, sy = inp.interval(i)
         if resting:
-            if t_b == math.inf:
+            # every sample from i up to the next positive margin is <= 0, and margins are linear
+            # between samples: no uplift before that sample's interval
+            nxt = np.searchsorted(positive, i)
+            if t_b == math.inf or nxt == positive.size:
                 return ReferenceOutcome(0, None, theta_max, trace.t_rest, "rest", trace)
+            if positive[nxt] >= i + 2:
+                i = int(positive[nxt]) - 1
+                now = float(t[i])
+                continue
             gxa, gza = plate_gravity(a0x + sx * (now - t_a), a0y + sy * (now - t_a), cb, sb)
             gxb, gzb = plate_gravity(a0x + sx * (t_b - t_a), a0y + sy * (t_b - t_a), cb, sb)
             mpa, mma = uplift_margins(gxa, gza, uplift_tan)
@@ -126,6 +136,13 @@ def simulate_rocking_reference(
                 i += 1
                 continue
             now, s = min(cands)
+            # the root of the margin, nudged past rounding until the rocking equation itself
+            # (cos/sin where the margin has tan) pushes the block out on side s
+            for _ in range(10_000):
+                gx, gz = plate_gravity(a0x + sx * (now - t_a), a0y + sy * (now - t_a), cb, sb)
+                if s * acc_fn(0.0, s, gx, gz, alpha, k) > 0.0 or now >= t_b:
+                    break
+                now = float(np.nextafter(now, math.inf))
             theta, omega, resting = 0.0, 0.0, False
             continue
         if now >= t_stop:
@@ -171,7 +188,6 @@ def simulate_rocking_reference(
             t_fall = float(sol.t_events[1][0])
             return ReferenceOutcome(int(side), t_fall, max(theta_max, fall), t_fall, "overturned", trace)
         if sol.t_events[0].size:
-            # an impact right at the restart point is the start itself, not an impact
             t_imp = float(sol.t_events[0][0])
             omega_minus = float(sol.y_events[0][0][1])
             now = t_imp
