@@ -317,7 +317,7 @@ def fit_gcor(
 
     ``counts`` (e.g. the number of overturned cases behind each rate) weight the least squares;
     rows with count 0 or a NaN rate are skipped. c2 is free unless ``fix_c2`` is given (the paper:
-    0.48). Starts from the paper's values. Confidence intervals (95 %): standard errors from
+    0.48); a free fit above 0.5 (COR > 1 at large β) is redone with c2 held at its bound 0.5. Starts from the paper's values. Confidence intervals (95 %): standard errors from
     s²·(JᵀWJ)⁻¹ at the solution, s² = Σ w·res² / (n − p), times the t quantile with n − p degrees of
     freedom. ``rms`` is sqrt(Σ w·res² / Σ w).
     """
@@ -349,6 +349,9 @@ def fit_gcor(
     res = _weighted_lsq(residual, jacobian, x0, w, "fit_gcor")
     if fix_c2 is None and res.params[0] < 0:  # (c1, c2) and (−c1, −c2) are the same curve
         res = _LsqResult(-res.params, -res.ci[:, ::-1], res.rms)
+    if fix_c2 is None and res.params[1] > 0.5:
+        # COR cannot exceed 1: a free c2 above 0.5 is held at its bound and c1 fitted alone
+        return fit_gcor(angles_rad, cor, counts, fix_c2=0.5)
     c1, c2 = unpack(res.params)
     return GcorFit(c1=c1, c2=c2, c1_ci=(float(res.ci[0, 0]), float(res.ci[0, 1])),
                    c2_ci=None if fix_c2 is not None else (float(res.ci[1, 0]), float(res.ci[1, 1])),

@@ -145,11 +145,20 @@ class StudyResult:
             "undecided": int(np.count_nonzero(self.status == 2)),
             "cor": self.cor(), "average_cor": self.average_cor(), "settings": self.settings,
         }
-        for key, fit in (("gcor", self.fit_gcor), ("scor", self.fit_scor)):
-            try:
-                out[key] = fit().as_dict()
-            except AnalysisInputError as exc:
-                out[key] = {"error": str(exc)}
+        avg = [r for r in self.average_cor() if r["cor"] is not None]
+        beta = np.array([r["angle_rad"] for r in avg])
+        observed = np.array([r["cor"] for r in avg])
+        out["gcor_paper"] = {"c1": design.PAPER_GCOR[0], "c2": design.PAPER_GCOR[1],
+                             "eq12_error": design.eq12_error(observed, design.gcor(beta))}
+        try:
+            fit = self.fit_gcor()
+            out["gcor"] = {**fit.as_dict(), "eq12_error": design.eq12_error(observed, design.gcor(beta, *fit.coeffs))}
+        except AnalysisInputError as exc:
+            out["gcor"] = {"error": str(exc)}
+        try:
+            out["scor"] = self.fit_scor().as_dict()
+        except AnalysisInputError as exc:
+            out["scor"] = {"error": str(exc)}
         return out
 
 

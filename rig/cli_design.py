@@ -10,6 +10,7 @@ from __future__ import annotations
 import json
 import math
 from enum import StrEnum
+from pathlib import Path
 from typing import Annotated, cast
 
 import typer
@@ -30,15 +31,31 @@ class EquationName(StrEnum):
     GCOR = "GCOR"
 
 
-def design_result(body: Body, confidence: float, equation: Equation = "SCOR") -> dict[str, object]:
-    """The ``rig design --json`` object for ``body`` and ``confidence`` (fraction), paper coefficients."""
-    beta = design_angle(body, confidence, equation)
-    c1, c2 = design_coefficients(body, equation)
-    coefficients = (
-        {"k1": PAPER_SCOR[0], "k2": PAPER_SCOR[1], "k3": PAPER_SCOR[2], "c2": c2}
-        if equation == "SCOR"
-        else {"c1": PAPER_GCOR[0], "c2": PAPER_GCOR[1]}
-    )
+def study_coefficients(path: Path, equation: Equation) -> tuple[float, ...]:
+    """The fitted coefficients of ``equation`` from a saved ``rig study --json`` output."""
+    try:
+        summary = json.loads(path.read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise AnalysisInputError(f"--study {path}: cannot read a `rig study --json` output: {exc}") from None
+    key = equation.lower()
+    fit = summary.get(key) if isinstance(summary, dict) else None
+    names = ("k1", "k2", "k3", "c2") if equation == "SCOR" else ("c1", "c2")
+    if not isinstance(fit, dict) or not all(isinstance(fit.get(n), int | float) for n in names):
+        raise AnalysisInputError(f"--study {path}: no fitted {equation} coefficients ({', '.join(names)}) "
+                                 f"under key {key!r}" + (f": {fit['error']}" if isinstance(fit, dict)
+                                                         and "error" in fit else ""))
+    return tuple(float(fit[n]) for n in names)
+
+
+def design_result(body: Body, confidence: float, equation: Equation = "SCOR",
+                  fitted: tuple[float, ...] | None = None) -> dict[str, object]:
+    """The ``rig design --json`` object for ``body`` and ``confidence`` (fraction), with the paper's
+    coefficients or ``fitted`` ones ((k1, k2, k3, c2) for SCOR, (c1, c2) for GCOR)."""
+    beta = design_angle(body, confidence, equation, fitted)
+    c1, c2 = design_coefficients(body, equation, fitted)
+    coeffs = fitted or ((*PAPER_SCOR, c2) if equation == "SCOR" else PAPER_GCOR)
+    names = ("k1", "k2", "k3", "c2") if equation == "SCOR" else ("c1", "c2")
+    coefficients = dict(zip(names, coeffs, strict=True))
     return {
         "angle_deg": math.degrees(beta),
         "angle_rad": beta,
@@ -48,7 +65,7 @@ def design_result(body: Body, confidence: float, equation: Equation = "SCOR") ->
         "confidence": confidence,
         "body": {"b": body.b, "h": body.h},
         "coefficients": coefficients,
-        "source": "paper",
+        "source": "fitted" if fitted else "paper",
         "limit": 0.5 + c2,
     }
 
@@ -77,12 +94,18 @@ def design(
             "--equation", case_sensitive=False, help="SCOR (Eq. 13, body-specific) or GCOR (Eq. 11)."
         ),
     ] = EquationName.SCOR,
+    study: Annotated[
+        Path | None,
+        typer.Option("--study", help="Use the coefficients fitted by a study: a `rig study --json` output file."),
+    ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")] = False,
 ) -> None:
     """The smallest plate inclination whose controlled-overturning rate reaches CONFIDENCE."""
     try:
         parsed = Body.parse(body)
-        result = design_result(parsed, confidence, cast(Equation, equation.value))
+        eq = cast(Equation, equation.value)
+        fitted = study_coefficients(study, eq) if study is not None else None
+        result = design_result(parsed, confidence, eq, fitted)
     except AnalysisInputError as exc:
         typer.echo(f"rig design: error: {exc}", err=True)
         raise typer.Exit(EXIT_USAGE) from None
