@@ -317,9 +317,10 @@ def fit_gcor(
 
     ``counts`` (e.g. the number of overturned cases behind each rate) weight the least squares;
     rows with count 0 or a NaN rate are skipped. c2 is free unless ``fix_c2`` is given (the paper:
-    0.48); a free fit above 0.5 (COR > 1 at large β) is redone with c2 held at its bound 0.5. Starts from the paper's values. Confidence intervals (95 %): standard errors from
-    s²·(JᵀWJ)⁻¹ at the solution, s² = Σ w·res² / (n − p), times the t quantile with n − p degrees of
-    freedom. ``rms`` is sqrt(Σ w·res² / Σ w).
+    0.48); a free fit above 0.5 (COR > 1 at large β) is redone with c2 held at its bound 0.5.
+    Starts from the paper's values. Confidence intervals (95 %): standard errors from
+    s²·(JᵀWJ)⁻¹ at the solution, s² = Σ w·res² / (n − p), times the t quantile with n − p degrees
+    of freedom. ``rms`` is sqrt(Σ w·res² / Σ w).
     """
     beta = np.asarray(angles_rad, dtype=float).ravel()
     y = np.asarray(cor, dtype=float).ravel()
