@@ -15,7 +15,7 @@ import pytest
 
 from analysis import Body, simulate
 from analysis.body import G
-from analysis.study import study
+from analysis.study import StudyResult, study
 
 ASPECTS = (0.05, 0.2, 0.5, 1.0)
 HEIGHTS = (0.05, 0.5, 5.0)
@@ -50,7 +50,7 @@ def bodies() -> list[Body]:
     return [Body(b=asp * h, h=h) for asp, h in itertools.product(ASPECTS, HEIGHTS)]
 
 
-def step_bound(res, recs: list[Rec]) -> np.ndarray:  # noqa: ANN001
+def step_bound(res: StudyResult, recs: list[Rec]) -> np.ndarray:
     """The most RK4 steps a scene can take: its grid steps plus two per event (no vanishing step)."""
     n_sub = np.array([[math.ceil(b.p * r.dt / 0.05 - 1e-9) for b in res.bodies] for r in recs])
     samples = np.array([r.acc_h.size + T_AFTER / r.dt for r in recs])
