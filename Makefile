@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test test-fast bench lint clean
+.PHONY: demo test test-slow bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,11 +18,13 @@ demo: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
+# the README's test command: lint and every test not marked slow (minutes)
 test: $(STAMP) lint
-	$(BIN)/pytest -q
-
-test-fast: $(STAMP)
 	$(BIN)/pytest -q -m "not slow"
+
+# the long tests: full-suite agreement with the reference, stress, published pulse thresholds
+test-slow: $(STAMP)
+	$(BIN)/pytest -q -m slow --durations=15
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py
