@@ -42,6 +42,14 @@ class RecordLike(Protocol):
 STATUS = ("rest", "overturned", "undecided")
 
 
+def cor_counts(direction: np.ndarray) -> dict:
+    """COR of a set of outcomes (ARCHITECTURE §2): overturned, desired (+1) and their ratio (None
+    when nothing overturned)."""
+    over = int(np.count_nonzero(direction != 0))
+    desired = int(np.count_nonzero(direction == 1))
+    return {"overturned": over, "desired": desired, "cor": desired / over if over else None}
+
+
 @dataclass
 class StudyResult:
     """Scenes and their outcomes. Columns are arrays of one row per scene."""
@@ -101,13 +109,10 @@ class StudyResult:
         for j, body in enumerate(self.bodies):
             for beta in self.angles:
                 sel = (self.body == j) & (self.angle == beta)
-                over = int(np.count_nonzero(self.direction[sel] != 0))
-                desired = int(np.count_nonzero(self.direction[sel] == 1))
                 out.append({
                     "body": body.label(), "b": body.b, "h": body.h,
                     "angle_deg": round(math.degrees(float(beta)), 9), "angle_rad": float(beta),
-                    "scenes": int(np.count_nonzero(sel)), "overturned": over, "desired": desired,
-                    "cor": desired / over if over else None,
+                    "scenes": int(np.count_nonzero(sel)), **cor_counts(self.direction[sel]),
                 })
         return out
 

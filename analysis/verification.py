@@ -17,7 +17,7 @@ import numpy as np
 
 from analysis.body import Body
 from analysis.simulate import SimulationResult, simulate
-from analysis.study import RecordLike, StudyResult, study
+from analysis.study import RecordLike, StudyResult, cor_counts, study
 
 PERTURBATION = 1e-6
 
@@ -74,11 +74,7 @@ def _reference_scene(args: tuple) -> tuple[int, float, float]:
 def _pooled_cor(direction: np.ndarray, angle: np.ndarray, angles: np.ndarray) -> list[dict]:
     out = []
     for beta in angles:
-        sel = angle == beta
-        over = int(np.count_nonzero(direction[sel] != 0))
-        desired = int(np.count_nonzero(direction[sel] == 1))
-        out.append({"angle_deg": round(math.degrees(float(beta)), 9), "overturned": over, "desired": desired,
-                    "cor": desired / over if over else None})
+        out.append({"angle_deg": round(math.degrees(float(beta)), 9), **cor_counts(direction[angle == beta])})
     return out
 
 
