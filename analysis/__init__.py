@@ -4,10 +4,14 @@ Imports nothing else of this project. Units: SI inside; the public API takes acc
 and angles in radians (ARCHITECTURE §2, §7).
 """
 
-from analysis.body import TABLE_I, TABLE_V, Body
-from analysis.errors import AnalysisInputError
-from analysis.simulate import SimulationResult, simulate
-from analysis.thresholds import exceeds_threshold, uplift_thresholds
+from analysis.compiled_cache import configure as _configure_compiled_cache
+
+_configure_compiled_cache()
+
+from analysis.body import TABLE_I, TABLE_V, Body  # noqa: E402
+from analysis.errors import AnalysisInputError  # noqa: E402
+from analysis.simulate import SimulationResult, simulate  # noqa: E402
+from analysis.thresholds import exceeds_threshold, uplift_thresholds  # noqa: E402
 
 __all__ = [
     "TABLE_I",

@@ -14,7 +14,9 @@ In the plate frame the block feels the effective gravity (per unit mass)::
     gx = −ax cos β + (g + ay) sin β     along +x (downhill)
     gz =  ax sin β + (g + ay) cos β     into the plate (the normal reaction at rest, Eq. 3)
 
-and the block then behaves as on a level plate under (gx, −gz). With ψ = α − |θ|:
+and the block then behaves as on a level plate under (gx, −gz). With ψ = α − s·θ (= α − |θ| on
+the pivot's own side; the functions below use s·θ so that they continue smoothly through θ = 0,
+which keeps an integration step that crosses an impact at full order while the impact is located):
 
     θ'' = r/(i_g² + r²) · (gx cos ψ − s gz sin ψ)                    (Eq. 2 / Eq. 6)
 
@@ -42,7 +44,7 @@ def plate_gravity(ax: float, ay: float, cb: float, sb: float) -> tuple[float, fl
 @njit(cache=True, inline="always")
 def rocking_acceleration(theta: float, s: float, gx: float, gz: float, alpha: float, k: float) -> float:
     """θ'' [rad/s²] of a block rocking on pivot ``s``; ``k`` = r/(i_g² + r²) [1/m] (= p²/g uniform)."""
-    psi = alpha - abs(theta)
+    psi = alpha - s * theta
     return k * (gx * math.cos(psi) - s * gz * math.sin(psi))
 
 
@@ -69,7 +71,7 @@ def pivot_reactions(
     From Newton's law for the centre of mass, which sits at r·(−s sin ψ, cos ψ) from the pivot.
     The block leaves the plate when R_n < 0 (jump) and the pivot slips when |R_t| > μ R_n.
     """
-    psi = alpha - abs(theta)
+    psi = alpha - s * theta
     c = math.cos(psi)
     sn = math.sin(psi)
     rt = r * c * alpha_dd + s * r * sn * omega * omega - gx
@@ -86,7 +88,7 @@ def rocking_sliding_acceleration(
 
     ``slip`` is the sign of the pivot's sliding velocity (Coulomb friction R_t = −μ·slip·R_n).
     """
-    psi = alpha - abs(theta)
+    psi = alpha - s * theta
     c = math.cos(psi)
     sn = math.sin(psi)
     q = sn - mu * s * slip * c
