@@ -87,6 +87,8 @@ def simulate_rocking_reference(
 ) -> ReferenceOutcome:
     """One scene of the rocking model (Eq. 2), or of its linearisation (Housner's linear model)."""
     acc_fn = rocking_acceleration_linear if linearised else rocking_acceleration
+    # the same equations as the compiled engine, called as plain Python (no dispatch per call)
+    acc_py, gravity_py = acc_fn.py_func, plate_gravity.py_func
     cb, sb, ta_ = math.cos(beta), math.sin(beta), math.tan(alpha)
     inp = _Input(t, ax, ay)
     t_stop = t[-1] + t_after
@@ -153,8 +155,8 @@ def simulate_rocking_reference(
 
         def rhs(tt: float, y: np.ndarray, side: float = side, t_a: float = t_a, a0x: float = a0x,
                 sx: float = sx, a0y: float = a0y, sy: float = sy) -> list[float]:
-            gx, gz = plate_gravity(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
-            return [y[1], acc_fn(y[0], side, gx, gz, alpha, k)]
+            gx, gz = gravity_py(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
+            return [y[1], acc_py(y[0], side, gx, gz, alpha, k)]
 
         def ev_impact(tt: float, y: np.ndarray, side: float = side) -> float:
             return side * y[0]
