@@ -1,0 +1,934 @@
+"""Fast engine, general model (Eqs. 3–10): compiled stage machine REST/SLIDE/ROCK/ROCKSLIDE/FLIGHT.
+
+The specification is ``docs/general-model.md``; the stage equations are those of
+:mod:`analysis.equations`. Structure, conventions and returns mirror :mod:`analysis.fast_rocking`.
+What a scene does not need is skipped (ARCHITECTURE §3):
+
+* REST costs only the scan for the earliest of its exits — uplift ± (Eq. 1), slide (|gx| > μ gz)
+  and lift-off (gz < 0) — all linear inside a sample interval (the input is piecewise linear), so
+  found exactly; a record that never reaches any of them costs that one scan (the pre-screen);
+* a stage is integrated only when entered: with a high μ and no vertical input a scene runs
+  REST/ROCK only, ROCK paying for two cheap reaction checks (slip, lift-off) at step ends;
+* ROCK is the rocking model's RK4 on (θ, ω) (``fast_rocking._rk4``) on the same grid of ``n_sub``
+  steps per sample interval; ROCKSLIDE integrates (θ, ω, v) with RK4 on that grid, halving a step
+  (step-doubling error estimate) where the slide is fast (near the Painlevé limit); SLIDE
+  (v' linear in t) and FLIGHT (v', w' linear in t, ω constant) are integrated exactly;
+* θ events (impact, overturn) are located on the step's cubic Hermite interpolant; the other events
+  (slip margin, R_n = 0, v = 0, landing) by Illinois (regula falsi) iterations that re-integrate the
+  step from its start to the trial time;
+* chattering (corner impacts accumulating in finite time) is summed analytically once a return
+  flight is shorter than a quarter step, and ends in rest.
+
+Every loop is bounded; a transition that takes no time is counted, and a chain of them (contact
+conditions inconsistent at a boundary, e.g. R_n < 0 while a free flight would penetrate) is broken
+by holding the pivot for one step. A pivot whose sliding is inconsistent (Painlevé: the denominator
+of Eq. 9 not positive, below ``DEN_MIN``) sticks (``jam``). The corrections to docs/general-model.md
+(lift-off through the sliding pivot, the corner impact of a sliding pivot) are described there.
+
+Inputs are in SI (m/s²); ``ax``/``ay`` carry one extra trailing zero sample, after which the input
+is zero: the free motion is followed for ``t_after`` seconds more or until rest/overturn.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from analysis import hermite
+from analysis.equations import (
+    pivot_reactions,
+    plate_gravity,
+    rocking_acceleration,
+    rocking_sliding_acceleration,
+    sliding_acceleration,
+)
+from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4
+
+__all__ = ["OVERTURNED", "REST", "UNDECIDED", "simulate_general"]
+
+# stages
+ST_REST = 0
+ST_SLIDE = 1
+ST_ROCK = 2
+ST_ROCKSLIDE = 3
+ST_FLIGHT = 4
+
+# exits from REST (see _next_exit)
+EXIT_NONE = 0
+EXIT_ROCK_PLUS = 1
+EXIT_ROCK_MINUS = 2
+EXIT_SLIDE_PLUS = 3
+EXIT_SLIDE_MINUS = 4
+EXIT_FLIGHT = 5
+
+FLAT = 1e-9
+"""|θ| [rad] below which a landing is flat (docs/general-model.md)."""
+DEN_MIN = 1e-3
+"""Smallest accepted denominator of Eq. 9, relative to i_g² + r² (Painlevé guard)."""
+RS_SPLITS = 24
+"""ROCKSLIDE: how many times a step may be halved (fast slide near the Painlevé limit)."""
+RS_TOL = 1e-9
+"""ROCKSLIDE: local error accepted per step (θ, ω·H, v·H/r) [rad], about that of a rocking step at
+p·h = 0.05."""
+MAX_INSTANT = 12
+"""Transitions in a row that take no time before the pivot is held for one step."""
+ILLINOIS_ITER = 40
+
+
+# --------------------------------------------------------------------------------------------------
+# shared rules (also used by analysis.reference_general)
+
+
+@njit(cache=True)
+def rs_denominator(theta: float, s: float, slip: float, alpha: float, r: float, ig2: float, mu: float) -> float:
+    """Denominator of Eq. 9, i_g² + r² sin ψ (sin ψ − μ s slip cos ψ) [m²]; ≤ 0: Painlevé.
+    ψ = α − s θ, as in :mod:`analysis.equations`."""
+    psi = alpha - s * theta
+    sn = math.sin(psi)
+    return ig2 + r * r * sn * (sn - mu * s * slip * math.cos(psi))
+
+
+@njit(cache=True)
+def corner_impact_velocity(v: float, omega_minus: float, e: float, r: float, alpha: float) -> float:
+    """Sliding velocity of the base (new pivot) after a corner impact at θ = 0 of a sliding pivot.
+
+    docs/general-model.md keeps the pivot's velocity v. That is the tangential impulse of the
+    sticking rocking impact, r cos α (e − 1) ω⁻ per unit mass, and it is kept when it opposes the
+    slide (v ω⁻ ≥ 0). When v ω⁻ < 0 that impulse would push the sliding corner *along* its slide
+    (a friction impulse doing positive work: the kinetic energy can grow); then no tangential impulse
+    acts (the centre of mass keeps its tangential velocity), v⁺ = v + r cos α (1 − e) ω⁻, and friction
+    stops the slide rather than reverse it (v⁺ = 0 if the sign would change). Both branches never
+    increase the kinetic energy, and v = 0 (ROCK) gives v⁺ = 0: the rocking model's impact.
+    """
+    if v == 0.0 or v * omega_minus >= 0.0:
+        return v
+    vp = v + r * math.cos(alpha) * (1.0 - e) * omega_minus
+    if vp * v <= 0.0:
+        return 0.0
+    return vp
+
+
+@njit(cache=True)
+def landing_omega(theta: float, omega: float, v: float, w: float, alpha: float, r: float, ig2: float) -> float:
+    """θ' after a plastic, sticking landing on the corner s = sign θ (angular momentum about it)."""
+    s = 1.0 if theta > 0.0 else -1.0
+    psi = alpha - abs(theta)
+    dx = -s * r * math.sin(psi)
+    dz = r * math.cos(psi)
+    wz = (ig2 * (-omega) + dx * w - dz * v) / (ig2 + r * r)
+    return -wz
+
+
+@njit(cache=True)
+def flight_entry(theta: float, omega: float, v_pivot: float, s: float, alpha: float, r: float
+                 ) -> tuple[float, float, float]:
+    """(z, v, w) of the centre of mass when the pivot ``s`` leaves the plate."""
+    psi = alpha - s * theta
+    return r * math.cos(psi), v_pivot + omega * r * math.cos(psi), s * omega * r * math.sin(psi)
+
+
+@njit(cache=True)
+def rock_margin(theta: float, omega: float, s: float, gx: float, gz: float, alpha: float, r: float,
+                k: float, mu: float) -> tuple[float, float, float]:
+    """(|R_t| − μ R_n, R_t, R_n) of a pivot that does not slip."""
+    add = rocking_acceleration(theta, s, gx, gz, alpha, k)
+    rt, rn = pivot_reactions(theta, omega, add, s, gx, gz, alpha, r)
+    return abs(rt) - mu * rn, rt, rn
+
+
+@njit(cache=True)
+def rockslide_entry(theta: float, omega: float, v: float, s: float, slip: float, gx: float, gz: float,
+                    alpha: float, r: float, ig2: float, mu: float) -> int:
+    """Can the pivot ``s`` slide with sign ``slip`` from this state? 0 yes, 1 it lifts off (R_n ≤ 0),
+    2 it cannot (Painlevé: the denominator of Eq. 9 is not positive).
+
+    From v = 0 the direction is the one the no-slip reaction demands (slip = −sign R_t where
+    |R_t| > μ R_n); with a positive denominator that slide is the consistent one (at the onset
+    |R_t| = μ R_n the pivot's acceleration is 0 and grows with sign ``slip``), so it is not rechecked.
+    """
+    if rs_denominator(theta, s, slip, alpha, r, ig2, mu) <= DEN_MIN * (ig2 + r * r):
+        return 2
+    _, _, rn = rocking_sliding_acceleration(theta, omega, s, slip, gx, gz, alpha, r, ig2, mu)
+    if rn <= 0.0:
+        return 1
+    return 0
+
+
+ROCK_STAY = 0
+ROCK_TO_ROCKSLIDE = 1
+ROCK_TO_FLIGHT = 2
+ROCK_JAM = 3
+ROCK_HOLD = 4
+
+
+@njit(cache=True)
+def rock_exit(theta: float, omega: float, s: float, gx: float, gz: float, alpha: float, r: float, ig2: float,
+              k: float, mu: float, jam: bool) -> tuple[int, float]:
+    """What a pivot that does not slip does now: (ROCK_*, slip direction).
+
+    It stays while |R_t| ≤ μ R_n (only R_n ≥ 0 is checked when ``jam``). Otherwise it slides with
+    slip = −sign R_t, unless that slide lifts off: with a positive denominator of Eq. 9 the sliding
+    pivot's R_n = −X i_g²/den, where X = r cos ψ ω² − g_z is the normal acceleration the corner would
+    have in free flight, so lift-off (R_n ≤ 0) is exactly when a flight is consistent (X ≥ 0). The
+    no-slip R_n alone is not that test (it carries the moment of the sticking friction): a no-slip
+    R_n < 0 with X < 0 would fly into the plate. A Painlevé pivot (denominator ≤ 0) flies if X > 0,
+    else it sticks (ROCK_JAM), or, when even its no-slip R_n < 0, is held for a step (ROCK_HOLD).
+    """
+    f, rt, rn = rock_margin(theta, omega, s, gx, gz, alpha, r, k, mu)
+    x_free = r * math.cos(alpha - s * theta) * omega * omega - gz
+    sl = -1.0 if rt > 0.0 else 1.0
+    if jam:
+        if rn >= 0.0:
+            return ROCK_STAY, sl
+        return (ROCK_TO_FLIGHT, sl) if x_free > 0.0 else (ROCK_HOLD, sl)
+    if f <= 0.0:
+        return ROCK_STAY, sl
+    code = rockslide_entry(theta, omega, 0.0, s, sl, gx, gz, alpha, r, ig2, mu)
+    if code == 0:
+        return ROCK_TO_ROCKSLIDE, sl
+    if code == 1 or x_free > 0.0:
+        return ROCK_TO_FLIGHT, sl
+    return (ROCK_JAM, sl) if rn >= 0.0 else (ROCK_HOLD, sl)
+
+
+# --------------------------------------------------------------------------------------------------
+# REST
+
+
+@njit(cache=True, inline="always")
+def _margins(ax_: float, ay_: float, cb: float, sb: float, ca: float, sa: float, mu: float
+             ) -> tuple[float, float, float, float, float]:
+    """The five REST margins (> 0: that exit is reached): uplift +/− (Eq. 1 times cos α, written as
+    the rocking equation's θ'' at θ = 0 over k, so that a positive margin always starts a rotation —
+    the tan α form can be positive by rounding while θ'' is 0), slide +/−, lift-off (−gz)."""
+    gx, gz = plate_gravity(ax_, ay_, cb, sb)
+    return gx * ca - gz * sa, -gx * ca - gz * sa, gx - mu * gz, -gx - mu * gz, -gz
+
+
+@njit(cache=True, inline="always")
+def _pick(m1: float, m2: float, m3: float, m4: float, m5: float, slide_first: bool) -> int:
+    """The exit among the positive margins (priority: lift-off, then rock or slide)."""
+    if m5 > 0.0:
+        return EXIT_FLIGHT
+    rock = EXIT_ROCK_PLUS if m1 > 0.0 else (EXIT_ROCK_MINUS if m2 > 0.0 else EXIT_NONE)
+    slide = EXIT_SLIDE_PLUS if m3 > 0.0 else (EXIT_SLIDE_MINUS if m4 > 0.0 else EXIT_NONE)
+    if rock != EXIT_NONE and (slide == EXIT_NONE or not slide_first):
+        return rock
+    return slide
+
+
+@njit(cache=True)
+def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, alpha: float,
+               mu: float, has_vertical: bool) -> tuple[float, int]:
+    """Earliest time ≥ t at which the resting block leaves rest, and how (EXIT_*); (inf, 0) if never.
+
+    The five margins (uplift ±, slide ±, lift-off) are linear in t inside a sample interval; after
+    the record the input is zero and they are constant.
+    """
+    n = ax.shape[0]
+    ca, sa = math.cos(alpha), math.sin(alpha)
+    slide_first = mu < math.tan(alpha)
+    i = int(t / dt)
+    if i >= n - 1:
+        m1, m2, m3, m4, m5 = _margins(0.0, 0.0, cb, sb, ca, sa, mu)
+        kind = _pick(m1, m2, m3, m4, m5, slide_first)
+        return (t, kind) if kind != EXIT_NONE else (math.inf, EXIT_NONE)
+    frac = t / dt - i
+    ax_a = ax[i] + (ax[i + 1] - ax[i]) * frac
+    ay_a = ay[i] + (ay[i + 1] - ay[i]) * frac if has_vertical else 0.0
+    a1, a2, a3, a4, a5 = _margins(ax_a, ay_a, cb, sb, ca, sa, mu)
+    kind = _pick(a1, a2, a3, a4, a5, slide_first)
+    if kind != EXIT_NONE:
+        return t, kind
+    t_a = t
+    while i < n - 1:
+        b1, b2, b3, b4, b5 = _margins(ax[i + 1], ay[i + 1] if has_vertical else 0.0, cb, sb, ca, sa, mu)
+        if b1 > 0.0 or b2 > 0.0 or b3 > 0.0 or b4 > 0.0 or b5 > 0.0:
+            t_b = (i + 1) * dt
+            best_t = math.inf
+            best = EXIT_NONE
+            # candidates in priority order; a later one wins only if strictly earlier
+            order = (EXIT_FLIGHT, EXIT_SLIDE_PLUS, EXIT_SLIDE_MINUS, EXIT_ROCK_PLUS, EXIT_ROCK_MINUS) \
+                if slide_first else (EXIT_FLIGHT, EXIT_ROCK_PLUS, EXIT_ROCK_MINUS, EXIT_SLIDE_PLUS, EXIT_SLIDE_MINUS)
+            tol = 1e-12 * dt
+            for kind in order:
+                if kind == EXIT_FLIGHT:
+                    ma, mb = a5, b5
+                elif kind == EXIT_ROCK_PLUS:
+                    ma, mb = a1, b1
+                elif kind == EXIT_ROCK_MINUS:
+                    ma, mb = a2, b2
+                elif kind == EXIT_SLIDE_PLUS:
+                    ma, mb = a3, b3
+                else:
+                    ma, mb = a4, b4
+                if mb > 0.0:
+                    tc = t_a + (t_b - t_a) * ma / (ma - mb)
+                    if tc < best_t - tol:
+                        best_t, best = tc, kind
+            return max(best_t, t_a), best
+        a1, a2, a3, a4, a5, t_a = b1, b2, b3, b4, b5, (i + 1) * dt
+        i += 1
+    return math.inf, EXIT_NONE
+
+
+# --------------------------------------------------------------------------------------------------
+# ROCK (pivot sticks): reactions and their events
+
+
+@njit(cache=True)
+def _rock_f(tau: float, which: int, theta: float, omega: float, t: float, ti: float, a0x: float, sx: float,
+            a0y: float, sy: float, s: float, alpha: float, r: float, k: float, mu: float, cb: float, sb: float
+            ) -> tuple[float, float, float, float, float]:
+    """Event function of ROCK at step fraction τ (re-integrated): which 0 → |R_t| − μ R_n, 1 → −R_n.
+    Returns (f, θ, ω, R_t, R_n)."""
+    if tau > 0.0:
+        th, om = _rk4(theta, omega, t, tau, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+    else:
+        th, om = theta, omega
+    tt = t + tau
+    gx, gz = plate_gravity(a0x + sx * (tt - ti), a0y + sy * (tt - ti), cb, sb)
+    f, rt, rn = rock_margin(th, om, s, gx, gz, alpha, r, k, mu)
+    if which == 1:
+        f = -rn
+    return f, th, om, rt, rn
+
+
+@njit(cache=True)
+def _locate_rock(which: int, hi: float, f_hi: float, theta: float, omega: float, t: float, ti: float,
+                 a0x: float, sx: float, a0y: float, sy: float, s: float, alpha: float, r: float, k: float,
+                 mu: float, cb: float, sb: float, H: float) -> float:
+    """Illinois on the ROCK event function in (0, hi]: the first τ where it is > 0 (hi side)."""
+    f_lo, _, _, _, _ = _rock_f(0.0, which, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k, mu, cb, sb)
+    if f_lo > 0.0:
+        return 0.0
+    lo = 0.0
+    side = 0
+    for _ in range(ILLINOIS_ITER):
+        if hi - lo <= 1e-12 * H:
+            break
+        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not (lo < x < hi):
+            x = 0.5 * (lo + hi)
+        fx, _, _, _, _ = _rock_f(x, which, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k, mu, cb, sb)
+        if fx > 0.0:
+            hi, f_hi = x, fx
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo, f_lo = x, fx
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+    return hi
+
+
+# --------------------------------------------------------------------------------------------------
+# ROCKSLIDE
+
+
+@njit(cache=True, inline="always")
+def _rs_deriv(theta: float, omega: float, t: float, ti: float, a0x: float, sx: float, a0y: float, sy: float,
+              s: float, slip: float, alpha: float, r: float, ig2: float, mu: float, cb: float, sb: float
+              ) -> tuple[float, float]:
+    gx, gz = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
+    th_dd, x_dd, _ = rocking_sliding_acceleration(theta, omega, s, slip, gx, gz, alpha, r, ig2, mu)
+    return th_dd, x_dd
+
+
+@njit(cache=True)
+def _rk4_rs(theta: float, omega: float, v: float, t: float, H: float, ti: float, a0x: float, sx: float,
+            a0y: float, sy: float, s: float, slip: float, alpha: float, r: float, ig2: float, mu: float,
+            cb: float, sb: float) -> tuple[float, float, float]:
+    a1, x1 = _rs_deriv(theta, omega, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu, cb, sb)
+    om2 = omega + 0.5 * H * a1
+    a2, x2 = _rs_deriv(theta + 0.5 * H * omega, om2, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                       ig2, mu, cb, sb)
+    om3 = omega + 0.5 * H * a2
+    a3, x3 = _rs_deriv(theta + 0.5 * H * om2, om3, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                       ig2, mu, cb, sb)
+    om4 = omega + H * a3
+    a4, x4 = _rs_deriv(theta + H * om3, om4, t + H, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu, cb, sb)
+    theta1 = theta + H / 6.0 * (omega + 2.0 * om2 + 2.0 * om3 + om4)
+    omega1 = omega + H / 6.0 * (a1 + 2.0 * a2 + 2.0 * a3 + a4)
+    v1 = v + H / 6.0 * (x1 + 2.0 * x2 + 2.0 * x3 + x4)
+    return theta1, omega1, v1
+
+
+@njit(cache=True)
+def _rs_f(tau: float, which: int, theta: float, omega: float, v: float, t: float, ti: float, a0x: float,
+          sx: float, a0y: float, sy: float, s: float, slip: float, alpha: float, r: float, ig2: float,
+          mu: float, cb: float, sb: float) -> tuple[float, float, float, float]:
+    """Event function of ROCKSLIDE at τ: which 0 → −slip·v (the slide stops), 1 → −R_n (lift-off).
+    Returns (f, θ, ω, v)."""
+    if tau > 0.0:
+        th, om, vv = _rk4_rs(theta, omega, v, t, tau, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu, cb, sb)
+    else:
+        th, om, vv = theta, omega, v
+    if which == 0:
+        return -slip * vv, th, om, vv
+    tt = t + tau
+    gx, gz = plate_gravity(a0x + sx * (tt - ti), a0y + sy * (tt - ti), cb, sb)
+    _, _, rn = rocking_sliding_acceleration(th, om, s, slip, gx, gz, alpha, r, ig2, mu)
+    return -rn, th, om, vv
+
+
+@njit(cache=True)
+def _locate_rs(which: int, hi: float, f_hi: float, theta: float, omega: float, v: float, t: float, ti: float,
+               a0x: float, sx: float, a0y: float, sy: float, s: float, slip: float, alpha: float, r: float,
+               ig2: float, mu: float, cb: float, sb: float, H: float) -> float:
+    """Illinois on a ROCKSLIDE event function in (0, hi]: the first τ where it is ≥ 0 (hi side)."""
+    f_lo, _, _, _ = _rs_f(0.0, which, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu,
+                          cb, sb)
+    if f_lo > 0.0:
+        return 0.0
+    if f_hi <= 0.0:  # exactly zero at hi
+        f_hi = 0.0
+    lo = 0.0
+    side = 0
+    for _ in range(ILLINOIS_ITER):
+        if hi - lo <= 1e-12 * H or f_hi == f_lo:
+            break
+        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not (lo < x < hi):
+            x = 0.5 * (lo + hi)
+        fx, _, _, _ = _rs_f(x, which, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu,
+                            cb, sb)
+        if fx >= 0.0 and (which == 0 or fx > 0.0):
+            hi, f_hi = x, fx
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo, f_lo = x, fx
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+    return hi
+
+
+# --------------------------------------------------------------------------------------------------
+# FLIGHT (exact: gx, gz linear in t inside a sample interval, ω constant)
+
+
+@njit(cache=True, inline="always")
+def _flight_state(tau: float, theta: float, omega: float, v: float, z: float, w: float, gx0: float,
+                  gx1: float, gz0: float, gz1: float) -> tuple[float, float, float, float]:
+    """(θ, v, z, w) after τ of free flight."""
+    t2 = tau * tau
+    return (theta + omega * tau, v + gx0 * tau + 0.5 * gx1 * t2,
+            z + w * tau - 0.5 * gz0 * t2 - gz1 * t2 * tau / 6.0, w - gz0 * tau - 0.5 * gz1 * t2)
+
+
+@njit(cache=True, inline="always")
+def _gap(tau: float, theta: float, omega: float, v: float, z: float, w: float, gx0: float, gx1: float,
+         gz0: float, gz1: float, alpha: float, r: float, psi_ref: float) -> float:
+    """Height of the lowest corner above the plate after τ of flight.
+
+    In FLIGHT ``z`` is ζ = z − r cos ψ_ref, the height of the centre of mass over its height at
+    lift-off (ψ_ref = α − |θ| then), so that the gap ζ − r (cos ψ − cos ψ_ref) is free of
+    cancellation right after lift-off (where it grows like τ²)."""
+    th, _, zz, _ = _flight_state(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1)
+    psi = alpha - abs(th)
+    return zz + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
+
+
+@njit(cache=True)
+def _locate_landing(lo: float, hi: float, theta: float, omega: float, v: float, z: float, w: float,
+                    gx0: float, gx1: float, gz0: float, gz1: float, alpha: float, r: float, psi_ref: float,
+                    H: float) -> float:
+    """Illinois on the gap in (lo, hi], gap(lo) > 0 ≥ gap(hi): the landing time (hi side)."""
+    f_lo = _gap(lo, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+    f_hi = _gap(hi, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+    side = 0
+    for _ in range(ILLINOIS_ITER):
+        if hi - lo <= 1e-12 * H or f_hi == f_lo:
+            break
+        x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
+        if not (lo < x < hi):
+            x = 0.5 * (lo + hi)
+        fx = _gap(x, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+        if fx <= 0.0:
+            hi, f_hi = x, fx
+            if side == 1:
+                f_lo *= 0.5
+            side = 1
+        else:
+            lo, f_lo = x, fx
+            if side == -1:
+                f_hi *= 0.5
+            side = -1
+    return hi
+
+
+# --------------------------------------------------------------------------------------------------
+# SLIDE (exact: v' = gx − μ slip gz is linear in t inside a sample interval)
+
+
+@njit(cache=True)
+def _first_root(c0: float, c1: float, c2: float, H: float) -> float:
+    """Smallest τ in (0, H] where c0 + c1 τ + c2 τ² (≥ 0 at τ = 0, not starting downwards) falls to 0;
+    inf if none. A start at 0 going downwards gives 0."""
+    if c0 <= 0.0 and (c1 < 0.0 or (c1 == 0.0 and c2 < 0.0)):
+        return 0.0
+    if c2 == 0.0:
+        if c1 < 0.0:
+            tau = -c0 / c1
+            return tau if tau <= H else math.inf
+        return math.inf
+    disc = c1 * c1 - 4.0 * c2 * c0
+    if disc < 0.0:
+        return math.inf
+    sq = math.sqrt(disc)
+    q = -0.5 * (c1 + (sq if c1 >= 0.0 else -sq))
+    best = math.inf
+    for tau in (q / c2, c0 / q if q != 0.0 else math.inf):
+        if 0.0 < tau <= H and tau < best:
+            best = tau
+    return best
+
+
+# --------------------------------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def simulate_general(
+    ax: np.ndarray, ay: np.ndarray, dt: float, alpha: float, r: float, ig2: float, beta: float, e: float,
+    mu: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float, theta0: float, omega0: float,
+    has_vertical: bool,
+) -> tuple[int, float, float, int, float, int, int, bool]:
+    """Run one scene of the general model. Returns (direction, t_overturn, theta_max, impacts, t_end,
+    status, steps, settled_by_prescreen) as :func:`analysis.fast_rocking.simulate_rocking`; impacts
+    counts corner impacts and landings. ``r`` half-diagonal [m], ``ig2`` i_g² [m²], ``mu`` friction,
+    ``has_vertical``: ``ay`` is not all zero (else the scan does not read it)."""
+    n = ax.shape[0]
+    t_rec = (n - 1) * dt
+    t_stop = t_rec + t_after
+    cb, sb, ta = math.cos(beta), math.sin(beta), math.tan(alpha)
+    k = r / (ig2 + r * r)
+    ca = math.cos(alpha)
+    h = dt / n_sub
+    t = 0.0
+    theta, omega, v, z, w = theta0, omega0, 0.0, 0.0, 0.0
+    psi_ref = alpha
+    s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
+    slip = 1.0
+    stage = ST_REST if (theta0 == 0.0 and omega0 == 0.0) else ST_ROCK
+    theta_max = abs(theta0)
+    impacts = 0
+    steps = 0
+    first_scan = True
+    t_rest = 0.0
+    fresh = True  # the stage was just entered: check its entry conditions
+    jam = False  # ROCK: the pivot sticks although |R_t| > μ R_n (sliding inconsistent)
+    hold = False  # ROCK: no reaction checks for one step (breaks a chain of instant transitions)
+    instant = 0
+    t_last = -1.0
+    it_max = 64 * (int(t_stop / dt) + 2) * n_sub + 1_000_000
+    it = 0
+    while True:
+        it += 1
+        if it > it_max:
+            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
+        if stage == ST_REST:
+            t_x, kind = _next_exit(ax, ay, dt, t, cb, sb, alpha, mu, has_vertical)
+            if kind == EXIT_NONE:
+                return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan
+            first_scan = False
+            t = t_x
+            theta = omega = v = w = 0.0
+            jam = False
+            if kind == EXIT_FLIGHT:
+                stage, z = ST_FLIGHT, r * ca
+            elif kind in (EXIT_ROCK_PLUS, EXIT_ROCK_MINUS):
+                stage, s = ST_ROCK, (1.0 if kind == EXIT_ROCK_PLUS else -1.0)
+            else:
+                stage, slip = ST_SLIDE, (1.0 if kind == EXIT_SLIDE_PLUS else -1.0)
+            fresh = True
+            if t == t_last:
+                instant += 1
+            t_last = t
+            continue
+        first_scan = False
+        if t >= t_stop:
+            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
+        # the sample interval holding t, and the input's line on it
+        if t < t_rec:
+            i = int(t / dt)
+            if i >= n - 1:
+                i = n - 2
+            ti = i * dt
+            if (i + 1) * dt - t <= 1e-12 * dt:
+                i += 1
+                ti = i * dt
+        else:
+            i = n - 1
+            ti = t
+        if i < n - 1:
+            a0x, sx = ax[i], (ax[i + 1] - ax[i]) / dt
+            a0y, sy = ay[i], (ay[i + 1] - ay[i]) / dt
+            t_b = (i + 1) * dt
+            j = int((t - ti) / h + 1e-9) + 1
+            te = ti + j * h if j < n_sub else t_b
+            if te - t <= 1e-12 * dt:
+                te = min(te + h, t_b)
+        else:
+            a0x = sx = a0y = sy = 0.0
+            t_b = t_stop
+            te = t + h
+        te = min(te, t_stop) if t_stop > t else te
+        H = te - t
+        gx0, gz0 = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
+
+        # ---- a chain of transitions that take no time: hold the pivot for one step
+        if fresh and instant > MAX_INSTANT:
+            instant = 0
+            if stage == ST_FLIGHT:
+                if theta != 0.0:
+                    s = 1.0 if theta > 0.0 else -1.0
+                elif omega != 0.0:
+                    s = 1.0 if omega > 0.0 else -1.0
+            if stage != ST_SLIDE and (theta != 0.0 or omega != 0.0):
+                stage, hold, fresh, v = ST_ROCK, True, False, 0.0
+            elif stage != ST_SLIDE:
+                stage, v = ST_REST, 0.0
+                t_rest = t
+                continue
+
+        # ---- entry conditions (instant transitions)
+        if fresh:
+            fresh = False
+            new = stage
+            if stage == ST_SLIDE:
+                if gz0 <= 0.0:
+                    new = ST_FLIGHT
+                    theta = omega = w = 0.0
+                    z = r * ca
+                elif mu > ta:  # friction tips the sliding block over its leading corner at once
+                    code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, alpha, r, ig2, mu)
+                    if code == 0:
+                        new, s, theta, omega = ST_ROCKSLIDE, slip, 0.0, 0.0
+                    elif code == 2:  # Painlevé: the slide jams
+                        new, v = ST_REST, 0.0
+            elif stage == ST_ROCK and not hold:
+                code, sl = rock_exit(theta, omega, s, gx0, gz0, alpha, r, ig2, k, mu, jam)
+                if code == ROCK_TO_ROCKSLIDE:
+                    new, slip, v = ST_ROCKSLIDE, sl, 0.0
+                elif code == ROCK_TO_FLIGHT:
+                    new = ST_FLIGHT
+                    z, v, w = flight_entry(theta, omega, 0.0, s, alpha, r)
+                elif code == ROCK_JAM:
+                    jam = True
+                elif code == ROCK_HOLD:
+                    hold = True
+            elif stage == ST_ROCKSLIDE:
+                code = rockslide_entry(theta, omega, v, s, slip, gx0, gz0, alpha, r, ig2, mu)
+                if code == 1:
+                    new = ST_FLIGHT
+                    z, v, w = flight_entry(theta, omega, v, s, alpha, r)
+                elif code == 2:
+                    new, v, jam = ST_ROCK, 0.0, True
+            elif stage == ST_FLIGHT:  # from here on z is ζ, measured from the lift-off height
+                psi_ref = alpha - abs(theta)
+                z -= r * math.cos(psi_ref)
+            if new != stage:
+                stage = new
+                fresh = True
+                if t == t_last:
+                    instant += 1
+                t_last = t
+                if stage == ST_REST:
+                    t_rest = t
+                continue
+
+        # ================================================================== SLIDE
+        if stage == ST_SLIDE:
+            te_s = min(t_b, t_stop)  # exact: one step per sample interval
+            Hs = te_s - t
+            gx1, gz1 = -sx * cb + sy * sb, sx * sb + sy * cb
+            a0 = sliding_acceleration(slip, gx0, gz0, mu)
+            a1 = gx1 - mu * slip * gz1
+            c1 = slip * a0
+            if v == 0.0 and c1 < 0.0:
+                c1 = 0.0
+            tau_v = _first_root(slip * v, c1, 0.5 * slip * a1, Hs)
+            tau_z = -gz0 / gz1 if gz1 < 0.0 else math.inf
+            if not (0.0 < tau_z <= Hs):
+                tau_z = math.inf
+            steps += 1
+            if tau_v == math.inf and tau_z == math.inf:
+                v += a0 * Hs + 0.5 * a1 * Hs * Hs
+                t = te_s
+                instant = 0
+                continue
+            if tau_v <= tau_z:
+                t += tau_v
+                v = 0.0
+                stage, t_rest = ST_REST, t
+            else:
+                v += a0 * tau_z + 0.5 * a1 * tau_z * tau_z
+                t += tau_z
+                stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
+            fresh = True
+            if t == t_last:
+                instant += 1
+            t_last = t
+            continue
+
+        # ================================================================== FLIGHT
+        if stage == ST_FLIGHT:
+            was_fresh = t == t_last
+            gx1, gz1 = -sx * cb + sy * sb, sx * sb + sy * cb
+            th1, v1, z1, w1 = _flight_state(H, theta, omega, v, z, w, gx0, gx1, gz0, gz1)
+            steps += 1
+            tau = H
+            event = 0
+            # overturn in the air (θ linear)
+            if th1 >= fall_plus and omega > 0.0:
+                tau, event = (fall_plus - theta) / omega, 1
+            elif -th1 >= fall_minus and omega < 0.0:
+                tau, event = (-fall_minus - theta) / omega, 1
+            g1 = _gap(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+            if g1 <= 0.0:
+                g0 = _gap(0.0, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+                lo = -1.0
+                if g0 > 0.0 and not was_fresh:
+                    lo = 0.0
+                else:  # just lifted off (gap 0): find the hop, if any
+                    u = 0.5
+                    for _ in range(40):
+                        if _gap(u * tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref) > 0.0:
+                            lo = u * tau
+                            break
+                        u *= 0.5
+                if lo < 0.0:
+                    tau_l = 0.0
+                else:
+                    tau_l = _locate_landing(lo, tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref, H)
+                tau, event = tau_l, 2
+            th1, v1, z1, w1 = _flight_state(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1)
+            theta_max = max(theta_max, abs(th1))
+            if event == 1:
+                d = 1 if omega > 0.0 else -1
+                fall = fall_plus if d > 0 else fall_minus
+                return d, t + tau, max(theta_max, fall), impacts, t + tau, OVERTURNED, steps, False
+            if tau > 0.0:
+                instant = 0
+            t += tau
+            theta, v, z, w = th1, v1, z1, w1
+            if event == 2:
+                impacts += 1
+                if abs(theta) < FLAT:
+                    theta = omega = w = 0.0
+                    if v == 0.0:
+                        stage, t_rest = ST_REST, t
+                    else:
+                        stage, slip = ST_SLIDE, (1.0 if v > 0.0 else -1.0)
+                else:
+                    omega = landing_omega(theta, omega, v, w, alpha, r, ig2)
+                    s = 1.0 if theta > 0.0 else -1.0
+                    stage, v, jam = ST_ROCK, 0.0, False
+                fresh = True
+                if t == t_last:
+                    instant += 1
+                t_last = t
+            continue
+
+        # ================================================================== ROCK / ROCKSLIDE
+        rs = stage == ST_ROCKSLIDE
+        # a short return flight after an impact: sum it analytically (chattering); it ends in rest
+        if theta == 0.0 and omega != 0.0:
+            if rs:
+                acc0, xdd0 = _rs_deriv(0.0, omega, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu, cb, sb)
+            else:
+                acc0 = _accel(0.0, t, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+                xdd0 = 0.0
+            # (a sliding pivot only when its slide does not stop within the flight: that is integrated)
+            if s * acc0 < 0.0 and 2.0 * abs(omega) / abs(acc0) < 0.25 * H and \
+                    (not rs or abs(v) > 4.0 * abs(xdd0) * abs(omega) / abs(acc0)):
+                dtc = 2.0 * abs(omega) / abs(acc0)
+                t += dtc
+                impacts += 1
+                hold = False
+                jam = False
+                vp = 0.0
+                if rs:
+                    v1 = v + xdd0 * dtc
+                    v1 = v1 if v1 * v > 0.0 else 0.0
+                    vp = corner_impact_velocity(v1, -omega, e, r, alpha)
+                omega = -e * omega
+                if e == 0.0 or abs(omega) < 1e-12:
+                    omega = 0.0
+                    if vp == 0.0:
+                        stage, t_rest, v = ST_REST, t, 0.0
+                    else:
+                        stage, v, slip = ST_SLIDE, vp, (1.0 if vp > 0.0 else -1.0)
+                    fresh = True
+                else:
+                    s = -s
+                    if vp == 0.0:
+                        stage, v = ST_ROCK, 0.0
+                    else:
+                        stage, v, slip = ST_ROCKSLIDE, vp, (1.0 if vp > 0.0 else -1.0)
+                instant = 0
+                t_last = t
+                continue
+        if rs:
+            # error control by step doubling: near the Painlevé limit (small denominator of Eq. 9) the
+            # slide runs on a much shorter time scale than rocking; halve the step (a bounded number
+            # of times) until one step and two half steps agree to RS_TOL (θ, ω·H, v·H/r) [rad]
+            ok = False
+            for _ in range(RS_SPLITS):
+                theta1, omega1, v1 = _rk4_rs(theta, omega, v, t, H, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                                             ig2, mu, cb, sb)
+                th_h, om_h, v_h = _rk4_rs(theta, omega, v, t, 0.5 * H, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                                          ig2, mu, cb, sb)
+                th_h, om_h, v_h = _rk4_rs(th_h, om_h, v_h, t + 0.5 * H, 0.5 * H, ti, a0x, sx, a0y, sy, s, slip,
+                                          alpha, r, ig2, mu, cb, sb)
+                err = max(abs(th_h - theta1), abs(om_h - omega1) * H, abs(v_h - v1) * H / r) / 15.0
+                if math.isfinite(err) and err <= RS_TOL and \
+                        rs_denominator(th_h, s, slip, alpha, r, ig2, mu) > DEN_MIN * (ig2 + r * r):
+                    theta1, omega1, v1 = th_h, om_h, v_h
+                    ok = True
+                    break
+                H *= 0.5
+            te = t + H
+            if not ok:
+                stage, v, jam, fresh = ST_ROCK, 0.0, True, False  # Painlevé ahead: the pivot sticks
+                continue
+        else:
+            theta1, omega1 = _rk4(theta, omega, t, H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+            v1 = 0.0
+        steps += 1
+        fall = fall_plus if s > 0.0 else fall_minus
+        # θ events on the Hermite interpolant: 1 overturn, 2 impact
+        ev = 0
+        tau_ev = H
+        c3, c2, c1h, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
+        u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
+        if s * theta1 >= fall:
+            tau_ev, ev = hermite.crossing(c3, c2, c1h, c0, s, fall, 0.0) * H, 1
+        elif s * theta1 < 0.0 or (theta1 == 0.0 and s * omega1 < 0.0):
+            tau_ev, ev = hermite.crossing(c3, c2, c1h, c0, s, 0.0, u_top) * H, 2
+        if ev != 0:
+            if rs:
+                th_e, om_e, v_e = _rk4_rs(theta, omega, v, t, tau_ev, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                                          ig2, mu, cb, sb)
+            else:
+                th_e, om_e = _rk4(theta, omega, t, tau_ev, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+                v_e = 0.0
+        else:
+            th_e, om_e, v_e = theta1, omega1, v1
+        # reaction / slide events, checked at the (possibly truncated) step end
+        tt = t + tau_ev
+        gxe, gze = plate_gravity(a0x + sx * (tt - ti), a0y + sy * (tt - ti), cb, sb)
+        tau_r = math.inf
+        kind_r = -1
+        if rs:
+            _, _, rn_e = rocking_sliding_acceleration(th_e, om_e, s, slip, gxe, gze, alpha, r, ig2, mu)
+            if slip * v_e <= 0.0:
+                tau_r = _locate_rs(0, tau_ev, -slip * v_e, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip,
+                                   alpha, r, ig2, mu, cb, sb, H)
+                kind_r = 0
+            if rn_e < 0.0:
+                tau_n = _locate_rs(1, tau_ev, -rn_e, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip, alpha,
+                                   r, ig2, mu, cb, sb, H)
+                if tau_n < tau_r:
+                    tau_r, kind_r = tau_n, 1
+        elif not hold:
+            f_e, _, rn_e = rock_margin(th_e, om_e, s, gxe, gze, alpha, r, k, mu)
+            which = 0
+            if jam:
+                if f_e <= 0.0:
+                    jam = False
+                else:
+                    f_e, which = -rn_e, 1
+            if f_e > 0.0:
+                tau_r = _locate_rock(which, tau_ev, f_e, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k,
+                                     mu, cb, sb, H)
+                kind_r = 2
+        if kind_r >= 0:
+            # a reaction event before the θ event / step end
+            if rs:
+                _, th_r, om_r, v_r = _rs_f(tau_r, 0, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                                           ig2, mu, cb, sb)
+            else:
+                _, th_r, om_r, _, _ = _rock_f(tau_r, 0, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k,
+                                              mu, cb, sb)
+                v_r = 0.0
+            if u_top * H <= tau_r:
+                theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+            theta_max = max(theta_max, abs(th_r))
+            if tau_r > 0.0:
+                instant = 0
+            t += tau_r
+            theta, omega = th_r, om_r
+            tt = t
+            gxr, gzr = plate_gravity(a0x + sx * (tt - ti), a0y + sy * (tt - ti), cb, sb)
+            hold = False
+            if kind_r == 1:  # lift-off of the sliding pivot
+                z, v, w = flight_entry(theta, omega, v_r, s, alpha, r)
+                stage = ST_FLIGHT
+            else:  # ROCK's reactions, or the slide stops: stick, slide (the other way) or fly
+                if kind_r == 0:
+                    jam = False
+                code, sl = rock_exit(theta, omega, s, gxr, gzr, alpha, r, ig2, k, mu, jam)
+                stage = ST_ROCK
+                if code == ROCK_TO_ROCKSLIDE:
+                    if kind_r == 0 and sl == slip:  # would slide on against its own friction
+                        jam = True
+                    else:
+                        slip, stage = sl, ST_ROCKSLIDE
+                elif code == ROCK_TO_FLIGHT:
+                    z, v, w = flight_entry(theta, omega, v_r, s, alpha, r)
+                    stage = ST_FLIGHT
+                elif code == ROCK_JAM:
+                    jam = True
+                elif code == ROCK_HOLD:
+                    hold = True
+                if stage != ST_FLIGHT:
+                    v = 0.0
+            fresh = not hold
+            if t == t_last:
+                instant += 1
+            t_last = t
+            continue
+        hold = False
+        if ev == 1:
+            return int(s), t + tau_ev, fall, impacts, t + tau_ev, OVERTURNED, steps, False
+        if ev == 2:
+            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+            t += tau_ev
+            impacts += 1
+            omega_minus = om_e
+            vp = corner_impact_velocity(v_e, omega_minus, e, r, alpha) if rs else 0.0
+            theta = 0.0
+            omega = e * omega_minus
+            if tau_ev > 0.0:
+                instant = 0
+            if e == 0.0 or abs(omega) < 1e-12:
+                omega = 0.0
+                if vp == 0.0:
+                    stage, t_rest, v = ST_REST, t, 0.0
+                else:
+                    stage, v, slip = ST_SLIDE, vp, (1.0 if vp > 0.0 else -1.0)
+            else:
+                s = -s
+                jam = False
+                if vp == 0.0:
+                    stage, v = ST_ROCK, 0.0
+                else:
+                    stage, v, slip = ST_ROCKSLIDE, vp, (1.0 if vp > 0.0 else -1.0)
+            fresh = True
+            if t == t_last:
+                instant += 1
+            t_last = t
+            continue
+        if omega * omega1 < 0.0:
+            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+        theta_max = max(theta_max, abs(theta1))
+        theta, omega, v, t = theta1, omega1, v1, te
+        instant = 0

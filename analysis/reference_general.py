@@ -1,0 +1,529 @@
+"""Reference solver of the general model (Eqs. 3–10): adaptive high-order integration, exact events.
+
+Used as truth for :mod:`analysis.fast_general`; the specification is ``docs/general-model.md``.
+No shortcuts: inside each sample interval (the input is piecewise linear) every moving stage is
+integrated with scipy's ``solve_ivp`` (DOP853, rtol 1e-11, atol 1e-13), every event (impact,
+overturn, slip, lift-off, the slide stopping, landing) is terminal, located by the solver's root
+finder, and the integration restarted from it. Rest phases are not integrated (nothing moves):
+the next exit from rest is the exact root of the margins, which are linear inside a sample interval.
+
+The transition rules (entry checks, impact rules, the Painlevé/jam and instant-chain guards) are the
+fast engine's, so that the two differ only in how they integrate and locate events; the impact rules
+themselves are shared compiled functions of :mod:`analysis.fast_general`.
+
+Conventions as in :mod:`analysis.equations`; inputs in m/s² on an explicit time grid ``t``
+(non-decreasing; a repeated time is a jump in the input). After the last sample the input is zero.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from analysis.equations import (
+    plate_gravity,
+    rocking_acceleration,
+    rocking_sliding_acceleration,
+    sliding_acceleration,
+)
+from analysis.fast_general import (
+    DEN_MIN,
+    EXIT_FLIGHT,
+    EXIT_NONE,
+    EXIT_ROCK_MINUS,
+    EXIT_ROCK_PLUS,
+    EXIT_SLIDE_PLUS,
+    FLAT,
+    MAX_INSTANT,
+    ROCK_HOLD,
+    ROCK_JAM,
+    ROCK_TO_FLIGHT,
+    ROCK_TO_ROCKSLIDE,
+    ST_FLIGHT,
+    ST_REST,
+    ST_ROCK,
+    ST_ROCKSLIDE,
+    ST_SLIDE,
+    _margins,
+    _pick,
+    corner_impact_velocity,
+    flight_entry,
+    landing_omega,
+    rock_exit,
+    rock_margin,
+    rockslide_entry,
+    rs_denominator,
+)
+from analysis.reference import ATOL, RTOL, ReferenceOutcome, Trace, _Input
+
+__all__ = ["STAGE_NAMES", "GeneralTrace", "simulate_general_reference"]
+
+STAGE_NAMES = {ST_REST: "rest", ST_SLIDE: "slide", ST_ROCK: "rock", ST_ROCKSLIDE: "rockslide",
+               ST_FLIGHT: "flight"}
+
+CHATTER = 1e-9
+"""A return flight on the new pivot shorter than this [s] ends the impact sequence in rest."""
+HOLD = 1e-9
+"""How long [s] the pivot is held without reaction checks to break a chain of instant transitions."""
+_AT_START = 1e-300
+"""Value of an event that starts at its zero (θ = 0 after an impact, v = 0, the gap at lift-off) at
+the restart time itself: on the side it leaves towards, so that a solver step that spans the whole
+excursion (out and back) brackets the real crossing and not the restart point."""
+
+
+@dataclass
+class GeneralTrace(Trace):
+    """:class:`analysis.reference.Trace` with the general model's extra state in the history.
+
+    Per history sample: ``v`` (tangential velocity relative to the plate of the base in REST/SLIDE,
+    of the pivot in ROCK/ROCKSLIDE, of the centre of mass in FLIGHT) [m/s], ``z``/``w`` (height of
+    the centre of mass above the plate and its rate, FLIGHT; otherwise the rigid-contact value of z
+    and 0) [m, m/s], ``stage`` (ST_* code) and ``pivot`` (s, ±1)."""
+
+    v: list[float] = field(default_factory=list)
+    z: list[float] = field(default_factory=list)
+    w: list[float] = field(default_factory=list)
+    stage: list[int] = field(default_factory=list)
+    pivot: list[float] = field(default_factory=list)
+
+
+def simulate_general_reference(
+    t: np.ndarray,
+    ax: np.ndarray,
+    ay: np.ndarray,
+    *,
+    alpha: float,
+    r: float,
+    ig2: float,
+    beta: float,
+    restitution: float,
+    friction: float,
+    t_after: float,
+    fall_plus: float,
+    fall_minus: float,
+    theta0: float = 0.0,
+    omega0: float = 0.0,
+    history: bool = False,
+) -> ReferenceOutcome:
+    """One scene of the general model. ``r`` half-diagonal [m], ``ig2`` i_g² [m²], ``friction`` μ."""
+    return _Scene(t, ax, ay, alpha, r, ig2, beta, restitution, friction, t_after, fall_plus, fall_minus,
+                  history).run(theta0, omega0)
+
+
+class _Scene:
+    def __init__(self, t: np.ndarray, ax: np.ndarray, ay: np.ndarray, alpha: float, r: float, ig2: float,
+                 beta: float, e: float, mu: float, t_after: float, fall_plus: float, fall_minus: float,
+                 history: bool) -> None:
+        self.t, self.inp = np.asarray(t, dtype=float), _Input(np.asarray(t, float), np.asarray(ax, float),
+                                                               np.asarray(ay, float))
+        self.alpha, self.r, self.ig2, self.e, self.mu = alpha, r, ig2, e, mu
+        self.k = r / (ig2 + r * r)
+        self.cb, self.sb, self.ta = math.cos(beta), math.sin(beta), math.tan(alpha)
+        self.fall_plus, self.fall_minus = fall_plus, fall_minus
+        self.t_stop = float(self.t[-1]) + t_after
+        self.history = history
+        self.trace = GeneralTrace()
+
+    # ---------------------------------------------------------------------------------------------
+    def _record(self, ts: np.ndarray, th: np.ndarray, om: np.ndarray, v: np.ndarray, z: np.ndarray,
+                w: np.ndarray, stage: int, s: float) -> None:
+        if not self.history:
+            return
+        tr = self.trace
+        tr.t.extend(ts.tolist())
+        tr.theta.extend(th.tolist())
+        tr.omega.extend(om.tolist())
+        tr.v.extend(v.tolist())
+        tr.z.extend(z.tolist())
+        tr.w.extend(w.tolist())
+        tr.stage.extend([stage] * len(ts))
+        tr.pivot.extend([s] * len(ts))
+
+    def run(self, theta0: float, omega0: float) -> ReferenceOutcome:
+        alpha, r, ig2, e, mu, k = self.alpha, self.r, self.ig2, self.e, self.mu, self.k
+        cb, sb, ta = self.cb, self.sb, self.ta
+        t, inp, trace = self.t, self.inp, self.trace
+        t_stop = self.t_stop
+        theta, omega, v, z, w = theta0, omega0, 0.0, 0.0, 0.0
+        s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
+        slip = 1.0
+        stage = ST_REST if (theta0 == 0.0 and omega0 == 0.0) else ST_ROCK
+        theta_max = abs(theta0)
+        fresh, jam, hold = True, False, False
+        instant, t_last = 0, -math.inf
+        now = float(t[0])
+        i = 0
+        n_iter = 0
+        max_iter = 20 * len(t) + 20_000
+        ca, sa = math.cos(alpha), math.sin(alpha)
+        psi_ref = alpha
+
+        def done(direction: int, t_o: float | None, status: str, t_end: float) -> ReferenceOutcome:
+            return ReferenceOutcome(direction, t_o, theta_max, t_end, status, trace)
+
+        while True:
+            n_iter += 1
+            if n_iter > max_iter:
+                return done(0, None, "undecided", now)
+            while i < len(t) - 1 and t[i + 1] <= now:
+                i += 1
+            t_a, t_b, a0x, sx, a0y, sy = inp.interval(i)
+
+            def grav(tt: float, t_a: float = t_a, a0x: float = a0x, sx: float = sx, a0y: float = a0y,
+                     sy: float = sy) -> tuple[float, float]:
+                return plate_gravity(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
+
+            # ============================================================ REST: exact exit
+            if stage == ST_REST:
+                slide_first = mu < ta
+                if t_b == math.inf:
+                    kind = _pick(*_margins(0.0, 0.0, cb, sb, ca, sa, mu), slide_first)
+                    if kind == EXIT_NONE:
+                        return done(0, None, "rest", trace.t_rest)
+                    t_x = now
+                else:
+                    ma = _margins(*_input_at(a0x, sx, a0y, sy, t_a, now), cb, sb, ca, sa, mu)
+                    kind = _pick(*ma, slide_first)
+                    t_x = now
+                    if kind == EXIT_NONE:
+                        mb = _margins(*_input_at(a0x, sx, a0y, sy, t_a, t_b), cb, sb, ca, sa, mu)
+                        order = ((4, EXIT_FLIGHT), (2, 3), (3, 4), (0, 1), (1, 2)) if slide_first else \
+                            ((4, EXIT_FLIGHT), (0, 1), (1, 2), (2, 3), (3, 4))
+                        best = math.inf
+                        for j, kd in order:
+                            if mb[j] > 0.0:
+                                tc = now + (t_b - now) * ma[j] / (ma[j] - mb[j])
+                                if tc < best - 1e-12 * (t_b - t_a):
+                                    best, kind = tc, kd
+                        if kind == EXIT_NONE:
+                            now = t_b
+                            i += 1
+                            continue
+                        t_x = max(best, now)
+                now = t_x
+                theta = omega = v = w = 0.0
+                jam = False
+                if kind == EXIT_FLIGHT:
+                    stage, z = ST_FLIGHT, r * ca
+                elif kind in (EXIT_ROCK_PLUS, EXIT_ROCK_MINUS):
+                    stage, s = ST_ROCK, (1.0 if kind == EXIT_ROCK_PLUS else -1.0)
+                else:
+                    stage, slip = ST_SLIDE, (1.0 if kind == EXIT_SLIDE_PLUS else -1.0)
+                fresh = True
+                instant = instant + 1 if now == t_last else 0
+                t_last = now
+                continue
+
+            if now >= t_stop:
+                return done(0, None, "undecided", now)
+            t_end = min(t_b, t_stop)
+            gx0, gz0 = grav(now)
+
+            # ---- a chain of transitions that take no time: hold the pivot briefly
+            if fresh and instant > MAX_INSTANT:
+                instant = 0
+                if stage == ST_FLIGHT:
+                    if theta != 0.0:
+                        s = 1.0 if theta > 0.0 else -1.0
+                    elif omega != 0.0:
+                        s = 1.0 if omega > 0.0 else -1.0
+                if stage != ST_SLIDE and (theta != 0.0 or omega != 0.0):
+                    stage, hold, fresh, v = ST_ROCK, True, False, 0.0
+                elif stage != ST_SLIDE:
+                    stage, v, trace.t_rest = ST_REST, 0.0, now
+                    continue
+
+            # ---- entry conditions (instant transitions)
+            if fresh:
+                fresh = False
+                new = stage
+                if stage == ST_SLIDE:
+                    if gz0 <= 0.0:
+                        new, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
+                    elif mu > ta:
+                        code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, alpha, r, ig2, mu)
+                        if code == 0:
+                            new, s, theta, omega = ST_ROCKSLIDE, slip, 0.0, 0.0
+                        elif code == 2:
+                            new, v = ST_REST, 0.0
+                elif stage == ST_ROCK and not hold:
+                    code, sl = rock_exit(theta, omega, s, gx0, gz0, alpha, r, ig2, k, mu, jam)
+                    if code == ROCK_TO_ROCKSLIDE:
+                        new, slip, v = ST_ROCKSLIDE, sl, 0.0
+                    elif code == ROCK_TO_FLIGHT:
+                        new = ST_FLIGHT
+                        z, v, w = flight_entry(theta, omega, 0.0, s, alpha, r)
+                    elif code == ROCK_JAM:
+                        jam = True
+                    elif code == ROCK_HOLD:
+                        hold = True
+                elif stage == ST_ROCKSLIDE:
+                    code = rockslide_entry(theta, omega, v, s, slip, gx0, gz0, alpha, r, ig2, mu)
+                    if code == 1:
+                        new = ST_FLIGHT
+                        z, v, w = flight_entry(theta, omega, v, s, alpha, r)
+                    elif code == 2:
+                        new, v, jam = ST_ROCK, 0.0, True
+                elif stage == ST_FLIGHT:  # from here on z is ζ, measured from the lift-off height
+                    psi_ref = alpha - abs(theta)
+                    z -= r * math.cos(psi_ref)
+                if new != stage:
+                    stage = new
+                    fresh = True
+                    instant = instant + 1 if now == t_last else 0
+                    t_last = now
+                    if stage == ST_REST:
+                        trace.t_rest = now
+                    continue
+
+            def transition(t_new: float) -> None:
+                nonlocal fresh, instant, t_last
+                fresh = True
+                instant = instant + 1 if t_new == t_last else 0
+                t_last = t_new
+
+            # ============================================================ SLIDE
+            if stage == ST_SLIDE:
+                sl = slip
+
+                def rhs_slide(tt: float, y: np.ndarray, sl: float = sl) -> list[float]:
+                    gx, gz = grav(tt)
+                    return [sliding_acceleration(sl, gx, gz, mu)]
+
+                def ev_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
+                    return sl * y[0] if tt != t0 else _AT_START
+
+                ev_stop.terminal, ev_stop.direction = True, -1
+
+                def ev_lift(tt: float, y: np.ndarray) -> float:
+                    return grav(tt)[1]
+
+                ev_lift.terminal, ev_lift.direction = True, -1
+                sol = solve_ivp(rhs_slide, (now, t_end), [v], method="DOP853", rtol=RTOL, atol=ATOL,
+                                events=[ev_stop, ev_lift])
+                n_pts = sol.t.size
+                zeros = np.zeros(n_pts)
+                self._record(sol.t, zeros, zeros, sol.y[0], np.full(n_pts, r * ca), zeros, ST_SLIDE, s)
+                if sol.t_events[0].size and (not sol.t_events[1].size or sol.t_events[0][0] <= sol.t_events[1][0]):
+                    now, v = float(sol.t_events[0][0]), 0.0
+                    stage, trace.t_rest = ST_REST, now
+                    transition(now)
+                elif sol.t_events[1].size:
+                    now, v = float(sol.t_events[1][0]), float(sol.y_events[1][0][0])
+                    stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
+                    transition(now)
+                else:
+                    now, v = t_end, float(sol.y[0, -1])
+                continue
+
+            # ============================================================ FLIGHT
+            if stage == ST_FLIGHT:
+                fp, fm = self.fall_plus, self.fall_minus
+
+                def rhs_flight(tt: float, y: np.ndarray) -> list[float]:
+                    gx, gz = grav(tt)
+                    return [y[1], 0.0, gx, y[4], -gz]
+
+                def ev_land(tt: float, y: np.ndarray, psi_ref: float = psi_ref, t0: float = now) -> float:
+                    # gap of the lowest corner, ζ − r (cos ψ − cos ψ_ref): no cancellation at lift-off
+                    if tt == t0:
+                        return _AT_START
+                    psi = alpha - abs(y[0])
+                    return y[3] + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
+
+                ev_land.terminal, ev_land.direction = True, -1
+
+                def ev_fp(tt: float, y: np.ndarray, fp: float = fp) -> float:
+                    return y[0] - fp
+
+                def ev_fm(tt: float, y: np.ndarray, fm: float = fm) -> float:
+                    return -y[0] - fm
+
+                ev_fp.terminal, ev_fp.direction = True, 1
+                ev_fm.terminal, ev_fm.direction = True, 1
+                sol = solve_ivp(rhs_flight, (now, t_end), [theta, omega, v, z, w], method="DOP853", rtol=RTOL,
+                                atol=ATOL, events=[ev_land, ev_fp, ev_fm])
+                self._record(sol.t, sol.y[0], sol.y[1], sol.y[2], sol.y[3] + r * math.cos(psi_ref), sol.y[4],
+                             ST_FLIGHT, s)
+                theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
+                evs = [(float(te[0]), j) for j, te in enumerate(sol.t_events) if te.size]
+                if not evs:
+                    theta, omega, v, z, w = (float(x) for x in sol.y[:, -1])
+                    now = t_end
+                    continue
+                t_ev, j = min(evs)
+                y = sol.y_events[j][0]
+                if j > 0:
+                    d = 1 if j == 1 else -1
+                    theta_max = max(theta_max, fp if d > 0 else fm)
+                    return done(d, t_ev, "overturned", t_ev)
+                theta, omega, v, z, w = (float(x) for x in y)
+                now = t_ev
+                if abs(theta) < FLAT:
+                    trace.impacts.append((now, omega, 0.0))
+                    theta = omega = w = 0.0
+                    if v == 0.0:
+                        stage, trace.t_rest = ST_REST, now
+                    else:
+                        stage, slip = ST_SLIDE, (1.0 if v > 0.0 else -1.0)
+                else:
+                    om_p = landing_omega(theta, omega, v, w, alpha, r, ig2)
+                    trace.impacts.append((now, omega, om_p))
+                    omega = om_p
+                    s = 1.0 if theta > 0.0 else -1.0
+                    stage, v, jam = ST_ROCK, 0.0, False
+                transition(now)
+                continue
+
+            # ============================================================ ROCK / ROCKSLIDE
+            rs = stage == ST_ROCKSLIDE
+            side, sl = s, slip
+            fall = self.fall_plus if side > 0 else self.fall_minus
+            if stage == ST_ROCK and jam:
+                f, _, _ = rock_margin(theta, omega, side, gx0, gz0, alpha, r, k, mu)
+                if f <= 0.0:
+                    jam = False
+            jam_now, hold_now = jam, hold
+            t_seg = min(t_end, now + HOLD) if hold_now else t_end
+            hold = False
+
+            if rs:
+                def rhs(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> list[float]:
+                    gx, gz = grav(tt)
+                    th_dd, x_dd, _ = rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)
+                    return [y[1], th_dd, x_dd]
+            else:
+                def rhs(tt: float, y: np.ndarray, side: float = side) -> list[float]:
+                    gx, gz = grav(tt)
+                    return [y[1], rocking_acceleration(y[0], side, gx, gz, alpha, k)]
+
+            def ev_impact(tt: float, y: np.ndarray, side: float = side, t0: float = now) -> float:
+                return side * y[0] if tt != t0 else _AT_START
+
+            ev_impact.terminal, ev_impact.direction = True, -1
+
+            def ev_fall(tt: float, y: np.ndarray, side: float = side, fall: float = fall) -> float:
+                return side * y[0] - fall
+
+            ev_fall.terminal, ev_fall.direction = True, 1
+
+            def ev_turn(tt: float, y: np.ndarray) -> float:
+                return y[1]
+
+            ev_turn.terminal, ev_turn.direction = False, 0
+            events = [ev_impact, ev_fall, ev_turn]
+            if rs:
+                def ev_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
+                    return sl * y[2] if tt != t0 else _AT_START
+
+                def ev_lift(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> float:
+                    gx, gz = grav(tt)
+                    return -rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)[2]
+
+                def ev_painleve(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> float:
+                    return rs_denominator(y[0], side, sl, alpha, r, ig2, mu) - DEN_MIN * (ig2 + r * r)
+
+                ev_stop.terminal, ev_stop.direction = True, -1
+                ev_lift.terminal, ev_lift.direction = True, 1
+                ev_painleve.terminal, ev_painleve.direction = True, -1
+                events += [ev_stop, ev_lift, ev_painleve]
+                y0 = [theta, omega, v]
+            else:
+                if not hold_now:
+                    def ev_react(tt: float, y: np.ndarray, side: float = side, jam_now: bool = jam_now) -> float:
+                        gx, gz = grav(tt)
+                        f, _, rn = rock_margin(y[0], y[1], side, gx, gz, alpha, r, k, mu)
+                        return -rn if jam_now else f
+
+                    ev_react.terminal, ev_react.direction = True, 1
+                    events.append(ev_react)
+                y0 = [theta, omega]
+
+            sol = solve_ivp(rhs, (now, t_seg), y0, method="DOP853", rtol=RTOL, atol=ATOL, events=events)
+            vv = sol.y[2] if rs else np.zeros(sol.t.size)
+            self._record(sol.t, sol.y[0], sol.y[1], vv, r * np.cos(alpha - np.abs(sol.y[0])), np.zeros(sol.t.size),
+                         stage, side)
+            theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
+            for y_turn in sol.y_events[2]:
+                theta_max = max(theta_max, abs(float(y_turn[0])))
+            evs = [(float(sol.t_events[j][0]), j) for j in range(len(events))
+                   if j != 2 and sol.t_events[j].size]
+            if not evs:
+                theta, omega = float(sol.y[0, -1]), float(sol.y[1, -1])
+                v = float(sol.y[2, -1]) if rs else 0.0
+                now = t_seg
+                fresh = hold_now  # after a hold, the reactions are checked again at once
+                continue
+            t_ev, j = min(evs)
+            y = sol.y_events[j][0]
+            theta, omega = float(y[0]), float(y[1])
+            v = float(y[2]) if rs else 0.0
+            now = t_ev
+            if j == 1:  # overturn
+                theta_max = max(theta_max, fall)
+                return done(int(side), t_ev, "overturned", t_ev)
+            gx, gz = grav(now)
+            if j == 0:  # corner impact
+                omega_minus = omega
+                vp = corner_impact_velocity(v, omega_minus, e, r, alpha) if rs else 0.0
+                omega_plus = e * omega_minus
+                trace.impacts.append((now, omega_minus, omega_plus))
+                theta = 0.0
+                if e == 0.0 or self._settles(omega_plus, -side, vp, gx, gz):
+                    omega = 0.0
+                    if vp == 0.0:
+                        stage, trace.t_rest, v = ST_REST, now, 0.0
+                    else:
+                        stage, v, slip = ST_SLIDE, vp, (1.0 if vp > 0.0 else -1.0)
+                else:
+                    s, omega, jam = -side, omega_plus, False
+                    if vp == 0.0:
+                        stage, v = ST_ROCK, 0.0
+                    else:
+                        stage, v, slip = ST_ROCKSLIDE, vp, (1.0 if vp > 0.0 else -1.0)
+            elif rs and j == 4:  # lift-off
+                z, v, w = flight_entry(theta, omega, v, side, alpha, r)
+                stage = ST_FLIGHT
+            elif rs and j == 5:  # Painlevé ahead: the pivot sticks
+                stage, v, jam = ST_ROCK, 0.0, True
+            else:  # ROCK's reactions, or the slide stops: stick, slide (the other way) or fly
+                if rs:
+                    jam = False
+                code, sl_new = rock_exit(theta, omega, side, gx, gz, alpha, r, ig2, k, mu, jam)
+                stage = ST_ROCK
+                if code == ROCK_TO_ROCKSLIDE:
+                    if rs and sl_new == sl:  # would slide on against its own friction
+                        jam = True
+                    else:
+                        slip, stage = sl_new, ST_ROCKSLIDE
+                elif code == ROCK_TO_FLIGHT:
+                    z, v, w = flight_entry(theta, omega, v, side, alpha, r)
+                    stage = ST_FLIGHT
+                elif code == ROCK_JAM:
+                    jam = True
+                elif code == ROCK_HOLD:
+                    hold = True
+                if stage != ST_FLIGHT:
+                    v = 0.0
+            transition(now)
+            if hold:
+                fresh = False
+
+    def _settles(self, omega: float, side: float, v: float, gx: float, gz: float) -> bool:
+        """Chattering: the next return flight on the new pivot ``side`` is shorter than 1e-9 s, or the
+        rebound speed is negligible."""
+        if abs(omega) < 1e-12:
+            return True
+        if v == 0.0:
+            acc = rocking_acceleration(0.0, side, gx, gz, self.alpha, self.k)
+        else:
+            acc = rocking_sliding_acceleration(0.0, omega, side, 1.0 if v > 0.0 else -1.0, gx, gz, self.alpha,
+                                               self.r, self.ig2, self.mu)[0]
+        return side * acc < 0.0 and 2.0 * abs(omega) / abs(acc) < CHATTER
+
+
+def _input_at(a0x: float, sx: float, a0y: float, sy: float, t_a: float, tt: float) -> tuple[float, float]:
+    return a0x + sx * (tt - t_a), a0y + sy * (tt - t_a)
