@@ -158,8 +158,10 @@ def simulate_rocking_reference(
             gx, gz = gravity_py(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
             return [y[1], acc_py(y[0], side, gx, gz, alpha, k)]
 
-        def ev_impact(tt: float, y: np.ndarray, side: float = side) -> float:
-            return side * y[0]
+        def ev_impact(tt: float, y: np.ndarray, side: float = side, t0: float = now) -> float:
+            # θ = 0 at a restart is where the flight begins, not a return: count it as just
+            # outside, so that a return inside the first step is located at its own root
+            return side * y[0] if tt > t0 else max(side * y[0], ATOL)
 
         ev_impact.terminal = True
         ev_impact.direction = -1
@@ -192,6 +194,13 @@ def simulate_rocking_reference(
         if sol.t_events[0].size:
             t_imp = float(sol.t_events[0][0])
             omega_minus = float(sol.y_events[0][0][1])
+            if t_imp <= now and e == 0.0:
+                # a lift below the solver's resolution (the margin of Eq. 1 was just positive and
+                # is falling): the block stays down until that margin is no longer positive
+                theta, omega, resting = 0.0, 0.0, True
+                now = _margin_ends(now, t_a, t_b, a0x, sx, a0y, sy, cb, sb, uplift_tan, side)
+                trace.t_rest = now
+                continue
             now = t_imp
             omega_plus = e * omega_minus
             trace.impacts.append((t_imp, omega_minus, omega_plus))
@@ -202,6 +211,22 @@ def simulate_rocking_reference(
                 s, omega = -side, omega_plus
             continue
         theta, omega, now = float(sol.y[0, -1]), float(sol.y[1, -1]), t_end
+
+
+def _margin_ends(now: float, t_a: float, t_b: float, a0x: float, sx: float, a0y: float, sy: float,
+                 cb: float, sb: float, tan_alpha: float, side: float) -> float:
+    """First time after ``now`` in [now, t_b] at which Eq. 1's margin on ``side`` (linear in time
+    here) is no longer positive; t_b if it stays positive."""
+    def margin(tt: float) -> float:
+        gx, gz = plate_gravity.py_func(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
+        mp, mm = uplift_margins.py_func(gx, gz, tan_alpha)
+        return mp if side > 0 else mm
+
+    m0, m1 = margin(now), margin(t_b)
+    if m1 > 0.0:
+        return t_b
+    tc = now + (t_b - now) * m0 / (m0 - m1) if m0 > 0.0 else now
+    return float(np.nextafter(tc, math.inf)) if tc < t_b else t_b
 
 
 def _settles(omega: float, now: float, inp: _Input, i: int, side: float, cb: float, sb: float,
