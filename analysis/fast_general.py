@@ -44,7 +44,7 @@ from analysis.equations import (
     rocking_sliding_acceleration,
     sliding_acceleration,
 )
-from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4
+from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4, step_window
 
 __all__ = ["OVERTURNED", "REST", "UNDECIDED", "simulate_general"]
 
@@ -555,30 +555,7 @@ def simulate_general(
         first_scan = False
         if t >= t_stop:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
-        # the sample interval holding t, and the input's line on it
-        if t < t_rec:
-            i = int(t / dt)
-            if i >= n - 1:
-                i = n - 2
-            ti = i * dt
-            if (i + 1) * dt - t <= 1e-12 * dt:
-                i += 1
-                ti = i * dt
-        else:
-            i = n - 1
-            ti = t
-        if i < n - 1:
-            a0x, sx = ax[i], (ax[i + 1] - ax[i]) / dt
-            a0y, sy = ay[i], (ay[i + 1] - ay[i]) / dt
-            t_b = (i + 1) * dt
-            j = int((t - ti) / h + 1e-9) + 1
-            te = ti + j * h if j < n_sub else t_b
-            if te - t <= 1e-12 * dt:
-                te = min(te + h, t_b)
-        else:
-            a0x = sx = a0y = sy = 0.0
-            t_b = t_stop
-            te = t + h
+        ti, te, t_b, a0x, sx, a0y, sy = step_window(ax, ay, dt, h, n_sub, t, t_rec, t_stop)
         te = min(te, t_stop) if t_stop > t else te
         H = te - t
         gx0, gz0 = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)

@@ -93,6 +93,33 @@ def _next_uplift(
     return math.inf, 0.0
 
 
+@njit(cache=True, inline="always")
+def step_window(
+    ax: np.ndarray, ay: np.ndarray, dt: float, h: float, n_sub: int, t: float, t_rec: float, t_stop: float
+) -> tuple[float, float, float, float, float, float, float]:
+    """The next integration step from t on the grid of ``n_sub`` steps per sample interval:
+    (ti, te, t_b, a0x, sx, a0y, sy) — the interval's start, the step's end, the interval's end
+    (``t_stop`` past the record) and the input's line a(t) = a0 + slope·(t − ti) on it. Steps never
+    cross a sample, so the piecewise-linear input is smooth inside every step."""
+    n = ax.shape[0]
+    if t >= t_rec:
+        return t, t + h, t_stop, 0.0, 0.0, 0.0, 0.0
+    i = int(t / dt)
+    if i >= n - 1:
+        i = n - 2
+    if (i + 1) * dt - t <= 1e-12 * dt:
+        i += 1
+    ti = i * dt
+    if i >= n - 1:
+        return ti, t + h, t_stop, 0.0, 0.0, 0.0, 0.0
+    t_b = (i + 1) * dt
+    j = int((t - ti) / h + 1e-9) + 1
+    te = ti + j * h if j < n_sub else t_b
+    if te - t <= 1e-12 * dt:
+        te = min(te + h, t_b)
+    return ti, te, t_b, ax[i], (ax[i + 1] - ax[i]) / dt, ay[i], (ay[i + 1] - ay[i]) / dt
+
+
 @njit(cache=True)
 def simulate_rocking(
     ax: np.ndarray, ay: np.ndarray, dt: float, alpha: float, k: float, beta: float, e: float,
@@ -126,28 +153,7 @@ def simulate_rocking(
         first_scan = False
         if t >= t_stop:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
-        # the sample interval holding t, and the input's line on it
-        if t < t_rec:
-            i = int(t / dt)
-            if i >= n - 1:
-                i = n - 2
-            ti = i * dt
-            if (i + 1) * dt - t <= 1e-12 * dt:
-                i += 1
-                ti = i * dt
-        else:
-            i = n - 1
-            ti = t
-        if i < n - 1:
-            a0x, sx = ax[i], (ax[i + 1] - ax[i]) / dt
-            a0y, sy = ay[i], (ay[i + 1] - ay[i]) / dt
-            j = int((t - ti) / h + 1e-9) + 1
-            te = ti + j * h if j < n_sub else (i + 1) * dt
-            if te - t <= 1e-12 * dt:
-                te = min(te + h, (i + 1) * dt)
-        else:
-            a0x = sx = a0y = sy = 0.0
-            te = t + h
+        ti, te, _, a0x, sx, a0y, sy = step_window(ax, ay, dt, h, n_sub, t, t_rec, t_stop)
         H = te - t
         # a short return flight after an impact: sum it analytically (chattering)
         if theta == 0.0 and omega != 0.0:
