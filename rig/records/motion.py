@@ -72,8 +72,11 @@ class GroundMotion:
     Attributes:
         name: record name, e.g. the PEER component name ``NORTHR/MUL009`` or a file stem.
         dt: time step [s], finite and > 0.
-        acc_h: horizontal acceleration [g], 1-D float64, finite, read-only.
-        acc_v: vertical acceleration [g] with the same length as ``acc_h``, or ``None``.
+        acc_h: horizontal acceleration [g], 1-D float64, finite, read-only. On the table it drives surge,
+            along the plate's fall line (+ towards the low side once tilted).
+        acc_v: vertical acceleration [g] with the same length as ``acc_h``, or ``None``; drives heave.
+        acc_h2: the second horizontal component [g] of a bidirectional record (same length as ``acc_h``),
+            or ``None``; drives the lateral (sway) axis.
         units: unit of ``acc_h``/``acc_v``; always ``"g"`` (readers convert at the boundary).
         provenance: where the data came from (source file or suite, record id, npts, ``sha256`` of the
             float64 ``acc_h`` values, …). JSON-serialisable values only.
@@ -86,6 +89,7 @@ class GroundMotion:
     dt: float
     acc_h: np.ndarray
     acc_v: np.ndarray | None = None
+    acc_h2: np.ndarray | None = None
     units: str = "g"
     provenance: dict[str, Any] = field(default_factory=dict)
 
@@ -100,13 +104,16 @@ class GroundMotion:
         object.__setattr__(self, "dt", _as_dt(name, self.dt))
         acc_h = _as_acceleration(name, "acc_h", self.acc_h)
         object.__setattr__(self, "acc_h", acc_h)
-        if self.acc_v is not None:
-            acc_v = _as_acceleration(name, "acc_v", self.acc_v)
-            if acc_v.size != acc_h.size:
+        for label in ("acc_v", "acc_h2"):
+            values = getattr(self, label)
+            if values is None:
+                continue
+            channel = _as_acceleration(name, label, values)
+            if channel.size != acc_h.size:
                 raise RecordError(
-                    f"record {name!r}: acc_v has {acc_v.size} samples but acc_h has {acc_h.size}"
+                    f"record {name!r}: {label} has {channel.size} samples but acc_h has {acc_h.size}"
                 )
-            object.__setattr__(self, "acc_v", acc_v)
+            object.__setattr__(self, label, channel)
         object.__setattr__(self, "provenance", dict(self.provenance))
 
     @property
@@ -135,8 +142,8 @@ class GroundMotion:
         return None if self.acc_v is None else float(np.max(np.abs(self.acc_v)))
 
     def __repr__(self) -> str:
-        vert = "" if self.acc_v is None else ", +vertical"
+        extra = ("" if self.acc_h2 is None else ", +horizontal 2") + ("" if self.acc_v is None else ", +vertical")
         return (
             f"GroundMotion(name={self.name!r}, dt={self.dt:g} s, npts={self.npts}, "
-            f"pga={self.pga:.4g} g{vert})"
+            f"pga={self.pga:.4g} g{extra})"
         )
