@@ -1,0 +1,66 @@
+"""The project's MAVLink 2 dialect (``shaketable.xml``) and what the table link needs around it.
+
+- :mod:`~protocols.mavlink.codegen`: generates the dialect's Python code with pymavlink's mavgen on first use
+  (cached per user, never committed) and imports it: :func:`dialect`.
+- :mod:`~protocols.mavlink.framing`: setpoint arrays (N, 6) ↔ SHAKETABLE_SETPOINT_CHUNK messages, accelerometer
+  arrays (N, 3) ↔ SHAKETABLE_ACCEL_BATCH messages.
+- :mod:`~protocols.mavlink.signing`: the rig's signing key, MAVLink 2 signing on a link, which messages need it.
+- :mod:`~protocols.mavlink.link`: a UDP endpoint speaking the dialect (:class:`UdpLink`), or pymavlink's mavutil
+  with it (:func:`mavlink_connection`).
+
+Messages (ids 42500–42509 reserved): SHAKETABLE_SETPOINT_CHUNK (42500), SHAKETABLE_ACCEL_BATCH (42501),
+SHAKETABLE_OVERTURN_EVENT (42502), SHAKETABLE_STATUS (42503); commands in COMMAND_LONG (MAV_CMD 42550–42559
+reserved): MAV_CMD_SHAKETABLE_ARM, _DISARM, _HOME, _SET_TILT, _START_STREAM, _STOP, _EMERGENCY_STOP. Units and
+field meanings are in the XML. Importing this package generates nothing; the first :func:`dialect` call does.
+"""
+
+from protocols.mavlink.codegen import DIALECT_NAME, DialectError, dialect
+from protocols.mavlink.framing import (
+    ACCEL_PER_BATCH,
+    END_OF_STREAM,
+    SETPOINTS_PER_CHUNK,
+    FramingError,
+    SequenceGapError,
+    Series,
+    accel_batches,
+    join_accel_batches,
+    join_setpoint_chunks,
+    setpoint_chunks,
+    unpack_accel_batch,
+    unpack_setpoint_chunk,
+)
+from protocols.mavlink.link import UdpLink, mavlink_connection
+from protocols.mavlink.signing import (
+    KEY_ENV,
+    SigningKeyError,
+    enable_signing,
+    load_signing_key,
+    requires_signature,
+    signed_with_key,
+)
+
+__all__ = [
+    "ACCEL_PER_BATCH",
+    "DIALECT_NAME",
+    "END_OF_STREAM",
+    "KEY_ENV",
+    "SETPOINTS_PER_CHUNK",
+    "DialectError",
+    "FramingError",
+    "SequenceGapError",
+    "Series",
+    "SigningKeyError",
+    "UdpLink",
+    "accel_batches",
+    "dialect",
+    "enable_signing",
+    "join_accel_batches",
+    "join_setpoint_chunks",
+    "load_signing_key",
+    "mavlink_connection",
+    "requires_signature",
+    "setpoint_chunks",
+    "signed_with_key",
+    "unpack_accel_batch",
+    "unpack_setpoint_chunk",
+]

@@ -1,0 +1,147 @@
+"""MAVLink 2 message signing for the table link: the rig's key, signing on a link, and which messages need it.
+
+Motion commands are signed (ARCHITECTURE §5): the host signs everything it sends; the controller refuses a
+message that :func:`requires_signature` unless :func:`signed_with_key` holds for it.
+
+**Key.** One 32-byte secret shared by the host and the controller, from :envvar:`SHAKETABLE_MAVLINK_KEY`
+(64 hexadecimal digits) or from a key file: either exactly 32 raw bytes, or 64 hexadecimal digits (surrounding
+whitespace allowed). An all-zero key is refused (MAVLink implementations treat it as "no key"). Make one with
+``python -c "import secrets; print(secrets.token_hex(32))"``.
+
+**Receiving.** :func:`enable_signing` installs pymavlink's ``allow_unsigned_callback`` so that unsigned and
+badly signed messages are still *delivered*, flagged by ``msg.get_signed() == False``, instead of being raised
+as errors by the parser; the policy is applied per message, so that a STOP or an EMERGENCY_STOP is never lost for
+want of a signature. pymavlink marks a message signed only when its signature verified with the receiver's key
+and its timestamp was newer than the last one of its stream (link id, system, component): replayed or
+reordered signed messages count as unsigned.
+
+**Timestamps.** A signature carries a 48-bit timestamp in units of 10 µs since 2015-01-01 00:00:00 UTC; a
+sender starts from its wall clock (:func:`signing_timestamp`) and pymavlink adds one per message sent.
+A receiver accepts a new stream only if its timestamp is at most one minute behind its own.
+"""
+
+from __future__ import annotations
+
+import calendar
+import functools
+import os
+import time
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from protocols.mavlink.codegen import dialect
+
+KEY_ENV = "SHAKETABLE_MAVLINK_KEY"
+"""Environment variable holding the signing key as 64 hexadecimal digits."""
+
+KEY_BYTES = 32
+"""Length of a MAVLink 2 signing key."""
+
+SIGNING_EPOCH = calendar.timegm((2015, 1, 1, 0, 0, 0))
+"""The MAVLink signing epoch, 2015-01-01 00:00:00 UTC, in Unix seconds."""
+
+
+class SigningKeyError(ValueError):
+    """The signing key is missing or malformed; the message says where it came from and what is wrong."""
+
+
+def _parse_hex(text: str, source: str) -> bytes:
+    text = text.strip()
+    if len(text) != 2 * KEY_BYTES:
+        raise SigningKeyError(f"{source}: expected {2 * KEY_BYTES} hexadecimal digits, got {len(text)} characters")
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise SigningKeyError(f"{source}: not hexadecimal") from None
+
+
+def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping[str, str] = os.environ) -> bytes:
+    """The 32-byte signing key: from the key file ``path`` if given, else from ``env[SHAKETABLE_MAVLINK_KEY]``.
+
+    A key file holds exactly 32 raw bytes, or 64 hexadecimal digits; the variable holds 64 hexadecimal digits.
+    Raises :class:`SigningKeyError` when there is no key, or it has the wrong length or format, or is all zero.
+    """
+    if path is not None:
+        source = f"signing key file {os.fspath(path)}"
+        try:
+            data = Path(path).read_bytes()
+        except OSError as exc:
+            raise SigningKeyError(f"{source}: {exc.strerror or exc}") from exc
+        if len(data) == KEY_BYTES:
+            key = data
+        else:
+            try:
+                text = data.decode("ascii")
+            except UnicodeDecodeError:
+                raise SigningKeyError(f"{source}: {len(data)} bytes, neither {KEY_BYTES} raw bytes nor "
+                                      f"{2 * KEY_BYTES} hexadecimal digits") from None
+            key = _parse_hex(text, source)
+    elif env.get(KEY_ENV):
+        source = f"environment variable {KEY_ENV}"
+        key = _parse_hex(env[KEY_ENV], source)
+    else:
+        raise SigningKeyError(f"no MAVLink signing key: set {KEY_ENV} (64 hexadecimal digits) or give a key file")
+    if not any(key):
+        raise SigningKeyError(f"{source}: the all-zero key means 'no key' to MAVLink; make a random one")
+    return key
+
+
+def signing_timestamp(unix_time: float | None = None) -> int:
+    """A signing timestamp [10 µs since 2015-01-01 UTC] for ``unix_time`` [s] (default: now)."""
+    now = time.time() if unix_time is None else unix_time
+    return max(0, int((now - SIGNING_EPOCH) * 100_000))
+
+
+def enable_signing(mav: Any, key: bytes, *, link_id: int, sign_outgoing: bool = True,
+                   timestamp: int | None = None) -> None:
+    """Sign what ``mav`` (a dialect ``MAVLink`` object) sends and verify what it receives with ``key``.
+
+    ``link_id`` (0–255) names this link in the signatures; give each link of one system its own. ``timestamp``
+    [10 µs since 2015-01-01] starts the outgoing timestamps (default: now). Incoming unsigned or badly signed
+    messages are delivered unsigned-flagged, not raised (see the module docstring).
+    """
+    if len(key) != KEY_BYTES:
+        raise SigningKeyError(f"a signing key has {KEY_BYTES} bytes, got {len(key)}")
+    if not 0 <= link_id <= 255:
+        raise ValueError(f"link_id must be in 0..255, got {link_id}")
+    mav.signing.secret_key = bytes(key)
+    mav.signing.link_id = link_id
+    mav.signing.timestamp = signing_timestamp() if timestamp is None else timestamp
+    mav.signing.sign_outgoing = sign_outgoing
+    mav.signing.allow_unsigned_callback = _deliver_flagged
+
+
+def _deliver_flagged(mav: Any, msg_id: int) -> bool:
+    """pymavlink's unsigned-message callback: deliver every message; ``get_signed()`` tells the truth."""
+    return True
+
+
+def signed_with_key(msg: Any) -> bool:
+    """Whether ``msg`` carried a valid, fresh signature made with the key of the ``MAVLink`` that parsed it.
+
+    False for unsigned, badly signed, replayed or reordered messages, and for every message parsed by a
+    ``MAVLink`` object without a key (pymavlink then checks nothing).
+    """
+    return bool(msg.get_signed())
+
+
+@functools.cache
+def stop_commands() -> frozenset[int]:
+    """The commands accepted unsigned: DISARM, STOP, EMERGENCY_STOP (stopping is never refused)."""
+    d = dialect()
+    return frozenset({d.MAV_CMD_SHAKETABLE_DISARM, d.MAV_CMD_SHAKETABLE_STOP, d.MAV_CMD_SHAKETABLE_EMERGENCY_STOP})
+
+
+def requires_signature(msg: Any) -> bool:
+    """Whether the controller must refuse ``msg`` unless :func:`signed_with_key`.
+
+    Every setpoint chunk, and every command (COMMAND_LONG, COMMAND_INT) except those of :func:`stop_commands`;
+    other messages (heartbeats, time sync, telemetry) need no signature.
+    """
+    kind = msg.get_type()
+    if kind == "SHAKETABLE_SETPOINT_CHUNK":
+        return True
+    if kind in ("COMMAND_LONG", "COMMAND_INT"):
+        return msg.command not in stop_commands()
+    return False
