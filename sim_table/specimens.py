@@ -1,0 +1,196 @@
+"""The physical specimens of the emulated table: bodies standing on the moving plate, and their overturns.
+
+:class:`SpecimenScene` runs the MuJoCo model of :mod:`sim_table.scene` with the plate following the
+achieved plate pose. Poses are ``(surge, sway, heave, roll, pitch, yaw)`` [m, rad] with
+``R = Rz(yaw) Ry(pitch) Rx(roll)`` (``analysis.table_model``); plate velocities are the pose rates
+[m/s, rad/s] in the same column order. Between two samples the plate follows the cubic Hermite curve
+through their poses and rates (exact for a constant acceleration). Each physics step puts the plate's
+joints on the curve at the step's start with the previous step's mean rate, and prescribes the acceleration
+that ends the step on the curve: this is MuJoCo's semi-implicit Euler run on the plate's own path, so a
+body that sticks to the plate rides with it exactly (resetting the plate's pose without it would slip every
+body by a·dt²/2 per step, 0.24 mm/s at 0.1 g). Feed the plate's true, smooth state, not noisy measurements:
+the bodies feel the curve's second difference.
+
+A body's **angle** θ [rad] is its rotation about the plate's y axis relative to the plate, read from its
+height axis expressed in the plate frame (components ``ex, ez``): ``θ = atan2(ex, ez)``, > 0 when its top
+has moved towards the plate's +x (downhill). A body has **overturned** when
+``|θ| ≥ min(α + overturn_margin, π/2 − 0.05)``: its centre of mass is ``overturn_margin`` (default
+:data:`OVERTURN_MARGIN`, 0.8 rad) past its base corner on a level plate, and still 0.62 rad past the point
+of no return (α + β, relative to the plate, towards the high side) at the table's 10° tilt: to bring it back
+the plate would need a horizontal acceleration above about g·tan 0.62 = 0.7 g, beyond Table IV's 0.6 g.
+The threshold is reached by a body that is falling, lies on its side, or leans on a fallen neighbour; it is
+passed a few tenths of a second before the body lands (the analytical models time the overturn at
+|θ| = π/2). The direction is ``sign(θ)``: +1 towards +x (the low side), −1 towards the high side. Each body
+is reported once per placement. Falls along the plate's y (sideways) are outside this measure: the paper's
+bodies are at least twice as deep as wide so that they do not happen.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import NamedTuple
+
+import mujoco
+import numpy as np
+
+from analysis.table_model import rotation_matrices
+from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, Specimen, SpecimenError, build_model
+
+OVERTURN_MARGIN = 0.8
+"""Default rotation past the slenderness angle α at which a body counts as overturned [rad]."""
+
+LYING = 0.5 * math.pi - 0.05
+"""Cap of the overturn threshold [rad]: a body within 0.05 rad of lying on its side has overturned."""
+
+
+class Overturn(NamedTuple):
+    """One detected overturn: time [s], index of the specimen, direction (+1 low side / −1 high side)."""
+
+    t: float
+    body_id: int
+    direction: int
+
+
+class SpecimenScene:
+    """Specimens standing on a plate driven by the achieved plate pose.
+
+    The ``specimens`` stand upright and at rest at their places on the plate, which is still at
+    ``plate_pose`` (6,) (default home); the scene's clock starts at 0 s. ``contact`` sets the physics step
+    and contact model, ``overturn_margin`` [rad] the detection threshold (module docstring). ``model`` and
+    ``data`` are the MuJoCo model and state, for viewers and diagnostics: step the scene only through
+    :meth:`advance`.
+    """
+
+    def __init__(self, specimens: Sequence[Specimen], *, plate_pose: Sequence[float] | None = None,
+                 contact: ContactSettings | None = None, overturn_margin: float = OVERTURN_MARGIN) -> None:
+        if not (math.isfinite(overturn_margin) and overturn_margin > 0):
+            raise SpecimenError(f"overturn_margin must be > 0 rad, got {overturn_margin!r}")
+        self.specimens = tuple(specimens)
+        self.contact = contact or ContactSettings()
+        self.model = build_model(self.specimens, self.contact)
+        self.data = mujoco.MjData(self.model)
+        self.thresholds = np.array([min(s.body.alpha + overturn_margin, LYING) for s in self.specimens])
+        """|θ| at which each specimen counts as overturned [rad]."""
+        self._order = np.array(PLATE_QPOS_ORDER)
+        self._plate = self.model.body("plate").id
+        self._bodies = np.array([self.model.body(f"specimen{i}").id for i in range(len(self.specimens))])
+        self._sample = (0.0, np.zeros(6), np.zeros(6))
+        self._plate_rate = np.zeros(6)
+        self._detections: list[Overturn] = []
+        self._standing = np.ones(len(self.specimens), dtype=bool)
+        self._theta = np.zeros(len(self.specimens))
+        self.place(np.zeros(6) if plate_pose is None else plate_pose)
+
+    @property
+    def time(self) -> float:
+        """The scene's clock [s]: the end of the last physics step."""
+        return self.data.time
+
+    def place(self, plate_pose: Sequence[float] | None = None, leans: Sequence[float] | None = None) -> None:
+        """Put every specimen back at its place, at rest, and re-arm overturn detection.
+
+        This is the operator placing the bodies: the plate is held still at ``plate_pose`` (6,) (default:
+        the last pose it was given), and the next :meth:`advance` starts from there. ``leans`` [rad], one
+        per specimen, stands a body on a base edge at θ = lean (> 0: on its +x edge) instead of upright,
+        released at rest (free-rocking tests); 0 = upright.
+        """
+        pose = self._sample[1] if plate_pose is None else _as_pose(plate_pose, "plate_pose")
+        n = len(self.specimens)
+        lean = np.zeros(n) if leans is None else np.asarray(leans, dtype=float)
+        if lean.shape != (n,) or not np.all(np.abs(lean) < 0.5 * math.pi):
+            raise SpecimenError(f"leans: need {n} angles within (-pi/2, pi/2) rad, got {leans!r}")
+        self._sample = (self.time, pose, np.zeros(6))
+        self._plate_rate = np.zeros(6)
+        d = self.data
+        d.qpos[:6] = pose[self._order]
+        d.qvel[:] = 0.0
+        plate_rotation = rotation_matrices(pose)
+        quat = np.empty(4)
+        for i, (s, th) in enumerate(zip(self.specimens, lean, strict=True)):
+            side = math.copysign(0.5 * s.body.b, th) if th else 0.0
+            tilt = rotation_matrices(np.array([0.0, 0.0, 0.0, 0.0, th, 0.0]))
+            centre = np.array([s.x + side, s.y, 0.0]) + tilt @ np.array([-side, 0.0, 0.5 * s.body.h])
+            d.qpos[6 + 7 * i: 9 + 7 * i] = pose[:3] + plate_rotation @ centre
+            mujoco.mju_mat2Quat(quat, (plate_rotation @ tilt).ravel())
+            d.qpos[9 + 7 * i: 13 + 7 * i] = quat
+        mujoco.mj_forward(self.model, d)
+        self._detections = []
+        self._standing[:] = True
+        self._theta = self.specimen_angles()
+
+    def advance(self, t: float, plate_pose: Sequence[float], plate_velocity: Sequence[float]) -> list[Overturn]:
+        """Step the physics to time ``t`` [s], where the plate has ``plate_pose`` and ``plate_velocity`` (6,).
+
+        Returns the overturns detected in this interval (also kept for :meth:`detections`). The clock
+        moves in whole physics steps and stops within half a step of ``t``.
+        """
+        t0, pose0, vel0 = self._sample
+        if not t > t0:
+            raise SpecimenError(f"advance: time must increase, got {t!r} s after {t0!r} s")
+        pose1, vel1 = _as_pose(plate_pose, "plate_pose"), _as_pose(plate_velocity, "plate_velocity")
+        span = t - t0
+        path = _hermite(pose0[self._order], span * vel0[self._order], pose1[self._order], span * vel1[self._order])
+        m, d, dt = self.model, self.data, self.model.opt.timestep
+        here = _evaluate(path, (d.time - t0) / span)
+        found: list[Overturn] = []
+        while d.time + 0.5 * dt <= t:
+            there = _evaluate(path, (d.time + dt - t0) / span)
+            rate = (there - here) / dt
+            d.qpos[:6] = here
+            d.qvel[:6] = self._plate_rate
+            d.qfrc_applied[:6] = (PLATE_ARMATURE / dt) * (rate - self._plate_rate)
+            mujoco.mj_step(m, d)
+            mujoco.mj_kinematics(m, d)
+            here, self._plate_rate = there, rate
+            if self._standing.any():
+                found.extend(self._detect(dt))
+        self._sample = (t, pose1, vel1)
+        self._detections.extend(found)
+        return found
+
+    def _detect(self, dt: float) -> list[Overturn]:
+        """Overturns that happened in the step just taken, timed by linear interpolation of |θ|."""
+        previous, self._theta = self._theta, self.specimen_angles()
+        events = []
+        for i in np.flatnonzero(self._standing & (np.abs(self._theta) >= self.thresholds)):
+            a0, a1 = abs(previous[i]), abs(self._theta[i])
+            fraction = min(1.0, max(0.0, (self.thresholds[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
+            events.append(Overturn(self.time - (1.0 - fraction) * dt, int(i), 1 if self._theta[i] > 0 else -1))
+            self._standing[i] = False
+        return sorted(events)
+
+    def specimen_angles(self) -> np.ndarray:
+        """θ of each specimen relative to the plate, (n,) [rad]: + when its top has moved towards +x."""
+        xmat = self.data.xmat
+        local = xmat[self._bodies][:, 2::3] @ xmat[self._plate].reshape(3, 3)
+        return np.arctan2(local[:, 0], local[:, 2])
+
+    def specimen_places(self) -> np.ndarray:
+        """Point of the plate under each specimen's centre of mass, (n, 2) [m, plate frame x, y]."""
+        d = self.data
+        local = (d.xpos[self._bodies] - d.xpos[self._plate]) @ d.xmat[self._plate].reshape(3, 3)
+        return local[:, :2]
+
+    def detections(self) -> list[Overturn]:
+        """Every overturn since the last placement, in time order, each specimen at most once."""
+        return list(self._detections)
+
+
+def _hermite(p0: np.ndarray, m0: np.ndarray, p1: np.ndarray, m1: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Coefficients (c3, c2, c1, c0) of the cubic through values p0, p1 with slopes m0, m1 (per unit u)."""
+    return 2.0 * (p0 - p1) + m0 + m1, 3.0 * (p1 - p0) - 2.0 * m0 - m1, m0, p0
+
+
+def _evaluate(coefficients: tuple[np.ndarray, ...], u: float) -> np.ndarray:
+    """The cubic of :func:`_hermite` at u (u = 0 at the interval's start, 1 at its end)."""
+    c3, c2, c1, c0 = coefficients
+    return ((c3 * u + c2) * u + c1) * u + c0
+
+
+def _as_pose(values: Sequence[float], name: str) -> np.ndarray:
+    """A finite (6,) float array, or :class:`SpecimenError`."""
+    array = np.asarray(values, dtype=float)
+    if array.shape != (6,) or not np.all(np.isfinite(array)):
+        raise SpecimenError(f"{name}: need 6 finite values (surge, sway, heave, roll, pitch, yaw), got {values!r}")
+    return array
