@@ -1,0 +1,89 @@
+"""The SYNC cycle on the bus: bits per cycle, bus load of a setpoint rate, the cycle period object 0x1006.
+
+Every cycle carries one SYNC (no counter: 0 data bytes) and, per axis, one RPDO1 and one TPDO1
+(:mod:`protocols.canopen.pdo_maps`, 6 bytes each). Each frame is counted at its worst case: a CAN 2.0A data
+frame (11-bit identifier) with ``n`` data bytes has 34 + 8n bits from start of frame to the end of the CRC,
+where the transmitter may insert a stuff bit after every 4 after the first, then 13 bits that are never stuffed
+(CRC delimiter, ACK slot and delimiter, end of frame) including the 3-bit interframe space:
+
+    bits(n) = 8n + 47 + ⌊(34 + 8n − 1) / 4⌋          (55 for SYNC, 115 for a 6-byte PDO, 135 for 8 bytes)
+
+(Davis, Burns, Bril, Lukkien 2007, "Controller Area Network (CAN) schedulability analysis: refuted, revisited
+and revised", eq. 1). Six axes: 12 × 115 + 55 = 1435 bits per cycle, i.e. 143.5 % of a 1 Mbit/s bus at
+1 kHz (does not fit at any limit) and 71.75 % at 500 Hz. The default limit, 80 %, leaves a fifth of the bus
+for SDO, heartbeats, NMT and EMCY; it admits up to 557 Hz with six axes at 1 Mbit/s, so the setpoint rate on
+CANopen is :data:`DEFAULT_RATE_HZ` = 500 Hz.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+
+from protocols.canopen.pdo_maps import RPDO1, TPDO1
+
+DEFAULT_RATE_HZ = 500
+"""SYNC (setpoint) rate of the leg drives [Hz]."""
+
+DEFAULT_LIMIT = 0.8
+"""Largest fraction of the bitrate the cyclic traffic may take."""
+
+SYNC_BYTES = 0
+"""SYNC carries no counter (0x1019 absent)."""
+
+
+class BusLoadError(ValueError):
+    """A cycle that does not fit the bus."""
+
+
+def frame_bits(data_bytes: int) -> int:
+    """Worst-case length [bits] of a CAN 2.0A data frame with ``data_bytes`` (0..8), interframe space included."""
+    if isinstance(data_bytes, bool) or not isinstance(data_bytes, int) or not 0 <= data_bytes <= 8:
+        raise BusLoadError(f"a classic CAN frame carries 0..8 data bytes, got {data_bytes!r}")
+    stuffed = 34 + 8 * data_bytes
+    return stuffed + 13 + (stuffed - 1) // 4
+
+
+def cycle_bits(axes: int) -> int:
+    """Worst-case bits of one SYNC cycle with ``axes`` drives: SYNC + one RPDO1 and one TPDO1 per axis."""
+    if isinstance(axes, bool) or not isinstance(axes, int) or axes < 1:
+        raise BusLoadError(f"axes must be a positive integer, got {axes!r}")
+    return frame_bits(SYNC_BYTES) + axes * (frame_bits(RPDO1.size) + frame_bits(TPDO1.size))
+
+
+def _positive(value: float, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or not math.isfinite(value) or value <= 0:
+        raise BusLoadError(f"{what} must be a positive number, got {value!r}")
+    return float(value)
+
+
+def bus_load(rate_hz: float, axes: int, bitrate: float) -> float:
+    """Fraction of ``bitrate`` [bit/s] the cycle takes at ``rate_hz`` [Hz] with ``axes`` drives (may exceed 1)."""
+    return cycle_bits(axes) * _positive(rate_hz, "rate_hz") / _positive(bitrate, "bitrate")
+
+
+def max_rate_hz(axes: int, bitrate: float, limit: float = DEFAULT_LIMIT) -> float:
+    """Highest SYNC rate [Hz] whose bus load stays within ``limit``."""
+    return _positive(limit, "limit") * _positive(bitrate, "bitrate") / cycle_bits(axes)
+
+
+def check_bus_load(rate_hz: float, axes: int, bitrate: float, limit: float = DEFAULT_LIMIT) -> float:
+    """The bus load of :func:`bus_load`; :class:`BusLoadError` naming the numbers when it exceeds ``limit``."""
+    load = bus_load(rate_hz, axes, bitrate)
+    if load > _positive(limit, "limit"):
+        bits = cycle_bits(axes)
+        raise BusLoadError(
+            f"{axes} axes at {rate_hz:g} Hz need {bits * rate_hz:.0f} bit/s ({bits} bits per cycle: SYNC "
+            f"{frame_bits(SYNC_BYTES)} + {axes} × (RPDO1 {frame_bits(RPDO1.size)} + TPDO1 {frame_bits(TPDO1.size)}), "
+            f"worst-case bit stuffing), {load:.1%} of {bitrate:.0f} bit/s, over the {limit:.0%} limit; "
+            f"the highest rate within it is {max_rate_hz(axes, bitrate, limit):.1f} Hz")
+    return load
+
+
+def cycle_period_us(rate_hz: float) -> int:
+    """The communication cycle period 0x1006 [µs] of a SYNC rate; :class:`BusLoadError` unless whole µs."""
+    period = 1e6 / _positive(rate_hz, "rate_hz")
+    whole = round(period)
+    if whole < 1 or abs(period - whole) > 1e-9 * period:
+        raise BusLoadError(f"a SYNC rate of {rate_hz:g} Hz has a period of {period:g} µs, not a whole number of µs")
+    return whole

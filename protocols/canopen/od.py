@@ -1,0 +1,110 @@
+"""The leg drive's object dictionary: the packaged EDS, object indices and the values that go in them.
+
+Each of the hexapod's six leg actuators is a CiA 402 drive described by ``leg_drive.eds`` (next to this
+module). Leg k (1..6, the numbering of ``analysis.table_model``) is CANopen node ``k``; the master (the rig's
+driver) produces its own heartbeat as node :data:`MASTER_NODE_ID`.
+
+Units of the objects (CiA 402 "user units", declared in 0x60A8/0x60A9): position 1 increment = 1 µm of
+joint-to-joint leg length with 0 at the leg's minimum length, velocity 1 increment/s = 1 µm/s (conversions in
+:mod:`protocols.canopen.scaling`); 0x1006 in µs; 0x1016/0x1017 in ms.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import canopen
+
+EDS_PATH = Path(__file__).with_name("leg_drive.eds")
+"""The leg drive's electronic data sheet (CiA 306 EDS)."""
+
+LEG_NODE_IDS = (1, 2, 3, 4, 5, 6)
+"""Node id of leg 1..6: the leg number."""
+
+MASTER_NODE_ID = 0x7F
+"""Node id whose heartbeat (COB-ID 0x77F) the drives consume: the master's."""
+
+# ----- object indices (CiA 301 communication profile, CiA 402 drive profile) ---------------------------
+
+DEVICE_TYPE = 0x1000
+ERROR_REGISTER = 0x1001
+COB_ID_SYNC = 0x1005
+COMMUNICATION_CYCLE_PERIOD = 0x1006
+"""SYNC period [µs]."""
+COB_ID_EMCY = 0x1014
+CONSUMER_HEARTBEAT_TIME = 0x1016
+"""ARRAY; sub 1 holds one :func:`heartbeat_consumer_entry`."""
+PRODUCER_HEARTBEAT_TIME = 0x1017
+"""Heartbeat period [ms]; 0 = off."""
+IDENTITY = 0x1018
+CONTROLWORD = 0x6040
+STATUSWORD = 0x6041
+MODES_OF_OPERATION = 0x6060
+MODES_OF_OPERATION_DISPLAY = 0x6061
+POSITION_ACTUAL_VALUE = 0x6064
+FOLLOWING_ERROR_WINDOW = 0x6065
+"""[increments]; the drive sets statusword bit 13 and faults when |following error| exceeds it."""
+TARGET_POSITION = 0x607A
+SOFTWARE_POSITION_LIMIT = 0x607D
+"""ARRAY; sub 1 min, sub 2 max position limit [increments]."""
+MAX_PROFILE_VELOCITY = 0x607F
+"""[increments/s]."""
+SI_UNIT_POSITION = 0x60A8
+SI_UNIT_VELOCITY = 0x60A9
+FOLLOWING_ERROR_ACTUAL_VALUE = 0x60F4
+SUPPORTED_DRIVE_MODES = 0x6502
+
+# ----- values -------------------------------------------------------------------------------------------
+
+DEVICE_TYPE_CIA402_SERVO = 0x0002_0192
+"""0x1000 of a CiA 402 servo drive: profile number 402 (0x0192) in the low word, type 0x02 (servo) above."""
+
+MODE_CYCLIC_SYNCHRONOUS_POSITION = 8
+"""0x6060/0x6061 value of cyclic synchronous position mode (CSP)."""
+
+SUPPORTED_MODE_CSP = 1 << 7
+"""0x6502 bit of CSP (bit = mode − 1)."""
+
+SI_UNIT_MICROMETRE = 0xFA01_0000
+"""0x60A8 value for µm: byte 3 prefix 10⁻⁶ (0xFA = −6), byte 2 unit metre (0x01), byte 1 no denominator."""
+
+SI_UNIT_MICROMETRE_PER_SECOND = 0xFA01_0300
+"""0x60A9 value for µm/s: as :data:`SI_UNIT_MICROMETRE` with denominator second (0x03) in byte 1."""
+
+EMCY_FOLLOWING_ERROR = 0x8611
+"""EMCY error code (CiA 402): following error beyond 0x6065."""
+EMCY_REFERENCE_LIMIT = 0x8612
+"""EMCY error code (CiA 402): reference limit (a target beyond 0x607D)."""
+EMCY_HEARTBEAT_ERROR = 0x8130
+"""EMCY error code (CiA 301): life guard or heartbeat error (the master's heartbeat went silent)."""
+
+ERROR_REGISTER_GENERIC = 1 << 0
+ERROR_REGISTER_COMMUNICATION = 1 << 4
+ERROR_REGISTER_DEVICE_PROFILE = 1 << 5
+
+
+def load_od(node_id: int) -> canopen.ObjectDictionary:
+    """The leg drive's object dictionary for node ``node_id`` (1..127; ``$NODEID`` COB-IDs resolved)."""
+    if isinstance(node_id, bool) or not isinstance(node_id, int) or not 1 <= node_id <= 127:
+        raise ValueError(f"CANopen node id must be an integer in 1..127, got {node_id!r}")
+    return canopen.import_od(str(EDS_PATH), node_id)
+
+
+def heartbeat_consumer_entry(node_id: int, period_ms: int) -> int:
+    """A 0x1016 entry: consume node ``node_id``'s heartbeat, fault when none came for ``period_ms`` ms.
+
+    Layout (UNSIGNED32): bits 16..23 node id, bits 0..15 time [ms]; bits 24..31 zero. ``period_ms`` = 0
+    disables the entry.
+    """
+    for name, value, high in (("node id", node_id, 127), ("heartbeat consumer time", period_ms, 0xFFFF)):
+        if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= high:
+            raise ValueError(f"{name} must be an integer in 0..{high}, got {value!r}")
+    return node_id << 16 | period_ms
+
+
+def decode_heartbeat_consumer_entry(entry: int) -> tuple[int, int]:
+    """``(node_id, period_ms)`` of a 0x1016 entry (the inverse of :func:`heartbeat_consumer_entry`)."""
+    if isinstance(entry, bool) or not isinstance(entry, int) or not 0 <= entry <= 0x007F_FFFF:
+        raise ValueError(f"a heartbeat consumer entry has a node id 0..127 in bits 16..23 and bits 24..31 clear, "
+                         f"got {entry!r}")
+    return entry >> 16, entry & 0xFFFF

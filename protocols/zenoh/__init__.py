@@ -1,0 +1,69 @@
+"""zenoh wire formats of the rig service (the lab-side bus).
+
+- :mod:`~protocols.zenoh.keys` — key expressions ``shaketable/<rig>/{service,telemetry,alive}/...``
+- :mod:`~protocols.zenoh.payloads` — versioned payloads (8-byte header; JSON bodies, binary accelerometer batches)
+- :mod:`~protocols.zenoh.config` — ``session_config``: explicit loopback endpoints, scouting off
+"""
+
+from protocols.zenoh.config import EndpointError, check_endpoint, loopback_endpoint, session_config
+from protocols.zenoh.keys import (
+    ROOT,
+    SERVICE_COMMANDS,
+    TELEMETRY_KINDS,
+    Key,
+    KeyExprError,
+    alive_key,
+    alive_selector,
+    check_name,
+    parse_key,
+    service_key,
+    service_selector,
+    telemetry_key,
+    telemetry_selector,
+)
+from protocols.zenoh.payloads import (
+    MAGIC,
+    REQUIRED_FIELDS,
+    TELEMETRY_PAYLOADS,
+    VERSION,
+    AccelBatch,
+    Kind,
+    PayloadError,
+    decode_accel,
+    decode_json,
+    encode_accel,
+    encode_json,
+    read_header,
+)
+
+__all__ = [
+    "MAGIC",
+    "REQUIRED_FIELDS",
+    "ROOT",
+    "SERVICE_COMMANDS",
+    "TELEMETRY_KINDS",
+    "TELEMETRY_PAYLOADS",
+    "VERSION",
+    "AccelBatch",
+    "EndpointError",
+    "Key",
+    "KeyExprError",
+    "Kind",
+    "PayloadError",
+    "alive_key",
+    "alive_selector",
+    "check_endpoint",
+    "check_name",
+    "decode_accel",
+    "decode_json",
+    "encode_accel",
+    "encode_json",
+    "loopback_endpoint",
+    "parse_key",
+    "read_header",
+    "service_key",
+    "service_selector",
+    "session_config",
+    "telemetry_key",
+    "telemetry_selector",
+]
