@@ -29,6 +29,13 @@ G = 9.81
 KNOWN_DTS = {0.0024, 0.0025, 0.005, 0.01, 0.02}  # [s] time steps that occur in the FEMA P695 sets
 
 
+@pytest.fixture(autouse=True)
+def empty_library(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    """An empty record library under tmp_path: these tests never see the user's real library."""
+    monkeypatch.setenv("RIG_RECORD_LIBRARY", str(tmp_path / "library"))
+    return tmp_path / "library"
+
+
 # --------------------------------------------------------------------------------------------------
 # GroundMotion
 # --------------------------------------------------------------------------------------------------
@@ -79,6 +86,14 @@ def test_groundmotion_with_vertical() -> None:
     gm = GroundMotion(name="v", dt=0.02, acc_h=[0.1, -0.2], acc_v=[0.05, -0.4])
     assert gm.pga_v == pytest.approx(0.4)
     assert gm.acc_v is not None and not gm.acc_v.flags.writeable
+
+
+def test_groundmotion_bidirectional_peaks() -> None:
+    gm = GroundMotion(name="b", dt=0.02, acc_h=[0.1, -0.2], acc_h2=[-0.3, 0.25])
+    assert (gm.pga, gm.pga_h2, gm.pga_v) == (0.2, 0.3, None)
+    assert GroundMotion(name="u", dt=0.02, acc_h=[0.1]).pga_h2 is None
+    with pytest.raises(RecordError, match="acc_h2 has 1 samples but acc_h has 2"):
+        GroundMotion(name="b", dt=0.02, acc_h=[0.1, -0.2], acc_h2=[0.1])
 
 
 # --------------------------------------------------------------------------------------------------
@@ -359,7 +374,9 @@ def test_cli_list_json_counts_100(app: typer.Typer) -> None:
     assert result.exit_code == 0, result.output
     data = json.loads(result.stdout)
     assert data["total_components"] == 100
-    assert {s["name"]: s["components"] for s in data["suites"]} == {"fema-farfield": 44, "fema-nearfield": 56}
+    assert {s["name"]: s["components"] for s in data["suites"]} == {
+        "fema-farfield": 44, "fema-nearfield": 56, "library": 0
+    }
 
 
 def test_cli_list_suite_json(app: typer.Typer) -> None:

@@ -137,6 +137,11 @@ class GroundMotion:
         return float(np.max(np.abs(self.acc_h)))
 
     @property
+    def pga_h2(self) -> float | None:
+        """Peak of the second horizontal component, max |acc_h2| [g], or ``None`` without one."""
+        return None if self.acc_h2 is None else float(np.max(np.abs(self.acc_h2)))
+
+    @property
     def pga_v(self) -> float | None:
         """Peak vertical ground acceleration, max |acc_v| [g], or ``None`` without a vertical channel."""
         return None if self.acc_v is None else float(np.max(np.abs(self.acc_v)))

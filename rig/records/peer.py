@@ -8,160 +8,130 @@ Both styles have four header lines followed by the samples, several per line::
     NPTS=   7995, DT=   .0050 SEC,                       <- NGA-West2
       4164    0.0100    NPTS, DT                          <- older NGA
 
-The unit on line 3 may be G, CM/S/S (CM/S^2, CM/SEC/SEC, …) or M/S/S (M/S^2, …); values are converted
-to g with g = 9.81 m/s². Any deviation (garbled header, non-numeric token, NaN, dt <= 0, a sample count
-different from NPTS) raises `RecordError` naming the file, the line and what was expected: a record is
-never silently truncated or padded.
+The unit on line 3 may be G, CM/S/S (CM/S^2, CM/SEC/SEC, GAL, …), M/S/S (M/S^2, …) or MM/S/S (see
+`units`); values are converted to g with g = 9.81 m/s². Samples are whitespace-separated decimal numbers
+(``.1234567E-02``, ``-.220000E-03``, Fortran ``D`` exponents), any number a line; lines may end in LF,
+CRLF or CR. Any deviation (garbled header, non-numeric token, NaN, overflow, an implausible
+acceleration above 100 g, dt <= 0, a sample count different from NPTS, bytes that are not UTF-8 text)
+raises `RecordError` naming the file, the line and what was expected: a record is never silently
+truncated or padded.
 """
 
 from __future__ import annotations
 
-import hashlib
-import math
 import re
 from pathlib import Path
 
 import numpy as np
 
-from .motion import G, GroundMotion, RecordError, array_sha256
+from .motion import GroundMotion, array_sha256
+from .source import TextSource, given_dt, matching_dt, matching_unit, read_source
+from .units import TO_G, UNIT_HELP, given_unit, parse_unit
 
 _HEADER_LINES = 4
-_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?"
-_NUMBER_RE = re.compile(_NUMBER)
 _WEST2_RE = re.compile(
     r"^\s*NPTS\s*=\s*(?P<npts>[^\s,]+)\s*,?\s*DT\s*=\s*(?P<dt>[-+]?[0-9.]+(?:[eEdD][-+]?\d+)?)", re.I
 )
 _OLD_RE = re.compile(r"^\s*(?P<npts>[^\s,]+)\s+(?P<dt>[^\s,]+)\s+NPTS\s*,?\s*DT\b", re.I)
 _UNITS_RE = re.compile(r"UNITS\s+OF\s+(?P<units>\S+)", re.I)
-_NONFINITE_RE = re.compile(r"^[-+]?(?:nan|inf|infinity)$", re.I)
-
-#: Factor that converts a value in the file's unit to g, keyed by the normalised unit text.
-_TO_G: dict[str, float] = {
-    "G": 1.0,
-    **{u: 0.01 / G for u in ("CM/S/S", "CM/S^2", "CM/S2", "CM/SEC/SEC", "CM/SEC^2", "CM/SEC2", "GAL")},
-    **{u: 1.0 / G for u in ("M/S/S", "M/S^2", "M/S2", "M/SEC/SEC", "M/SEC^2", "M/SEC2")},
-}
-_UNIT_LIST = "G, CM/S/S, CM/S^2, CM/SEC/SEC, M/S/S, M/S^2"
+_EXPECTED = "a PEER .AT2 file: a 4-line header (title, event, units, NPTS/DT) and the samples"
 
 
-def _fail(path: Path, line: int | None, message: str) -> RecordError:
-    """A `RecordError` that starts with ``file:line:`` (or ``file:``)."""
-    where = f"{path}:{line}" if line is not None else f"{path}"
-    return RecordError(f"{where}: {message}")
-
-
-def _parse_number(path: Path, line: int, token: str, what: str) -> float:
-    """One strict decimal number (Fortran ``D`` exponents allowed); else `RecordError` for that line."""
-    if _NONFINITE_RE.match(token):
-        raise _fail(path, line, f"{what} is {token!r}; expected a finite number")
-    if not _NUMBER_RE.fullmatch(token):
-        raise _fail(path, line, f"{what} {token!r} is not a number")
-    return float(token.replace("d", "e").replace("D", "e"))
-
-
-def _units_factor(path: Path, line3: str) -> tuple[str, float]:
-    """Unit text of header line 3 and the factor that converts it to g."""
+def _units(src: TextSource) -> tuple[str, str]:
+    """Unit text of header line 3 as written and its canonical name (a key of `TO_G`)."""
+    line3 = src.lines[2]
     if "ACCEL" not in line3.upper():
-        raise _fail(
-            path, 3,
+        raise src.error(
+            3,
             "expected an acceleration header like 'ACCELERATION TIME SERIES IN UNITS OF G', "
             f"got {line3.strip()!r}",
         )
     match = _UNITS_RE.search(line3)
     if match is None:
-        raise _fail(path, 3, f"expected 'IN UNITS OF <unit>' ({_UNIT_LIST}), got {line3.strip()!r}")
-    unit = match["units"].upper().rstrip(".,;")
-    if unit not in _TO_G:
-        raise _fail(path, 3, f"unknown acceleration unit {unit!r}; expected one of {_UNIT_LIST}")
-    return unit, _TO_G[unit]
+        raise src.error(3, f"expected 'IN UNITS OF <unit>' ({UNIT_HELP.upper()}), got {line3.strip()!r}")
+    text = match["units"].upper().rstrip(".,;")
+    unit = parse_unit(text)
+    if unit is None:
+        raise src.error(3, f"unknown acceleration unit {text!r}; expected one of {UNIT_HELP.upper()}")
+    return text, unit
 
 
-def _npts_dt(path: Path, line4: str) -> tuple[int, float, str]:
+def _npts_dt(src: TextSource) -> tuple[int, float, str]:
     """NPTS, DT [s] and the header style from header line 4."""
+    line4 = src.lines[3]
     match = _WEST2_RE.match(line4)
     style = "PEER NGA-West2 AT2"
     if match is None:
         match = _OLD_RE.match(line4)
         style = "PEER NGA AT2"
     if match is None:
-        raise _fail(
-            path, 4,
+        raise src.error(
+            4,
             "expected 'NPTS= <n>, DT= <dt> SEC' (NGA-West2) or '<n> <dt> NPTS, DT' (NGA), "
             f"got {line4.strip()!r}",
         )
     npts_text = match["npts"]
-    if not npts_text.isdigit():
-        raise _fail(path, 4, f"NPTS {npts_text!r} is not a positive integer")
-    npts = int(npts_text)
-    dt = _parse_number(path, 4, match["dt"], "DT")
-    if npts <= 0:
-        raise _fail(path, 4, f"NPTS must be > 0, got {npts}")
-    if not math.isfinite(dt) or dt <= 0.0:
-        raise _fail(path, 4, f"DT must be > 0 s, got {match['dt']!r}")
-    return npts, dt, style
+    if not re.fullmatch(r"[0-9]+", npts_text) or int(npts_text) == 0:
+        raise src.error(4, f"NPTS {npts_text!r} is not a positive integer; expected the number of samples")
+    dt = src.check_dt(4, src.number(4, match["dt"], "DT"), match["dt"], label="DT")
+    return int(npts_text), dt, style
 
 
-def _samples(path: Path, lines: list[str], first_line: int) -> tuple[list[float], int]:
-    """All numbers of the data lines and the number of the last line that held data (1-based)."""
+def _samples(src: TextSource, to_g: float, unit: str) -> tuple[list[float], int]:
+    """All samples [g] after the header and the number of the last line that held data (1-based)."""
     values: list[float] = []
-    last = first_line - 1
-    for lineno, text in enumerate(lines, start=first_line):
+    last = _HEADER_LINES
+    for lineno, text in enumerate(src.lines[_HEADER_LINES:], start=_HEADER_LINES + 1):
         tokens = text.split()
         for col, token in enumerate(tokens, start=1):
-            values.append(_parse_number(path, lineno, token, f"token {col} of the line"))
+            values.append(src.acceleration(lineno, token, f"token {col} of the line", to_g, unit))
         if tokens:
             last = lineno
     return values, last
 
 
-def _decode_lines(path: Path) -> tuple[list[str], str]:
-    """Lines of the file (any line ending) and the SHA-256 of its bytes."""
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise _fail(path, None, "no such file") from None
-    except OSError as exc:
-        raise _fail(path, None, f"cannot read ({exc.strerror or exc})") from None
-    return raw.decode("latin-1").splitlines(), hashlib.sha256(raw).hexdigest()
-
-
-def read_at2(path: str | Path) -> GroundMotion:
+def read_at2(path: str | Path, *, dt: float | None = None, units: str | None = None) -> GroundMotion:
     """Read a PEER ``.AT2`` file into a `GroundMotion` (acceleration converted to g, dt in s).
 
-    The motion's name is the file stem; ``provenance`` holds the path, header style, title line,
-    file unit and conversion factor, NPTS, DT, ``sha256`` of the float64 values [g] and
-    ``source_sha256`` of the file's bytes.
+    ``dt`` [s] and ``units``, if given, must agree with the header (the header is what counts). The
+    motion's name is the file stem; ``provenance`` holds the path, header style, title line, line count,
+    file unit and conversion factor, NPTS, DT, ``sha256`` of the float64 values [g] and ``source_sha256``
+    of the file's bytes.
     """
     path = Path(path)
-    lines, file_sha = _decode_lines(path)
-    if len(lines) < _HEADER_LINES:
-        raise _fail(
-            path, len(lines) + 1,
+    dt, units = given_dt(dt), given_unit(units)
+    src = read_source(path, _EXPECTED)
+    if len(src.lines) < _HEADER_LINES:
+        raise src.error(
+            len(src.lines) + 1,
             f"expected a {_HEADER_LINES}-line PEER header (title, event, units, NPTS/DT); "
-            f"the file has only {len(lines)} line(s)",
+            f"the file has only {len(src.lines)} line(s)",
         )
-    unit, factor = _units_factor(path, lines[2])
-    npts, dt, style = _npts_dt(path, lines[3])
-    values, last = _samples(path, lines[_HEADER_LINES:], _HEADER_LINES + 1)
+    unit_text, unit = _units(src)
+    matching_unit(path, 3, unit, units)
+    npts, file_dt, style = _npts_dt(src)
+    matching_dt(path, 4, file_dt, dt)
+    values, last = _samples(src, TO_G[unit], unit_text)
     if len(values) != npts:
         kind = "truncated data" if len(values) < npts else "extra data"
-        raise _fail(
-            path, max(last, _HEADER_LINES),
+        raise src.error(
+            last,
             f"{kind}: line 4 declares NPTS={npts} but the file holds {len(values)} values "
-            f"(lines {_HEADER_LINES + 1}-{max(last, _HEADER_LINES)})",
+            f"(lines {_HEADER_LINES + 1}-{last}); expected {npts} values",
         )
-    acc = np.asarray(values, dtype=np.float64) * factor
+    acc = np.asarray(values, dtype=np.float64)
     provenance = {
         "source": "file",
         "path": str(path.resolve()),
         "file": path.name,
         "format": style,
-        "title": lines[1].strip(),
-        "units_in_file": unit,
-        "to_g": factor,
+        "title": src.lines[1].strip(),
+        "lines": len(src.lines),
+        "units_in_file": unit_text,
+        "to_g": TO_G[unit],
         "npts": npts,
-        "dt": dt,
+        "dt": file_dt,
         "sha256": array_sha256(acc),
-        "source_sha256": file_sha,
+        "source_sha256": src.sha256,
     }
-    return GroundMotion(name=path.stem, dt=dt, acc_h=acc, provenance=provenance)
+    return GroundMotion(name=path.stem, dt=file_dt, acc_h=acc, provenance=provenance)

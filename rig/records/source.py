@@ -1,0 +1,164 @@
+"""A record file read as text: its bytes' checksum, its lines, strict numbers and located errors.
+
+Every text reader (``.AT2``, plain text, CSV) starts here, so that all of them agree on what a readable
+file is: UTF-8 (an initial byte-order mark is dropped; ASCII is UTF-8), no NUL bytes, lines ended by LF,
+CRLF or CR. Each problem becomes a `RecordError` whose message starts with ``file:line:`` and says what
+was expected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import math
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from .motion import RecordError
+
+#: Largest acceleration magnitude a reader accepts [g]: beyond it the unit is wrong or the file is damaged.
+MAX_ABS_G = 100.0
+
+#: Relative tolerance within which two time steps [s] (file and user, or two components) agree.
+DT_RTOL = 1e-6
+
+_NUMBER_RE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?")
+_NONFINITE_RE = re.compile(r"[-+]?(?:nan|inf|infinity)", re.I)
+_LINE_BREAK_RE = re.compile(r"\r\n|\r|\n")
+_BOM = b"\xef\xbb\xbf"
+
+
+def located(path: Path, line: int | None, message: str) -> RecordError:
+    """A `RecordError` that starts with ``file:line:`` (or ``file:`` when no line applies)."""
+    where = f"{path}:{line}" if line is not None else f"{path}"
+    return RecordError(f"{where}: {message}")
+
+
+def _line_and_column(raw: bytes, offset: int) -> tuple[int, int]:
+    """1-based line and column of a byte offset (lines as `TextSource.lines` counts them)."""
+    head = raw[:offset].replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    return head.count(b"\n") + 1, len(head) - (head.rfind(b"\n") + 1) + 1
+
+
+@dataclass(frozen=True)
+class TextSource:
+    """The decoded lines of a record file and the SHA-256 of its bytes.
+
+    Attributes:
+        path: the file as given.
+        lines: text of each line without its line break; ``lines[0]`` is line 1.
+        sha256: hex SHA-256 of the file's bytes as stored (before decoding).
+    """
+
+    path: Path
+    lines: list[str]
+    sha256: str
+
+    def error(self, line: int | None, message: str) -> RecordError:
+        """A `RecordError` located at ``line`` of this file."""
+        return located(self.path, line, message)
+
+    def number(self, line: int, token: str, what: str) -> float:
+        """A strict decimal number (Fortran ``D`` exponents allowed), finite as a 64-bit float."""
+        if _NONFINITE_RE.fullmatch(token):
+            raise self.error(line, f"{what} is {token!r}; expected a finite number")
+        if not _NUMBER_RE.fullmatch(token):
+            raise self.error(line, f"{what}, {token!r}, is not a number; expected a decimal number such as -1.25E-02")
+        value = float(token.replace("d", "e").replace("D", "e"))
+        if math.isinf(value):
+            raise self.error(line, f"{what}, {token!r}, overflows a 64-bit float; expected |value| < 1.8E+308")
+        return value
+
+    def acceleration(self, line: int, token: str, what: str, to_g: float, unit: str) -> float:
+        """A number in the file's unit, converted to g and checked against `MAX_ABS_G`."""
+        value = self.number(line, token, what) * to_g
+        if abs(value) > MAX_ABS_G:
+            raise self.error(
+                line,
+                f"{what}, {token!r} {unit} = {value:.4g} g, is not a plausible ground acceleration; "
+                f"expected |acceleration| <= {MAX_ABS_G:g} g (is the unit right?)",
+            )
+        return value
+
+    def check_dt(self, line: int, dt: float, text: str, label: str = "dt") -> float:
+        """``dt`` [s] as read from ``text``: finite and > 0, else an error located at ``line``."""
+        if not math.isfinite(dt) or dt <= 0.0:
+            raise self.error(line, f"{label} must be > 0 s, got {text!r}; expected a time step such as 0.01 s")
+        return dt
+
+
+def read_source(path: Path, expected: str) -> TextSource:
+    """Read ``path`` as a text record file; ``expected`` describes its content for the empty-file error."""
+    try:
+        raw = path.read_bytes()
+    except FileNotFoundError:
+        raise located(path, None, "no such file") from None
+    except IsADirectoryError:
+        raise located(path, None, "is a directory; expected a record file") from None
+    except OSError as exc:
+        raise located(path, None, f"cannot read ({exc.strerror or exc})") from None
+    sha = hashlib.sha256(raw).hexdigest()
+    body = raw.removeprefix(_BOM)
+    if not body.strip():
+        raise located(path, 1, f"the file is empty; expected {expected}")
+    nul = body.find(b"\x00")
+    if nul >= 0:
+        line, col = _line_and_column(body, nul)
+        raise located(path, line, f"NUL byte at column {col}; expected a text file (this looks like a binary file)")
+    try:
+        text = body.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line, col = _line_and_column(body, exc.start)
+        raise located(
+            path, line, f"byte 0x{body[exc.start]:02x} at column {col} is not UTF-8 text; expected a UTF-8 text file"
+        ) from None
+    lines = _LINE_BREAK_RE.split(text)
+    if lines[-1] == "":
+        lines.pop()
+    return TextSource(path=path, lines=lines, sha256=sha)
+
+
+def given_dt(dt: float | None) -> float | None:
+    """The time step the user gave (``--dt``) [s], checked finite and > 0; None if none was given."""
+    if dt is None:
+        return None
+    if isinstance(dt, bool) or not isinstance(dt, int | float) or not math.isfinite(dt) or dt <= 0.0:
+        raise RecordError(f"the given dt must be a number of seconds > 0, got {dt!r}")
+    return float(dt)
+
+
+def matching_dt(path: Path, line: int | None, in_file: float, given: float | None) -> float:
+    """The file's dt [s], after checking that a given dt, if any, matches it (`DT_RTOL`)."""
+    if given is not None and not math.isclose(in_file, given, rel_tol=DT_RTOL):
+        raise located(
+            path, line, f"the file gives dt = {in_file:g} s but dt = {given:g} s was given; expected the same dt"
+        )
+    return in_file
+
+
+def agreed_dt(path: Path, line: int | None, in_file: float | None, given: float | None, missing: str) -> float:
+    """The record's dt [s]: the file's (a given dt must match it), else the given one.
+
+    ``missing`` ends the error when neither is known (what the file or the user should say).
+    """
+    if in_file is not None:
+        return matching_dt(path, line, in_file, given)
+    if given is None:
+        raise located(path, line, f"no time step: {missing}")
+    return given
+
+
+def matching_unit(path: Path, line: int | None, in_file: str, given: str | None) -> str:
+    """The file's canonical unit, after checking that a given unit, if any, is the same."""
+    if given is not None and given != in_file:
+        raise located(path, line, f"the file gives the unit {in_file} but {given} was given; expected the same unit")
+    return in_file
+
+
+def agreed_unit(path: Path, line: int | None, in_file: str | None, given: str | None, missing: str) -> str:
+    """The record's canonical unit: the file's (a given unit must match it), else the given one."""
+    if in_file is not None:
+        return matching_unit(path, line, in_file, given)
+    if given is None:
+        raise located(path, line, f"no acceleration unit: {missing}")
+    return given
