@@ -1,0 +1,112 @@
+"""``rig prepare RECORD``: a record → a table-ready drive, its scale factor and governing limit.
+
+``--json`` prints one JSON object on stdout (ARCHITECTURE §7). A record or option that cannot be used
+exits with code 2; a drive the table cannot play (a leg's stroke or speed, a tilt limit) exits with code 3
+and names the first violation — with ``--json`` also as ``{"refused": {...}}`` on stdout.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich import box
+from rich.console import Console
+from rich.table import Table
+
+from analysis.table_model import AXES, TableModel, TableModelError
+from rig.drive import Drive, DriveError, DriveRefusedError, prepare_drive
+from rig.records import G, RecordError, load_record
+
+EXIT_BAD_INPUT = 2
+EXIT_REFUSED = 3
+
+_console = Console(width=None if sys.stdout.isatty() else 160)
+_err = Console(stderr=True)
+
+
+def register(app: typer.Typer) -> None:
+    """Add ``prepare`` to the main application."""
+    app.command("prepare")(prepare_cmd)
+
+
+def load_table(rig_config: Path | None) -> TableModel:
+    """The table model from a rig configuration TOML file, or Table IV with the default hexapod."""
+    return TableModel() if rig_config is None else TableModel.from_toml(rig_config)
+
+
+def prepare_cmd(
+    record: Annotated[str, typer.Argument(help="a record file (.AT2, .txt, .csv, .h5, H1+H2[+UP]) or SUITE:NAME")],
+    angle: Annotated[float, typer.Option(help="static tilt β of the plate [deg]")] = 0.0,
+    rig_config: Annotated[Path | None, typer.Option(help="rig configuration TOML (default: Table IV)")] = None,
+    scale: Annotated[float | None, typer.Option(help="a fixed scale factor instead of the largest that fits")] = None,
+    corner: Annotated[float | None, typer.Option(help="a fixed high-pass corner [Hz] instead of automatic")] = None,
+    rate: Annotated[float | None, typer.Option(help="controller rate [Hz] (default: the rig's, 1000)")] = None,
+    dt: Annotated[float | None, typer.Option(help="time step [s] of a text record that does not state it")] = None,
+    units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
+                     ] = None,
+    plot: Annotated[Path | None, typer.Option(help="write a figure of the drive (PNG)")] = None,
+    as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+) -> None:
+    """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
+    try:
+        table = load_table(rig_config)
+        motion = load_record(record, dt=dt, units=units)
+        drive = prepare_drive(motion, angle=math.radians(angle), table=table, scale=scale, corner=corner, rate=rate)
+    except DriveRefusedError as exc:
+        if as_json:
+            _emit({"refused": {"record": record, **vars(exc.violation), "message": exc.violation.message()}})
+        _err.print(f"[bold red]refused:[/] {exc}", highlight=False)
+        raise typer.Exit(EXIT_REFUSED) from None
+    except (RecordError, DriveError, TableModelError) as exc:
+        _err.print(f"[bold red]error:[/] {exc}", highlight=False)
+        raise typer.Exit(EXIT_BAD_INPUT) from None
+    out = drive.to_json()
+    if plot is not None:
+        from rig.drive.plot import plot_drive  # matplotlib only when a figure is asked for
+
+        out["plot"] = str(plot_drive(motion, drive, plot))
+    if as_json:
+        _emit(out)
+        return
+    _print_drive(drive, out)
+
+
+def _emit(obj: dict[str, Any]) -> None:
+    sys.stdout.write(json.dumps(obj, allow_nan=False) + "\n")
+
+
+def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
+    """A table of the peaks against the limits and a line on scale, corner and timing."""
+    gov = out["governing"]
+    limits = drive.table.limits
+    table = Table(box=box.SIMPLE_HEAD, title=f"{drive.record} at β = {out['angle_deg']:g}°: "
+                  f"scale factor {drive.scale_factor:.3f}")
+    table.add_column("axis")
+    for quantity, unit in (("displacement", "m"), ("velocity", "m/s"), ("acceleration", "g")):
+        table.add_column(f"{quantity} [{unit}]", justify="right")
+    for axis in AXES:
+        if axis not in drive.components:
+            continue
+        bounds = limits.axis(axis)
+        cells = []
+        for quantity in ("displacement", "velocity", "acceleration"):
+            value = out["peaks"][axis][quantity]
+            limit = getattr(bounds, quantity) * (1.0 / G if quantity == "acceleration" else 1.0)
+            mark = "[bold]" if (axis, quantity) == (gov["axis"], gov["quantity"]) else ""
+            cells.append(f"{mark}{value:.3f} / {limit:.3g} ({100 * value / limit:.0f} %)")
+        table.add_row(axis, *cells)
+    _console.print(table)
+    binding = "governs" if gov["binding"] else "is the closest limit (scale 1 fits)"
+    _console.print(
+        f"{gov['axis']} {gov['quantity']} {binding}; high-pass corner {drive.corner_frequency:.3g} Hz "
+        f"(peak acceleration kept by the filter: "
+        + ", ".join(f"{a} {100 * r:.1f} %" for a, r in drive.highpass_pga_ratio.items())
+        + f"); drive {drive.duration:.2f} s at {drive.rate:g} Hz, record from t = {drive.record_start:.2f} s"
+        + (f"; plot: {out['plot']}" if "plot" in out else ""),
+        highlight=False,
+    )

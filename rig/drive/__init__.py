@@ -1,0 +1,9 @@
+"""Drive preparation: earthquake records → table-ready 6-DOF trajectories inside the table's limits.
+
+`prepare_drive` is the entry point (see `rig.drive.prepare`); `rig.drive.processing` holds the signal
+chain and `rig.drive.tilt` the jerk-limited tilt ramp.
+"""
+
+from .prepare import Drive, DriveError, DriveRefusedError, Governing, prepare_drive
+
+__all__ = ["Drive", "DriveError", "DriveRefusedError", "Governing", "prepare_drive"]
