@@ -80,7 +80,7 @@ def parse_bodies(text: str) -> list[Body]:
 
 @app.command("simulate")
 def simulate_cmd(
-    record: Annotated[str, typer.Argument(help="a record file (.AT2) or SUITE:NAME")],
+    record: Annotated[str, typer.Argument(help="a record file (.AT2, .txt, .csv, .h5, H1+H2[+UP]) or SUITE:NAME")],
     body: Annotated[str, typer.Option(help="BxH in metres, e.g. 0.10x0.50")],
     angle: Annotated[float, typer.Option(help="plate inclination β [deg]")] = 0.0,
     model: Annotated[str, typer.Option(help="rocking | general")] = "rocking",
@@ -89,11 +89,14 @@ def simulate_cmd(
     friction: Annotated[float, typer.Option(help="friction coefficient (general model)")] = 1.0,
     sign: Annotated[int, typer.Option(help="+1 the record as given along +x (downhill), -1 negated")] = 1,
     criterion: Annotated[str, typer.Option(help="fall (|θ| = π/2) | static (α ∓ β)")] = "fall",
+    dt: Annotated[float | None, typer.Option(help="time step [s] of a text record that does not state it")] = None,
+    units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
+                     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """One body, one record, one angle."""
     try:
-        rec = load_record(record)
+        rec = load_record(record, dt=dt, units=units)
         b = Body.parse(body)
         if sign not in (1, -1):
             fail("--sign must be 1 or -1")
