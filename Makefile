@@ -29,6 +29,7 @@ test-slow: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py
 	$(BIN)/python benchmarks/prepare.py
+	$(BIN)/python benchmarks/stream.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -1,4 +1,43 @@
 """Hardware-facing adapters behind small interfaces: the table controller, DAQ and overturn detectors.
 
-May import ``protocols``; never ``rig``. Populated by the transports issue.
+May import ``protocols``; never ``rig``. :mod:`drivers.controller` is the table controller interface and its URL
+registry (``open_table("mavlink://HOST:PORT", ...)``); :mod:`drivers.mavlink` the MAVLink 2 / UDP backend.
 """
+
+from drivers.controller import (
+    AccelBatch,
+    CommandDeniedError,
+    CommandFailedError,
+    CommandRefusedError,
+    CommandRejectedError,
+    Detection,
+    FaultEvent,
+    StreamAbortedError,
+    StreamReport,
+    Subscription,
+    TableController,
+    TableError,
+    TableStatus,
+    TableTimeoutError,
+    open_table,
+    register_scheme,
+)
+
+__all__ = [
+    "AccelBatch",
+    "CommandDeniedError",
+    "CommandFailedError",
+    "CommandRefusedError",
+    "CommandRejectedError",
+    "Detection",
+    "FaultEvent",
+    "StreamAbortedError",
+    "StreamReport",
+    "Subscription",
+    "TableController",
+    "TableError",
+    "TableStatus",
+    "TableTimeoutError",
+    "open_table",
+    "register_scheme",
+]

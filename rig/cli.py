@@ -19,7 +19,7 @@ from rich.table import Table
 
 from analysis import TABLE_I, AnalysisInputError, Body, simulate
 from analysis.study import StudyResult, study
-from rig import cli_design, cli_prepare, cli_records
+from rig import cli_design, cli_emulate, cli_prepare, cli_records
 from rig.records import RecordError, load_record, load_records
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
@@ -186,6 +186,7 @@ def demo_cmd(
 cli_records.register(app)
 cli_prepare.register(app)
 cli_design.register(app)
+cli_emulate.register(app)
 
 
 def main() -> None:  # pragma: no cover - console entry

@@ -1,0 +1,508 @@
+"""The table controller interface: one small API for every transport, backends chosen by a URL scheme.
+
+Like python-can's ``Bus``: :func:`open_table` takes ``scheme://…`` and returns a :class:`TableController` of
+the backend registered for that scheme (``mavlink://HOST:PORT`` → :mod:`drivers.mavlink`; other transports
+register with :func:`register_scheme`). The behaviour every backend carries is ``docs/table-controller.md``.
+
+Units and conventions (ARCHITECTURE §2): SI; a pose is ``(surge, sway, heave [m], roll, pitch, yaw [rad])``
+as in ``analysis.table_model``; tilt β > 0 is pitch = +β (+x downhill); time stamps are integer nanoseconds of
+**controller time** (the controller's own monotonic clock) unless a name says ``host``. Overturn direction +1 is
+towards the low side, −1 towards the high side.
+
+Feedback arrives on a backend's receive thread and is published here: the latest :class:`TableStatus`
+(:meth:`TableController.status`), and subscriptions (:class:`Subscription`) to statuses, accelerometer
+batches, overturn detections (each event id once) and fault events. A subscription holds everything published
+after it was made, in order, until read: none is dropped, so read it or close it.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import queue
+import threading
+import time
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass
+from typing import Any, Generic, TypeVar
+from urllib.parse import urlsplit
+
+import numpy as np
+
+T = TypeVar("T")
+
+STOPPED_STATES = frozenset({"stopping", "faulted", "emergency_stopped", "idle"})
+"""States that end a stream or a motion command before its end."""
+
+TILT_AXES = ("pitch", "roll")
+"""Axes of :meth:`TableController.set_tilt`: pitch (fall line +x, the study's) or roll (fall line −y)."""
+
+
+# ----- errors ---------------------------------------------------------------------------------------------
+
+
+class TableError(Exception):
+    """Anything the table controller refused or failed to do; the message says what and in which state."""
+
+
+class TableTimeoutError(TableError):
+    """No answer from the controller in time (after the retries)."""
+
+
+class CommandRefusedError(TableError):
+    """The controller answered a command with a refusal: ``command`` (name), ``result`` (name), ``state``."""
+
+    def __init__(self, command: str, result: str, state: str | None, why: str) -> None:
+        self.command = command
+        self.result = result
+        self.state = state
+        where = f" (table {state})" if state else ""
+        super().__init__(f"{command} refused: {why}{where}")
+
+
+class CommandDeniedError(CommandRefusedError):
+    """Refused for a missing or bad signature (the signing key of host and controller differ)."""
+
+
+class CommandRejectedError(CommandRefusedError):
+    """Refused because the controller's state does not accept the command now."""
+
+
+class CommandFailedError(CommandRefusedError):
+    """Refused for invalid parameters, unsupported, or a motion that was cancelled before its end."""
+
+
+class StreamAbortedError(TableError):
+    """The controller stopped playing a stream before its end; ``report`` says how far it got."""
+
+    def __init__(self, message: str, report: StreamReport) -> None:
+        self.report = report
+        super().__init__(message)
+
+
+# ----- feedback types -------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class TableStatus:
+    """One status report of the controller.
+
+    ``t_ns`` controller time [ns]; ``state`` one of ``idle``, ``armed``, ``homing``, ``tilting``, ``streaming``,
+    ``stopping``, ``faulted``, ``emergency_stopped`` (``docs/table-controller.md``); ``buffer_depth`` setpoint
+    samples buffered and not yet played; ``last_chunk_seq`` the last setpoint chunk accepted; ``underruns`` dry
+    spells of the setpoint buffer since power-up; ``faults`` names of the latched fault bits (e.g. ``"STREAM_SILENT"``);
+    ``refused_commands`` commands and chunks refused for their signature since power-up; ``pose`` (6,) the
+    achieved (measured) pose; ``host_ns`` host monotonic time [ns] the report arrived.
+    """
+
+    t_ns: int
+    state: str
+    buffer_depth: int
+    last_chunk_seq: int
+    underruns: int
+    faults: tuple[str, ...]
+    refused_commands: int
+    pose: np.ndarray
+    host_ns: int
+
+
+@dataclass(frozen=True, eq=False)
+class AccelBatch:
+    """Consecutive samples of one plate accelerometer: row k of ``samples`` (n, 3) [m/s², plate frame, specific
+    force incl. gravity] was taken at ``t_start_ns + k * spacing_ns`` [ns, controller time]; ``seq`` counts the
+    sensor's batches (a gap is a lost batch)."""
+
+    sensor_id: int
+    seq: int
+    t_start_ns: int
+    spacing_ns: int
+    samples: np.ndarray
+
+    def times_ns(self) -> np.ndarray:
+        """Time of every sample [ns, controller time], int64."""
+        return self.t_start_ns + self.spacing_ns * np.arange(len(self.samples), dtype=np.int64)
+
+
+@dataclass(frozen=True)
+class Detection:
+    """An overturn on the plate: ``event_id`` (unique per controller run), ``body_id`` (its place in the run's
+    bodies), ``direction`` (+1 low side, −1 high side), plate ``tilt`` [rad] and ``t_ns`` [ns, controller time]."""
+
+    event_id: int
+    body_id: int
+    direction: int
+    tilt: float
+    t_ns: int
+
+
+@dataclass(frozen=True)
+class FaultEvent:
+    """Fault bits that became set (``raised``) in the status at ``t_ns``; ``faults`` all latched, ``state`` then."""
+
+    t_ns: int
+    raised: tuple[str, ...]
+    faults: tuple[str, ...]
+    state: str
+
+
+@dataclass(frozen=True, eq=False)
+class StreamReport:
+    """What :meth:`TableController.stream` did.
+
+    ``chunks`` setpoint messages sent, ``samples`` poses in them; ``underruns`` dry spells the controller
+    counted during the stream; ``t_start_ns``/``t_end_ns`` controller time of the first and last sample;
+    ``duration`` [s] between them; ``lead`` [s] how far ahead of its first sample each chunk was due to be sent;
+    ``send_lateness_ns`` (chunks,) actual send time − its deadline [ns, host clock; ≥ 0 unless the clock
+    estimate moved]; ``final`` the status that ended the stream.
+    """
+
+    chunks: int
+    samples: int
+    underruns: int
+    t_start_ns: int
+    t_end_ns: int
+    lead: float
+    send_lateness_ns: np.ndarray
+    final: TableStatus | None
+
+    @property
+    def duration(self) -> float:
+        """Controller time from the first to the last sample [s]."""
+        return (self.t_end_ns - self.t_start_ns) * 1e-9
+
+
+# ----- subscriptions --------------------------------------------------------------------------------------
+
+
+_CLOSED = object()
+
+
+class Subscription(Generic[T]):
+    """Items published after it was made, in order, none dropped (an unbounded queue: read or close it).
+
+    Iterating blocks for the next item and ends when the subscription (or its controller) is closed;
+    :meth:`get` waits at most ``timeout`` s; :meth:`drain` takes what is there without waiting.
+    """
+
+    def __init__(self, unsubscribe: Callable[[Subscription[T]], None]) -> None:
+        self._queue: queue.SimpleQueue[Any] = queue.SimpleQueue()
+        self._unsubscribe = unsubscribe
+        self._closed = False
+
+    def put(self, item: T) -> None:
+        """Publish one item to this subscriber (called by the controller's receive thread)."""
+        self._queue.put(item)
+
+    def get(self, timeout: float | None = None) -> T:
+        """The next item, waiting up to ``timeout`` s (None: forever); :class:`TimeoutError` if none came,
+        :class:`TableError` once the subscription is closed and empty."""
+        try:
+            item = self._queue.get(timeout=timeout)
+        except queue.Empty:
+            raise TimeoutError(f"no item within {timeout} s") from None
+        if item is _CLOSED:
+            self._queue.put(_CLOSED)
+            raise TableError("subscription closed")
+        return item
+
+    def drain(self) -> list[T]:
+        """Every item queued now, without waiting."""
+        items = []
+        while True:
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                return items
+            if item is _CLOSED:
+                self._queue.put(_CLOSED)
+                return items
+            items.append(item)
+
+    def __iter__(self) -> Iterator[T]:
+        while True:
+            try:
+                yield self.get()
+            except TableError:
+                return
+
+    def close(self) -> None:
+        """Stop receiving; iteration ends after the items already queued."""
+        if not self._closed:
+            self._closed = True
+            self._unsubscribe(self)
+            self._queue.put(_CLOSED)
+
+    def __enter__(self) -> Subscription[T]:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Feedback:
+    """The controller's feedback as received: the latest status, its history for waiting, and subscriptions.
+
+    Backends call :meth:`publish_status`, :meth:`publish_accel` and :meth:`publish_detection` from their receive
+    thread. Detections are de-duplicated by ``event_id`` for the life of this object (one connection).
+    """
+
+    _TOPICS = ("status", "accel", "detection", "fault")
+
+    def __init__(self) -> None:
+        self._lock = threading.Condition()
+        self._subscribers: dict[str, list[Subscription[Any]]] = {topic: [] for topic in self._TOPICS}
+        self.latest: TableStatus | None = None
+        self._events: set[int] = set()
+        self.duplicate_detections = 0
+        """Retransmitted overturn events dropped (the first copy of each event id was kept)."""
+
+    def subscribe(self, topic: str) -> Subscription[Any]:
+        sub: Subscription[Any] = Subscription(lambda s: self._remove(topic, s))
+        with self._lock:
+            self._subscribers[topic].append(sub)
+        return sub
+
+    def _remove(self, topic: str, sub: Subscription[Any]) -> None:
+        with self._lock:
+            if sub in self._subscribers[topic]:
+                self._subscribers[topic].remove(sub)
+
+    def _publish(self, topic: str, item: Any) -> None:
+        for sub in self._subscribers[topic]:
+            sub.put(item)
+
+    def publish_status(self, status: TableStatus) -> None:
+        with self._lock:
+            before = set(self.latest.faults) if self.latest is not None else set()
+            self.latest = status
+            self._publish("status", status)
+            raised = tuple(name for name in status.faults if name not in before)
+            if raised:
+                self._publish("fault", FaultEvent(status.t_ns, raised, status.faults, status.state))
+            self._lock.notify_all()
+
+    def publish_accel(self, batch: AccelBatch) -> None:
+        with self._lock:
+            self._publish("accel", batch)
+
+    def publish_detection(self, detection: Detection) -> bool:
+        """Publish a detection unless its event id was seen; True if it was new."""
+        with self._lock:
+            if detection.event_id in self._events:
+                self.duplicate_detections += 1
+                return False
+            self._events.add(detection.event_id)
+            self._publish("detection", detection)
+            return True
+
+    def notify(self) -> None:
+        """Wake :meth:`wait_for` callers (e.g. when a command's answer arrived)."""
+        with self._lock:
+            self._lock.notify_all()
+
+    def wait_for(self, predicate: Callable[[], bool], timeout: float) -> bool:
+        """Wait until ``predicate()`` (evaluated under the feedback lock at every publication) holds, at most
+        ``timeout`` s; whether it held."""
+        with self._lock:
+            return self._lock.wait_for(predicate, timeout)
+
+    def close(self) -> None:
+        with self._lock:
+            subscribers = [s for subs in self._subscribers.values() for s in subs]
+        for sub in subscribers:
+            sub.close()
+        self.notify()
+
+
+# ----- the interface --------------------------------------------------------------------------------------
+
+
+class TableController(ABC):
+    """A connection to one table controller (see the module docstring and ``docs/table-controller.md``).
+
+    Commands block until the controller acknowledged them and raise a :class:`TableError` subclass when it
+    refused (:class:`CommandDeniedError`, :class:`CommandRejectedError`, :class:`CommandFailedError`) or did not answer
+    (:class:`TableTimeoutError`). Use as a context manager: ``with open_table(url) as table:`` connects and closes.
+    """
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.feedback = Feedback()
+
+    # --- connection
+
+    @abstractmethod
+    def connect(self) -> None:
+        """Open the link, start heartbeats, synchronise the clocks; returns once the controller reported a status
+        (:class:`TableTimeoutError` if it does not answer)."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop heartbeats and the receive thread, close the link and every subscription. Idempotent."""
+
+    def __enter__(self) -> TableController:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # --- commands
+
+    @abstractmethod
+    def arm(self) -> None:
+        """Enable the drives at the current pose (from idle, faulted or emergency_stopped); clears latched faults."""
+
+    @abstractmethod
+    def disarm(self) -> None:
+        """Disable the drives (only at rest: armed or faulted)."""
+
+    @abstractmethod
+    def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
+        """Move to the home pose (all zero) within the table's limits; with ``wait``, return when it is there
+        (:class:`CommandFailedError` if the motion was cancelled, :class:`TableTimeoutError` after ``timeout`` s)."""
+
+    @abstractmethod
+    def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
+        """Ramp the static tilt β = ``angle`` [rad] about ``axis`` (:data:`TILT_AXES`), jerk-limited; with
+        ``wait``, return when it holds the tilt."""
+
+    @abstractmethod
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+        """Play a trajectory: ``t`` (N,) evenly spaced sample times [s] (only the spacing matters), ``poses``
+        (N, 6). Blocks until the controller reports the end of the stream consumed.
+
+        Chunks are scheduled in controller time ``lead`` s ahead of their first sample, paced by sleeps to
+        absolute deadlines. ``on_progress(samples_sent, samples_total)`` is called from this thread about 10
+        times a second. Raises :class:`StreamAbortedError` when the controller stops before the end (STOP, emergency
+        stop, watchdog, fault) and the refusals of :meth:`arm` for START_STREAM.
+        """
+
+    @abstractmethod
+    def stop(self) -> None:
+        """Controlled stop (accepted unsigned in every state): decelerate, move home, then armed."""
+
+    @abstractmethod
+    def emergency_stop(self) -> None:
+        """Stop the actuators at once (every state); only :meth:`arm` leaves ``emergency_stopped``."""
+
+    # --- feedback
+
+    def status(self) -> TableStatus:
+        """The latest status received (:class:`TableError` before the first)."""
+        latest = self.feedback.latest
+        if latest is None:
+            raise TableError(f"no status received from {self.url} yet")
+        return latest
+
+    def wait_for_status(self, predicate: Callable[[TableStatus], bool], timeout: float) -> TableStatus:
+        """The first status (the latest one included) for which ``predicate`` holds; :class:`TableTimeoutError`
+        after ``timeout`` s."""
+        found: list[TableStatus] = []
+
+        def check() -> bool:
+            latest = self.feedback.latest
+            if latest is not None and predicate(latest):
+                found.append(latest)
+                return True
+            return False
+
+        if not self.feedback.wait_for(check, timeout):
+            latest = self.feedback.latest
+            raise TableTimeoutError(f"{self.url}: no matching status within {timeout} s "
+                               f"(last: {latest.state if latest else 'none'})")
+        return found[0]
+
+    def wait_for_state(self, state: str, timeout: float) -> TableStatus:
+        """The first status in ``state`` (see :meth:`wait_for_status`)."""
+        return self.wait_for_status(lambda s: s.state == state, timeout)
+
+    def statuses(self) -> Subscription[TableStatus]:
+        """Every status from now on."""
+        return self.feedback.subscribe("status")
+
+    def accelerations(self) -> Subscription[AccelBatch]:
+        """Every accelerometer batch from now on, as received (check ``seq`` for lost batches)."""
+        return self.feedback.subscribe("accel")
+
+    def detections(self) -> Subscription[Detection]:
+        """Every overturn detection from now on, each event id once."""
+        return self.feedback.subscribe("detection")
+
+    def faults(self) -> Subscription[FaultEvent]:
+        """Every fault bit that becomes set from now on."""
+        return self.feedback.subscribe("fault")
+
+
+# ----- the URL registry -----------------------------------------------------------------------------------
+
+Factory = Callable[..., TableController]
+
+_registry: dict[str, Factory] = {}
+
+_BUILTIN = {"mavlink": "drivers.mavlink"}
+"""Schemes whose backend module registers itself on import (imported on first use)."""
+
+
+def register_scheme(scheme: str, factory: Factory) -> None:
+    """Make ``open_table("scheme://…", **options)`` call ``factory(url, **options)``."""
+    _registry[scheme.lower()] = factory
+
+
+def open_table(url: str, **options: Any) -> TableController:
+    """A controller for ``url`` (``mavlink://127.0.0.1:14600``, …), not yet connected: call
+    :meth:`~TableController.connect` or use it in a ``with`` block. ``options`` go to the backend."""
+    scheme = urlsplit(url).scheme.lower()
+    if not scheme:
+        raise ValueError(f"table URL {url!r} has no scheme; expected e.g. mavlink://127.0.0.1:14600")
+    if scheme not in _registry and scheme in _BUILTIN:
+        importlib.import_module(_BUILTIN[scheme])
+    if scheme not in _registry:
+        known = sorted(set(_registry) | set(_BUILTIN))
+        raise ValueError(f"table URL {url!r}: unknown scheme {scheme!r}; known: {', '.join(known)}")
+    return _registry[scheme](url, **options)
+
+
+def host_port(url: str, default_host: str = "127.0.0.1") -> tuple[str, int]:
+    """``(host, port)`` of ``scheme://HOST:PORT`` (:class:`ValueError` when the port is missing or bad)."""
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if port is None or parts.path not in ("", "/"):
+        raise ValueError(f"table URL {url!r}: expected {parts.scheme or 'scheme'}://HOST:PORT")
+    return parts.hostname or default_host, port
+
+
+def sleep_until(deadline_ns: int) -> int:
+    """Sleep until the host-monotonic time ``deadline_ns`` [ns] (never busy-wait: that starves other threads);
+    how late the wake-up was [ns] (if the deadline had passed already: how late the call was)."""
+    delay = deadline_ns - time.monotonic_ns()
+    if delay > 0:
+        time.sleep(delay * 1e-9)
+    return time.monotonic_ns() - deadline_ns
+
+
+def finite_poses(poses: Any) -> np.ndarray:
+    """``poses`` as a finite float64 (N, 6) array, else :class:`ValueError`."""
+    arr = np.asarray(poses, dtype=np.float64)
+    if arr.ndim != 2 or arr.shape[1] != 6 or len(arr) == 0:
+        raise ValueError(f"poses must have shape (N, 6) with N >= 1, got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise ValueError("poses must be finite")
+    return arr
+
+
+def sample_spacing(t: Any, n: int) -> float:
+    """The spacing [s] of ``t`` (N,) evenly spaced times, else :class:`ValueError`."""
+    times = np.asarray(t, dtype=np.float64)
+    if times.shape != (n,) or n < 2:
+        raise ValueError(f"t must have shape ({n},) with at least 2 samples, got {times.shape}")
+    steps = np.diff(times)
+    spacing = float(steps.mean())
+    if not (math.isfinite(spacing) and spacing > 0 and np.allclose(steps, spacing, rtol=1e-6, atol=1e-9)):
+        raise ValueError("t must be evenly spaced and increasing")
+    return spacing

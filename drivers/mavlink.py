@@ -1,0 +1,478 @@
+"""The table controller over MAVLink 2 on UDP: ``open_table("mavlink://HOST:PORT", key_file=...)``.
+
+The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with
+the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.mavlink.load_signing_key`).
+
+Threads: a **receive thread** drains the socket continuously (receive buffer enlarged to
+:data:`RECEIVE_BUFFER`), stamps each datagram with its arrival time and dispatches every message to the feedback
+(status, accelerometer batches, overturn events de-duplicated by event id), to the waiting command, or to the
+clock; a **heartbeat thread** sends HEARTBEAT at :data:`HEARTBEAT_RATE` and a TIMESYNC request every
+:data:`TIMESYNC_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread;
+sending is serialised by a lock.
+
+Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
+
+- **Commands** go as COMMAND_LONG, ``confirmation`` 0 first; without a COMMAND_ACK within ``command_timeout`` s
+  the command is sent again with ``confirmation`` 1, 2, … up to ``retries`` times, then
+  :class:`~drivers.controller.TableTimeoutError`. The controller executes a command with ``confirmation`` > 0
+  that repeats the last one from this host (same command and parameters, within 1 s) only once and answers it
+  with that command's result: retries are safe for every command. HOME and SET_TILT answer IN_PROGRESS, then a
+  final ACK when the motion ended; waiting for it also accepts a status that shows the motion over (the final
+  ACK may be lost).
+- **Clock**: TIMESYNC (common.xml) round trips; the controller answers ``tc1`` = its time [ns]. Of the last
+  :data:`CLOCK_WINDOW` round trips, those within 100 µs of twice the shortest delay are fitted with a line
+  (controller time against the midpoint of send and receive) through the shortest round trip: offset
+  ``tc − (t_send + t_recv)/2`` there, and the slope follows a controller clock that runs at another rate (an
+  emulator's ``--speed``, a drifting oscillator). :meth:`MavlinkTable.connect` exchanges round trips 20 ms apart
+  until they span :data:`FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
+- **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then
+  SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
+  each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
+  END_OF_STREAM.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from drivers.controller import (
+    STOPPED_STATES,
+    TILT_AXES,
+    AccelBatch,
+    CommandDeniedError,
+    CommandFailedError,
+    CommandRejectedError,
+    Detection,
+    StreamAbortedError,
+    StreamReport,
+    TableController,
+    TableError,
+    TableStatus,
+    TableTimeoutError,
+    finite_poses,
+    host_port,
+    register_scheme,
+    sample_spacing,
+    sleep_until,
+)
+from protocols.mavlink import (
+    SETPOINTS_PER_CHUNK,
+    UdpLink,
+    dialect,
+    load_signing_key,
+    setpoint_chunks,
+    unpack_accel_batch,
+)
+
+RECEIVE_BUFFER = 4 << 20
+"""Requested socket receive buffer [bytes]."""
+
+HEARTBEAT_RATE = 20.0
+"""Host heartbeats per second (the controller stops the table after 100 ms without one)."""
+
+TIMESYNC_EVERY = 10
+"""A TIMESYNC request every this many heartbeats (2 Hz)."""
+
+CLOCK_WINDOW = 32
+"""Round trips kept for the clock estimate."""
+
+FIT_SPAN = 0.2
+"""Round trips must span this long [s] before the clock's rate is fitted."""
+
+STATUS_WAIT = 0.1
+"""After an accepted command, wait up to this long [s] for a status sent after it (so that ``status()`` shows
+its effect); the controller reports every state change at once and a status at least every 20 ms."""
+
+FIRST_SEQ_LIMIT = 2**24
+"""Chunk numbers of START_STREAM stay below this (exact in its float parameter)."""
+
+_MOTION_STATES = frozenset({"homing", "tilting"})
+_STATUS_GRACE_NS = 40_000_000  # a status this long after a motion's ACK (controller time) reflects it
+
+
+class ClockSync:
+    """Maps host monotonic time to controller time from TIMESYNC round trips (module docstring). Thread-safe."""
+
+    def __init__(self, window: int = CLOCK_WINDOW) -> None:
+        self._lock = threading.Lock()
+        self._samples: deque[tuple[int, int, int]] = deque(maxlen=window)  # (midpoint, tc, round trip) [ns]
+        self._anchor = (0, 0)  # (host ns, controller ns) on the line
+        self._rate = 1.0
+        self.fitted = False
+        """Whether the rate comes from a fit (else it is taken as 1)."""
+        self.round_trips: list[int] = []
+        """Every round trip seen [ns] (for statistics)."""
+
+    def add(self, t_send: int, t_recv: int, tc: int) -> None:
+        """One round trip: request sent at host ``t_send``, answer with controller time ``tc`` received at
+        ``t_recv`` [ns]."""
+        rtt = t_recv - t_send
+        if rtt < 0:
+            return
+        with self._lock:
+            self.round_trips.append(rtt)
+            self._samples.append(((t_send + t_recv) // 2, tc, rtt))
+            best = min(self._samples, key=lambda s: s[2])
+            good = [s for s in self._samples if s[2] <= 2 * best[2] + 100_000]
+            mids = np.array([s[0] for s in good], dtype=np.float64)
+            if len(good) >= 3 and mids.max() - mids.min() >= FIT_SPAN * 1e9:
+                tcs = np.array([s[1] for s in good], dtype=np.float64)
+                rate, _ = np.polyfit(mids - best[0], tcs - best[1], 1)
+                self._rate = float(rate)
+                self.fitted = True
+            self._anchor = (best[0], best[1])
+
+    def to_controller(self, host_ns: int) -> int:
+        """Controller time [ns] at host monotonic time ``host_ns``."""
+        with self._lock:
+            h, c = self._anchor
+            return c + round((host_ns - h) * self._rate)
+
+    def to_host(self, controller_ns: int) -> int:
+        """Host monotonic time [ns] at controller time ``controller_ns``."""
+        with self._lock:
+            h, c = self._anchor
+            return h + round((controller_ns - c) / self._rate)
+
+    def stats(self) -> dict[str, float]:
+        """Offset [s] (controller − host now), rate, round trips (count, min, median [s])."""
+        now = time.monotonic_ns()
+        rtts = np.array(self.round_trips or [0], dtype=np.float64) * 1e-9
+        return {"offset_s": (self.to_controller(now) - now) * 1e-9, "rate": self._rate,
+                "round_trips": len(self.round_trips), "rtt_min_s": float(rtts.min()),
+                "rtt_median_s": float(np.median(rtts))}
+
+
+class _AckSlot:
+    """COMMAND_ACKs received for one command id while a caller waits: (result, progress, host ns)."""
+
+    def __init__(self) -> None:
+        self.acks: list[tuple[int, int, int]] = []
+
+
+class MavlinkTable(TableController):
+    """A table controller at ``mavlink://HOST:PORT`` (module docstring).
+
+    Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``system``/``component`` this host's MAVLink
+    ids; ``target_system``/``target_component`` the controller's; ``link_id`` of the signatures;
+    ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s].
+    """
+
+    def __init__(self, url: str, *, key_file: str | None = None, system: int = 255, component: int = 190,
+                 target_system: int = 1, target_component: int = 1, link_id: int = 0,
+                 command_timeout: float = 0.15, retries: int = 4, connect_timeout: float = 3.0) -> None:
+        super().__init__(url)
+        self.address = host_port(url)
+        self.key_file = key_file
+        self.system, self.component = system, component
+        self.target = (target_system, target_component)
+        self.link_id = link_id
+        self.command_timeout = command_timeout
+        self.retries = retries
+        self.connect_timeout = connect_timeout
+        self.clock = ClockSync()
+        self.d = dialect()
+        self._link: UdpLink | None = None
+        self._send_lock = threading.Lock()
+        self._closing = threading.Event()
+        self._threads: list[threading.Thread] = []
+        self._acks: dict[int, _AckSlot] = {}
+        self._command_locks: dict[int, threading.Lock] = {}
+        self._timesync_sent: deque[int] = deque(maxlen=64)
+        self._next_seq = 0
+        self._fault_bits = [(bit, entry.name.removeprefix("SHAKETABLE_FAULT_"))  # single bits (not ENUM_END)
+                            for bit, entry in self.d.enums["SHAKETABLE_FAULT"].items() if bit & (bit - 1) == 0]
+        self._accel_expected: dict[int, int] = {}
+        self.accel_batches_lost = 0
+        """Accelerometer batches missing from the sequence numbers received."""
+        self.last_controller_heartbeat_ns: int | None = None
+        """Host time [ns] of the controller's last HEARTBEAT."""
+
+    # ----- connection -----------------------------------------------------------------------------------
+
+    def connect(self) -> None:
+        if self._link is not None:
+            return
+        key = load_signing_key(self.key_file)
+        host, port = self.address
+        local = "127.0.0.1" if _is_loopback(host) else "0.0.0.0"
+        self._link = UdpLink.open((local, 0), (host, port), source_system=self.system,
+                                  source_component=self.component, key=key, link_id=self.link_id,
+                                  receive_buffer=RECEIVE_BUFFER)
+        self._parser = self.d.MAVLink(None, srcSystem=self.system, srcComponent=self.component)
+        self._parser.robust_parsing = True
+        self._closing.clear()
+        self._threads = [threading.Thread(target=self._receive_loop, name="mavlink-receive", daemon=True),
+                         threading.Thread(target=self._heartbeat_loop, name="mavlink-heartbeat", daemon=True)]
+        for thread in self._threads:
+            thread.start()
+        try:
+            deadline = time.monotonic() + self.connect_timeout
+            while not (self.clock.fitted and self.feedback.latest is not None):
+                if time.monotonic() > deadline:
+                    raise TableTimeoutError(f"{self.url}: no answer from the table controller "
+                                            f"within {self.connect_timeout} s")
+                self._request_timesync()  # round trips 20 ms apart until the clock's rate is fitted
+                time.sleep(0.02)
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        if self._link is None:
+            return
+        self._closing.set()
+        for thread in self._threads:
+            thread.join(timeout=1.0)
+        self._link.close()
+        self._link = None
+        self.feedback.close()
+
+    def _receive_loop(self) -> None:
+        assert self._link is not None
+        sock = self._link.sock
+        sock.settimeout(0.2)
+        while not self._closing.is_set():
+            try:
+                data, _ = sock.recvfrom(65535)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            now = time.monotonic_ns()
+            for msg in self._parser.parse_buffer(data) or []:
+                self._dispatch(msg, now)
+
+    def _dispatch(self, msg: Any, now: int) -> None:
+        kind = msg.get_type()
+        if kind == "SHAKETABLE_STATUS":
+            self.feedback.publish_status(self._status(msg, now))
+        elif kind == "SHAKETABLE_ACCEL_BATCH":
+            self._accel(msg)
+        elif kind == "SHAKETABLE_OVERTURN_EVENT":
+            self.feedback.publish_detection(Detection(msg.event_id, msg.body_id, msg.direction, msg.tilt, msg.t_ns))
+        elif kind == "COMMAND_ACK":
+            slot = self._acks.get(msg.command)
+            if slot is not None:
+                slot.acks.append((msg.result, msg.progress, now))
+                self.feedback.notify()
+        elif kind == "TIMESYNC" and msg.tc1 != 0 and msg.ts1 in self._timesync_sent:
+            self.clock.add(msg.ts1, now, msg.tc1)
+            self.feedback.notify()
+        elif kind == "HEARTBEAT":
+            self.last_controller_heartbeat_ns = now
+
+    def _status(self, msg: Any, now: int) -> TableStatus:
+        state = self.d.enums["SHAKETABLE_STATE"][msg.state].name.removeprefix("SHAKETABLE_STATE_").lower()
+        faults = tuple(name for bit, name in self._fault_bits if msg.faults & bit)
+        return TableStatus(msg.t_ns, state, msg.buffer_depth, msg.last_chunk_seq, msg.underruns, faults,
+                           msg.refused_commands, np.array(msg.pose, dtype=np.float64), now)
+
+    def _accel(self, msg: Any) -> None:
+        series = unpack_accel_batch(msg)
+        expected = self._accel_expected.get(msg.sensor_id)
+        if expected is not None and msg.batch_seq != expected:
+            self.accel_batches_lost += (msg.batch_seq - expected) % 2**32
+        self._accel_expected[msg.sensor_id] = (msg.batch_seq + 1) % 2**32
+        self.feedback.publish_accel(AccelBatch(msg.sensor_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
+                                               series.samples))
+
+    def _heartbeat_loop(self) -> None:
+        period = round(1e9 / HEARTBEAT_RATE)
+        deadline = time.monotonic_ns()
+        beats = 0
+        while not self._closing.is_set():
+            self._send(self.d.MAVLink_heartbeat_message(self.d.MAV_TYPE_GCS, self.d.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                        self.d.MAV_STATE_ACTIVE, 3))
+            beats += 1
+            if beats % TIMESYNC_EVERY == 0:
+                self._request_timesync()
+            deadline = max(deadline + period, time.monotonic_ns())
+            sleep_until(deadline)
+
+    def _request_timesync(self) -> None:
+        now = time.monotonic_ns()
+        self._timesync_sent.append(now)
+        self._send(self.d.MAVLink_timesync_message(0, now))
+
+    def _send(self, msg: Any) -> None:
+        link = self._link
+        if link is None:
+            raise TableError(f"{self.url}: not connected")
+        with self._send_lock:
+            link.send(msg)
+
+    # ----- commands -------------------------------------------------------------------------------------
+
+    def _command(self, name: str, *params: float) -> tuple[int, int]:
+        """Send MAV_CMD_SHAKETABLE_<name> until acknowledged; (result, host ns of the ACK) unless refused."""
+        cmd_id = getattr(self.d, f"MAV_CMD_SHAKETABLE_{name}")
+        values = [float(p) for p in params] + [0.0] * (7 - len(params))
+        lock = self._command_locks.setdefault(cmd_id, threading.Lock())
+        with lock:
+            slot = self._acks[cmd_id] = _AckSlot()
+            try:
+                for attempt in range(self.retries + 1):
+                    self._send(self.d.MAVLink_command_long_message(*self.target, cmd_id, attempt, *values))
+                    if self.feedback.wait_for(lambda: bool(slot.acks), self.command_timeout):
+                        break
+                else:
+                    raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts "
+                                            f"of {self.command_timeout} s")
+                result, _, when = slot.acks.pop(0)
+                self._check(name, result)
+                if result != self.d.MAV_RESULT_IN_PROGRESS:
+                    del self._acks[cmd_id]
+                    self._status_after(when)
+                return result, when
+            except BaseException:
+                self._acks.pop(cmd_id, None)
+                raise
+
+    def _status_after(self, host_ns: int) -> None:
+        """Wait (at most :data:`STATUS_WAIT`) for a status received after ``host_ns``: the controller reports a
+        state change at once, after the ACK, so ``status()`` then shows what the command did."""
+        self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.host_ns > host_ns,
+                               STATUS_WAIT)
+
+    def _check(self, name: str, result: int) -> None:
+        d = self.d
+        if result in (d.MAV_RESULT_ACCEPTED, d.MAV_RESULT_IN_PROGRESS):
+            return
+        state = self.feedback.latest.state if self.feedback.latest is not None else None
+        result_name = d.enums["MAV_RESULT"][result].name if result in d.enums["MAV_RESULT"] else str(result)
+        if result == d.MAV_RESULT_DENIED:
+            raise CommandDeniedError(name, result_name, state, "missing or bad signature (are host and controller "
+                                     "using the same signing key?)")
+        if result == d.MAV_RESULT_TEMPORARILY_REJECTED:
+            raise CommandRejectedError(name, result_name, state, "not accepted in this state")
+        why = {d.MAV_RESULT_FAILED: "invalid parameters", d.MAV_RESULT_UNSUPPORTED: "unsupported"}.get(
+            result, f"result {result_name}")
+        raise CommandFailedError(name, result_name, state, why)
+
+    def _motion(self, name: str, params: tuple[float, ...], wait: bool, timeout: float) -> None:
+        cmd_id = getattr(self.d, f"MAV_CMD_SHAKETABLE_{name}")
+        result, acked = self._command(name, *params)
+        if result != self.d.MAV_RESULT_IN_PROGRESS:
+            return
+        slot = self._acks[cmd_id]
+        after = self.clock.to_controller(acked) + _STATUS_GRACE_NS
+        try:
+            if not wait:
+                return
+
+            def final() -> list[int]:  # retransmissions may bring more IN_PROGRESS answers
+                return [result for result, _, _ in slot.acks if result != self.d.MAV_RESULT_IN_PROGRESS]
+
+            def over() -> bool:
+                latest = self.feedback.latest
+                return bool(final()) or (latest is not None and latest.t_ns >= after
+                                         and latest.state not in _MOTION_STATES)
+
+            if not self.feedback.wait_for(over, timeout):
+                raise TableTimeoutError(f"{name}: still moving after {timeout} s")
+            if final():
+                self._status_after(slot.acks[-1][2])
+            latest = self.status()
+            if (final()[0] if final() else latest.state) not in (self.d.MAV_RESULT_ACCEPTED, "armed"):
+                raise CommandFailedError(name, "FAILED", latest.state, "the motion was stopped before its target")
+        finally:
+            self._acks.pop(cmd_id, None)
+
+    def arm(self) -> None:
+        self._command("ARM")
+
+    def disarm(self) -> None:
+        self._command("DISARM")
+
+    def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
+        self._motion("HOME", (), wait, timeout)
+
+    def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
+        if axis not in TILT_AXES:
+            raise ValueError(f"axis must be one of {TILT_AXES}, got {axis!r}")
+        if not math.isfinite(angle):
+            raise ValueError(f"angle must be finite, got {angle!r}")
+        self._motion("SET_TILT", (angle, float(TILT_AXES.index(axis))), wait, timeout)
+
+    def stop(self) -> None:
+        self._command("STOP")
+
+    def emergency_stop(self) -> None:
+        self._command("EMERGENCY_STOP")
+
+    # ----- streaming ------------------------------------------------------------------------------------
+
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+        poses = finite_poses(poses)
+        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
+        if not (math.isfinite(lead) and lead > 0):
+            raise ValueError(f"lead must be > 0 s, got {lead!r}")
+        lead_ns = round(lead * 1e9)
+        underruns_before = self.status().underruns
+        first_seq = self._next_seq
+        self._command("START_STREAM", float(first_seq))
+        count = math.ceil(len(poses) / SETPOINTS_PER_CHUNK)
+        self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
+        t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
+        t_end = t_start + (len(poses) - 1) * spacing_ns
+        lateness = np.zeros(count, dtype=np.int64)
+
+        def report(sent: int, final: TableStatus | None) -> StreamReport:
+            underruns = (final or self.status()).underruns - underruns_before
+            return StreamReport(sent, min(sent * SETPOINTS_PER_CHUNK, len(poses)), underruns, t_start, t_end, lead,
+                                lateness[:sent], final)
+
+        next_progress = time.monotonic_ns()
+        for k in range(count):  # each chunk made just before it is due: no burst of work at the start
+            first = k * SETPOINTS_PER_CHUNK
+            chunk_start = t_start + first * spacing_ns
+            (chunk,) = setpoint_chunks(poses[first:first + SETPOINTS_PER_CHUNK], chunk_start, spacing_ns,
+                                       (first_seq + k) % FIRST_SEQ_LIMIT, end_of_stream=k == count - 1)
+            lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
+            latest = self.feedback.latest
+            if latest is not None and latest.state in STOPPED_STATES:
+                raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
+                                         f"{', '.join(latest.faults) or 'none'})", report(k, latest))
+            self._send(chunk)
+            if on_progress is not None and time.monotonic_ns() >= next_progress:
+                on_progress(min(first + SETPOINTS_PER_CHUNK, len(poses)), len(poses))
+                next_progress += 100_000_000
+        remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
+        final = self.wait_for_status(
+            lambda s: s.state in STOPPED_STATES or (s.t_ns >= t_end and s.state != "streaming"), remaining + 2.0)
+        if on_progress is not None:
+            on_progress(len(poses), len(poses))
+        if final.state != "armed":
+            raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
+                                     f"{', '.join(final.faults) or 'none'})", report(count, final))
+        return report(count, final)
+
+    # ----- diagnostics ----------------------------------------------------------------------------------
+
+    def link_stats(self) -> dict[str, float | None]:
+        """Clock estimate and round trips, accelerometer batches lost, duplicate overturn events dropped, age of
+        the controller's last heartbeat [s] (None before the first)."""
+        beat = self.last_controller_heartbeat_ns
+        return {**self.clock.stats(), "accel_batches_lost": self.accel_batches_lost,
+                "duplicate_detections": self.feedback.duplicate_detections,
+                "controller_heartbeat_age_s": None if beat is None else (time.monotonic_ns() - beat) * 1e-9}
+
+
+def _is_loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
+
+
+register_scheme("mavlink", MavlinkTable)

@@ -1,0 +1,62 @@
+"""The plate's motion differentiated: pose rates for the specimens, specific force for virtual accelerometers.
+
+:class:`PlateTrack` keeps the last two achieved (true) poses of the 1 kHz tick and returns, for each new tick,
+the **previous** tick's pose with central-difference rates ``(p[k+1] − p[k−1]) / 2dt``: one tick late, smooth and
+consistent with the pose (what ``sim_table.specimens`` asks for).
+
+:class:`Accelerometers` are points fixed on the plate (``places`` (m, 3) [m], plate frame: x along the fall line,
++x downhill, z normal to the plate, up). Each measures, at the same one-tick-late instants, the specific force in
+the plate frame ``f = Rᵀ (a − g)`` with ``g = (0, 0, −9.81) m/s²`` in the base frame and ``a`` the central second
+difference of the point's position ``x = t + R r`` [m/s²], plus Gaussian noise of σ ``noise`` (seeded): at rest on
+a plate tilted by pitch β, ``f = (−g sin β, 0, g cos β)``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from analysis.body import G
+from analysis.table_model import rotation_matrices
+
+GRAVITY = np.array([0.0, 0.0, -G])
+"""Gravity in the base frame [m/s²]."""
+
+
+class PlateTrack:
+    """The last two achieved poses; :meth:`advance` returns the plate state one tick late (module docstring)."""
+
+    def __init__(self, dt: float, pose: np.ndarray | None = None) -> None:
+        self.dt = float(dt)
+        start = np.zeros(6) if pose is None else np.asarray(pose, dtype=float)
+        self._history = np.stack([start, start])
+
+    def advance(self, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """New ticks' poses (k, 6) → the k poses one tick earlier (k, 6), their rates (k, 6) [m/s, rad/s] and the
+        window (k + 2, 6) the differences used (for :meth:`Accelerometers.measure`)."""
+        window = np.concatenate([self._history, poses])
+        self._history = window[-2:].copy()
+        return window[1:-1], (window[2:] - window[:-2]) / (2.0 * self.dt), window
+
+
+class Accelerometers:
+    """Virtual accelerometers at ``places`` (m, 3) [m, plate frame], noise σ ``noise`` [m/s²] from ``seed``."""
+
+    def __init__(self, places: np.ndarray, dt: float, *, noise: float = 0.02, seed: int = 0) -> None:
+        self.places = np.atleast_2d(np.asarray(places, dtype=float))
+        if self.places.shape[1] != 3 or not np.isfinite(self.places).all():
+            raise ValueError(f"accelerometer places must be finite (m, 3) rows, got {self.places.shape}")
+        if not noise >= 0:
+            raise ValueError(f"accelerometer noise must be >= 0 m/s², got {noise!r}")
+        self.dt = float(dt)
+        self.noise = float(noise)
+        self._rng = np.random.default_rng(seed)
+
+    def measure(self, window: np.ndarray) -> np.ndarray:
+        """Specific force (k, m, 3) [m/s², plate frame] at the k inner poses of ``window`` (k + 2, 6)."""
+        R = rotation_matrices(window)  # (k + 2, 3, 3)
+        points = window[:, None, :3] + np.einsum("kij,mj->kmi", R, self.places)  # (k + 2, m, 3)
+        a = (points[2:] - 2.0 * points[1:-1] + points[:-2]) / (self.dt * self.dt)
+        force = np.einsum("kji,kmj->kmi", R[1:-1], a - GRAVITY)
+        if self.noise:
+            force += self._rng.normal(0.0, self.noise, force.shape)
+        return force

@@ -1,0 +1,563 @@
+"""The emulated table controller's logic, free of any transport: states, commands, the setpoint buffer, the
+reference trajectory, watchdogs and counters (``docs/table-controller.md``).
+
+:class:`ControllerCore` is driven by its owner, which feeds it in time order: host messages (:meth:`command`,
+:meth:`chunk`, :meth:`heartbeat`) stamped with the controller time they arrived, and :meth:`tick` once per
+controller tick. A tick returns the **reference pose** the actuators should follow at that time and whether the
+drives are braked (idle, faulted, emergency stopped: the legs hold where they are). The achieved pose comes back
+through :meth:`observe`; faults seen by the physics (stroke, limits, drive) through :meth:`raise_fault`.
+
+Times are integer nanoseconds of controller time; poses ``(surge, sway, heave [m], roll, pitch, yaw [rad])``.
+
+Reference generation:
+
+- **Streaming** plays the buffer, interpolating linearly between samples at the tick; it starts from the pose
+  held at START_STREAM. Samples due at or before the last tick when they arrive are skipped (late).
+- **Underrun** (the buffer dry before END_OF_STREAM, once a sample has arrived): the reference keeps its
+  velocity and decelerates at the axis limits (Table IV accelerations; the tilt acceleration for rotations) to
+  rest, one underrun counted per dry spell; new samples resume playing from the held pose.
+- **Moves** (HOME, SET_TILT, the return home of a stop) are quintic profiles ``s = 10τ³ − 15τ⁴ + 6τ⁵`` as in
+  ``rig.drive.tilt``, as short as the axis limits allow (velocity and acceleration; for rotations also the tilt
+  jerk).
+- **Stopping** (STOP, a watchdog, a drive fault): decelerate to rest as in an underrun, then move home; then
+  ``armed`` (STOP) or ``faulted``.
+
+Watchdogs: while streaming (before END_OF_STREAM arrived), no chunk for more than ``watchdog_ns`` →
+STREAM_SILENT; while armed, homing, tilting or streaming, no host heartbeat for more than ``watchdog_ns``
+(ARM counts as one) → HEARTBEAT_LOST. Both stop the table (stopping → faulted).
+
+Chunk sequence numbers: a repeated one is ignored; one beyond the expected is a gap (CHUNK_GAP, the stream
+continues); an older one not seen before (reordered) is played by its times.
+"""
+
+from __future__ import annotations
+
+import bisect
+import enum
+import math
+from collections import deque
+from dataclasses import asdict, dataclass, field
+
+import numpy as np
+
+from analysis.table_model import TableModel
+
+SEQ_MODULUS = 2**32
+"""Chunk sequence numbers are uint32 and wrap."""
+
+FIRST_SEQ_LIMIT = 2**24
+"""START_STREAM's first chunk number must be an integer below this (exact in a float32 parameter)."""
+
+_SEEN_WINDOW = 4096
+"""Sequence numbers remembered per stream to recognise repeated chunks."""
+
+
+class State(enum.Enum):
+    """Controller states (``docs/table-controller.md``)."""
+
+    IDLE = "idle"
+    ARMED = "armed"
+    HOMING = "homing"
+    TILTING = "tilting"
+    STREAMING = "streaming"
+    STOPPING = "stopping"
+    FAULTED = "faulted"
+    EMERGENCY_STOPPED = "emergency_stopped"
+
+
+BRAKED = frozenset({State.IDLE, State.FAULTED, State.EMERGENCY_STOPPED})
+"""States with the drives disabled: the legs hold where they are."""
+
+_HEARTBEAT_GUARDED = frozenset({State.ARMED, State.HOMING, State.TILTING, State.STREAMING})
+
+
+class Fault(enum.IntFlag):
+    """Latched fault bits (the same bits as the MAVLink dialect's SHAKETABLE_FAULT); ARM clears them."""
+
+    DRIVE = 1
+    STROKE = 2
+    STREAM_SILENT = 4
+    HEARTBEAT_LOST = 8
+    UNSIGNED_COMMAND = 16
+    SETPOINT_LIMIT = 32
+    CHUNK_GAP = 64
+    UNDERRUN = 128
+
+
+_STOPPING_FAULTS = Fault.DRIVE | Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST
+"""Faults that stop the table; the others only latch."""
+
+
+class Command(enum.Enum):
+    """Commands of the controller."""
+
+    ARM = "arm"
+    DISARM = "disarm"
+    HOME = "home"
+    SET_TILT = "set_tilt"
+    START_STREAM = "start_stream"
+    STOP = "stop"
+    EMERGENCY_STOP = "emergency_stop"
+
+
+SIGNED_COMMANDS = frozenset({Command.ARM, Command.HOME, Command.SET_TILT, Command.START_STREAM})
+"""Motion commands: refused unless signed. STOP, DISARM and EMERGENCY_STOP are accepted unsigned."""
+
+
+class Result(enum.Enum):
+    """Answer to a command: done, started (a final :class:`Done` follows), or refused and why."""
+
+    ACCEPTED = "accepted"
+    IN_PROGRESS = "in_progress"
+    DENIED = "denied"  # missing or bad signature
+    REJECTED = "rejected"  # not in this state
+    FAILED = "failed"  # invalid parameters
+    CANCELLED = "cancelled"  # a motion ended before its target (final answer only)
+
+
+class TiltAxis(enum.IntEnum):
+    """SET_TILT's axis parameter: pitch (pose column 4, fall line +x) or roll (column 3, fall line −y)."""
+
+    PITCH = 0
+    ROLL = 1
+
+
+@dataclass(frozen=True)
+class StateChange:
+    """The state changed at ``t_ns``."""
+
+    t_ns: int
+    old: State
+    new: State
+
+
+@dataclass(frozen=True)
+class Done:
+    """A command that answered IN_PROGRESS ended at ``t_ns`` with ``result`` (ACCEPTED or CANCELLED)."""
+
+    t_ns: int
+    command: Command
+    result: Result
+
+
+@dataclass(frozen=True, eq=False)
+class Snapshot:
+    """What one status carries: controller time [ns], state, setpoint samples buffered, the last chunk accepted,
+    underruns, latched faults, refused commands and the measured pose (6,)."""
+
+    t_ns: int
+    state: State
+    buffer_depth: int
+    last_chunk_seq: int
+    underruns: int
+    faults: Fault
+    refused_commands: int
+    pose: np.ndarray
+
+
+@dataclass
+class Counters:
+    """What the controller counted since power-up (reported at exit; some also in every status)."""
+
+    underruns: int = 0
+    refused_commands: int = 0
+    commands_accepted: int = 0
+    commands_rejected: int = 0
+    streams_started: int = 0
+    streams_completed: int = 0
+    chunks_accepted: int = 0
+    chunks_duplicate: int = 0
+    chunks_reordered: int = 0
+    chunks_missing: int = 0
+    chunks_after_end: int = 0
+    chunks_not_streaming: int = 0
+    samples_late: int = 0
+    stops: int = 0
+    emergency_stops: int = 0
+    watchdog_stops: int = 0
+    chunk_margin_min_ns: int | None = None
+    """Smallest (first sample time − arrival time) of an accepted chunk: how much of the lead was left."""
+    chunk_margin_total_ns: int = 0
+    """Sum of those margins (their mean is this / ``chunks_accepted``)."""
+    faults_raised: dict[str, int] = field(default_factory=dict)
+    """How often each fault bit went from clear to set."""
+
+    def as_dict(self) -> dict[str, object]:
+        return asdict(self)
+
+
+def _axis_limits(table: TableModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per pose column: velocity [m/s, rad/s], acceleration [m/s², rad/s²] and jerk (inf for translations)."""
+    lim = table.limits
+    axes = [lim.surge, lim.lateral, lim.heave]
+    tilt = lim.tilt
+    velocity = np.array([a.velocity for a in axes] + [tilt.rate] * 3)
+    acceleration = np.array([a.acceleration for a in axes] + [tilt.acceleration] * 3)
+    jerk = np.array([math.inf] * 3 + [tilt.jerk] * 3)
+    return velocity, acceleration, jerk
+
+
+def move_duration(start: np.ndarray, end: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
+                  jerk: np.ndarray) -> float:
+    """Shortest quintic move [s] from ``start`` to ``end`` (6,) keeping every axis within its limits.
+
+    The quintic's peaks for a change Δ over T: rate 15/8·Δ/T, acceleration 10/√3·Δ/T², jerk 60·Δ/T³.
+    """
+    change = np.abs(np.asarray(end) - np.asarray(start))
+    times = np.maximum.reduce([15.0 / 8.0 * change / velocity, np.sqrt(10.0 / math.sqrt(3.0) * change / acceleration),
+                               np.cbrt(60.0 * change / jerk)])
+    return float(times.max())
+
+
+@dataclass(frozen=True, eq=False)
+class Move:
+    """A quintic move from ``start`` to ``end`` (6,) starting at ``t0_ns``, lasting ``duration_ns``."""
+
+    t0_ns: int
+    start: np.ndarray
+    end: np.ndarray
+    duration_ns: int
+
+    def at(self, t_ns: int) -> np.ndarray:
+        tau = min(1.0, max(0.0, (t_ns - self.t0_ns) / self.duration_ns)) if self.duration_ns > 0 else 1.0
+        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
+        return self.start + (self.end - self.start) * s
+
+    def done(self, t_ns: int) -> bool:
+        return t_ns >= self.t0_ns + self.duration_ns
+
+
+class ControllerCore:
+    """The controller's state machine and reference generator (module docstring).
+
+    ``table`` gives the limits; ``tick_ns`` is the tick period [ns, controller time]; ``watchdog_ns`` the silence
+    that stops the table [ns, controller time]; ``pose`` (6,) where the plate rests at power-up (default home).
+    """
+
+    def __init__(self, table: TableModel, *, tick_ns: int = 1_000_000, watchdog_ns: int = 100_000_000,
+                 pose: np.ndarray | None = None) -> None:
+        self.table = table
+        self.tick_ns = int(tick_ns)
+        self.watchdog_ns = int(watchdog_ns)
+        self._velocity_limit, self._acceleration_limit, self._jerk_limit = _axis_limits(table)
+        self.state = State.IDLE
+        self.faults = Fault(0)
+        self.counters = Counters()
+        self.last_chunk_seq = 0
+        self.first_stream_ns: int | None = None
+        """Controller time of the first accepted START_STREAM (fault injection times count from it)."""
+        self._events: list[StateChange | Done] = []
+        self._p = np.zeros(6) if pose is None else np.array(pose, dtype=float)
+        self._v = np.zeros(6)
+        self._achieved = self._p.copy()
+        self._t: int | None = None  # the last tick
+        self._last_heartbeat: int | None = None
+        self._move: Move | None = None
+        self._motion: Command | None = None  # HOME or SET_TILT in progress
+        self._stop_reason: Fault | None = None
+        self._reset_stream()
+
+    # ----- inputs -------------------------------------------------------------------------------------
+
+    def heartbeat(self, t_ns: int) -> None:
+        """The host's heartbeat arrived at ``t_ns``."""
+        self._last_heartbeat = t_ns
+
+    def observe(self, achieved: np.ndarray) -> None:
+        """The latest achieved pose (6,) (where ARM takes over a braked plate)."""
+        self._achieved = np.array(achieved, dtype=float)
+
+    def refuse(self) -> Result:
+        """Count a command or chunk refused for its signature (also for commands unknown to the core)."""
+        self.counters.refused_commands += 1
+        self._latch(Fault.UNSIGNED_COMMAND)
+        return Result.DENIED
+
+    def command(self, command: Command, params: tuple[float, ...], signed: bool, t_ns: int) -> Result:
+        """Execute ``command`` with its parameters (SET_TILT: angle [rad], axis; START_STREAM: first chunk
+        number) arriving at ``t_ns``; ``signed``: it carried a valid signature."""
+        if command in SIGNED_COMMANDS and not signed:
+            return self.refuse()
+        result = getattr(self, f"_do_{command.value}")(params, t_ns)
+        if result in (Result.ACCEPTED, Result.IN_PROGRESS):
+            self.counters.commands_accepted += 1
+        else:
+            self.counters.commands_rejected += 1
+        return result
+
+    def chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray, end_of_stream: bool,
+              signed: bool, t_ns: int) -> bool:
+        """A setpoint chunk arrived at ``t_ns``: ``samples`` (n, 6), sample k due at ``t_start_ns + k spacing_ns``.
+        Whether it was taken into the buffer."""
+        if not signed:
+            self.refuse()
+            return False
+        if self.state is not State.STREAMING:
+            self.counters.chunks_not_streaming += 1
+            return False
+        if seq in self._seen:
+            self.counters.chunks_duplicate += 1
+            return False
+        ahead = (seq - self._expected) % SEQ_MODULUS
+        if self._end_seq is not None and (seq - self._end_seq) % SEQ_MODULUS < SEQ_MODULUS // 2:
+            self.counters.chunks_after_end += 1
+            return False
+        if ahead == 0:
+            self._expected = (seq + 1) % SEQ_MODULUS
+        elif ahead < SEQ_MODULUS // 2:
+            self.counters.chunks_missing += ahead
+            self._latch(Fault.CHUNK_GAP)
+            self._expected = (seq + 1) % SEQ_MODULUS
+        else:
+            self.counters.chunks_reordered += 1
+        self._remember(seq)
+        self.counters.chunks_accepted += 1
+        self.last_chunk_seq = seq
+        self._last_chunk = t_ns
+        self._received_any = True
+        margin = t_start_ns - t_ns
+        self.counters.chunk_margin_total_ns += margin
+        if self.counters.chunk_margin_min_ns is None or margin < self.counters.chunk_margin_min_ns:
+            self.counters.chunk_margin_min_ns = margin
+        times = t_start_ns + spacing_ns * np.arange(len(samples), dtype=np.int64)
+        if end_of_stream:
+            self._end_seq = seq
+            self._end_ns = int(times[-1])
+        self._insert(times, np.asarray(samples, dtype=float))
+        return True
+
+    def raise_fault(self, fault: Fault, t_ns: int) -> None:
+        """A fault seen by the physics or injected: latch it; DRIVE (and the watchdogs') also stop the table."""
+        self._latch(fault)
+        if fault & _STOPPING_FAULTS and self.state not in BRAKED:
+            self._begin_stop(t_ns, fault)
+
+    # ----- the tick -------------------------------------------------------------------------------------
+
+    def tick(self, t_ns: int) -> tuple[np.ndarray, bool]:
+        """Advance to ``t_ns``: the reference pose (6,) for the actuators and whether the drives are braked."""
+        dt = (t_ns - self._t) * 1e-9 if self._t is not None else self.tick_ns * 1e-9
+        self._t = t_ns
+        self._watchdogs(t_ns)
+        state = self.state
+        if state in BRAKED:
+            self._v[:] = 0.0
+            return self._p, True
+        if state is State.STREAMING:
+            pose = self._play(t_ns, dt)
+        elif state in (State.HOMING, State.TILTING):
+            assert self._move is not None
+            pose = self._move.at(t_ns)
+            if self._move.done(t_ns):
+                self._finish_motion(t_ns, Result.ACCEPTED)
+                self._set_state(State.ARMED, t_ns)
+        elif state is State.STOPPING:
+            pose = self._stopping(t_ns, dt)
+        else:  # ARMED: hold
+            pose = self._p
+        self._v = (pose - self._p) / dt if dt > 0 else np.zeros(6)
+        self._p = pose
+        return pose, False
+
+    def take_events(self) -> list[StateChange | Done]:
+        """State changes and completed commands since the last call, in order."""
+        events, self._events = self._events, []
+        return events
+
+    def snapshot(self, t_ns: int, pose: np.ndarray) -> Snapshot:
+        """The status at ``t_ns`` with the measured ``pose`` (6,)."""
+        return Snapshot(t_ns, self.state, len(self._buffer), self.last_chunk_seq, self.counters.underruns,
+                        self.faults, self.counters.refused_commands, pose)
+
+    # ----- commands -------------------------------------------------------------------------------------
+
+    def _do_arm(self, params: tuple[float, ...], t_ns: int) -> Result:
+        if self.state not in (State.IDLE, State.ARMED, State.FAULTED, State.EMERGENCY_STOPPED):
+            return Result.REJECTED
+        if self.state in BRAKED:
+            self._p = self._achieved.copy()
+            self._v[:] = 0.0
+        self.faults = Fault(0)
+        self._last_heartbeat = t_ns
+        self._set_state(State.ARMED, t_ns)
+        return Result.ACCEPTED
+
+    def _do_disarm(self, params: tuple[float, ...], t_ns: int) -> Result:
+        if self.state is State.IDLE:
+            return Result.ACCEPTED
+        if self.state not in (State.ARMED, State.FAULTED):
+            return Result.REJECTED
+        self._set_state(State.IDLE, t_ns)
+        return Result.ACCEPTED
+
+    def _do_home(self, params: tuple[float, ...], t_ns: int) -> Result:
+        return self._start_move(Command.HOME, np.zeros(6), t_ns)
+
+    def _do_set_tilt(self, params: tuple[float, ...], t_ns: int) -> Result:
+        angle, axis = (*params, 0.0, 0.0)[:2]
+        if not (math.isfinite(angle) and abs(angle) <= self.table.limits.tilt.angle) or axis not in (0.0, 1.0):
+            return Result.FAILED
+        target = self._p.copy()
+        target[3 if int(axis) == TiltAxis.ROLL else 4] = angle
+        return self._start_move(Command.SET_TILT, target, t_ns)
+
+    def _do_start_stream(self, params: tuple[float, ...], t_ns: int) -> Result:
+        first = (*params, 0.0)[0]
+        if not (math.isfinite(first) and first == int(first) and 0 <= first < FIRST_SEQ_LIMIT):
+            return Result.FAILED
+        if self.state is not State.ARMED:
+            return Result.REJECTED
+        self._reset_stream()
+        self._expected = int(first)
+        self._last_chunk = t_ns
+        self._anchor = (t_ns, self._p.copy())
+        self.counters.streams_started += 1
+        if self.first_stream_ns is None:
+            self.first_stream_ns = t_ns
+        self._set_state(State.STREAMING, t_ns)
+        return Result.ACCEPTED
+
+    def _do_stop(self, params: tuple[float, ...], t_ns: int) -> Result:
+        self.counters.stops += 1
+        if self.state not in BRAKED and self.state is not State.STOPPING:
+            self._begin_stop(t_ns, None)
+        return Result.ACCEPTED
+
+    def _do_emergency_stop(self, params: tuple[float, ...], t_ns: int) -> Result:
+        self.counters.emergency_stops += 1
+        self._finish_motion(t_ns, Result.CANCELLED)
+        self._reset_stream()
+        self._move = None
+        self._set_state(State.EMERGENCY_STOPPED, t_ns)
+        return Result.ACCEPTED
+
+    def _start_move(self, command: Command, target: np.ndarray, t_ns: int) -> Result:
+        if self.state is not State.ARMED:
+            return Result.REJECTED
+        duration = move_duration(self._p, target, self._velocity_limit, self._acceleration_limit, self._jerk_limit)
+        if duration == 0.0:
+            return Result.ACCEPTED
+        self._move = Move(t_ns, self._p.copy(), target, math.ceil(duration * 1e9))
+        self._motion = command
+        self._set_state(State.HOMING if command is Command.HOME else State.TILTING, t_ns)
+        return Result.IN_PROGRESS
+
+    # ----- internals ------------------------------------------------------------------------------------
+
+    def _reset_stream(self) -> None:
+        self._buffer: deque[tuple[int, np.ndarray]] = deque()
+        self._anchor: tuple[int, np.ndarray] | None = None
+        self._seen: set[int] = set()
+        self._seen_order: deque[int] = deque()
+        self._expected = 0
+        self._end_seq: int | None = None
+        self._end_ns: int | None = None
+        self._last_chunk: int | None = None
+        self._received_any = False
+        self._dry = False
+
+    def _remember(self, seq: int) -> None:
+        self._seen.add(seq)
+        self._seen_order.append(seq)
+        if len(self._seen_order) > _SEEN_WINDOW:
+            self._seen.discard(self._seen_order.popleft())
+
+    def _insert(self, times: np.ndarray, samples: np.ndarray) -> None:
+        """Put the samples due after the last tick into the time-ordered buffer (a time already there is kept)."""
+        last = self._t if self._t is not None else -1
+        late = int(np.count_nonzero(times <= last))
+        self.counters.samples_late += late
+        buffer = self._buffer
+        for t, pose in zip(times[late:].tolist(), samples[late:], strict=True):
+            if not buffer or t > buffer[-1][0]:
+                buffer.append((t, pose))
+                continue
+            i = bisect.bisect_left(buffer, t, key=lambda item: item[0])
+            if buffer[i][0] != t:
+                buffer.insert(i, (t, pose))
+
+    def _play(self, t_ns: int, dt: float) -> np.ndarray:
+        buffer = self._buffer
+        while buffer and buffer[0][0] <= t_ns:
+            self._anchor = buffer.popleft()
+        assert self._anchor is not None
+        ta, pa = self._anchor
+        if buffer:
+            self._dry = False
+            tb, pb = buffer[0]
+            return pa + (pb - pa) * ((t_ns - ta) / (tb - ta))
+        end = self._end_ns
+        if end is not None and t_ns >= end:  # the end of the stream consumed: hold its last pose
+            self.counters.streams_completed += 1
+            self._set_state(State.ARMED, t_ns)
+            self._reset_stream()
+            return pa if ta == end else self._p
+        if ta == t_ns:
+            return pa
+        if not self._received_any:  # nothing due yet: hold, ready to blend into the first sample
+            self._anchor = (t_ns, self._p)
+            return self._p
+        if not self._dry:
+            self._dry = True
+            self.counters.underruns += 1
+            self._latch(Fault.UNDERRUN)
+        pose = self._decelerate(dt)
+        self._anchor = (t_ns, pose)
+        return pose
+
+    def _decelerate(self, dt: float) -> np.ndarray:
+        """The reference one tick on, its velocity reduced by the axis accelerations (exactly zero at rest)."""
+        v = self._v
+        slower = np.sign(v) * np.maximum(np.abs(v) - self._acceleration_limit * dt, 0.0)
+        return self._p + slower * dt
+
+    def _stopping(self, t_ns: int, dt: float) -> np.ndarray:
+        if self._move is None:
+            pose = self._decelerate(dt)
+            if np.array_equal(pose, self._p):  # at rest: go home
+                duration = move_duration(pose, np.zeros(6), self._velocity_limit, self._acceleration_limit,
+                                         self._jerk_limit)
+                self._move = Move(t_ns, pose.copy(), np.zeros(6), math.ceil(duration * 1e9))
+            return pose
+        pose = self._move.at(t_ns)
+        if self._move.done(t_ns):
+            self._move = None
+            self._set_state(State.ARMED if self._stop_reason is None else State.FAULTED, t_ns)
+        return pose
+
+    def _begin_stop(self, t_ns: int, reason: Fault | None) -> None:
+        if reason is not None and reason & (Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST):
+            self.counters.watchdog_stops += 1
+        if self.state is State.STOPPING:
+            self._stop_reason = self._stop_reason or reason
+            return
+        self._finish_motion(t_ns, Result.CANCELLED)
+        self._reset_stream()
+        self._move = None
+        self._stop_reason = reason
+        self._set_state(State.STOPPING, t_ns)
+
+    def _watchdogs(self, t_ns: int) -> None:
+        state = self.state
+        if state in _HEARTBEAT_GUARDED and (self._last_heartbeat is None
+                                            or t_ns - self._last_heartbeat > self.watchdog_ns):
+            self.raise_fault(Fault.HEARTBEAT_LOST, t_ns)
+        elif (state is State.STREAMING and self._end_ns is None and self._last_chunk is not None
+              and t_ns - self._last_chunk > self.watchdog_ns):
+            self.raise_fault(Fault.STREAM_SILENT, t_ns)
+
+    def _finish_motion(self, t_ns: int, result: Result) -> None:
+        if self._motion is not None:
+            self._events.append(Done(t_ns, self._motion, result))
+            self._motion = None
+
+    def _latch(self, fault: Fault) -> None:
+        if not self.faults & fault:
+            name = fault.name or str(int(fault))
+            self.counters.faults_raised[name] = self.counters.faults_raised.get(name, 0) + 1
+        self.faults |= fault
+
+    def _set_state(self, new: State, t_ns: int) -> None:
+        if new is not self.state:
+            self._events.append(StateChange(t_ns, self.state, new))
+            self.state = new

@@ -1,0 +1,390 @@
+"""The emulator's MAVLink 2 side: the controller end of the table link over UDP (``protocols.mavlink``).
+
+Threads: a **receive thread** blocks on the socket (receive buffer enlarged), stamps every datagram with its
+arrival time, verifies signatures (``signed_with_key``) and queues the messages; it answers TIMESYNC at once
+(``tc1`` = controller time at arrival) unless a delay is injected. The emulator's tick thread takes the queued
+messages in arrival order (:meth:`MavlinkEndpoint.take`, each as an action on the :class:`ControllerCore` at its
+arrival time) and sends everything else; sending is serialised by a lock.
+
+Protocol decisions (the host side is ``drivers.mavlink``):
+
+- **Commands** arrive as COMMAND_LONG and are answered by COMMAND_ACK to the sender: ACCEPTED; IN_PROGRESS
+  (progress 0) for HOME and SET_TILT, then a final ACK with progress 100 (ACCEPTED, or FAILED when the motion
+  was stopped first); DENIED for a missing or bad signature (counted in ``refused_commands``); TEMPORARILY_REJECTED in a
+  state that does not take the command; FAILED for invalid parameters; UNSUPPORTED for other signed commands.
+- **Retries and de-duplication.** The host sends a command with ``confirmation`` 0 and resends it with 1, 2, …
+  until it gets an ACK. A command with ``confirmation`` > 0 that repeats (same command and parameters) the
+  **last** command executed from its source (system, component) within :data:`DEDUP_WINDOW` s is a
+  retransmission: it is answered with that command's latest result and not executed again (a SET_TILT ramp does
+  not restart, a START_STREAM does not reset the buffer). ``confirmation`` 0 always executes. The one case this
+  gets wrong: the same command sent again on purpose within the window, nothing else in between, its first
+  transmission lost — it is taken for a retransmission of the first and answered with its result.
+- **Signatures.** Unsigned or badly signed ARM, HOME, SET_TILT, START_STREAM and setpoint chunks are refused;
+  STOP, DISARM and EMERGENCY_STOP are accepted unsigned. A badly signed message must not move pymavlink's
+  per-stream replay timestamp (pymavlink records it before checking the signature, so one forged message with
+  a future timestamp would lock the real host out): it is restored.
+- **Telemetry** (status, accelerometer batches, overturn events, heartbeats) goes to every address that sent a
+  HEARTBEAT within :data:`PEER_TIMEOUT` s. Overturn events are sent at once and again 3 times 100 ms apart
+  (real time), with the same event id.
+- **Fault injection**: ``loss`` drops each datagram in either direction with that probability; ``delay`` [s]
+  holds each one that long in either direction (seeded).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import heapq
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+
+from protocols.mavlink import (
+    ACCEL_PER_BATCH,
+    END_OF_STREAM,
+    FramingError,
+    UdpLink,
+    accel_batches,
+    dialect,
+    enable_signing,
+    signed_with_key,
+    unpack_setpoint_chunk,
+)
+from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
+
+DEDUP_WINDOW = 1.0
+"""How long a command is remembered for recognising its retransmissions [s, real time]."""
+
+PEER_TIMEOUT = 3.0
+"""A host that sent no HEARTBEAT for this long no longer gets telemetry [s, real time]."""
+
+HEARTBEAT_PERIOD = 0.05
+"""The controller's heartbeat period [s, real time] (20 Hz)."""
+
+EVENT_RESENDS = 3
+"""Overturn events are sent again this many times ..."""
+
+EVENT_RESEND_PERIOD = 0.1
+"""... this far apart [s, real time]."""
+
+RECEIVE_BUFFER = 4 << 20
+"""Requested socket receive buffer [bytes] (the kernel caps it at net.core.rmem_max)."""
+
+MAX_DATAGRAM = 65535
+
+_SIGNED_FRAME = 0x01  # MAVLINK_IFLAG_SIGNED in incompat_flags
+
+Action = Callable[[ControllerCore], None]
+
+
+@dataclass
+class LinkCounters:
+    """What the endpoint counted (reported at exit)."""
+
+    packets_received: int = 0
+    packets_dropped: int = 0  # injected loss, inbound
+    packets_sent: int = 0
+    packets_not_sent: int = 0  # injected loss, outbound
+    bad_data: int = 0
+    timesync_answered: int = 0
+    duplicate_commands: int = 0
+    unsupported_commands: int = 0
+    bad_chunks: int = 0
+    chunks_stalled: int = 0
+    accel_batches_sent: int = 0
+    accel_samples_sent: int = 0
+    overturn_events: int = 0
+    overturn_messages_sent: int = 0
+    status_sent: int = 0
+
+
+class MavlinkEndpoint:
+    """The controller's UDP endpoint at ``local`` (host, port; port 0 = any free one).
+
+    ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns;
+    ``system``/``component`` are the controller's MAVLink ids; ``loss`` (probability) and ``delay`` [s] inject
+    faults with ``seed``.
+    """
+
+    def __init__(self, local: tuple[str, int], key: bytes, clock: Callable[[int], int], *, system: int = 1,
+                 component: int = 1, loss: float = 0.0, delay: float = 0.0, seed: int = 0) -> None:
+        if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
+            raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
+        self.d = dialect()
+        self.clock = clock
+        self.loss = loss
+        self.delay_ns = round(delay * 1e9)
+        self.counters = LinkCounters()
+        self.stall_chunks = False
+        """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
+        self._rng = np.random.default_rng(seed)
+        self._link = UdpLink.open(local, source_system=system, source_component=component,
+                                  receive_buffer=RECEIVE_BUFFER)
+        self._parser = self.d.MAVLink(None, srcSystem=system, srcComponent=component)
+        self._parser.robust_parsing = True
+        enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
+        self._send_lock = threading.Lock()
+        self._inbox: deque[tuple[int, int, tuple[str, int], Any, bool]] = deque()
+        self._inbox_lock = threading.Lock()
+        self._outbox: list[tuple[int, int, bytes, tuple[str, int]]] = []  # delayed datagrams (due, n, data, addr)
+        self._sent = 0
+        self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last heartbeat
+        self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
+        self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
+        self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
+        self._resends: list[tuple[int, int, int, Any]] = []  # (due host ns, copies left, event id, message)
+        self._next_heartbeat = 0
+        self._commands = {getattr(self.d, f"MAV_CMD_SHAKETABLE_{c.name}"): c for c in Command}
+        self._command_ids = {c: cmd_id for cmd_id, c in self._commands.items()}
+        self._results = {Result.ACCEPTED: self.d.MAV_RESULT_ACCEPTED, Result.IN_PROGRESS: self.d.MAV_RESULT_IN_PROGRESS,
+                         Result.DENIED: self.d.MAV_RESULT_DENIED, Result.FAILED: self.d.MAV_RESULT_FAILED,
+                         Result.REJECTED: self.d.MAV_RESULT_TEMPORARILY_REJECTED,
+                         Result.CANCELLED: self.d.MAV_RESULT_FAILED}  # common.xml has no CANCELLED any more
+        self._closing = False
+        self._thread = threading.Thread(target=self._receive_loop, name="mavlink-receive", daemon=True)
+
+    def start(self) -> None:
+        """Start receiving (datagrams that came since the socket was bound wait in its buffer)."""
+        self._thread.start()
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """The (host, port) the endpoint listens on."""
+        return self._link.local_address
+
+    # ----- receiving (receive thread) -------------------------------------------------------------------
+
+    def _receive_loop(self) -> None:
+        sock = self._link.sock
+        sock.settimeout(0.2)
+        while not self._closing:
+            try:
+                data, source = sock.recvfrom(MAX_DATAGRAM)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            now = time.monotonic_ns()
+            self.counters.packets_received += 1
+            if self.loss and self._rng.random() < self.loss:
+                self.counters.packets_dropped += 1
+                continue
+            for msg in self._parse(data):
+                self._arrived(msg, source, now)
+
+    def _parse(self, data: bytes) -> list[Any]:
+        stamps = self._parser.signing.stream_timestamps
+        before = dict(stamps)
+        messages = []
+        for msg in self._parser.parse_buffer(data) or []:
+            if msg.get_type() == "BAD_DATA":
+                self.counters.bad_data += 1
+                continue
+            if not msg.get_signed() and msg._header.incompat_flags & _SIGNED_FRAME:
+                stream = (msg._msgbuf[-13], msg.get_srcSystem(), msg.get_srcComponent())
+                if stream in before:
+                    stamps[stream] = before[stream]
+                else:
+                    stamps.pop(stream, None)
+            messages.append(msg)
+        return messages
+
+    def _arrived(self, msg: Any, source: tuple[str, int], now: int) -> None:
+        kind = msg.get_type()
+        if kind == "TIMESYNC" and msg.tc1 == 0 and not self.delay_ns:
+            self._answer_timesync(msg, source, now)
+            return
+        if kind == "HEARTBEAT":
+            with self._send_lock:
+                self._peers[source] = now
+        due = now + self.delay_ns
+        with self._inbox_lock:
+            self._inbox.append((due, self.clock(due), source, msg, signed_with_key(msg)))
+
+    def _answer_timesync(self, msg: Any, source: tuple[str, int], now: int) -> None:
+        self.counters.timesync_answered += 1
+        self._send(self.d.MAVLink_timesync_message(self.clock(now), msg.ts1), [source])
+
+    # ----- the tick thread's side -----------------------------------------------------------------------
+
+    def take(self, now: int) -> list[tuple[int, Action]]:
+        """Messages due by host time ``now`` [ns], as (arrival controller time [ns], action on the core)."""
+        taken = []
+        with self._inbox_lock:
+            while self._inbox and self._inbox[0][0] <= now:
+                taken.append(self._inbox.popleft())
+        actions = []
+        for _, arrival, source, msg, signed in taken:
+            action = self._action(msg, source, signed, arrival)
+            if action is not None:
+                actions.append((arrival, action))
+        return actions
+
+    def _action(self, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> Action | None:
+        kind = msg.get_type()
+        if kind == "HEARTBEAT":
+            return lambda core: core.heartbeat(arrival)
+        if kind == "TIMESYNC" and msg.tc1 == 0:
+            return lambda core: self._answer_timesync(msg, source, time.monotonic_ns())
+        if kind == "COMMAND_LONG":
+            return lambda core: self._command(core, msg, source, signed, arrival)
+        if kind == "SHAKETABLE_SETPOINT_CHUNK":
+            return self._chunk_action(msg, signed, arrival)
+        return None
+
+    def _chunk_action(self, msg: Any, signed: bool, arrival: int) -> Action | None:
+        if self.stall_chunks:
+            self.counters.chunks_stalled += 1
+            return None
+        try:
+            series = unpack_setpoint_chunk(msg)
+        except FramingError:
+            self.counters.bad_chunks += 1
+            return None
+        end = bool(msg.flags & END_OF_STREAM)
+
+        def play(core: ControllerCore) -> None:
+            core.chunk(msg.chunk_seq, series.t_start_ns, series.spacing_ns, series.samples, end, signed, arrival)
+
+        return play
+
+    def _command(self, core: ControllerCore, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> None:
+        command = self._commands.get(msg.command)
+        sender = (msg.get_srcSystem(), msg.get_srcComponent())
+        if command is None:
+            if signed:
+                self.counters.unsupported_commands += 1
+                self._ack(msg.command, self.d.MAV_RESULT_UNSUPPORTED, 0, source, sender)
+            else:
+                self._ack(msg.command, self._results[core.refuse()], 0, source, sender)
+            return
+        params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
+        now = time.monotonic_ns()
+        last = self._last.get(sender)
+        if (msg.confirmation > 0 and last is not None and last[:2] == (msg.command, params)
+                and now - last[3] <= DEDUP_WINDOW * 1e9 and (signed or command not in SIGNED_COMMANDS)):
+            self.counters.duplicate_commands += 1
+            self._ack(msg.command, self._results[last[2]], 0, source, sender)
+            return
+        result = core.command(command, params, signed, arrival)
+        if result is not Result.DENIED:
+            self._last[sender] = (msg.command, params, result, now)
+        if result is Result.IN_PROGRESS:
+            self._requesters[command] = (source, *sender)
+        self._ack(msg.command, self._results[result], 0, source, sender)
+
+    def command_done(self, done: Done) -> None:
+        """The final answer to a command that was IN_PROGRESS."""
+        requester = self._requesters.pop(done.command, None)
+        if requester is None:
+            return
+        source, system, component = requester
+        cmd_id = self._command_ids[done.command]
+        last = self._last.get((system, component))
+        if last is not None and last[0] == cmd_id:
+            self._last[(system, component)] = (cmd_id, last[1], done.result, last[3])
+        self._ack(cmd_id, self._results[done.result], 100, source, (system, component))
+
+    def _ack(self, command: int, result: int, progress: int, source: tuple[str, int], sender: tuple[int, int]) -> None:
+        self._send(self.d.MAVLink_command_ack_message(command, result, progress, 0, *sender), [source])
+
+    def send_status(self, snap: Snapshot) -> None:
+        """One SHAKETABLE_STATUS to the peers."""
+        self.counters.status_sent += 1
+        self._send(self.d.MAVLink_shaketable_status_message(
+            snap.t_ns, getattr(self.d, f"SHAKETABLE_STATE_{snap.state.name}"), min(snap.buffer_depth, 65535),
+            snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
+            [float(v) for v in snap.pose]))
+
+    def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
+        """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
+        t0, spacing, parts, seq = self._accel.get(sensor_id, (t_start_ns, spacing_ns, [], 0))
+        parts.append(samples)
+        pending = np.concatenate(parts)
+        full = len(pending) - len(pending) % ACCEL_PER_BATCH
+        if full:
+            self._send_accel(sensor_id, pending[:full], t0, spacing, seq)
+            seq += full // ACCEL_PER_BATCH
+            t0 += full * spacing
+        self._accel[sensor_id] = (t0, spacing, [pending[full:]], seq)
+
+    def flush_accel(self) -> None:
+        """Send the samples still short of a full batch."""
+        for sensor_id, (t0, spacing, parts, seq) in list(self._accel.items()):
+            pending = np.concatenate(parts)
+            if len(pending):
+                self._send_accel(sensor_id, pending, t0, spacing, seq)
+            self._accel[sensor_id] = (t0 + len(pending) * spacing, spacing, [], seq + 1)
+
+    def _send_accel(self, sensor_id: int, samples: np.ndarray, t0: int, spacing: int, seq: int) -> None:
+        for batch in accel_batches(samples, sensor_id, t0, spacing, seq % 2**32):
+            self._send(batch)
+        self.counters.accel_batches_sent += math.ceil(len(samples) / ACCEL_PER_BATCH)
+        self.counters.accel_samples_sent += len(samples)
+
+    def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
+        """An overturn event, now and again :data:`EVENT_RESENDS` times."""
+        self.counters.overturn_events += 1
+        msg = self.d.MAVLink_shaketable_overturn_event_message(event_id, body_id, direction, tilt, t_ns)
+        self.counters.overturn_messages_sent += 1
+        self._send(msg)
+        heapq.heappush(self._resends, (time.monotonic_ns() + round(EVENT_RESEND_PERIOD * 1e9), EVENT_RESENDS,
+                                       event_id, msg))
+
+    def service(self, now: int, state: State) -> None:
+        """Periodic duties at host time ``now`` [ns]: heartbeat, event resends, delayed datagrams."""
+        if now >= self._next_heartbeat:
+            self._next_heartbeat = now + round(HEARTBEAT_PERIOD * 1e9)
+            self._send(self.d.MAVLink_heartbeat_message(self.d.MAV_TYPE_GENERIC, self.d.MAV_AUTOPILOT_INVALID, 0,
+                                                        getattr(self.d, f"SHAKETABLE_STATE_{state.name}"),
+                                                        self.d.MAV_STATE_ACTIVE, 3))
+        while self._resends and self._resends[0][0] <= now:
+            due, left, event_id, msg = heapq.heappop(self._resends)
+            self.counters.overturn_messages_sent += 1
+            self._send(msg)
+            if left > 1:
+                heapq.heappush(self._resends, (due + round(EVENT_RESEND_PERIOD * 1e9), left - 1, event_id, msg))
+        with self._send_lock:
+            while self._outbox and self._outbox[0][0] <= now:
+                _, _, data, addr = heapq.heappop(self._outbox)
+                self._sendto(data, addr)
+
+    def _send(self, msg: Any, to: list[tuple[str, int]] | None = None) -> None:
+        """Frame ``msg`` and send it to ``to`` (default: the live peers), through the injected loss and delay."""
+        with self._send_lock:
+            if to is None:
+                limit = time.monotonic_ns() - round(PEER_TIMEOUT * 1e9)
+                to = [addr for addr, seen in self._peers.items() if seen >= limit]
+            if not to:
+                return
+            data = msg.pack(self._link.mav)
+            self._link.mav.seq = (self._link.mav.seq + 1) % 256
+            for addr in to:
+                if self.loss and self._rng.random() < self.loss:
+                    self.counters.packets_not_sent += 1
+                elif self.delay_ns:
+                    self._sent += 1
+                    heapq.heappush(self._outbox, (time.monotonic_ns() + self.delay_ns, self._sent, data, addr))
+                else:
+                    self._sendto(data, addr)
+
+    def _sendto(self, data: bytes, addr: tuple[str, int]) -> None:
+        with contextlib.suppress(OSError):  # a host that went away (ICMP unreachable) is not our failure
+            self._link.sock.sendto(data, addr)
+            self.counters.packets_sent += 1
+
+    def close(self) -> None:
+        """Stop the receive thread and close the socket."""
+        self._closing = True
+        if self._thread.is_alive():
+            self._thread.join(timeout=1.0)
+        self._link.close()
+
+    def counters_dict(self) -> dict[str, int]:
+        return asdict(self.counters)
+

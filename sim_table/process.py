@@ -1,0 +1,360 @@
+"""The emulator process: ``python -m sim_table --listen mavlink://127.0.0.1:PORT [options]`` (or ``rig emulate``).
+
+One loop owns the emulated table. It wakes at absolute deadlines every 2 ms of real time (sleeping, never
+spinning), runs every 1 ms controller tick due by then in one batch (catching up after a late wake), and sends
+what the batch produced:
+
+1. host messages queued by the endpoint are applied to the :class:`~sim_table.controller.ControllerCore` at
+   their arrival time, between the ticks;
+2. each tick's reference pose goes through the :class:`~sim_table.actuators.Actuators` (vectorised per batch);
+3. the achieved motion, one tick late with central differences (:class:`~sim_table.accelerometers.PlateTrack`),
+   drives the virtual accelerometers and the physical specimens (``sim_table.specimens``, MuJoCo), whose
+   overturns become overturn events;
+4. a status every 20 ms of controller time and at every state change, accelerometer batches, final command
+   answers, heartbeats.
+
+Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep 100 ms of **real** time at any
+``--speed`` (they guard the link, whose heartbeats keep real time). Specimens are placed afresh (upright, at
+rest, where ``--body`` puts them) at every START_STREAM: the emulator is also the operator.
+
+Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
+drive fault and ``--stall-at S`` drops every setpoint chunk from S seconds (controller time) after the first
+START_STREAM. At exit (SIGINT, SIGTERM) the counters are written as one JSON object to stdout, or to
+``--counters FILE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import signal
+import sys
+import threading
+import time
+from collections import deque
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from analysis import Body
+from analysis.table_model import TableModel
+from protocols.mavlink import load_signing_key
+from sim_table.accelerometers import Accelerometers, PlateTrack
+from sim_table.actuators import Actuators, ActuatorSettings
+from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
+from sim_table.mavlink_endpoint import MavlinkEndpoint
+from sim_table.scene import Specimen
+from sim_table.specimens import SpecimenScene
+
+WAKE_PERIOD_NS = 2_000_000
+"""The loop's wake-up period [ns, real time]: two ticks a wake at speed 1 (a batch shares the per-call cost of
+the vectorised kinematics; one tick a wake would double the emulator's load)."""
+
+MAX_BATCH = 200
+"""Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
+
+STATUS_PERIOD_NS = 20_000_000
+"""Status period [ns, controller time] (50 Hz)."""
+
+WATCHDOG_SECONDS = 0.1
+"""Stream and heartbeat watchdogs [s, real time]."""
+
+TIMING_WINDOW = 100_000
+"""Batches kept for the tick-time percentiles in the counters."""
+
+
+@dataclass(frozen=True)
+class EmulatorConfig:
+    """Everything the emulator runs with (see :func:`parse_args` for the command line)."""
+
+    listen: str
+    key: bytes = field(repr=False)
+    speed: float = 1.0
+    specimens: tuple[Specimen, ...] = ()
+    sensors: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),)
+    table: TableModel = field(default_factory=TableModel)
+    actuators: ActuatorSettings = field(default_factory=ActuatorSettings)
+    accel_noise: float = 0.02
+    loss: float = 0.0
+    delay: float = 0.0
+    drive_fault_at: float | None = None
+    stall_at: float | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.speed) and self.speed > 0):
+            raise ValueError(f"speed must be > 0, got {self.speed!r}")
+        for name in ("drive_fault_at", "stall_at"):
+            value = getattr(self, name)
+            if value is not None and not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} must be >= 0 s, got {value!r}")
+
+
+class Emulator:
+    """The emulated table behind one endpoint (module docstring). :meth:`run` until ``stop`` is set."""
+
+    def __init__(self, config: EmulatorConfig) -> None:
+        self.config = config
+        table = config.table
+        self.tick_ns = round(1e9 / table.controller_rate)
+        dt = self.tick_ns * 1e-9
+        self.core = ControllerCore(table, tick_ns=self.tick_ns,
+                                   watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
+        self.actuators = Actuators(table, dt, config.actuators, seed=config.seed)
+        self.track = PlateTrack(dt)
+        self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
+                                             seed=config.seed + 1)
+        self.scene = SpecimenScene(config.specimens) if config.specimens else None
+        self._start = time.monotonic_ns()
+        scheme, host, port = _listen_address(config.listen)
+        self.endpoint = MavlinkEndpoint((host, port), config.key, self.controller_time, loss=config.loss,
+                                        delay=config.delay, seed=config.seed + 2)
+        self.url = f"{scheme}://{self.endpoint.address[0]}:{self.endpoint.address[1]}"
+        self._next_tick = self.tick_ns
+        self._pending: deque[tuple[int, Any]] = deque()
+        self._events = 0
+        self._drive_fault_done = False
+        self._batches: deque[tuple[int, int]] = deque(maxlen=TIMING_WINDOW)  # (ticks, busy ns)
+        self._ticks = 0
+        self._busy_ns = 0
+        self._cpu_ns = 0
+        self._lag_max_ns = 0
+        self._overturns: list[dict[str, float]] = []
+
+    def controller_time(self, host_ns: int) -> int:
+        """Controller time [ns] at host monotonic time ``host_ns``."""
+        return int((host_ns - self._start) * self.config.speed)
+
+    def run(self, stop: threading.Event) -> None:
+        """Start the clock and the endpoint, tick in real time (× speed) until ``stop`` is set; then send the last
+        accelerometer samples."""
+        self._start = deadline = time.monotonic_ns()
+        self.endpoint.start()
+        while not stop.is_set():
+            deadline += WAKE_PERIOD_NS
+            now = time.monotonic_ns()
+            if deadline > now:
+                time.sleep((deadline - now) * 1e-9)
+            else:
+                deadline = now  # late: run what is due now, do not burst to catch up missed wakes
+            self.step(time.monotonic_ns())
+        self.endpoint.flush_accel()
+
+    def step(self, now: int) -> None:
+        """Run every tick due at host time ``now`` [ns] (at most :data:`MAX_BATCH`), then send."""
+        cpu = time.thread_time_ns()
+        self._pending.extend(self.endpoint.take(now))
+        due = (self.controller_time(now) - self._next_tick) // self.tick_ns + 1
+        count = int(min(max(due, 0), MAX_BATCH))
+        if count:
+            times = self._next_tick + self.tick_ns * np.arange(count, dtype=np.int64)
+            self._next_tick = int(times[-1]) + self.tick_ns
+            self._batch(times)
+            busy = time.monotonic_ns() - now
+            self._batches.append((count, busy))
+            self._ticks += count
+            self._busy_ns += busy
+            self._cpu_ns += time.thread_time_ns() - cpu
+            oldest = (self.controller_time(now) - int(times[0])) / self.config.speed  # how late its first tick ran
+            self._lag_max_ns = max(self._lag_max_ns, round(oldest))
+        self.endpoint.service(time.monotonic_ns(), self.core.state)
+
+    def _batch(self, times: np.ndarray) -> None:
+        core, endpoint = self.core, self.endpoint
+        n = len(times)
+        reference = np.empty((n, 6))
+        braked = np.empty(n, dtype=bool)
+        statuses: list[tuple[int, Snapshot]] = []  # (tick index, status without the pose)
+        placements: list[int] = []
+        for i, t in enumerate(times.tolist()):
+            while self._pending and self._pending[0][0] <= t:
+                self._pending.popleft()[1](core)
+            self._inject_faults(t)
+            reference[i], braked[i] = core.tick(t)
+            changed = False
+            for event in core.take_events():
+                if isinstance(event, Done):
+                    endpoint.command_done(event)
+                else:
+                    changed = True
+                    if event.new is State.STREAMING:
+                        placements.append(i)
+            if changed or t % STATUS_PERIOD_NS == 0:
+                statuses.append((i, core.snapshot(t, np.zeros(6))))
+        step = self.actuators.step(reference, braked)
+        if step.setpoint_limited:
+            core.raise_fault(Fault.SETPOINT_LIMIT, int(times[-1]))
+        if step.stroke_limited:
+            core.raise_fault(Fault.STROKE, int(times[-1]))
+        core.observe(step.poses[-1])
+        for i, snap in statuses:
+            pose = self.actuators.measure(step.lengths[i], step.poses[i])
+            endpoint.send_status(replace(snap, pose=pose))
+        centre, rates, window = self.track.advance(step.poses)
+        force = self.accelerometers.measure(window)
+        for sensor in range(force.shape[1]):
+            endpoint.add_accel(sensor, int(times[0]) - self.tick_ns, self.tick_ns, force[:, sensor])
+        if self.scene is not None:
+            self._specimens(times - self.tick_ns, centre, rates, placements)
+
+    def _specimens(self, times: np.ndarray, poses: np.ndarray, rates: np.ndarray, placements: list[int]) -> None:
+        assert self.scene is not None
+        for i, t in enumerate(times.tolist()):
+            if i in placements:
+                self.scene.place(poses[i])
+            seconds = t * 1e-9
+            if seconds <= self.scene.time:
+                continue
+            for overturn in self.scene.advance(seconds, poses[i], rates[i]):
+                self._events += 1
+                t_ns = round(overturn.t * 1e9)
+                tilt = float(poses[i][4])
+                self.endpoint.send_overturn(self._events, overturn.body_id, overturn.direction, tilt, t_ns)
+                self._overturns.append({"event_id": self._events, "body_id": overturn.body_id,
+                                        "direction": overturn.direction, "t": t_ns * 1e-9, "tilt": tilt})
+
+    def _inject_faults(self, t: int) -> None:
+        start = self.core.first_stream_ns
+        if start is None:
+            return
+        cfg = self.config
+        if cfg.drive_fault_at is not None and not self._drive_fault_done and t >= start + cfg.drive_fault_at * 1e9:
+            self._drive_fault_done = True
+            self.core.raise_fault(Fault.DRIVE, t)
+        if cfg.stall_at is not None and t >= start + cfg.stall_at * 1e9:
+            self.endpoint.stall_chunks = True
+
+    def counters(self) -> dict[str, Any]:
+        """Everything counted, as plain JSON types."""
+        per_tick = np.array([busy / count for count, busy in self._batches]) if self._batches else np.zeros(1)
+        batch = np.array([busy for _, busy in self._batches]) if self._batches else np.zeros(1)
+        sizes = np.array([count for count, _ in self._batches]) if self._batches else np.zeros(1)
+        simulated = self._ticks * self.tick_ns
+        timing = {
+            "ticks": self._ticks,
+            "tick_budget_us": self.tick_ns / self.config.speed * 1e-3,
+            "tick_time_mean_us": self._busy_ns / max(self._ticks, 1) * 1e-3,
+            "tick_cpu_mean_us": self._cpu_ns / max(self._ticks, 1) * 1e-3,
+            "tick_time_p99_us": float(np.percentile(per_tick, 99)) * 1e-3,
+            "batch_time_p99_us": float(np.percentile(batch, 99)) * 1e-3,
+            "batch_size_mean": float(sizes.mean()),
+            "batch_size_max": int(sizes.max()),
+            "real_time_factor": simulated / self._busy_ns if self._busy_ns else None,
+            "lag_max_ms": self._lag_max_ns * 1e-6,
+            "controller_time_s": self.controller_time(time.monotonic_ns()) * 1e-9,
+        }
+        return {"url": self.url, "speed": self.config.speed, "state": self.core.state.value,
+                "faults": [f.name for f in Fault if self.core.faults & f], **self.core.counters.as_dict(),
+                "link": self.endpoint.counters_dict(), "timing": timing, "overturns": self._overturns}
+
+    def close(self) -> None:
+        self.endpoint.close()
+
+
+def _listen_address(url: str) -> tuple[str, str, int]:
+    parts = urlsplit(url)
+    if parts.scheme != "mavlink":
+        raise ValueError(f"--listen {url!r}: the emulator speaks mavlink://HOST:PORT")
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if port is None or not parts.hostname:
+        raise ValueError(f"--listen {url!r}: expected mavlink://HOST:PORT (port 0: any free port)")
+    return parts.scheme, parts.hostname, port
+
+
+# ----- command line -------------------------------------------------------------------------------------
+
+
+def parse_body(text: str) -> Specimen:
+    """``BxH[@X,Y]``: a block b × h [m] whose base centre stands at plate (x, y) [m] (default the centre)."""
+    size, _, place = text.partition("@")
+    body = Body.parse(size)
+    try:
+        x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
+    except ValueError:
+        raise ValueError(f"--body {text!r}: expected BxH@X,Y in metres, e.g. 0.05x0.50@0.3,0") from None
+    return Specimen(body, x=x, y=y)
+
+
+def _point(text: str) -> tuple[float, float, float]:
+    try:
+        x, y, z = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z in metres, got {text!r}") from None
+    return x, y, z
+
+
+def _argument_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+                                description="The emulated shake-table controller (docs/table-controller.md): "
+                                            "runs until SIGINT/SIGTERM, then prints its counters as JSON.")
+    p.add_argument("--listen", required=True, help="mavlink://HOST:PORT to listen on (port 0: any free port)")
+    p.add_argument("--speed", type=float, default=1.0, help="controller time per real time")
+    p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y",
+                   help="a specimen b x h [m] at plate (x, y) [m]; repeat for more")
+    p.add_argument("--accel", action="append", type=_point, metavar="X,Y,Z",
+                   help="an accelerometer at plate (x, y, z) [m]; repeat for more (default: one at the centre)")
+    p.add_argument("--loss", type=float, default=0.0, metavar="PCT", help="drop this %% of datagrams, both ways")
+    p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay every datagram, both ways")
+    p.add_argument("--drive-fault-at", type=float, metavar="S", help="drive fault S s after the first stream start")
+    p.add_argument("--stall-at", type=float, metavar="S", help="drop all chunks from S s after the first stream start")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random number (noise, loss)")
+    p.add_argument("--key-file", type=Path, help="signing key file (default: $SHAKETABLE_MAVLINK_KEY)")
+    p.add_argument("--rig-config", type=Path, help="rig configuration TOML (default: Table IV, default hexapod)")
+    p.add_argument("--leg-noise", type=float, default=ActuatorSettings.noise, metavar="M",
+                   help="σ of a leg-length reading [m]")
+    p.add_argument("--accel-noise", type=float, default=0.02, metavar="M/S2", help="σ of accelerometer noise")
+    p.add_argument("--counters", type=Path, metavar="FILE", help="write the exit counters here, not to stdout")
+    return p
+
+
+def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
+    """The configuration and ``--counters`` path of a command line (argparse errors exit 2)."""
+    p = _argument_parser()
+    args = p.parse_args(argv)
+    try:
+        config = EmulatorConfig(
+            listen=args.listen, key=load_signing_key(args.key_file), speed=args.speed,
+            specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
+            table=TableModel.from_toml(args.rig_config) if args.rig_config else TableModel(),
+            actuators=ActuatorSettings(noise=args.leg_noise), accel_noise=args.accel_noise,
+            loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
+            stall_at=args.stall_at, seed=args.seed)
+        _listen_address(config.listen)
+    except ValueError as exc:
+        p.error(str(exc))
+    return config, args.counters
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the emulator in the foreground until SIGINT or SIGTERM; write the counters; exit 0."""
+    config, counters_path = parse_args(sys.argv[1:] if argv is None else argv)
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        emulator = Emulator(config)
+    except OSError as exc:
+        print(f"sim_table: cannot listen on {config.listen}: {exc}", file=sys.stderr)
+        return 2
+    except ValueError as exc:  # bodies that overlap or do not fit the scene
+        print(f"sim_table: {exc}", file=sys.stderr)
+        return 2
+    print(f"sim_table: listening on {emulator.url} (speed {config.speed:g}, {len(config.specimens)} bodies, "
+          f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
+    try:
+        emulator.run(stop)
+    finally:
+        emulator.close()
+    text = json.dumps(emulator.counters())
+    if counters_path is not None:
+        counters_path.write_text(text + "\n")
+    else:
+        print(text, flush=True)
+    return 0

@@ -1,0 +1,496 @@
+"""The MAVLink driver against the emulator: real UDP on 127.0.0.1, the emulator a separate process
+(``python -m sim_table``) on a free port, real pymavlink on both ends; hand-driven hosts (:class:`RawHost`) play
+the unsigned, forged and silent senders. Assertions are about what was delivered and how the table behaved,
+never about wall-clock times (those are in ``benchmarks/stream.py``)."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import json
+import math
+import os
+import re
+import secrets
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from drivers.controller import (
+    CommandDeniedError,
+    StreamAbortedError,
+    TableError,
+    TableStatus,
+    TableTimeoutError,
+    open_table,
+    register_scheme,
+)
+from drivers.mavlink import MavlinkTable
+from protocols.mavlink import KEY_ENV, UdpLink, dialect, enable_signing, setpoint_chunks
+from protocols.mavlink.signing import signing_timestamp
+from rig.drive import Drive, prepare_drive
+from rig.records import load_record
+
+D = dialect()
+TAU = 0.005  # the emulator's default leg lag [s]
+POSE_NOISE = 2e-5  # leg reading noise (1 µm) through the kinematics, float32 on the wire, interpolation [m, rad]
+SLENDER, STOCKY = "0.05x0.50@0.4,0", "0.15x0.45@-0.4,0"
+
+
+# ----- the emulator process -----------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass
+class Emulator:
+    proc: subprocess.Popen[str]
+    url: str
+
+    @property
+    def address(self) -> tuple[str, int]:
+        host, port = self.url.removeprefix("mavlink://").rsplit(":", 1)
+        return host, int(port)
+
+    def stop(self) -> dict[str, Any]:
+        """SIGINT, wait, and the counters it printed."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        out, err = self.proc.communicate(timeout=20)
+        assert self.proc.returncode == 0, err
+        return json.loads(out)
+
+
+def start_emulator(*flags: str, key_file: Path | None = None, env: dict[str, str] | None = None) -> Emulator:
+    cmd = [sys.executable, "-m", "sim_table", "--listen", "mavlink://127.0.0.1:0", *flags]
+    if key_file is not None:
+        cmd += ["--key-file", str(key_file)]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, **(env or {})})
+    assert proc.stderr is not None
+    line = proc.stderr.readline()
+    found = re.search(r"listening on (mavlink://\S+)", line)
+    if found is None:
+        proc.kill()
+        raise AssertionError(f"the emulator did not start: {line}{proc.communicate()[1]}")
+    return Emulator(proc, found.group(1))
+
+
+@pytest.fixture(scope="module")
+def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("key") / "rig.key"
+    path.write_text(secrets.token_hex(32) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def plain(key_file: Path) -> Iterator[Emulator]:
+    """One emulator without bodies for the tests that leave it at rest."""
+    emulator = start_emulator(key_file=key_file)
+    yield emulator
+    emulator.stop()
+
+
+def at_rest(table: MavlinkTable) -> TableStatus:
+    """Wait until an earlier test's motion (a stop after its host left) is over."""
+    return table.wait_for_status(lambda s: s.state not in ("stopping", "homing", "tilting", "streaming"), 15)
+
+
+# ----- a hand-driven host -------------------------------------------------------------------------------------
+
+
+class RawHost:
+    """A host on its own socket with ids (system, 190): signs with ``key`` if given (starting at ``timestamp``),
+    sends heartbeats at 20 Hz while ``beating``, collects statuses and COMMAND_ACKs."""
+
+    def __init__(self, address: tuple[str, int], key: bytes | None = None, *, system: int = 250,
+                 timestamp: int | None = None) -> None:
+        self.link = UdpLink.open(("127.0.0.1", 0), address, source_system=system, source_component=190)
+        if key is not None:
+            enable_signing(self.link.mav, key, link_id=0, timestamp=timestamp)
+        self.beating = True
+        self.statuses: list[Any] = []
+        self.acks: list[Any] = []
+        self._lock = threading.Lock()
+        self._running = True
+        self._threads = [threading.Thread(target=self._receive, daemon=True),
+                         threading.Thread(target=self._heartbeat, daemon=True)]
+        for thread in self._threads:
+            thread.start()
+
+    def send(self, msg: Any) -> None:
+        with self._lock:
+            self.link.send(msg)
+
+    def _receive(self) -> None:
+        while self._running:
+            for msg in self.link.receive(0.05):
+                if msg.get_type() == "SHAKETABLE_STATUS":
+                    self.statuses.append((time.monotonic_ns(), msg))
+                elif msg.get_type() == "COMMAND_ACK":
+                    self.acks.append(msg)
+
+    def _heartbeat(self) -> None:
+        while self._running:
+            if self.beating:
+                self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+            time.sleep(0.05)
+
+    def command(self, command: int, *params: float) -> int:
+        """Send COMMAND_LONG once; the result of its ACK."""
+        count = len(self.acks)
+        values = [*params] + [0.0] * (7 - len(params))
+        self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values))
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            answers = [a for a in self.acks[count:] if a.command == command]
+            if answers:
+                return answers[0].result
+            time.sleep(0.005)
+        raise AssertionError(f"no COMMAND_ACK for {command}")
+
+    def controller_now(self) -> int:
+        """Controller time [ns] estimated from the last status (its delay on loopback is well below 1 ms)."""
+        received, status = self.statuses[-1]
+        return status.t_ns + time.monotonic_ns() - received
+
+    def wait(self, predicate: Any, timeout: float) -> Any:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if self.statuses and predicate(self.statuses[-1][1]):
+                return self.statuses[-1][1]
+            time.sleep(0.005)
+        raise AssertionError(f"no matching status; last {self.statuses[-1][1] if self.statuses else None}")
+
+    def close(self) -> None:
+        self._running = False
+        for thread in self._threads:
+            thread.join()
+        self.link.close()
+
+
+def state_name(status: Any) -> str:
+    return D.enums["SHAKETABLE_STATE"][status.state].name.removeprefix("SHAKETABLE_STATE_").lower()
+
+
+# ----- trajectories -------------------------------------------------------------------------------------------
+
+
+def drive_excerpt() -> Drive:
+    """The first 6 s of NORTHR/MUL009 prepared at β = 2° (0.5 Hz corner, 0.5 s holds): a 16.4 s drive."""
+    motion = load_record("fema:NORTHR/MUL009")
+    cut = dataclasses.replace(motion, acc_h=motion.acc_h[:round(6.0 / motion.dt)])
+    return prepare_drive(cut, angle=math.radians(2), settle=0.5, corner=0.5)
+
+
+def surge(duration: float, function: Any) -> tuple[np.ndarray, np.ndarray]:
+    t = np.arange(round(duration * 1000) + 1) * 1e-3
+    poses = np.zeros((len(t), 6))
+    poses[:, 0] = function(t)
+    return t, poses
+
+
+def smooth_ramp(t: np.ndarray, distance: float, duration: float) -> np.ndarray:
+    tau = np.clip(t / duration, 0, 1)
+    return distance * tau**3 * (10 - 15 * tau + 6 * tau**2)
+
+
+# ----- streaming a prepared drive -------------------------------------------------------------------------------
+
+
+def check_stream(drive: Drive, key_file: Path) -> None:
+    emulator = start_emulator("--body", SLENDER, "--body", STOCKY, "--accel", "0,0,0", "--accel", "1.0,-0.5,0",
+                              key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
+            table.arm()
+            progress: list[tuple[int, int]] = []
+            report = table.stream(drive.t, drive.poses, lead=0.05, on_progress=lambda *p: progress.append(p))
+            time.sleep(0.6)  # the last overturn event's repetitions (3 × 100 ms)
+            stats = table.link_stats()
+    finally:
+        counters = emulator.stop()
+    assert report.final is not None and report.final.state == "armed" and report.final.faults == ()
+    assert report.underruns == 0 and counters["underruns"] == 0 and counters["samples_late"] == 0
+    assert counters["chunk_margin_min_ns"] > 0 and counters["chunks_missing"] == 0
+    assert report.chunks == counters["chunks_accepted"] == math.ceil(len(drive.t) / 8)
+    assert progress[-1] == (len(drive.t), len(drive.t)) and len(progress) >= 10 * report.duration
+    assert all(a[0] <= b[0] for a, b in itertools.pairwise(progress))
+    spacing = round(1e9 / drive.rate)
+
+    # the achieved pose follows the command within the lag: |error| <= tau * max|v| (last 50 ms) + noise
+    during = [s for s in statuses.drain() if report.t_start_ns <= s.t_ns <= report.t_end_ns]
+    assert len(during) >= 0.95 * report.duration * 50  # 50 Hz status
+    times = np.array([s.t_ns for s in during])
+    achieved = np.array([s.pose for s in during])
+    k = (times - report.t_start_ns) / spacing
+    commanded = np.column_stack([np.interp(k, np.arange(len(drive.t)), drive.poses[:, j]) for j in range(6)])
+    speed = np.abs(drive.velocities)
+    window = np.array([speed[max(0, int(i) - 50):int(i) + 2].max(axis=0) for i in k])
+    error = np.abs(achieved - commanded)
+    assert np.all(error <= TAU * window * 1.02 + POSE_NOISE), (error - TAU * window).max(axis=0)
+    assert error.max(axis=0)[0] <= TAU * speed[:, 0].max() + POSE_NOISE  # the headline: v_max·τ + noise
+    assert error.max(axis=0)[0] > 0.2 * TAU * speed[:, 0].max()  # the lag is there
+
+    # every accelerometer sample once, in order, contiguous: count = duration × rate, for each sensor
+    received = accel.drain()
+    assert stats["accel_batches_lost"] == 0 and {b.sensor_id for b in received} == {0, 1}
+    for sensor in (0, 1):
+        batches = [b for b in received if b.sensor_id == sensor]
+        assert [b.seq for b in batches] == list(range(batches[0].seq, batches[0].seq + len(batches)))
+        sample_times = np.concatenate([b.times_ns() for b in batches])
+        assert np.all(np.diff(sample_times) == spacing)
+        inside = (sample_times >= report.t_start_ns) & (sample_times <= report.t_end_ns)
+        assert inside.sum() == report.t_end_ns // spacing - math.ceil(report.t_start_ns / spacing) + 1
+        force = np.concatenate([b.samples for b in batches])
+        hold = (sample_times >= report.t_start_ns + round((drive.motion[0] - 0.4) * 1e9)) & (
+            sample_times <= report.t_start_ns + round(drive.motion[0] * 1e9))  # resting at the tilt
+        beta = drive.angle
+        np.testing.assert_allclose(force[hold].mean(axis=0), [-9.81 * math.sin(beta), 0, 9.81 * math.cos(beta)],
+                                   atol=0.01)
+
+    # overturns: reported once each although every event came 4 times
+    found = detections.drain()
+    assert [(d.event_id, d.body_id, d.direction) for d in found] == [
+        (o["event_id"], o["body_id"], o["direction"]) for o in counters["overturns"]]
+    assert [d.t_ns for d in found] == [round(o["t"] * 1e9) for o in counters["overturns"]]
+    assert 0 in {d.body_id for d in found}  # the slender body fell
+    assert len({d.event_id for d in found}) == len(found) == len({d.body_id for d in found})
+    assert stats["duplicate_detections"] == 3 * len(found)
+    assert counters["link"]["overturn_messages_sent"] == 4 * len(found)
+
+
+def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
+    check_stream(drive_excerpt(), key_file)
+
+
+@pytest.mark.slow
+def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
+    """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
+    check_stream(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), key_file)
+
+
+# ----- signatures ---------------------------------------------------------------------------------------------
+
+
+def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: Emulator, key_file: Path) -> None:
+    with open_table(plain.url, key_file=str(key_file)) as table:
+        before = at_rest(table)
+        unsigned = RawHost(plain.address, system=255)
+        forged = RawHost(plain.address, secrets.token_bytes(32), system=255,  # the driver's own ids and link,
+                         timestamp=signing_timestamp(time.time() + 3600))  # a timestamp an hour ahead
+        try:
+            assert unsigned.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_DENIED
+            assert forged.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_DENIED
+            assert unsigned.command(D.MAV_CMD_SHAKETABLE_STOP) == D.MAV_RESULT_ACCEPTED
+            after = table.wait_for_status(lambda s: s.refused_commands >= before.refused_commands + 2, 2)
+            assert after.refused_commands == before.refused_commands + 2 and after.state == before.state
+            assert "UNSIGNED_COMMAND" in after.faults
+
+            table.arm()  # the forged timestamp did not lock the real host out
+            t, poses = surge(2.0, lambda t: 0.01 * np.sin(2 * np.pi * t))
+            result: dict[str, Any] = {}
+            streamer = threading.Thread(target=lambda: result.update(report=table.stream(t, poses, lead=0.05)))
+            statuses = table.statuses()
+            streamer.start()
+            playing = table.wait_for_status(lambda s: s.state == "streaming" and s.last_chunk_seq >= 5, 2)
+            wild = np.tile([0.2, 0, 0, 0, 0, 0], (8, 1))
+            for k in range(10):  # chunk numbers the real stream is about to use, a wild pose 20 ms ahead
+                for host in (unsigned, forged):
+                    (chunk,) = setpoint_chunks(wild, table.clock.to_controller(time.monotonic_ns()) + 20_000_000,
+                                               1_000_000, playing.last_chunk_seq + 10 + 2 * k)
+                    host.send(chunk)
+                time.sleep(0.01)
+            streamer.join()
+        finally:
+            unsigned.close()
+            forged.close()
+        report = result["report"]
+        assert report.underruns == 0 and report.final.state == "armed"
+        assert report.final.refused_commands == before.refused_commands + 2 + 20
+        assert "CHUNK_GAP" not in report.final.faults
+        assert max(abs(s.pose[0]) for s in statuses.drain()) < 0.0101
+
+
+def test_a_wrong_key_is_refused_with_a_clear_error(plain: Emulator, tmp_path: Path) -> None:
+    other = tmp_path / "other.key"
+    other.write_text(secrets.token_hex(32))
+    table = open_table(plain.url, key_file=str(other))
+    with table, pytest.raises(CommandDeniedError, match="ARM refused: missing or bad signature"):
+        table.arm()  # telemetry needs no signature: it connected
+
+
+# ----- watchdogs, stops, faults -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("silent", ["heartbeat", "stream"])
+def test_a_silent_host_gets_the_table_stopped_and_home(plain: Emulator, key_file: Path, silent: str) -> None:
+    host = RawHost(plain.address, bytes.fromhex(key_file.read_text()))
+    try:
+        host.wait(lambda s: state_name(s) not in ("stopping", "homing", "tilting", "streaming"), 15)
+        assert host.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_ACCEPTED
+        assert host.command(D.MAV_CMD_SHAKETABLE_START_STREAM, 0.0) == D.MAV_RESULT_ACCEPTED
+        t0 = host.controller_now() + 50_000_000
+        _, poses = surge(1.2, lambda t: smooth_ramp(t, 0.03, 0.6))
+        for k in range(0, len(poses), 8):
+            if k == 400:  # 0.4 s into the stream: go silent
+                host.beating = silent != "heartbeat"
+                if silent == "stream":
+                    break
+            due = t0 + k * 1_000_000 - 50_000_000
+            time.sleep(max(0.0, (due - host.controller_now()) * 1e-9))
+            host.send(setpoint_chunks(poses[k:k + 8], t0 + k * 1_000_000, 1_000_000, k // 8)[0])
+        final = host.wait(lambda s: state_name(s) == "faulted", 10)
+    finally:
+        host.close()
+    seen = [state_name(s) for _, s in host.statuses]
+    changes = [a for a, b in zip(seen, [*seen[1:], None], strict=True) if a != b]
+    assert changes[-3:] == ["streaming", "stopping", "faulted"]
+    fault = D.SHAKETABLE_FAULT_HEARTBEAT_LOST if silent == "heartbeat" else D.SHAKETABLE_FAULT_STREAM_SILENT
+    assert final.faults & fault
+    assert (final.faults & D.SHAKETABLE_FAULT_UNDERRUN) == (silent == "stream") * D.SHAKETABLE_FAULT_UNDERRUN
+    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # home
+
+
+def test_emergency_stop_mid_stream_stops_at_once_and_stays(key_file: Path) -> None:
+    emulator = start_emulator("--speed", "2", key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            t, poses = surge(5.0, lambda t: smooth_ramp(t, 0.2, 5.0))  # 0.06 m/s at its fastest
+            errors: list[BaseException] = []
+
+            def play() -> None:
+                try:
+                    table.stream(t, poses)
+                except BaseException as exc:
+                    errors.append(exc)
+
+            streamer = threading.Thread(target=play)
+            streamer.start()
+            table.wait_for_status(lambda s: s.pose[0] > 0.08, 10)
+            statuses = table.statuses()
+            table.emergency_stop()
+            streamer.join()
+            stopped = table.wait_for_status(lambda s: s.state == "emergency_stopped", 1)
+            time.sleep(0.3)
+            after = [s for s in statuses.drain() if s.t_ns >= stopped.t_ns]
+            assert table.status().state == "emergency_stopped"
+            surges = np.array([s.pose[0] for s in after])
+            assert surges.max() - surges.min() < 0.001  # braked within a millimetre: no return home
+            assert surges[-1] > 0.08
+            table.arm()
+            assert table.status().state == "armed" and table.status().pose[0] == pytest.approx(surges[-1], abs=1e-4)
+            table.home()
+            np.testing.assert_allclose(table.status().pose, np.zeros(6), atol=1e-4)
+    finally:
+        counters = emulator.stop()
+    assert len(errors) == 1 and isinstance(errors[0], StreamAbortedError)
+    assert errors[0].report.final is not None and errors[0].report.final.state == "emergency_stopped"
+    assert counters["emergency_stops"] == 1 and counters["streams_completed"] == 0
+
+
+def test_commands_survive_packet_loss_and_run_once(key_file: Path) -> None:
+    """20 % of the datagrams lost both ways: retries get every command through, de-duplication runs each once."""
+    emulator = start_emulator("--loss", "20", "--seed", "4", key_file=key_file)
+    try:
+        with MavlinkTable(emulator.url, key_file=str(key_file), command_timeout=0.05, retries=12) as table:
+            for k in range(40):
+                table.stop() if k % 2 else table.disarm()  # alternate: no two equal commands in a row
+    finally:
+        counters = emulator.stop()
+    assert counters["commands_accepted"] == 40 and counters["stops"] == 20
+    link = counters["link"]
+    assert link["duplicate_commands"] > 0 and link["packets_dropped"] > 0 and link["packets_not_sent"] > 0
+
+
+def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.MonkeyPatch, key_file: Path) -> None:
+    """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
+    controller's clock at twice real time."""
+    env = {KEY_ENV: key_file.read_text().strip()}
+    monkeypatch.setenv(KEY_ENV, env[KEY_ENV])
+    emulator = start_emulator("--delay", "10", "--drive-fault-at", "1.0", "--speed", "2", env=env)
+    try:
+        with open_table(emulator.url) as table:
+            faults = table.faults()
+            table.arm()
+            table.set_tilt(math.radians(1))
+            assert table.status().state == "armed" and table.status().pose[4] == pytest.approx(math.radians(1),
+                                                                                             abs=1e-4)
+            t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
+            poses[:, 4] = math.radians(1)
+            with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
+                table.stream(t, poses)
+            final = table.wait_for_state("faulted", 10)
+            raised = [name for event in faults.drain() for name in event.raised]
+            assert table.clock.stats()["rate"] == pytest.approx(2.0, rel=1e-3)
+    finally:
+        counters = emulator.stop()
+    assert aborted.value.report.underruns == 0 and counters["samples_late"] == 0
+    assert "DRIVE" in final.faults and raised == ["DRIVE"]
+    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # stopped, then home with the tilt undone
+    assert counters["faults_raised"] == {"DRIVE": 1}
+
+
+def test_stalled_stream_underruns_then_the_watchdog_stops_the_table(key_file: Path) -> None:
+    emulator = start_emulator("--stall-at", "0.5", "--speed", "2", key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
+            with pytest.raises(StreamAbortedError, match="STREAM_SILENT"):
+                table.stream(t, poses)
+            final = table.wait_for_state("faulted", 10)
+    finally:
+        counters = emulator.stop()
+    assert set(final.faults) == {"STREAM_SILENT", "UNDERRUN"} and final.underruns == 1
+    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)
+    assert counters["link"]["chunks_stalled"] > 0 and counters["watchdog_stops"] == 1
+
+
+# ----- connection and registry --------------------------------------------------------------------------------
+
+
+def test_urls_pick_the_backend_and_options_reach_it(key_file: Path) -> None:
+    table = open_table("mavlink://127.0.0.1:14600", key_file=str(key_file), retries=7)
+    assert isinstance(table, MavlinkTable) and table.address == ("127.0.0.1", 14600) and table.retries == 7
+    register_scheme("loopback-test", lambda url, **options: MavlinkTable("mavlink://127.0.0.1:9", **options))
+    assert open_table("loopback-test://anything", command_timeout=0.3).command_timeout == 0.3
+    with pytest.raises(ValueError, match=r"unknown scheme 'can'; known: .*mavlink"):
+        open_table("can://vcan0")
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        open_table("mavlink://127.0.0.1")
+    with pytest.raises(TableError, match="no status received"):
+        table.status()
+
+
+def test_connect_without_a_controller_times_out(key_file: Path) -> None:
+    with pytest.raises(TableTimeoutError, match="no answer from the table controller"):
+        open_table("mavlink://127.0.0.1:9", key_file=str(key_file), connect_timeout=0.3).connect()
+
+
+def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_file: Path) -> None:
+    """``rig emulate`` (registered on an app of its own here) becomes the emulator; SIGINT stops it cleanly."""
+    code = ("import typer\nfrom rig import cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
+            "@app.callback()\ndef main() -> None: pass\napp()")
+    counters = tmp_path / "counters.json"
+    proc = subprocess.Popen([sys.executable, "-c", code, "emulate", "--listen", "mavlink://127.0.0.1:0",
+                             "--key-file", str(key_file), "--counters", str(counters)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    url = re.search(r"mavlink://\S+", proc.stderr.readline())
+    assert url is not None
+    with open_table(url.group(0), key_file=str(key_file)) as table, table.statuses() as statuses:
+        assert next(iter(statuses)).state == "idle"
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=20) == 0
+    assert json.loads(counters.read_text())["state"] == "idle"
+    bad = subprocess.run([sys.executable, "-c", code, "emulate", "--speed", "2"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "--listen" in bad.stderr
