@@ -41,6 +41,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
+from urllib.parse import urlsplit
 
 import numpy as np
 
@@ -56,6 +57,7 @@ from protocols.mavlink import (
     unpack_setpoint_chunk,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
+from sim_table.endpoint import Action, EndpointOptions
 
 DEDUP_WINDOW = 1.0
 """How long a command is remembered for recognising its retransmissions [s, real time]."""
@@ -79,7 +81,6 @@ MAX_DATAGRAM = 65535
 
 _SIGNED_FRAME = 0x01  # MAVLINK_IFLAG_SIGNED in incompat_flags
 
-Action = Callable[[ControllerCore], None]
 
 
 @dataclass
@@ -151,6 +152,11 @@ class MavlinkEndpoint:
     def start(self) -> None:
         """Start receiving (datagrams that came since the socket was bound wait in its buffer)."""
         self._thread.start()
+
+    @property
+    def url(self) -> str:
+        """``mavlink://HOST:PORT`` with the port the socket got."""
+        return f"mavlink://{self.address[0]}:{self.address[1]}"
 
     @property
     def address(self) -> tuple[str, int]:
@@ -388,3 +394,15 @@ class MavlinkEndpoint:
     def counters_dict(self) -> dict[str, int]:
         return asdict(self.counters)
 
+
+def open_endpoint(url: str, options: EndpointOptions) -> MavlinkEndpoint:
+    """The endpoint for ``mavlink://HOST:PORT`` (port 0: any free port) — `sim_table.endpoint`'s factory."""
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if parts.scheme != "mavlink" or port is None or not parts.hostname:
+        raise ValueError(f"--listen {url!r}: expected mavlink://HOST:PORT (port 0: any free port)")
+    return MavlinkEndpoint((parts.hostname, port), options.key, options.clock, loss=options.loss,
+                           delay=options.delay, seed=options.seed)

@@ -36,7 +36,6 @@ from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
-from urllib.parse import urlsplit
 
 import numpy as np
 
@@ -46,7 +45,7 @@ from protocols.mavlink import load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
-from sim_table.mavlink_endpoint import MavlinkEndpoint
+from sim_table.endpoint import EndpointOptions, listen_scheme, open_endpoint
 from sim_table.scene import Specimen
 from sim_table.specimens import SpecimenScene
 
@@ -110,10 +109,10 @@ class Emulator:
                                              seed=config.seed + 1)
         self.scene = SpecimenScene(config.specimens) if config.specimens else None
         self._start = time.monotonic_ns()
-        scheme, host, port = _listen_address(config.listen)
-        self.endpoint = MavlinkEndpoint((host, port), config.key, self.controller_time, loss=config.loss,
-                                        delay=config.delay, seed=config.seed + 2)
-        self.url = f"{scheme}://{self.endpoint.address[0]}:{self.endpoint.address[1]}"
+        self.endpoint = open_endpoint(config.listen, EndpointOptions(
+            key=config.key, clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
+            seed=config.seed + 2))
+        self.url = self.endpoint.url
         self._next_tick = self.tick_ns
         self._pending: deque[tuple[int, Any]] = deque()
         self._events = 0
@@ -255,19 +254,6 @@ class Emulator:
         self.endpoint.close()
 
 
-def _listen_address(url: str) -> tuple[str, str, int]:
-    parts = urlsplit(url)
-    if parts.scheme != "mavlink":
-        raise ValueError(f"--listen {url!r}: the emulator speaks mavlink://HOST:PORT")
-    try:
-        port = parts.port
-    except ValueError:
-        port = None
-    if port is None or not parts.hostname:
-        raise ValueError(f"--listen {url!r}: expected mavlink://HOST:PORT (port 0: any free port)")
-    return parts.scheme, parts.hostname, port
-
-
 # ----- command line -------------------------------------------------------------------------------------
 
 
@@ -294,7 +280,8 @@ def _argument_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
                                 description="The emulated shake-table controller (docs/table-controller.md): "
                                             "runs until SIGINT/SIGTERM, then prints its counters as JSON.")
-    p.add_argument("--listen", required=True, help="mavlink://HOST:PORT to listen on (port 0: any free port)")
+    p.add_argument("--listen", required=True,
+                   help="the transport and address to listen on: mavlink://HOST:PORT (port 0: any free port)")
     p.add_argument("--speed", type=float, default=1.0, help="controller time per real time")
     p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y",
                    help="a specimen b x h [m] at plate (x, y) [m]; repeat for more")
@@ -326,7 +313,7 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
             actuators=ActuatorSettings(noise=args.leg_noise), accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
             stall_at=args.stall_at, seed=args.seed)
-        _listen_address(config.listen)
+        listen_scheme(config.listen)
     except ValueError as exc:
         p.error(str(exc))
     return config, args.counters
