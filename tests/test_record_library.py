@@ -17,7 +17,6 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from rig.cli_records import register
 from rig.records import (
     RecordError,
     default_library_dir,
@@ -215,17 +214,6 @@ def test_library_errors(library: Path) -> None:
 # CLI
 # --------------------------------------------------------------------------------------------------
 
-
-@pytest.fixture(scope="module")
-def app() -> typer.Typer:
-    app = typer.Typer()
-
-    @app.callback()
-    def main() -> None:
-        """Test root."""
-
-    register(app)
-    return app
 
 
 def run(app: typer.Typer, *args: str) -> dict:

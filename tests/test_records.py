@@ -13,7 +13,6 @@ import pytest
 import typer
 from typer.testing import CliRunner
 
-from rig.cli_records import register
 from rig.records import (
     SUITES,
     GroundMotion,
@@ -356,17 +355,6 @@ def test_at2_header_problems(tmp_path: Path) -> None:
 # CLI
 # --------------------------------------------------------------------------------------------------
 
-
-@pytest.fixture(scope="module")
-def app() -> typer.Typer:
-    app = typer.Typer()
-
-    @app.callback()
-    def main() -> None:
-        """Test root."""
-
-    register(app)
-    return app
 
 
 def test_cli_list_json_counts_100(app: typer.Typer) -> None:
