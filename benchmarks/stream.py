@@ -27,11 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import re
 import secrets
-import signal
-import subprocess
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -42,6 +38,7 @@ import numpy as np
 from drivers.controller import open_table
 from drivers.mavlink import MavlinkTable
 from rig.drive import prepare_drive
+from rig.emulator import EmulatorProcess
 from rig.records import load_record
 
 BODIES = ("0.05x0.50@0.4,0", "0.15x0.45@-0.4,0")
@@ -56,28 +53,15 @@ def _percentiles(values: np.ndarray, scale: float) -> dict[str, float]:
             "max": float(values.max()) * scale}
 
 
-def _start_emulator(key_file: Path, flags: list[str]) -> tuple[subprocess.Popen[str], str]:
-    proc = subprocess.Popen([sys.executable, "-m", "sim_table", "--listen", "mavlink://127.0.0.1:0",
-                             "--key-file", str(key_file), *flags],
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    assert proc.stderr is not None
-    line = proc.stderr.readline()
-    found = re.search(r"mavlink://\S+", line)
-    if found is None:
-        proc.kill()
-        raise SystemExit(f"the emulator did not start: {line}{proc.communicate()[1]}")
-    return proc, found.group(0)
-
-
 def run(record: str, angle_deg: float, lead: float, speed: float, bodies: bool) -> dict[str, Any]:
     drive = prepare_drive(load_record(record), angle=math.radians(angle_deg))
     with tempfile.TemporaryDirectory(prefix="stream-bench-") as scratch:
         key_file = Path(scratch) / "rig.key"
         key_file.write_text(secrets.token_hex(32))
         flags = ["--speed", str(speed)] + [arg for body in (BODIES if bodies else ()) for arg in ("--body", body)]
-        proc, url = _start_emulator(key_file, flags)
+        emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *flags, key_file=key_file)
         try:
-            table = open_table(url, key_file=str(key_file))
+            table = open_table(emulator.url, key_file=str(key_file))
             assert isinstance(table, MavlinkTable)
             with table:
                 statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
@@ -91,11 +75,7 @@ def run(record: str, angle_deg: float, lead: float, speed: float, bodies: bool) 
                 status_latency = np.array([s.host_ns - table.clock.to_host(s.t_ns) for s in received])
                 round_trips = np.array(table.clock.round_trips, dtype=np.float64)
         finally:
-            proc.send_signal(signal.SIGINT)
-            out, err = proc.communicate(timeout=30)
-        if proc.returncode != 0:
-            raise SystemExit(f"the emulator failed: {err}")
-        counters = json.loads(out)
+            counters = emulator.stop(timeout=30)
 
     spacing = round(1e9 / drive.rate)
     during = [s for s in received if report.t_start_ns <= s.t_ns <= report.t_end_ns]

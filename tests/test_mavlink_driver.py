@@ -9,7 +9,6 @@ import dataclasses
 import itertools
 import json
 import math
-import os
 import re
 import secrets
 import signal
@@ -37,6 +36,7 @@ from drivers.mavlink import MavlinkTable
 from protocols.mavlink import KEY_ENV, UdpLink, dialect, enable_signing, setpoint_chunks
 from protocols.mavlink.signing import signing_timestamp
 from rig.drive import Drive, prepare_drive
+from rig.emulator import EmulatorProcess
 from rig.records import load_record
 
 D = dialect()
@@ -48,38 +48,14 @@ SLENDER, STOCKY = "0.05x0.50@0.4,0", "0.15x0.45@-0.4,0"
 # ----- the emulator process -----------------------------------------------------------------------------------
 
 
-@dataclasses.dataclass
-class Emulator:
-    proc: subprocess.Popen[str]
-    url: str
-
-    @property
-    def address(self) -> tuple[str, int]:
-        host, port = self.url.removeprefix("mavlink://").rsplit(":", 1)
-        return host, int(port)
-
-    def stop(self) -> dict[str, Any]:
-        """SIGINT, wait, and the counters it printed."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGINT)
-        out, err = self.proc.communicate(timeout=20)
-        assert self.proc.returncode == 0, err
-        return json.loads(out)
+def mavlink_address(emulator: EmulatorProcess) -> tuple[str, int]:
+    """(host, port) of a ``mavlink://HOST:PORT`` emulator."""
+    host, port = emulator.url.removeprefix("mavlink://").rsplit(":", 1)
+    return host, int(port)
 
 
-def start_emulator(*flags: str, key_file: Path | None = None, env: dict[str, str] | None = None) -> Emulator:
-    cmd = [sys.executable, "-m", "sim_table", "--listen", "mavlink://127.0.0.1:0", *flags]
-    if key_file is not None:
-        cmd += ["--key-file", str(key_file)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env={**os.environ, **(env or {})})
-    assert proc.stderr is not None
-    line = proc.stderr.readline()
-    found = re.search(r"listening on (mavlink://\S+)", line)
-    if found is None:
-        proc.kill()
-        raise AssertionError(f"the emulator did not start: {line}{proc.communicate()[1]}")
-    return Emulator(proc, found.group(1))
+def start_emulator(*flags: str, key_file: Path | None = None, env: dict[str, str] | None = None) -> EmulatorProcess:
+    return EmulatorProcess.start("mavlink://127.0.0.1:0", *flags, key_file=key_file, env=env)
 
 
 @pytest.fixture(scope="module")
@@ -90,7 +66,7 @@ def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 @pytest.fixture(scope="module")
-def plain(key_file: Path) -> Iterator[Emulator]:
+def plain(key_file: Path) -> Iterator[EmulatorProcess]:
     """One emulator without bodies for the tests that leave it at rest."""
     emulator = start_emulator(key_file=key_file)
     yield emulator
@@ -280,11 +256,11 @@ def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
 # ----- signatures ---------------------------------------------------------------------------------------------
 
 
-def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: Emulator, key_file: Path) -> None:
+def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorProcess, key_file: Path) -> None:
     with open_table(plain.url, key_file=str(key_file)) as table:
         before = at_rest(table)
-        unsigned = RawHost(plain.address, system=255)
-        forged = RawHost(plain.address, secrets.token_bytes(32), system=255,  # the driver's own ids and link,
+        unsigned = RawHost(mavlink_address(plain), system=255)
+        forged = RawHost(mavlink_address(plain), secrets.token_bytes(32), system=255,  # the driver's own ids and link,
                          timestamp=signing_timestamp(time.time() + 3600))  # a timestamp an hour ahead
         try:
             assert unsigned.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_DENIED
@@ -319,7 +295,7 @@ def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: Emulator, k
         assert max(abs(s.pose[0]) for s in statuses.drain()) < 0.0101
 
 
-def test_a_wrong_key_is_refused_with_a_clear_error(plain: Emulator, tmp_path: Path) -> None:
+def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
     other = tmp_path / "other.key"
     other.write_text(secrets.token_hex(32))
     table = open_table(plain.url, key_file=str(other))
@@ -331,8 +307,8 @@ def test_a_wrong_key_is_refused_with_a_clear_error(plain: Emulator, tmp_path: Pa
 
 
 @pytest.mark.parametrize("silent", ["heartbeat", "stream"])
-def test_a_silent_host_gets_the_table_stopped_and_home(plain: Emulator, key_file: Path, silent: str) -> None:
-    host = RawHost(plain.address, bytes.fromhex(key_file.read_text()))
+def test_a_silent_host_gets_the_table_stopped_and_home(plain: EmulatorProcess, key_file: Path, silent: str) -> None:
+    host = RawHost(mavlink_address(plain), bytes.fromhex(key_file.read_text()))
     try:
         host.wait(lambda s: state_name(s) not in ("stopping", "homing", "tilting", "streaming"), 15)
         assert host.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_ACCEPTED

@@ -1,0 +1,77 @@
+"""The emulated table as a separate process (``python -m sim_table``), started and stopped from the lab side.
+
+`rig` never imports `sim_table` (ARCHITECTURE §1: the emulator stands where the table's own controller would):
+it runs it, as ``rig run --emulate``, the demo, the tests and the benchmarks do. The emulator prints
+``sim_table: listening on URL`` on stderr once its endpoint is open (port 0 resolved), and its counters as one
+JSON object on stdout when it stops (SIGINT).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+_LISTENING = re.compile(r"listening on (\S+)")
+
+
+class EmulatorError(RuntimeError):
+    """The emulator did not start, or did not stop cleanly; the message carries what it printed."""
+
+
+@dataclass
+class EmulatorProcess:
+    """A running emulator: its process and the URL a `drivers.controller.open_table` connects to."""
+
+    proc: subprocess.Popen[str]
+    url: str
+
+    @classmethod
+    def start(cls, listen: str = "mavlink://127.0.0.1:0", *flags: str, key_file: Path | None = None,
+              env: dict[str, str] | None = None) -> EmulatorProcess:
+        """Start ``python -m sim_table --listen LISTEN FLAGS…`` and wait until it listens.
+
+        ``key_file`` is the signing key (else ``$SHAKETABLE_MAVLINK_KEY`` of ``env``/this process);
+        ``env`` adds to this process's environment.
+        """
+        cmd = [sys.executable, "-m", "sim_table", "--listen", listen, *flags]
+        if key_file is not None:
+            cmd += ["--key-file", str(key_file)]
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                                env={**os.environ, **(env or {})})
+        assert proc.stderr is not None
+        seen = []
+        for line in proc.stderr:
+            seen.append(line)
+            found = _LISTENING.search(line)
+            if found:
+                return cls(proc, found.group(1))
+        proc.wait()
+        raise EmulatorError(f"the emulator did not start (exit {proc.returncode}): {''.join(seen).strip()}")
+
+    def stop(self, timeout: float = 20.0) -> dict[str, Any]:
+        """SIGINT, wait at most ``timeout`` s, and return the counters it printed."""
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+        try:
+            out, err = self.proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            out, err = self.proc.communicate()
+            raise EmulatorError(f"the emulator did not stop within {timeout:g} s: {err.strip()}") from None
+        if self.proc.returncode != 0:
+            raise EmulatorError(f"the emulator exited with {self.proc.returncode}: {err.strip()}")
+        return json.loads(out)
+
+    def __enter__(self) -> EmulatorProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.proc.poll() is None:
+            self.stop()
