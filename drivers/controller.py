@@ -442,7 +442,7 @@ Factory = Callable[..., TableController]
 
 _registry: dict[str, Factory] = {}
 
-_BUILTIN = {"mavlink": "drivers.mavlink"}
+_BUILTIN = {"mavlink": "drivers.mavlink", "zenoh": "drivers.zenoh"}
 """Schemes whose backend module registers itself on import (imported on first use)."""
 
 

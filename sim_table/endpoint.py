@@ -29,7 +29,10 @@ Action = Callable[[ControllerCore], None]
 """A host message as an effect on the controller core."""
 
 #: Listen-URL scheme → module providing ``open_endpoint(url, options)``.
-ENDPOINT_MODULES: dict[str, str] = {"mavlink": "sim_table.mavlink_endpoint"}
+ENDPOINT_MODULES: dict[str, str] = {
+    "mavlink": "sim_table.mavlink_endpoint",
+    "zenoh": "sim_table.zenoh_endpoint",
+}
 
 
 @dataclass(frozen=True)

@@ -1,14 +1,17 @@
 """zenoh wire formats of the rig service (the lab-side bus).
 
-- :mod:`~protocols.zenoh.keys` — key expressions ``shaketable/<rig>/{service,telemetry,alive}/...``
+- :mod:`~protocols.zenoh.keys` — key expressions ``shaketable/<rig>/{service,telemetry,alive,controller}/...``
 - :mod:`~protocols.zenoh.payloads` — versioned payloads (8-byte header; JSON bodies, binary accelerometer batches)
 - :mod:`~protocols.zenoh.config` — ``session_config``: explicit loopback endpoints, scouting off
+- :mod:`~protocols.zenoh.table` — the table link (``zenoh://HOST:PORT/TABLE``): its URL and binary payloads
+- :mod:`~protocols.zenoh.auth` — HMAC-SHA256 signatures of the table link's commands and setpoint chunks
 """
 
 from protocols.zenoh.config import EndpointError, check_endpoint, loopback_endpoint, session_config
 from protocols.zenoh.keys import (
     ROOT,
     SERVICE_COMMANDS,
+    TABLE_KINDS,
     TELEMETRY_KINDS,
     Key,
     KeyExprError,
@@ -18,6 +21,8 @@ from protocols.zenoh.keys import (
     parse_key,
     service_key,
     service_selector,
+    table_accel_selector,
+    table_key,
     telemetry_key,
     telemetry_selector,
 )
@@ -41,6 +46,7 @@ __all__ = [
     "REQUIRED_FIELDS",
     "ROOT",
     "SERVICE_COMMANDS",
+    "TABLE_KINDS",
     "TELEMETRY_KINDS",
     "TELEMETRY_PAYLOADS",
     "VERSION",
@@ -64,6 +70,8 @@ __all__ = [
     "service_key",
     "service_selector",
     "session_config",
+    "table_accel_selector",
+    "table_key",
     "telemetry_key",
     "telemetry_selector",
 ]

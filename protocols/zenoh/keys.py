@@ -1,6 +1,8 @@
-"""zenoh key expressions of the rig service: control plane, telemetry and liveliness.
+"""zenoh key expressions of the rig service (control plane, telemetry, liveliness) and of the table link.
 
-Every key starts with ``shaketable/<rig>/``; the rig's name tells apart several rigs on one zenoh network.
+Every key starts with ``shaketable/<rig>/``; the rig's name tells apart several rigs on one zenoh network. The
+table link (``drivers.zenoh`` ↔ the table controller, ``sim_table.zenoh_endpoint``) uses the ``controller`` plane
+of the table's name (``zenoh://HOST:PORT/<table>``); its payloads are :mod:`protocols.zenoh.table`.
 
 ==========================================  ===============  =============================================
 key                                         zenoh entity     payload (:mod:`protocols.zenoh.payloads`)
@@ -14,8 +16,24 @@ key                                         zenoh entity     payload (:mod:`prot
 ==========================================  ===============  =============================================
 
 Commands: ``start``, ``pause``, ``resume``, ``abort``, ``estop``, ``state`` (the last one only asks).
-Names (rig, sensor, role) are 1..32 characters from ``a-z``, ``0-9``, ``-`` and ``_``, starting with a letter
+Names (rig or table, sensor, role) are 1..32 characters from ``a-z``, ``0-9``, ``-`` and ``_``, starting with a letter
 or digit: safe in a key expression (no ``/``, ``*``, ``$``, ``?``, ``#``) and in file names.
+
+==============================================  ==================  ===========================================
+table link key                                  zenoh entity        payload (:mod:`protocols.zenoh.table`)
+==============================================  ==================  ===========================================
+``shaketable/<t>/controller/command``           queryable           query: COMMAND (signed), reply: ANSWER
+``shaketable/<t>/controller/clock``             queryable           query: CLOCK_REQUEST, reply: CLOCK_REPLY
+``shaketable/<t>/controller/setpoints``         host's publication  SETPOINTS (signed)
+``shaketable/<t>/controller/host-heartbeat``    host's publication  HEARTBEAT (host monotonic time)
+``shaketable/<t>/controller/answer``            publication         ANSWER (final answers of HOME, SET_TILT)
+``shaketable/<t>/controller/status``            publication         STATUS
+``shaketable/<t>/controller/accel/<s>``         publication         ACCEL (one key per accelerometer ``<s>``)
+``shaketable/<t>/controller/overturn``          publication         OVERTURN
+``shaketable/<t>/controller/heartbeat``         publication         HEARTBEAT (controller time)
+==============================================  ==================  ===========================================
+
+The queryables and the publications without "host's" are the controller's.
 """
 
 from __future__ import annotations
@@ -32,7 +50,11 @@ SERVICE_COMMANDS = ("start", "pause", "resume", "abort", "estop", "state")
 TELEMETRY_KINDS = ("status", "accel", "detection", "run")
 """Telemetry publications (``accel`` has one more chunk: the sensor)."""
 
-PLANES = ("service", "telemetry", "alive")
+TABLE_KINDS = ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "accel", "overturn",
+               "heartbeat")
+"""Keys of the table link (``accel`` has one more chunk: the sensor)."""
+
+PLANES = ("service", "telemetry", "alive", "controller")
 """Second chunk after the rig's name."""
 
 _NAME = re.compile(r"[a-z0-9][a-z0-9_-]{0,31}")
@@ -43,8 +65,9 @@ class KeyExprError(ValueError):
 
 
 class Key(NamedTuple):
-    """A parsed key: rig name, plane (``service``/``telemetry``/``alive``), name (command, telemetry kind or role),
-    and the accelerometer's name for ``telemetry/accel/<sensor>`` (else ``None``)."""
+    """A parsed key: rig name, plane (``service``/``telemetry``/``alive``/``controller``), name (command, telemetry
+    or table kind, or role), and the accelerometer's name for ``telemetry/accel/<sensor>`` and
+    ``controller/accel/<sensor>`` (else ``None``)."""
 
     rig: str
     plane: str
@@ -83,6 +106,24 @@ def telemetry_key(rig: str, kind: str, sensor: str | None = None) -> str:
     return key
 
 
+def table_key(table: str, kind: str, sensor: str | None = None) -> str:
+    """Key of the table link's ``kind`` (:data:`TABLE_KINDS`) for the table named ``table``; ``sensor`` names the
+    accelerometer of ``accel`` (and only of it)."""
+    key = f"{ROOT}/{check_name(table, 'table name')}/controller/{_one_of(kind, TABLE_KINDS, 'table kind')}"
+    if kind == "accel":
+        if sensor is None:
+            raise KeyExprError("table kind 'accel' needs a sensor name")
+        return f"{key}/{check_name(sensor, 'sensor name')}"
+    if sensor is not None:
+        raise KeyExprError(f"table kind {kind!r} takes no sensor name, got {sensor!r}")
+    return key
+
+
+def table_accel_selector(table: str) -> str:
+    """Key expression of every accelerometer's ``accel`` key of the table named ``table``."""
+    return f"{ROOT}/{check_name(table, 'table name')}/controller/accel/*"
+
+
 def alive_key(rig: str, role: str) -> str:
     """Key of the liveliness token of a process in ``role`` (e.g. ``service``, ``emulator``) on ``rig``."""
     return f"{ROOT}/{check_name(rig, 'rig name')}/alive/{check_name(role, 'role')}"
@@ -114,9 +155,11 @@ def parse_key(key: str) -> Key:
         _one_of(name, SERVICE_COMMANDS, "service command")
     elif plane == "telemetry":
         _one_of(name, TELEMETRY_KINDS, "telemetry kind")
+    elif plane == "controller":
+        _one_of(name, TABLE_KINDS, "table kind")
     else:
         check_name(name, "role")
-    accel = plane == "telemetry" and name == "accel"
+    accel = plane in ("telemetry", "controller") and name == "accel"
     if len(rest) != int(accel):
         raise KeyExprError(f"key {key!r} has {len(chunks)} chunks; {plane}/{name} keys have {4 + int(accel)}")
     return Key(rig, plane, name, check_name(rest[0], "sensor name") if accel else None)

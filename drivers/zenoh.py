@@ -1,0 +1,465 @@
+"""The table controller over zenoh: ``open_table("zenoh://HOST:PORT/TABLE", key_file=...)``.
+
+The controller's zenoh session listens on ``tcp/HOST:PORT`` (loopback); this host opens a peer session that
+connects there (scouting off, :func:`protocols.zenoh.session_config`) and speaks the table link of
+:mod:`protocols.zenoh.table` on ``shaketable/TABLE/controller/...`` (the controller side is
+``sim_table.zenoh_endpoint``). Motion commands and setpoint chunks — in fact every command — are signed
+(:mod:`protocols.zenoh.auth`: HMAC-SHA256 with the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``,
+a random sender id per connection and a strictly increasing µs stamp against replay).
+
+Threads: zenoh's callback threads stamp each publication of the controller with its arrival time and publish it
+to the feedback (status, accelerometer batches, overturn events de-duplicated by event id, final answers) or the
+clock; a **heartbeat thread** publishes HEARTBEAT at :data:`HEARTBEAT_RATE` and a clock query every
+:data:`CLOCK_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread; signing and
+sending are serialised per key (commands, setpoints), so each key's stamps leave in order and a setpoint
+publication waiting on a congested link never holds up a STOP.
+
+Protocol decisions:
+
+- **Commands** are zenoh queries on ``command`` carrying a command id (random start, then counting); the reply is
+  the ANSWER. A query that ends without one — zenoh's route race right after connecting, a lost message, the
+  querier's ``command_timeout`` — is sent again with the same id (and a fresh signature), at least
+  :data:`RETRY_SPACING` s after the previous attempt, up to ``retries`` times, then
+  :class:`~drivers.controller.TableTimeoutError`; the controller executes an id once and answers its retries with
+  its result. HOME and SET_TILT answer ``in_progress``, then a final ANSWER is published on ``answer``; waiting for
+  it also accepts a status taken after the command that shows the motion over (a lost final answer).
+- **Clock**: queries on ``clock``; the controller answers with its time. The estimate is
+  :class:`drivers.mavlink.ClockSync` (shortest round trips, rate fitted): :meth:`ZenohTable.connect` queries
+  20 ms apart until it is fitted, then every :data:`CLOCK_EVERY` heartbeats refine it.
+- **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then SETPOINTS
+  of :data:`~protocols.zenoh.table.SETPOINTS_PER_CHUNK` samples published reliably (congestion control BLOCK:
+  never dropped), each ``lead`` s ahead of its first sample in controller time, sent at its deadline by
+  ``time.sleep`` to the absolute host time; the last flagged END_OF_STREAM.
+- **Heartbeats** are publications both ways at 20 Hz, not liveliness tokens: a token lives as long as the zenoh
+  session's lease (seconds, kept up by zenoh's own threads), so it neither shows 100 ms of silence nor a host
+  whose program hangs.
+"""
+
+from __future__ import annotations
+
+import math
+import secrets
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+
+import numpy as np
+import zenoh
+
+from drivers.controller import (
+    STOPPED_STATES,
+    TILT_AXES,
+    AccelBatch,
+    CommandDeniedError,
+    CommandFailedError,
+    CommandRejectedError,
+    Detection,
+    StreamAbortedError,
+    StreamReport,
+    TableController,
+    TableError,
+    TableStatus,
+    TableTimeoutError,
+    finite_poses,
+    register_scheme,
+    sample_spacing,
+    sleep_until,
+)
+from drivers.mavlink import ClockSync
+from protocols.mavlink import load_signing_key
+from protocols.zenoh import session_config, table_accel_selector, table_key
+from protocols.zenoh.auth import Signer
+from protocols.zenoh.payloads import PayloadError
+from protocols.zenoh.table import (
+    SETPOINTS_PER_CHUNK,
+    Answer,
+    CommandRequest,
+    SetpointChunk,
+    decode_accel,
+    decode_answer,
+    decode_clock_reply,
+    decode_heartbeat,
+    decode_overturn,
+    decode_status,
+    encode_clock_request,
+    encode_command,
+    encode_heartbeat,
+    encode_setpoints,
+    fault_names,
+    parse_table_url,
+)
+
+HEARTBEAT_RATE = 20.0
+"""Host heartbeats per second (the controller stops the table after 100 ms without one)."""
+
+CLOCK_EVERY = 10
+"""A clock query every this many heartbeats (2 Hz)."""
+
+CLOCK_TIMEOUT = 0.5
+"""How long a clock query waits for its answer [s] (a late answer is useless to the estimate anyway)."""
+
+RETRY_SPACING = 0.01
+"""Least time between two attempts of a command [s] (a query without a route ends at once)."""
+
+STATUS_WAIT = 0.1
+"""After an accepted command, wait up to this long [s] for a status taken after it (so that ``status()`` shows its
+effect); the controller reports every state change at once and a status at least every 20 ms."""
+
+FIRST_SEQ_LIMIT = 2**24
+"""Chunk numbers of START_STREAM stay below this (exact in its float parameter)."""
+
+_MOTION_STATES = frozenset({"homing", "tilting"})
+
+
+class ZenohTable(TableController):
+    """A table controller at ``zenoh://HOST:PORT/TABLE`` (module docstring).
+
+    Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``command_timeout`` [s] per attempt and
+    ``retries``; ``connect_timeout`` [s].
+    """
+
+    def __init__(self, url: str, *, key_file: str | None = None, command_timeout: float = 0.15, retries: int = 4,
+                 connect_timeout: float = 3.0) -> None:
+        super().__init__(url)
+        self.address = parse_table_url(url)
+        self.key_file = key_file
+        self.command_timeout = command_timeout
+        self.retries = retries
+        self.connect_timeout = connect_timeout
+        self.clock = ClockSync()
+        self._keys = {kind: table_key(self.address.table, kind) for kind in ("command", "clock", "setpoints",
+                                                                            "host-heartbeat", "answer", "status",
+                                                                            "overturn", "heartbeat")}
+        self._session: zenoh.Session | None = None
+        self._signer: Signer | None = None
+        self._command_lock = threading.Lock()  # command ids, signing and sending a command
+        self._setpoints_lock = threading.Lock()  # signing and sending a chunk
+        self._closing = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._finals: dict[int, list[Answer]] = {}  # cmd id of a motion waited for -> its final answers
+        self._clock_sent: deque[int] = deque(maxlen=64)
+        self._next_cmd = secrets.randbits(63)
+        self._next_seq = 0
+        self._accel_expected: dict[int, int] = {}
+        self.accel_batches_lost = 0
+        """Accelerometer batches missing from the sequence numbers received."""
+        self.command_attempts_unanswered = 0
+        """Command queries that ended without an answer (and were sent again, or timed out)."""
+        self.bad_payloads = 0
+        """Publications of the controller that could not be decoded."""
+        self.last_controller_heartbeat_ns: int | None = None
+        """Host time [ns] of the controller's last HEARTBEAT."""
+
+    # ----- connection -----------------------------------------------------------------------------------
+
+    def connect(self) -> None:
+        if self._session is not None:
+            return
+        self._signer = Signer(load_signing_key(self.key_file), secrets.randbits(64))
+        deadline = time.monotonic() + self.connect_timeout
+        try:
+            session = zenoh.open(session_config(connect=[self.address.endpoint]))
+        except zenoh.ZError as exc:
+            raise TableError(f"{self.url}: cannot open a zenoh session: {exc}") from None
+        self._session = session
+        self._closing.clear()
+        try:
+            keys = self._keys
+            for key, handler in ((keys["status"], self._on_status), (keys["answer"], self._on_answer),
+                                 (keys["overturn"], self._on_overturn), (keys["heartbeat"], self._on_heartbeat),
+                                 (table_accel_selector(self.address.table), self._on_accel)):
+                session.declare_subscriber(key, self._receiver(handler))
+            self._setpoints = session.declare_publisher(keys["setpoints"], express=True,
+                                                        congestion_control=zenoh.CongestionControl.BLOCK)
+            self._heartbeat = session.declare_publisher(keys["host-heartbeat"], express=True)
+            self._command_querier = session.declare_querier(keys["command"], timeout=self.command_timeout)
+            self._clock_querier = session.declare_querier(keys["clock"], timeout=CLOCK_TIMEOUT)
+            self._thread = threading.Thread(target=self._heartbeat_loop, name="zenoh-heartbeat", daemon=True)
+            self._thread.start()
+            while not (self.clock.fitted and self.feedback.latest is not None and self._routes_ready()):
+                if time.monotonic() > deadline:
+                    raise TableTimeoutError(f"{self.url}: no answer from the table controller "
+                                            f"within {self.connect_timeout} s")
+                self._request_clock()  # round trips 20 ms apart until the clock's rate is fitted
+                time.sleep(0.02)
+        except BaseException:
+            self.close()
+            raise
+
+    def _routes_ready(self) -> bool:
+        return bool(self._setpoints.matching_status and self._heartbeat.matching_status
+                    and self._command_querier.matching_status)
+
+    def close(self) -> None:
+        if self._session is None:
+            return
+        self._closing.set()
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+            self._thread = None
+        self._session.close()
+        self._session = None
+        self.feedback.close()
+
+    # ----- receiving (zenoh's callback threads) ----------------------------------------------------------
+
+    def _receiver(self, handler: Callable[[bytes, int], None]) -> Callable[[zenoh.Sample], None]:
+        """A subscriber callback: ``handler(payload, arrival host ns)``; an undecodable payload is counted (zenoh
+        would only log the exception)."""
+
+        def receive(sample: zenoh.Sample) -> None:
+            now = time.monotonic_ns()
+            try:
+                handler(sample.payload.to_bytes(), now)
+            except PayloadError:
+                self.bad_payloads += 1
+
+        return receive
+
+    def _on_status(self, payload: bytes, now: int) -> None:
+        report = decode_status(payload)
+        self.feedback.publish_status(TableStatus(report.t_ns, report.state, report.buffer_depth,
+                                                 report.last_chunk_seq, report.underruns, fault_names(report.faults),
+                                                 report.refused_commands, report.pose, now))
+
+    def _on_answer(self, payload: bytes, now: int) -> None:
+        answer = decode_answer(payload)
+        finals = self._finals.get(answer.cmd_id)
+        if finals is not None:
+            finals.append(answer)
+            self.feedback.notify()
+
+    def _on_overturn(self, payload: bytes, now: int) -> None:
+        event = decode_overturn(payload)
+        self.feedback.publish_detection(Detection(event.event_id, event.body_id, event.direction, event.tilt,
+                                                  event.t_ns))
+
+    def _on_heartbeat(self, payload: bytes, now: int) -> None:
+        decode_heartbeat(payload)
+        self.last_controller_heartbeat_ns = now
+
+    def _on_accel(self, payload: bytes, now: int) -> None:
+        batch = decode_accel(payload)
+        expected = self._accel_expected.get(batch.sensor_id)
+        if expected is not None and batch.seq != expected:
+            self.accel_batches_lost += (batch.seq - expected) % 2**32
+        self._accel_expected[batch.sensor_id] = (batch.seq + 1) % 2**32
+        self.feedback.publish_accel(AccelBatch(batch.sensor_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
+                                               batch.samples))
+
+    def _on_clock_reply(self, reply: zenoh.Reply) -> None:
+        now = time.monotonic_ns()
+        if reply.ok is None:
+            return
+        try:
+            answer = decode_clock_reply(reply.ok.payload.to_bytes())
+        except PayloadError:
+            self.bad_payloads += 1
+            return
+        if answer.t_send_ns in self._clock_sent:
+            self.clock.add(answer.t_send_ns, now, answer.t_controller_ns)
+            self.feedback.notify()
+
+    # ----- sending ----------------------------------------------------------------------------------------
+
+    def _heartbeat_loop(self) -> None:
+        period = round(1e9 / HEARTBEAT_RATE)
+        deadline = time.monotonic_ns()
+        beats = 0
+        while not self._closing.is_set():
+            self._heartbeat.put(encode_heartbeat(time.monotonic_ns()))
+            beats += 1
+            if beats % CLOCK_EVERY == 0:
+                self._request_clock()
+            deadline = max(deadline + period, time.monotonic_ns())
+            sleep_until(deadline)
+
+    def _request_clock(self) -> None:
+        now = time.monotonic_ns()
+        self._clock_sent.append(now)
+        self._clock_querier.get(self._on_clock_reply, payload=encode_clock_request(now))
+
+    def _signed(self, key: str, message: bytes) -> bytes:
+        assert self._signer is not None  # connected
+        return self._signer.sign(key, message)
+
+    # ----- commands -------------------------------------------------------------------------------------
+
+    def _command(self, name: str, params: tuple[float, float] = (0.0, 0.0), cmd_id: int | None = None) -> Answer:
+        """Query ``name`` until answered (module docstring); the answer unless refused."""
+        if self._session is None:
+            raise TableError(f"{self.url}: not connected")
+        if cmd_id is None:
+            cmd_id = self._new_cmd_id()
+        message = encode_command(CommandRequest(cmd_id, name, params))
+        key = self._keys["command"]
+        errors: list[str] = []
+        for attempt in range(self.retries + 1):
+            started = time.monotonic()
+            with self._command_lock:
+                replies = self._command_querier.get(payload=self._signed(key, message))
+            answer = self._first_answer(replies, cmd_id, errors)
+            if answer is not None:
+                break
+            self.command_attempts_unanswered += 1
+            if attempt < self.retries:
+                time.sleep(max(0.0, started + RETRY_SPACING - time.monotonic()))
+        else:
+            last = f" (last error: {errors[-1]})" if errors else ""
+            raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts of "
+                                    f"{self.command_timeout} s{last}")
+        self._check(name, answer.result)
+        if answer.result != "in_progress":
+            self._status_after(answer.t_ns)
+        return answer
+
+    def _first_answer(self, replies: zenoh.Handler[zenoh.Reply], cmd_id: int, errors: list[str]) -> Answer | None:
+        """The answer among ``replies`` (iteration ends when the query does: answered, or its timeout)."""
+        for reply in replies:
+            if reply.ok is None:
+                errors.append(reply.err.payload.to_string())
+                continue
+            try:
+                answer = decode_answer(reply.ok.payload.to_bytes())
+            except PayloadError as exc:
+                errors.append(str(exc))
+                continue
+            if answer.cmd_id == cmd_id:
+                return answer
+        return None
+
+    def _new_cmd_id(self) -> int:
+        with self._command_lock:
+            self._next_cmd = (self._next_cmd + 1) % 2**64
+            return self._next_cmd
+
+    def _status_after(self, t_ns: int) -> None:
+        """Wait (at most :data:`STATUS_WAIT`) for a status taken at or after controller time ``t_ns``: the
+        controller reports a state change at once, so ``status()`` then shows what the command did."""
+        self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.t_ns >= t_ns,
+                               STATUS_WAIT)
+
+    def _check(self, name: str, result: str) -> None:
+        if result in ("accepted", "in_progress"):
+            return
+        state = self.feedback.latest.state if self.feedback.latest is not None else None
+        upper = name.upper()
+        if result == "denied":
+            raise CommandDeniedError(upper, result, state, "missing or bad signature (are host and controller "
+                                     "using the same signing key?)")
+        if result == "rejected":
+            raise CommandRejectedError(upper, result, state, "not accepted in this state")
+        why = {"failed": "invalid parameters", "cancelled": "the motion was stopped before its target"}[result]
+        raise CommandFailedError(upper, result, state, why)
+
+    def _motion(self, name: str, params: tuple[float, float], wait: bool, timeout: float) -> None:
+        cmd_id = self._new_cmd_id()
+        finals = self._finals[cmd_id] = []
+        try:
+            answer = self._command(name, params, cmd_id)
+            if answer.result != "in_progress" or not wait:
+                return
+
+            def over() -> bool:
+                latest = self.feedback.latest
+                return bool(finals) or (latest is not None and latest.t_ns >= answer.t_ns
+                                        and latest.state not in _MOTION_STATES)
+
+            if not self.feedback.wait_for(over, timeout):
+                raise TableTimeoutError(f"{name.upper()}: still moving after {timeout} s")
+            if finals:
+                self._status_after(finals[0].t_ns)
+            latest = self.status()
+            if (finals[0].result if finals else latest.state) not in ("accepted", "armed"):
+                raise CommandFailedError(name.upper(), "cancelled", latest.state,
+                                         "the motion was stopped before its target")
+        finally:
+            self._finals.pop(cmd_id, None)
+
+    def arm(self) -> None:
+        self._command("arm")
+
+    def disarm(self) -> None:
+        self._command("disarm")
+
+    def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
+        self._motion("home", (0.0, 0.0), wait, timeout)
+
+    def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
+        if axis not in TILT_AXES:
+            raise ValueError(f"axis must be one of {TILT_AXES}, got {axis!r}")
+        if not math.isfinite(angle):
+            raise ValueError(f"angle must be finite, got {angle!r}")
+        self._motion("set_tilt", (angle, float(TILT_AXES.index(axis))), wait, timeout)
+
+    def stop(self) -> None:
+        self._command("stop")
+
+    def emergency_stop(self) -> None:
+        self._command("emergency_stop")
+
+    # ----- streaming ------------------------------------------------------------------------------------
+
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+        poses = finite_poses(poses)
+        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
+        if not (math.isfinite(lead) and lead > 0):
+            raise ValueError(f"lead must be > 0 s, got {lead!r}")
+        lead_ns = round(lead * 1e9)
+        underruns_before = self.status().underruns
+        first_seq = self._next_seq
+        self._command("start_stream", (float(first_seq), 0.0))
+        count = math.ceil(len(poses) / SETPOINTS_PER_CHUNK)
+        self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
+        t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
+        t_end = t_start + (len(poses) - 1) * spacing_ns
+        lateness = np.zeros(count, dtype=np.int64)
+        key = self._keys["setpoints"]
+
+        def report(sent: int, final: TableStatus | None) -> StreamReport:
+            underruns = (final or self.status()).underruns - underruns_before
+            return StreamReport(sent, min(sent * SETPOINTS_PER_CHUNK, len(poses)), underruns, t_start, t_end, lead,
+                                lateness[:sent], final)
+
+        next_progress = time.monotonic_ns()
+        for k in range(count):  # each chunk made just before it is due: no burst of work at the start
+            first = k * SETPOINTS_PER_CHUNK
+            chunk_start = t_start + first * spacing_ns
+            message = encode_setpoints(SetpointChunk((first_seq + k) % FIRST_SEQ_LIMIT, chunk_start, spacing_ns,
+                                                     poses[first:first + SETPOINTS_PER_CHUNK], k == count - 1))
+            lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
+            latest = self.feedback.latest
+            if latest is not None and latest.state in STOPPED_STATES:
+                raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
+                                         f"{', '.join(latest.faults) or 'none'})", report(k, latest))
+            with self._setpoints_lock:
+                self._setpoints.put(self._signed(key, message))
+            if on_progress is not None and time.monotonic_ns() >= next_progress:
+                on_progress(min(first + SETPOINTS_PER_CHUNK, len(poses)), len(poses))
+                next_progress += 100_000_000
+        remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
+        final = self.wait_for_status(
+            lambda s: s.state in STOPPED_STATES or (s.t_ns >= t_end and s.state != "streaming"), remaining + 2.0)
+        if on_progress is not None:
+            on_progress(len(poses), len(poses))
+        if final.state != "armed":
+            raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
+                                     f"{', '.join(final.faults) or 'none'})", report(count, final))
+        return report(count, final)
+
+    # ----- diagnostics ----------------------------------------------------------------------------------
+
+    def link_stats(self) -> dict[str, float | None]:
+        """Clock estimate and round trips, accelerometer batches lost, duplicate overturn events dropped, command
+        queries unanswered, undecodable publications, age of the controller's last heartbeat [s] (None before
+        the first)."""
+        beat = self.last_controller_heartbeat_ns
+        return {**self.clock.stats(), "accel_batches_lost": self.accel_batches_lost,
+                "duplicate_detections": self.feedback.duplicate_detections,
+                "command_attempts_unanswered": self.command_attempts_unanswered, "bad_payloads": self.bad_payloads,
+                "controller_heartbeat_age_s": None if beat is None else (time.monotonic_ns() - beat) * 1e-9}
+
+
+register_scheme("zenoh", ZenohTable)

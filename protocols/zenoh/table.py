@@ -1,0 +1,405 @@
+"""The table link over zenoh: its URL and the binary payloads of ``shaketable/<table>/controller/...``.
+
+The link between the lab host (``drivers.zenoh``) and the table controller (``sim_table.zenoh_endpoint``) carries
+the behaviour of ``docs/table-controller.md``; keys are :func:`protocols.zenoh.keys.table_key`, signatures
+:mod:`protocols.zenoh.auth`. URL: ``zenoh://HOST:PORT/TABLE`` — the controller's zenoh session listens on
+``tcp/HOST:PORT`` (a loopback address, :func:`protocols.zenoh.session_config`), ``TABLE`` names the table in the
+key space (default :data:`DEFAULT_TABLE`).
+
+Every payload starts with an 8-byte little-endian header ``magic b"SHTC", version (UNSIGNED16) = 1, kind
+(UNSIGNED16, :class:`TableKind`)`` (the rig service's payloads, :mod:`protocols.zenoh.payloads`, use another
+magic), then a fixed little-endian body; COMMAND and SETPOINTS may end in a 48-byte signature trailer
+(:mod:`protocols.zenoh.auth`). Units: times integer ns (controller time unless said), poses ``(surge, sway, heave
+[m], roll, pitch, yaw [rad])``, accelerations [m/s², plate frame, specific force]. Version 1 bodies:
+
+==============  ============================================================================================
+kind            body
+==============  ============================================================================================
+COMMAND         cmd_id u64 (the host's, unique per command: retries repeat it), command u8 (:data:`COMMANDS`),
+                param1, param2 f64 (SET_TILT: angle [rad], axis 0 pitch / 1 roll; START_STREAM: first chunk
+                number); [signature]
+ANSWER          cmd_id u64, result u8 (:data:`RESULTS`), t_ns i64 (when the controller took the command, or
+                when the motion of an ``in_progress`` one ended)
+CLOCK_REQUEST   t_send i64 [ns, host monotonic]
+CLOCK_REPLY     t_send i64 (echoed), t_controller i64 (controller time when answered)
+SETPOINTS       seq u32, flags u8 (bit 0 END_OF_STREAM), t_start i64, spacing i64 (> 0), n u16 (1..
+                :data:`MAX_SAMPLES`), n × 6 f64 (finite); [signature]
+STATUS          t_ns i64, state u8 (:data:`STATES`), buffer_depth, last_chunk_seq, underruns, faults (bit i =
+                :data:`FAULTS` [i]), refused_commands u32, pose 6 × f64 (achieved)
+ACCEL           sensor u16, seq u32 (the sensor's batch count), t_start i64, spacing i64, n u32, n × 3 f64
+OVERTURN        event_id u64, body_id u32, direction i8 (+1 low side, −1 high side), tilt f64 [rad], t_ns i64
+HEARTBEAT       t_ns i64 (the sender's clock: host monotonic, or controller time)
+==============  ============================================================================================
+
+A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
+length other than the layout's.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import struct
+from enum import IntEnum
+from typing import NamedTuple
+from urllib.parse import urlsplit
+
+import numpy as np
+
+from protocols.zenoh.auth import TRAILER_BYTES, Received
+from protocols.zenoh.config import check_endpoint
+from protocols.zenoh.keys import check_name
+from protocols.zenoh.payloads import PayloadError
+
+MAGIC = b"SHTC"
+VERSION = 1
+DEFAULT_TABLE = "table"
+"""Table name of a URL without one."""
+
+COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop")
+"""Command codes (index)."""
+
+RESULTS = ("accepted", "in_progress", "denied", "rejected", "failed", "cancelled")
+"""Answer codes (index): accepted; in progress (HOME, SET_TILT: a final ANSWER follows); denied (missing or bad
+signature); rejected (not in this state); failed (invalid parameters); cancelled (a motion stopped before its end)."""
+
+STATES = ("idle", "armed", "homing", "tilting", "streaming", "stopping", "faulted", "emergency_stopped")
+"""State codes (index)."""
+
+FAULTS = ("DRIVE", "STROKE", "STREAM_SILENT", "HEARTBEAT_LOST", "UNSIGNED_COMMAND", "SETPOINT_LIMIT", "CHUNK_GAP",
+          "UNDERRUN")
+"""Fault bit ``1 << i`` is ``FAULTS[i]``."""
+
+END_OF_STREAM = 1
+"""SETPOINTS flag: the last chunk of the stream."""
+
+SETPOINTS_PER_CHUNK = 10
+"""Samples the host puts in a chunk (10 ms at 1 kHz)."""
+
+MAX_SAMPLES = 1000
+"""Most samples in one SETPOINTS payload."""
+
+ACCEL_PER_BATCH = 50
+"""Samples the controller puts in an accelerometer batch (50 ms at 1 kHz)."""
+
+_HEADER = struct.Struct("<4sHH")
+_COMMAND = struct.Struct("<QBdd")
+_ANSWER = struct.Struct("<QBq")
+_CLOCK_REQUEST = struct.Struct("<q")
+_CLOCK_REPLY = struct.Struct("<qq")
+_SETPOINTS = struct.Struct("<IBqqH")
+_STATUS = struct.Struct("<qBIIIII6d")
+_ACCEL = struct.Struct("<HIqqI")
+_OVERTURN = struct.Struct("<QIbdq")
+_HEARTBEAT = struct.Struct("<q")
+
+
+class TableKind(IntEnum):
+    """What a table link payload carries (header field ``kind``)."""
+
+    COMMAND = 1
+    ANSWER = 2
+    CLOCK_REQUEST = 3
+    CLOCK_REPLY = 4
+    SETPOINTS = 5
+    STATUS = 6
+    ACCEL = 7
+    OVERTURN = 8
+    HEARTBEAT = 9
+
+
+class TableUrl(NamedTuple):
+    """A parsed ``zenoh://HOST:PORT/TABLE``: loopback ``host``, ``port`` (0: any free one) and ``table`` name."""
+
+    host: str
+    port: int
+    table: str
+
+    @property
+    def endpoint(self) -> str:
+        """The controller's zenoh endpoint ``tcp/HOST:PORT``."""
+        return tcp_endpoint(self.host, self.port)
+
+    @property
+    def url(self) -> str:
+        """The URL again (``zenoh://127.0.0.1:7447/table``)."""
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        return f"zenoh://{host}:{self.port}/{self.table}"
+
+
+class CommandRequest(NamedTuple):
+    """A command: the host's ``cmd_id``, ``command`` (one of :data:`COMMANDS`), two parameters."""
+
+    cmd_id: int
+    command: str
+    params: tuple[float, float]
+
+
+class Answer(NamedTuple):
+    """The controller's answer to command ``cmd_id``: ``result`` (one of :data:`RESULTS`) at ``t_ns``."""
+
+    cmd_id: int
+    result: str
+    t_ns: int
+
+
+class ClockReply(NamedTuple):
+    """The answer to a clock request sent at host ``t_send_ns``: controller time ``t_controller_ns``."""
+
+    t_send_ns: int
+    t_controller_ns: int
+
+
+class SetpointChunk(NamedTuple):
+    """Setpoint chunk ``seq``: ``samples`` (n, 6), row k due at ``t_start_ns + k * spacing_ns``."""
+
+    seq: int
+    t_start_ns: int
+    spacing_ns: int
+    samples: np.ndarray
+    end_of_stream: bool
+
+
+class StatusReport(NamedTuple):
+    """One status (``docs/table-controller.md``); ``faults`` the bit mask (:func:`fault_names`)."""
+
+    t_ns: int
+    state: str
+    buffer_depth: int
+    last_chunk_seq: int
+    underruns: int
+    faults: int
+    refused_commands: int
+    pose: np.ndarray
+
+
+class AccelSamples(NamedTuple):
+    """Batch ``seq`` of accelerometer ``sensor_id``: ``samples`` (n, 3), row k at ``t_start_ns + k * spacing_ns``."""
+
+    sensor_id: int
+    seq: int
+    t_start_ns: int
+    spacing_ns: int
+    samples: np.ndarray
+
+
+class Overturn(NamedTuple):
+    """Overturn event ``event_id`` of body ``body_id``: ``direction`` ±1, plate ``tilt`` [rad] at ``t_ns``."""
+
+    event_id: int
+    body_id: int
+    direction: int
+    tilt: float
+    t_ns: int
+
+
+# ----- URL ----------------------------------------------------------------------------------------------------
+
+
+def parse_table_url(url: str, *, any_port: bool = False) -> TableUrl:
+    """The parts of ``zenoh://HOST:PORT[/TABLE]``; HOST a loopback IP address, PORT 1..65535 (0 too with
+    ``any_port``: the listener picks one); :class:`ValueError` otherwise."""
+    parts = urlsplit(url)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    if (parts.scheme != "zenoh" or port is None or not parts.hostname or parts.query or parts.fragment
+            or (port == 0 and not any_port)):
+        raise ValueError(f"table URL {url!r}: expected zenoh://HOST:PORT/TABLE"
+                         + (" (port 0: any free port)" if any_port else ""))
+    try:
+        host = str(ipaddress.ip_address(parts.hostname))
+    except ValueError:
+        raise ValueError(f"table URL {url!r}: HOST must be a loopback IP address (127.0.0.1, ::1)") from None
+    tcp_endpoint(host, port or 1)  # loopback only
+    return TableUrl(host, port, check_name(parts.path.strip("/") or DEFAULT_TABLE, "table name"))
+
+
+def tcp_endpoint(host: str, port: int) -> str:
+    """``tcp/HOST:PORT`` (``tcp/[HOST]:PORT`` for IPv6), checked to be loopback
+    (:class:`~protocols.zenoh.config.EndpointError` otherwise)."""
+    return check_endpoint(f"tcp/[{host}]:{port}" if ":" in host else f"tcp/{host}:{port}")
+
+
+# ----- header -------------------------------------------------------------------------------------------------
+
+
+def _header(kind: TableKind) -> bytes:
+    return _HEADER.pack(MAGIC, VERSION, kind)
+
+
+def _body(payload: bytes, kind: TableKind) -> bytes:
+    data = bytes(payload)
+    if len(data) < _HEADER.size:
+        raise PayloadError(f"payload truncated: {len(data)} bytes, the header alone has {_HEADER.size}")
+    magic, version, found = _HEADER.unpack_from(data)
+    if magic != MAGIC:
+        raise PayloadError(f"not a table link payload: magic {magic!r}, expected {MAGIC!r}")
+    if version != VERSION:
+        raise PayloadError(f"table link payload version {version} is not supported (this reader knows {VERSION})")
+    if found != kind:
+        try:
+            name = TableKind(found).name
+        except ValueError:
+            name = f"unknown kind {found}"
+        raise PayloadError(f"expected a {kind.name} payload, got {name}")
+    return data[_HEADER.size:]
+
+
+def _fixed(payload: bytes, kind: TableKind, layout: struct.Struct) -> tuple:
+    body = _body(payload, kind)
+    if len(body) != layout.size:
+        raise PayloadError(f"{kind.name} body has {len(body)} bytes, expected {layout.size}")
+    return layout.unpack(body)
+
+
+def _signed(payload: bytes, kind: TableKind, size: int) -> Received:
+    """Split a payload whose unsigned body has ``size`` bytes into message and signature trailer."""
+    length = _HEADER.size + size
+    if len(payload) not in (length, length + TRAILER_BYTES):
+        raise PayloadError(f"{kind.name} payload has {len(payload)} bytes, expected {length} (unsigned) or "
+                           f"{length + TRAILER_BYTES} (signed)")
+    return Received(bytes(payload[:length]), bytes(payload[length:]))
+
+
+def _code(names: tuple[str, ...], name: str, what: str) -> int:
+    if name not in names:
+        raise PayloadError(f"unknown {what} {name!r}; expected one of {', '.join(names)}")
+    return names.index(name)
+
+
+def _name(names: tuple[str, ...], code: int, what: str) -> str:
+    if code >= len(names):
+        raise PayloadError(f"unknown {what} code {code}")
+    return names[code]
+
+
+def fault_names(mask: int) -> tuple[str, ...]:
+    """Names of the fault bits set in ``mask``, in bit order."""
+    return tuple(name for bit, name in enumerate(FAULTS) if mask >> bit & 1)
+
+
+# ----- payloads -----------------------------------------------------------------------------------------------
+
+
+def encode_command(request: CommandRequest) -> bytes:
+    """The unsigned COMMAND payload (sign it with :meth:`protocols.zenoh.auth.Signer.sign`)."""
+    code = _code(COMMANDS, request.command, "command")
+    return _header(TableKind.COMMAND) + _COMMAND.pack(request.cmd_id, code, *request.params)
+
+
+def decode_command(payload: bytes) -> tuple[CommandRequest, Received]:
+    """The command and the payload split for :meth:`protocols.zenoh.auth.Verifier.verify`."""
+    _body(payload, TableKind.COMMAND)
+    received = _signed(payload, TableKind.COMMAND, _COMMAND.size)
+    cmd_id, code, *params = _COMMAND.unpack_from(received.message, _HEADER.size)
+    return CommandRequest(cmd_id, _name(COMMANDS, code, "command"), (params[0], params[1])), received
+
+
+def encode_answer(answer: Answer) -> bytes:
+    return _header(TableKind.ANSWER) + _ANSWER.pack(answer.cmd_id, _code(RESULTS, answer.result, "result"),
+                                                    answer.t_ns)
+
+
+def decode_answer(payload: bytes) -> Answer:
+    cmd_id, code, t_ns = _fixed(payload, TableKind.ANSWER, _ANSWER)
+    return Answer(cmd_id, _name(RESULTS, code, "result"), t_ns)
+
+
+def encode_clock_request(t_send_ns: int) -> bytes:
+    return _header(TableKind.CLOCK_REQUEST) + _CLOCK_REQUEST.pack(t_send_ns)
+
+
+def decode_clock_request(payload: bytes) -> int:
+    """The host time [ns] the request was sent."""
+    (t_send,) = _fixed(payload, TableKind.CLOCK_REQUEST, _CLOCK_REQUEST)
+    return t_send
+
+
+def encode_clock_reply(reply: ClockReply) -> bytes:
+    return _header(TableKind.CLOCK_REPLY) + _CLOCK_REPLY.pack(*reply)
+
+
+def decode_clock_reply(payload: bytes) -> ClockReply:
+    return ClockReply(*_fixed(payload, TableKind.CLOCK_REPLY, _CLOCK_REPLY))
+
+
+def encode_setpoints(chunk: SetpointChunk) -> bytes:
+    """The unsigned SETPOINTS payload (sign it with :meth:`protocols.zenoh.auth.Signer.sign`)."""
+    samples = np.asarray(chunk.samples, dtype="<f8")
+    if samples.ndim != 2 or samples.shape[1] != 6 or not 1 <= len(samples) <= MAX_SAMPLES:
+        raise PayloadError(f"setpoint samples must have shape (n, 6) with 1 <= n <= {MAX_SAMPLES}, "
+                           f"got {samples.shape}")
+    if not np.isfinite(samples).all() or chunk.spacing_ns <= 0:
+        raise PayloadError("setpoint samples must be finite and their spacing > 0")
+    flags = END_OF_STREAM if chunk.end_of_stream else 0
+    return (_header(TableKind.SETPOINTS) + _SETPOINTS.pack(chunk.seq, flags, chunk.t_start_ns, chunk.spacing_ns,
+                                                           len(samples)) + samples.tobytes())
+
+
+def decode_setpoints(payload: bytes) -> tuple[SetpointChunk, Received]:
+    """The chunk and the payload split for :meth:`protocols.zenoh.auth.Verifier.verify`."""
+    body = _body(payload, TableKind.SETPOINTS)
+    if len(body) < _SETPOINTS.size:
+        raise PayloadError(f"SETPOINTS body has {len(body)} bytes, its fixed part alone {_SETPOINTS.size}")
+    seq, flags, t_start, spacing, n = _SETPOINTS.unpack_from(body)
+    if not 1 <= n <= MAX_SAMPLES or spacing <= 0:
+        raise PayloadError(f"SETPOINTS with {n} samples (1..{MAX_SAMPLES}) spaced {spacing} ns (> 0)")
+    received = _signed(payload, TableKind.SETPOINTS, _SETPOINTS.size + 48 * n)
+    samples = np.frombuffer(received.message, dtype="<f8", count=6 * n,
+                            offset=_HEADER.size + _SETPOINTS.size).reshape(n, 6).astype(np.float64)
+    if not np.isfinite(samples).all():
+        raise PayloadError("SETPOINTS samples must be finite")
+    return SetpointChunk(seq, t_start, spacing, samples, bool(flags & END_OF_STREAM)), received
+
+
+def encode_status(status: StatusReport) -> bytes:
+    return _header(TableKind.STATUS) + _STATUS.pack(
+        status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
+        status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64))
+
+
+def decode_status(payload: bytes) -> StatusReport:
+    t_ns, state, depth, last, underruns, faults, refused, *pose = _fixed(payload, TableKind.STATUS, _STATUS)
+    return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
+                        np.array(pose, dtype=np.float64))
+
+
+def encode_accel(batch: AccelSamples) -> bytes:
+    samples = np.asarray(batch.samples, dtype="<f8")
+    if samples.ndim != 2 or samples.shape[1] != 3:
+        raise PayloadError(f"accelerometer samples must have shape (n, 3), got {samples.shape}")
+    return (_header(TableKind.ACCEL) + _ACCEL.pack(batch.sensor_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
+                                                   len(samples)) + samples.tobytes())
+
+
+def decode_accel(payload: bytes) -> AccelSamples:
+    body = _body(payload, TableKind.ACCEL)
+    if len(body) < _ACCEL.size:
+        raise PayloadError(f"ACCEL body has {len(body)} bytes, its fixed part alone {_ACCEL.size}")
+    sensor, seq, t_start, spacing, n = _ACCEL.unpack_from(body)
+    if len(body) != _ACCEL.size + 24 * n:
+        raise PayloadError(f"ACCEL body has {len(body)} bytes, {n} samples need {_ACCEL.size + 24 * n}")
+    samples = np.frombuffer(body, dtype="<f8", count=3 * n, offset=_ACCEL.size).reshape(n, 3).astype(np.float64)
+    return AccelSamples(sensor, seq, t_start, spacing, samples)
+
+
+def encode_overturn(event: Overturn) -> bytes:
+    return _header(TableKind.OVERTURN) + _OVERTURN.pack(*event)
+
+
+def decode_overturn(payload: bytes) -> Overturn:
+    event = Overturn(*_fixed(payload, TableKind.OVERTURN, _OVERTURN))
+    if event.direction not in (-1, 1):
+        raise PayloadError(f"OVERTURN direction must be +1 or -1, got {event.direction}")
+    return event
+
+
+def encode_heartbeat(t_ns: int) -> bytes:
+    return _header(TableKind.HEARTBEAT) + _HEARTBEAT.pack(t_ns)
+
+
+def decode_heartbeat(payload: bytes) -> int:
+    """The sender's time [ns] in a HEARTBEAT."""
+    (t_ns,) = _fixed(payload, TableKind.HEARTBEAT, _HEARTBEAT)
+    return t_ns

@@ -1,0 +1,456 @@
+"""The emulator's zenoh side: the controller end of the table link (``protocols.zenoh.table``).
+
+``zenoh://HOST:PORT/TABLE`` opens a zenoh peer session listening on ``tcp/HOST:PORT`` (loopback, scouting off:
+``protocols.zenoh.session_config``; port 0: a free port, probed) and serves the keys
+``shaketable/TABLE/controller/...`` (``protocols.zenoh.keys``). The host side is ``drivers.zenoh``.
+
+Threads: zenoh's callback threads stamp every host message with its arrival time and queue it (answering a clock
+query at once unless a delay is injected); the emulator's tick thread takes the queue in arrival order
+(:meth:`ZenohEndpoint.take`, each message an action on the :class:`ControllerCore` at its arrival time), checks
+signatures and does all the rest of the sending.
+
+Protocol decisions:
+
+- **Commands** are queries on ``command``; the reply is an ANSWER with the command's result and its arrival time
+  (controller time). HOME and SET_TILT answer ``in_progress``; their final answer (``accepted``, or ``cancelled``
+  when the motion was stopped first) is published on ``answer`` with the same command id. A payload that is no
+  COMMAND gets a zenoh error reply.
+- **Retries and de-duplication.** The host retries a query that ends without a reply (zenoh's route race, a lost
+  message) with the same command id. The last :data:`REMEMBERED_COMMANDS` commands are remembered by id with
+  their latest result; one that repeats a remembered command exactly (id, command, parameters) is answered with
+  that result and not executed again — if it needs a signature, only when it carries a valid, fresh one.
+- **Signatures** (``protocols.zenoh.auth``, the rig's key): ARM, HOME, SET_TILT, START_STREAM and setpoint
+  chunks without a valid, fresh signature are refused (``refused_commands``, answered ``denied``); STOP, DISARM
+  and EMERGENCY_STOP are accepted unsigned. The counters say why (``unsigned``, ``bad_signatures``,
+  ``stale_signatures``).
+- **Clock**: a query on ``clock`` is answered with the controller time when it is answered.
+- **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
+  per sensor), overturn events (sent at once and again 3 times 100 ms apart, real time, with the same event id),
+  heartbeats every 50 ms. zenoh's default congestion control (drop when the link's queue stays full): the
+  controller never waits for its host.
+- **Fault injection**: ``loss`` drops each message in either direction with that probability (a dropped query
+  ends without a reply); ``delay`` [s] holds each one that long in either direction (seeded).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import heapq
+import math
+import socket
+import threading
+import time
+from collections import OrderedDict, deque
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+
+import numpy as np
+import zenoh
+
+from protocols.zenoh import session_config, table_key
+from protocols.zenoh.auth import Verdict, Verifier
+from protocols.zenoh.payloads import PayloadError
+from protocols.zenoh.table import (
+    ACCEL_PER_BATCH,
+    AccelSamples,
+    Answer,
+    ClockReply,
+    Overturn,
+    StatusReport,
+    TableUrl,
+    decode_clock_request,
+    decode_command,
+    decode_heartbeat,
+    decode_setpoints,
+    encode_accel,
+    encode_answer,
+    encode_clock_reply,
+    encode_heartbeat,
+    encode_overturn,
+    encode_status,
+    parse_table_url,
+)
+from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
+from sim_table.endpoint import Action, EndpointOptions
+
+REMEMBERED_COMMANDS = 256
+"""Commands remembered by id for recognising retries."""
+
+HEARTBEAT_PERIOD = 0.05
+"""The controller's heartbeat period [s, real time] (20 Hz)."""
+
+EVENT_RESENDS = 3
+"""Overturn events are sent again this many times ..."""
+
+EVENT_RESEND_PERIOD = 0.1
+"""... this far apart [s, real time]."""
+
+PORT_ATTEMPTS = 5
+"""Free ports tried for port 0 (another process may take a probed port before zenoh binds it)."""
+
+_VERDICT_COUNTERS = {Verdict.UNSIGNED: "unsigned", Verdict.BAD_SIGNATURE: "bad_signatures",
+                     Verdict.STALE: "stale_signatures"}
+
+
+@dataclass
+class LinkCounters:
+    """What the endpoint counted (reported at exit)."""
+
+    messages_received: int = 0
+    messages_dropped: int = 0  # injected loss, inbound
+    messages_sent: int = 0
+    messages_not_sent: int = 0  # injected loss, outbound
+    bad_payloads: int = 0
+    unsigned: int = 0  # commands and chunks without a signature
+    bad_signatures: int = 0
+    stale_signatures: int = 0  # replayed, reordered or too old
+    clock_answered: int = 0
+    duplicate_commands: int = 0
+    chunks_stalled: int = 0
+    accel_batches_sent: int = 0
+    accel_samples_sent: int = 0
+    overturn_events: int = 0
+    overturn_messages_sent: int = 0
+    status_sent: int = 0
+
+
+class ZenohEndpoint:
+    """The controller's zenoh endpoint for ``address`` (module docstring).
+
+    ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns; ``loss``
+    (probability) and ``delay`` [s] inject faults with ``seed``.
+    """
+
+    def __init__(self, address: TableUrl, key: bytes, clock: Callable[[int], int], *, loss: float = 0.0,
+                 delay: float = 0.0, seed: int = 0) -> None:
+        if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
+            raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
+        self.clock = clock
+        self.loss = loss
+        self.delay_ns = round(delay * 1e9)
+        self.counters = LinkCounters()
+        self.stall_chunks = False
+        """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
+        self._verifier = Verifier(key)
+        self._rng = np.random.default_rng(seed)
+        self._lock = threading.Lock()  # the random numbers, the inbox, the counters of several threads
+        self._session, self.address = _listen(address)
+        self._keys = {kind: table_key(self.address.table, kind)
+                      for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
+                                   "heartbeat")}
+        declare = self._session.declare_publisher
+        self._status = declare(self._keys["status"], express=True)
+        self._answer = declare(self._keys["answer"], express=True)
+        self._overturn = declare(self._keys["overturn"])
+        self._heartbeat = declare(self._keys["heartbeat"], express=True)
+        self._accel_publishers: dict[int, zenoh.Publisher] = {}
+        self._entities: list[Any] = []
+        self._inbox: deque[tuple[int, str, zenoh.Query | None, bytes]] = deque()  # (due, kind, query, payload)
+        self._outbox: list[tuple[int, int, Callable[[], None], Callable[[], None] | None]] = []  # delayed:
+        # (due, n, deliver, discard)
+        self._queued = 0
+        self._answers: OrderedDict[int, tuple[bytes, Result]] = OrderedDict()  # cmd id -> (message, result)
+        self._requesters: dict[Command, int] = {}  # motion in progress -> its cmd id
+        self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
+        self._resends: list[tuple[int, int, int, bytes]] = []  # (due host ns, copies left, event id, payload)
+        self._next_heartbeat = 0
+
+    @property
+    def url(self) -> str:
+        """``zenoh://HOST:PORT/TABLE`` with the port the session listens on."""
+        return self.address.url
+
+    def start(self) -> None:
+        """Serve the command and clock queryables and subscribe to the host's setpoints and heartbeats."""
+        session = self._session
+        self._entities = [
+            session.declare_queryable(self._keys["command"], lambda q: self._arrived("command", q, _payload(q))),
+            session.declare_queryable(self._keys["clock"], self._clock_query),
+            session.declare_subscriber(self._keys["setpoints"],
+                                       lambda s: self._arrived("setpoints", None, s.payload.to_bytes())),
+            session.declare_subscriber(self._keys["host-heartbeat"],
+                                       lambda s: self._arrived("heartbeat", None, s.payload.to_bytes())),
+        ]
+
+    # ----- receiving (zenoh's threads) ------------------------------------------------------------------
+
+    def _arrived(self, kind: str, query: zenoh.Query | None, payload: bytes) -> None:
+        with self._lock:
+            now = time.monotonic_ns()
+            self.counters.messages_received += 1
+            lost = bool(self.loss) and self._rng.random() < self.loss
+            if lost:
+                self.counters.messages_dropped += 1
+            else:
+                self._inbox.append((now + self.delay_ns, kind, query, payload))
+        if lost and query is not None:
+            query.drop()  # ends the host's query without a reply
+
+    def _clock_query(self, query: zenoh.Query) -> None:
+        if self.delay_ns:
+            self._arrived("clock", query, _payload(query))
+            return
+        with self._lock:
+            self.counters.messages_received += 1
+            lost = bool(self.loss) and self._rng.random() < self.loss
+            if lost:
+                self.counters.messages_dropped += 1
+        if lost:
+            query.drop()
+        else:
+            self._answer_clock(query, _payload(query))
+
+    def _answer_clock(self, query: zenoh.Query, payload: bytes) -> None:
+        try:
+            t_send = decode_clock_request(payload)
+        except PayloadError as exc:
+            self._reply_error(query, exc)
+            return
+        with self._lock:
+            self.counters.clock_answered += 1
+        self._reply(query, self._keys["clock"],
+                    encode_clock_reply(ClockReply(t_send, self.clock(time.monotonic_ns()))))
+
+    # ----- the tick thread's side -----------------------------------------------------------------------
+
+    def take(self, now: int) -> list[tuple[int, Action]]:
+        """Messages due by host time ``now`` [ns], as (arrival controller time [ns], action on the core)."""
+        taken = []
+        with self._lock:
+            while self._inbox and self._inbox[0][0] <= now:
+                taken.append(self._inbox.popleft())
+        actions = []
+        for due, kind, query, payload in taken:
+            arrival = self.clock(due)
+            action = self._action(kind, query, payload, arrival)
+            if action is not None:
+                actions.append((arrival, action))
+        return actions
+
+    def _action(self, kind: str, query: zenoh.Query | None, payload: bytes, arrival: int) -> Action | None:
+        if query is not None:
+            if kind == "clock":
+                return lambda core: self._answer_clock(query, payload)
+            return lambda core: self._command(core, query, payload, arrival)
+        if kind == "heartbeat":
+            try:
+                decode_heartbeat(payload)
+            except PayloadError:
+                self._count("bad_payloads")
+                return None
+            return lambda core: core.heartbeat(arrival)
+        return self._chunk_action(payload, arrival)
+
+    def _chunk_action(self, payload: bytes, arrival: int) -> Action | None:
+        if self.stall_chunks:
+            self._count("chunks_stalled")
+            return None
+        try:
+            chunk, received = decode_setpoints(payload)
+        except PayloadError:
+            self._count("bad_payloads")
+            return None
+        signed = self._verify(self._keys["setpoints"], received)
+
+        def play(core: ControllerCore) -> None:
+            core.chunk(chunk.seq, chunk.t_start_ns, chunk.spacing_ns, chunk.samples, chunk.end_of_stream, signed,
+                       arrival)
+
+        return play
+
+    def _verify(self, key: str, received: Any) -> bool:
+        verdict = self._verifier.verify(key, received)
+        if verdict is not Verdict.SIGNED:
+            self._count(_VERDICT_COUNTERS[verdict])
+        return verdict is Verdict.SIGNED
+
+    def _command(self, core: ControllerCore, query: zenoh.Query, payload: bytes, arrival: int) -> None:
+        try:
+            request, received = decode_command(payload)
+        except PayloadError as exc:
+            self._count("bad_payloads")
+            self._reply_error(query, exc)
+            return
+        command = Command(request.command)
+        signed = self._verify(self._keys["command"], received)
+        known = self._answers.get(request.cmd_id)
+        if known is not None and known[0] == received.message and (signed or command not in SIGNED_COMMANDS):
+            self._count("duplicate_commands")
+            self._reply_answer(query, Answer(request.cmd_id, known[1].value, arrival))
+            return
+        result = core.command(command, request.params, signed, arrival)
+        if result is not Result.DENIED:
+            self._answers[request.cmd_id] = (received.message, result)
+            self._answers.move_to_end(request.cmd_id)
+            if len(self._answers) > REMEMBERED_COMMANDS:
+                self._answers.popitem(last=False)
+        if result is Result.IN_PROGRESS:
+            self._requesters[command] = request.cmd_id
+        self._reply_answer(query, Answer(request.cmd_id, result.value, arrival))
+
+    def command_done(self, done: Done) -> None:
+        """The final answer to a command that was ``in_progress``, published on ``answer``."""
+        cmd_id = self._requesters.pop(done.command, None)
+        if cmd_id is None:
+            return
+        if cmd_id in self._answers:
+            self._answers[cmd_id] = (self._answers[cmd_id][0], done.result)
+        self._publish(self._answer, encode_answer(Answer(cmd_id, done.result.value, done.t_ns)))
+
+    def send_status(self, snap: Snapshot) -> None:
+        """One STATUS."""
+        self._count("status_sent")
+        self._publish(self._status, encode_status(StatusReport(
+            snap.t_ns, snap.state.value, min(snap.buffer_depth, 2**32 - 1), snap.last_chunk_seq, snap.underruns,
+            int(snap.faults), snap.refused_commands, snap.pose)))
+
+    def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
+        """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
+        t0, spacing, parts, seq = self._accel.get(sensor_id, (t_start_ns, spacing_ns, [], 0))
+        parts.append(samples)
+        pending = np.concatenate(parts)
+        full = len(pending) - len(pending) % ACCEL_PER_BATCH
+        for start in range(0, full, ACCEL_PER_BATCH):
+            self._send_accel(AccelSamples(sensor_id, seq % 2**32, t0, spacing,
+                                          pending[start:start + ACCEL_PER_BATCH]))
+            seq += 1
+            t0 += ACCEL_PER_BATCH * spacing
+        self._accel[sensor_id] = (t0, spacing, [pending[full:]], seq)
+
+    def flush_accel(self) -> None:
+        """Send the samples still short of a full batch."""
+        for sensor_id, (t0, spacing, parts, seq) in list(self._accel.items()):
+            pending = np.concatenate(parts)
+            if len(pending):
+                self._send_accel(AccelSamples(sensor_id, seq % 2**32, t0, spacing, pending))
+                seq += 1
+            self._accel[sensor_id] = (t0 + len(pending) * spacing, spacing, [], seq)
+
+    def _send_accel(self, batch: AccelSamples) -> None:
+        publisher = self._accel_publishers.get(batch.sensor_id)
+        if publisher is None:
+            publisher = self._accel_publishers[batch.sensor_id] = self._session.declare_publisher(
+                table_key(self.address.table, "accel", str(batch.sensor_id)))
+        self.counters.accel_batches_sent += 1
+        self.counters.accel_samples_sent += len(batch.samples)
+        self._publish(publisher, encode_accel(batch))
+
+    def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
+        """An overturn event, now and again :data:`EVENT_RESENDS` times."""
+        self.counters.overturn_events += 1
+        payload = encode_overturn(Overturn(event_id, body_id, direction, tilt, t_ns))
+        self._send_overturn(payload)
+        heapq.heappush(self._resends, (time.monotonic_ns() + round(EVENT_RESEND_PERIOD * 1e9), EVENT_RESENDS,
+                                       event_id, payload))
+
+    def _send_overturn(self, payload: bytes) -> None:
+        self.counters.overturn_messages_sent += 1
+        self._publish(self._overturn, payload)
+
+    def service(self, now: int, state: State) -> None:
+        """Periodic duties at host time ``now`` [ns]: heartbeat, event resends, delayed messages."""
+        if now >= self._next_heartbeat:
+            self._next_heartbeat = now + round(HEARTBEAT_PERIOD * 1e9)
+            self._publish(self._heartbeat, encode_heartbeat(self.clock(now)))
+        while self._resends and self._resends[0][0] <= now:
+            due, left, event_id, payload = heapq.heappop(self._resends)
+            self._send_overturn(payload)
+            if left > 1:
+                heapq.heappush(self._resends, (due + round(EVENT_RESEND_PERIOD * 1e9), left - 1, event_id, payload))
+        due_now = []
+        with self._lock:
+            while self._outbox and self._outbox[0][0] <= now:
+                due_now.append(heapq.heappop(self._outbox)[2])
+        for deliver in due_now:
+            deliver()
+
+    # ----- sending ----------------------------------------------------------------------------------------
+
+    def _count(self, name: str) -> None:
+        with self._lock:
+            setattr(self.counters, name, getattr(self.counters, name) + 1)
+
+    def _publish(self, publisher: zenoh.Publisher, payload: bytes) -> None:
+        self._send(lambda: publisher.put(payload))
+
+    def _reply(self, query: zenoh.Query, key: str, payload: bytes) -> None:
+        def deliver() -> None:
+            query.reply(key, payload)
+            query.drop()
+
+        self._send(deliver, query.drop)
+
+    def _reply_answer(self, query: zenoh.Query, answer: Answer) -> None:
+        self._reply(query, self._keys["command"], encode_answer(answer))
+
+    def _reply_error(self, query: zenoh.Query, error: Exception) -> None:
+        def deliver() -> None:
+            query.reply_err(str(error).encode())
+            query.drop()
+
+        self._send(deliver, query.drop)
+
+    def _send(self, deliver: Callable[[], None], discard: Callable[[], None] | None = None) -> None:
+        """Deliver a message through the injected loss (``discard`` instead) and delay."""
+        with self._lock:
+            lost = bool(self.loss) and self._rng.random() < self.loss
+            if lost:
+                self.counters.messages_not_sent += 1
+            else:
+                self.counters.messages_sent += 1
+                if self.delay_ns:
+                    self._queued += 1
+                    heapq.heappush(self._outbox, (time.monotonic_ns() + self.delay_ns, self._queued, deliver,
+                                                  discard))
+                    return
+        if not lost:
+            deliver()
+        elif discard is not None:
+            discard()
+
+    def close(self) -> None:
+        """End the queries still held (without a reply) and close the session."""
+        for entity in self._entities:
+            entity.undeclare()
+        with self._lock:
+            held = [query.drop for _, _, query, _ in self._inbox if query is not None]
+            held += [discard for _, _, _, discard in self._outbox if discard is not None]
+            self._inbox.clear()
+            self._outbox.clear()
+        for discard in held:
+            discard()
+        with contextlib.suppress(zenoh.ZError):
+            self._session.close()
+
+    def counters_dict(self) -> dict[str, int]:
+        return asdict(self.counters)
+
+
+def _payload(query: zenoh.Query) -> bytes:
+    return query.payload.to_bytes() if query.payload is not None else b""
+
+
+def _listen(address: TableUrl) -> tuple[zenoh.Session, TableUrl]:
+    """A session listening on ``address`` (port 0: a free port), and the address with the port it got."""
+    error: Exception | None = None
+    for _ in range(PORT_ATTEMPTS if address.port == 0 else 1):
+        port = address.port or _free_port(address.host)
+        resolved = address._replace(port=port)
+        try:
+            return zenoh.open(session_config(listen=[resolved.endpoint])), resolved
+        except zenoh.ZError as exc:
+            error = exc
+    raise OSError(f"cannot listen on {address.url}: {error}")
+
+
+def _free_port(host: str) -> int:
+    with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
+        probe.bind((host, 0))
+        return probe.getsockname()[1]
+
+
+def open_endpoint(url: str, options: EndpointOptions) -> ZenohEndpoint:
+    """The endpoint for ``zenoh://HOST:PORT/TABLE`` (port 0: any free port) — `sim_table.endpoint`'s factory."""
+    return ZenohEndpoint(parse_table_url(url, any_port=True), options.key, options.clock, loss=options.loss,
+                         delay=options.delay, seed=options.seed)
