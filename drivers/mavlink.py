@@ -20,11 +20,11 @@ Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
   final ACK when the motion ended; waiting for it also accepts a status that shows the motion over (the final
   ACK may be lost).
 - **Clock**: TIMESYNC (common.xml) round trips; the controller answers ``tc1`` = its time [ns]. Of the last
-  :data:`CLOCK_WINDOW` round trips, those within 100 µs of twice the shortest delay are fitted with a line
+  :data:`drivers.clock.CLOCK_WINDOW` round trips, those within 100 µs of twice the shortest delay are fitted with a line
   (controller time against the midpoint of send and receive) through the shortest round trip: offset
   ``tc − (t_send + t_recv)/2`` there, and the slope follows a controller clock that runs at another rate (an
   emulator's ``--speed``, a drifting oscillator). :meth:`MavlinkTable.connect` exchanges round trips 20 ms apart
-  until they span :data:`FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
+  until they span :data:`drivers.clock.FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
 - **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then
   SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
   each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
@@ -43,6 +43,7 @@ from typing import Any
 
 import numpy as np
 
+from drivers.clock import ClockSync
 from drivers.controller import (
     STOPPED_STATES,
     TILT_AXES,
@@ -81,12 +82,6 @@ HEARTBEAT_RATE = 20.0
 TIMESYNC_EVERY = 10
 """A TIMESYNC request every this many heartbeats (2 Hz)."""
 
-CLOCK_WINDOW = 32
-"""Round trips kept for the clock estimate."""
-
-FIT_SPAN = 0.2
-"""Round trips must span this long [s] before the clock's rate is fitted."""
-
 STATUS_WAIT = 0.1
 """After an accepted command, wait up to this long [s] for a status sent after it (so that ``status()`` shows
 its effect); the controller reports every state change at once and a status at least every 20 ms."""
@@ -96,59 +91,6 @@ FIRST_SEQ_LIMIT = 2**24
 
 _MOTION_STATES = frozenset({"homing", "tilting"})
 _STATUS_GRACE_NS = 40_000_000  # a status this long after a motion's ACK (controller time) reflects it
-
-
-class ClockSync:
-    """Maps host monotonic time to controller time from TIMESYNC round trips (module docstring). Thread-safe."""
-
-    def __init__(self, window: int = CLOCK_WINDOW) -> None:
-        self._lock = threading.Lock()
-        self._samples: deque[tuple[int, int, int]] = deque(maxlen=window)  # (midpoint, tc, round trip) [ns]
-        self._anchor = (0, 0)  # (host ns, controller ns) on the line
-        self._rate = 1.0
-        self.fitted = False
-        """Whether the rate comes from a fit (else it is taken as 1)."""
-        self.round_trips: list[int] = []
-        """Every round trip seen [ns] (for statistics)."""
-
-    def add(self, t_send: int, t_recv: int, tc: int) -> None:
-        """One round trip: request sent at host ``t_send``, answer with controller time ``tc`` received at
-        ``t_recv`` [ns]."""
-        rtt = t_recv - t_send
-        if rtt < 0:
-            return
-        with self._lock:
-            self.round_trips.append(rtt)
-            self._samples.append(((t_send + t_recv) // 2, tc, rtt))
-            best = min(self._samples, key=lambda s: s[2])
-            good = [s for s in self._samples if s[2] <= 2 * best[2] + 100_000]
-            mids = np.array([s[0] for s in good], dtype=np.float64)
-            if len(good) >= 3 and mids.max() - mids.min() >= FIT_SPAN * 1e9:
-                tcs = np.array([s[1] for s in good], dtype=np.float64)
-                rate, _ = np.polyfit(mids - best[0], tcs - best[1], 1)
-                self._rate = float(rate)
-                self.fitted = True
-            self._anchor = (best[0], best[1])
-
-    def to_controller(self, host_ns: int) -> int:
-        """Controller time [ns] at host monotonic time ``host_ns``."""
-        with self._lock:
-            h, c = self._anchor
-            return c + round((host_ns - h) * self._rate)
-
-    def to_host(self, controller_ns: int) -> int:
-        """Host monotonic time [ns] at controller time ``controller_ns``."""
-        with self._lock:
-            h, c = self._anchor
-            return h + round((controller_ns - c) / self._rate)
-
-    def stats(self) -> dict[str, float]:
-        """Offset [s] (controller − host now), rate, round trips (count, min, median [s])."""
-        now = time.monotonic_ns()
-        rtts = np.array(self.round_trips or [0], dtype=np.float64) * 1e-9
-        return {"offset_s": (self.to_controller(now) - now) * 1e-9, "rate": self._rate,
-                "round_trips": len(self.round_trips), "rtt_min_s": float(rtts.min()),
-                "rtt_median_s": float(np.median(rtts))}
 
 
 class _AckSlot:

@@ -24,7 +24,7 @@ Protocol decisions:
   its result. HOME and SET_TILT answer ``in_progress``, then a final ANSWER is published on ``answer``; waiting for
   it also accepts a status taken after the command that shows the motion over (a lost final answer).
 - **Clock**: queries on ``clock``; the controller answers with its time. The estimate is
-  :class:`drivers.mavlink.ClockSync` (shortest round trips, rate fitted): :meth:`ZenohTable.connect` queries
+  :class:`drivers.clock.ClockSync` (shortest round trips, rate fitted): :meth:`ZenohTable.connect` queries
   20 ms apart until it is fitted, then every :data:`CLOCK_EVERY` heartbeats refine it.
 - **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then SETPOINTS
   of :data:`~protocols.zenoh.table.SETPOINTS_PER_CHUNK` samples published reliably (congestion control BLOCK:
@@ -47,6 +47,7 @@ from collections.abc import Callable
 import numpy as np
 import zenoh
 
+from drivers.clock import ClockSync
 from drivers.controller import (
     STOPPED_STATES,
     TILT_AXES,
@@ -66,7 +67,6 @@ from drivers.controller import (
     sample_spacing,
     sleep_until,
 )
-from drivers.mavlink import ClockSync
 from protocols.mavlink import load_signing_key
 from protocols.zenoh import session_config, table_accel_selector, table_key
 from protocols.zenoh.auth import Signer
