@@ -1,4 +1,6 @@
-"""``rig emulate --listen mavlink://127.0.0.1:PORT [options]``: run the table emulator in the foreground.
+"""``rig emulate --listen URL [options]``: run the table emulator in the foreground.
+
+URL: ``mavlink://127.0.0.1:PORT``, ``zenoh://127.0.0.1:PORT/TABLE`` or ``canopen://CHANNEL?interface=…``.
 
 The emulator is its own program (``python -m sim_table``, ARCHITECTURE §5: a separate process that speaks the
 controller's transports), and ``rig`` does not import it: this command *becomes* it (``exec``), with every option

@@ -1,7 +1,7 @@
 """The emulated shake table: hexapod and actuator dynamics, physical specimens, protocol endpoints.
 
-May import ``protocols`` and ``analysis``. Run it as ``python -m sim_table --listen mavlink://HOST:PORT`` (or
-``rig emulate``).
+May import ``protocols`` and ``analysis``. Run it as ``python -m sim_table --listen URL`` (or ``rig emulate``)
+with ``mavlink://HOST:PORT``, ``zenoh://HOST:PORT/TABLE`` or ``canopen://CHANNEL?interface=…``.
 
 - ``scene``: the specimens of a test and the MuJoCo model of them standing on the plate.
 - ``specimens``: :class:`~sim_table.specimens.SpecimenScene`, the bodies riding the driven plate, and
@@ -9,6 +9,7 @@ May import ``protocols`` and ``analysis``. Run it as ``python -m sim_table --lis
 - ``controller``: the controller's states, commands, setpoint buffer, watchdogs and counters, transport-free.
 - ``actuators``: the six legs on the table model (lag, speed and stroke limits, measurement noise).
 - ``accelerometers``: the plate's motion differentiated; virtual accelerometers (specific force, plate frame).
-- ``mavlink_endpoint``: the controller's MAVLink 2 side over UDP.
+- ``endpoint``: the transport endpoints' interface, chosen by the listen URL's scheme.
+- ``mavlink_endpoint``, ``zenoh_endpoint``, ``canopen_endpoint``: the controller's side of each transport.
 - ``process``: the emulator process (the tick loop, its options, fault injection, exit counters).
 """

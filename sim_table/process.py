@@ -1,4 +1,4 @@
-"""The emulator process: ``python -m sim_table --listen mavlink://127.0.0.1:PORT [options]`` (or ``rig emulate``).
+"""The emulator process: ``python -m sim_table --listen URL [options]`` (or ``rig emulate``).
 
 One loop owns the emulated table. It wakes at absolute deadlines every 2 ms of real time (sleeping, never
 spinning), runs every 1 ms controller tick due by then in one batch (catching up after a late wake), and sends
@@ -281,7 +281,8 @@ def _argument_parser() -> argparse.ArgumentParser:
                                 description="The emulated shake-table controller (docs/table-controller.md): "
                                             "runs until SIGINT/SIGTERM, then prints its counters as JSON.")
     p.add_argument("--listen", required=True,
-                   help="the transport and address to listen on: mavlink://HOST:PORT (port 0: any free port)")
+                   help="the transport and address to listen on: mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE "
+                        "(port 0: any free port) or canopen://CHANNEL?interface=…")
     p.add_argument("--speed", type=float, default=1.0, help="controller time per real time")
     p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y",
                    help="a specimen b x h [m] at plate (x, y) [m]; repeat for more")
