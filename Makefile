@@ -29,7 +29,8 @@ test-slow: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py
 	$(BIN)/python benchmarks/prepare.py
-	$(BIN)/python benchmarks/stream.py
+	$(BIN)/python benchmarks/stream.py --transport mavlink
+	$(BIN)/python benchmarks/stream.py --transport zenoh
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -1,5 +1,6 @@
-"""Benchmark: stream a prepared FEMA drive through the MAVLink driver to the emulator and measure the link and
-the emulator, all in one run (real UDP on 127.0.0.1, the emulator a separate process, real time by default).
+"""Benchmark: stream a prepared FEMA drive through a table transport (MAVLink over UDP, or zenoh) to the emulator
+and measure the link and the emulator, all in one run (loopback, the emulator a separate process, real time by
+default).
 
 Prints one JSON object, each figure beside what it is compared with:
 
@@ -18,8 +19,8 @@ Prints one JSON object, each figure beside what it is compared with:
 * ``tracking``: largest |achieved − commanded| surge against v_max · τ, underruns, overturns (and the retransmitted
   copies the driver dropped).
 
-Usage: ``python benchmarks/stream.py [--record fema:NORTHR/MUL009] [--angle 5] [--lead 0.05] [--speed 1]
-[--no-bodies]``.
+Usage: ``python benchmarks/stream.py [--transport mavlink|zenoh] [--record fema:NORTHR/MUL009] [--angle 5]
+[--lead 0.05] [--speed 1] [--no-bodies]``.
 """
 
 from __future__ import annotations
@@ -36,13 +37,14 @@ from typing import Any
 import numpy as np
 
 from drivers.controller import open_table
-from drivers.mavlink import MavlinkTable
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
 
 BODIES = ("0.05x0.50@0.4,0", "0.15x0.45@-0.4,0")
 TAU = 0.005  # the emulator's leg lag [s]
+LISTEN = {"mavlink": "mavlink://127.0.0.1:0", "zenoh": "zenoh://127.0.0.1:0/bench"}
+"""Where the emulator listens, per transport (port 0: a free one)."""
 
 
 def _percentiles(values: np.ndarray, scale: float) -> dict[str, float]:
@@ -53,16 +55,15 @@ def _percentiles(values: np.ndarray, scale: float) -> dict[str, float]:
             "max": float(values.max()) * scale}
 
 
-def run(record: str, angle_deg: float, lead: float, speed: float, bodies: bool) -> dict[str, Any]:
+def run(transport: str, record: str, angle_deg: float, lead: float, speed: float, bodies: bool) -> dict[str, Any]:
     drive = prepare_drive(load_record(record), angle=math.radians(angle_deg))
     with tempfile.TemporaryDirectory(prefix="stream-bench-") as scratch:
         key_file = Path(scratch) / "rig.key"
         key_file.write_text(secrets.token_hex(32))
         flags = ["--speed", str(speed)] + [arg for body in (BODIES if bodies else ()) for arg in ("--body", body)]
-        emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *flags, key_file=key_file)
+        emulator = EmulatorProcess.start(LISTEN[transport], *flags, key_file=key_file)
         try:
-            table = open_table(emulator.url, key_file=str(key_file))
-            assert isinstance(table, MavlinkTable)
+            table: Any = open_table(emulator.url, key_file=str(key_file))  # both drivers have clock, link_stats()
             with table:
                 statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
                 table.arm()
@@ -90,9 +91,11 @@ def run(record: str, angle_deg: float, lead: float, speed: float, bodies: bool) 
     timing = counters["timing"]
     found = detections.drain()
     return {
-        "drive": {"record": record, "angle_deg": angle_deg, "duration_s": drive.duration, "speed": speed,
+        "drive": {"transport": transport, "record": record, "angle_deg": angle_deg, "duration_s": drive.duration,
+                  "speed": speed,
                   "bodies": list(BODIES) if bodies else [], "wall_s": wall},
-        "send_lateness_ms": {**_percentiles(lateness, 1e-6), "chunk_period_ms": 8 * spacing * 1e-6 / speed,
+        "send_lateness_ms": {**_percentiles(lateness, 1e-6),
+                             "chunk_period_ms": report.samples / report.chunks * spacing * 1e-6 / speed,
                              "lead_ms": lead * 1e3 / speed, "chunks": report.chunks},
         "host_to_controller_ms": {
             "mean": (lead * 1e9 - margin_mean) / speed * 1e-6 - lateness.mean() * 1e-6,
@@ -123,13 +126,14 @@ def run(record: str, angle_deg: float, lead: float, speed: float, bodies: bool) 
 
 def main() -> None:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("--transport", choices=sorted(LISTEN), default="mavlink")
     p.add_argument("--record", default="fema:NORTHR/MUL009")
     p.add_argument("--angle", type=float, default=5.0, help="static tilt [deg]")
     p.add_argument("--lead", type=float, default=0.05, help="setpoint lead [s, controller time]")
     p.add_argument("--speed", type=float, default=1.0, help="emulator speed (controller time per real time)")
     p.add_argument("--no-bodies", action="store_true", help="no specimens on the plate")
     args = p.parse_args()
-    print(json.dumps(run(args.record, args.angle, args.lead, args.speed, not args.no_bodies), indent=1))
+    print(json.dumps(run(args.transport, args.record, args.angle, args.lead, args.speed, not args.no_bodies), indent=1))
 
 
 if __name__ == "__main__":
