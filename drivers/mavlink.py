@@ -34,34 +34,25 @@ Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
 from __future__ import annotations
 
 import ipaddress
-import math
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
-from drivers.clock import ClockSync
+from drivers.chunked import ChunkedStreamController
 from drivers.controller import (
-    STOPPED_STATES,
-    TILT_AXES,
     AccelBatch,
     CommandDeniedError,
     CommandFailedError,
     CommandRejectedError,
     Detection,
-    StreamAbortedError,
-    StreamReport,
-    TableController,
     TableError,
     TableStatus,
     TableTimeoutError,
-    finite_poses,
     host_port,
     register_scheme,
-    sample_spacing,
     sleep_until,
 )
 from protocols.mavlink import (
@@ -86,9 +77,6 @@ STATUS_WAIT = 0.1
 """After an accepted command, wait up to this long [s] for a status sent after it (so that ``status()`` shows
 its effect); the controller reports every state change at once and a status at least every 20 ms."""
 
-FIRST_SEQ_LIMIT = 2**24
-"""Chunk numbers of START_STREAM stay below this (exact in its float parameter)."""
-
 _MOTION_STATES = frozenset({"homing", "tilting"})
 _STATUS_GRACE_NS = 40_000_000  # a status this long after a motion's ACK (controller time) reflects it
 
@@ -100,13 +88,15 @@ class _AckSlot:
         self.acks: list[tuple[int, int, int]] = []
 
 
-class MavlinkTable(TableController):
+class MavlinkTable(ChunkedStreamController):
     """A table controller at ``mavlink://HOST:PORT`` (module docstring).
 
     Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``system``/``component`` this host's MAVLink
     ids; ``target_system``/``target_component`` the controller's; ``link_id`` of the signatures;
     ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s].
     """
+
+    samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, system: int = 255, component: int = 190,
                  target_system: int = 1, target_component: int = 1, link_id: int = 0,
@@ -120,7 +110,6 @@ class MavlinkTable(TableController):
         self.command_timeout = command_timeout
         self.retries = retries
         self.connect_timeout = connect_timeout
-        self.clock = ClockSync()
         self.d = dialect()
         self._link: UdpLink | None = None
         self._send_lock = threading.Lock()
@@ -129,7 +118,6 @@ class MavlinkTable(TableController):
         self._acks: dict[int, _AckSlot] = {}
         self._command_locks: dict[int, threading.Lock] = {}
         self._timesync_sent: deque[int] = deque(maxlen=64)
-        self._next_seq = 0
         self._fault_bits = [(bit, entry.name.removeprefix("SHAKETABLE_FAULT_"))  # single bits (not ENUM_END)
                             for bit, entry in self.d.enums["SHAKETABLE_FAULT"].items() if bit & (bit - 1) == 0]
         self._accel_expected: dict[int, int] = {}
@@ -338,12 +326,8 @@ class MavlinkTable(TableController):
     def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
         self._motion("HOME", (), wait, timeout)
 
-    def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
-        if axis not in TILT_AXES:
-            raise ValueError(f"axis must be one of {TILT_AXES}, got {axis!r}")
-        if not math.isfinite(angle):
-            raise ValueError(f"angle must be finite, got {angle!r}")
-        self._motion("SET_TILT", (angle, float(TILT_AXES.index(axis))), wait, timeout)
+    def _set_tilt(self, angle: float, axis_index: int, wait: bool, timeout: float) -> None:
+        self._motion("SET_TILT", (angle, float(axis_index)), wait, timeout)
 
     def stop(self) -> None:
         self._command("STOP")
@@ -351,53 +335,18 @@ class MavlinkTable(TableController):
     def emergency_stop(self) -> None:
         self._command("EMERGENCY_STOP")
 
-    # ----- streaming ------------------------------------------------------------------------------------
+    # ----- streaming (ChunkedStreamController) ---------------------------------------------------------
 
-    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
-               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
-        poses = finite_poses(poses)
-        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
-        if not (math.isfinite(lead) and lead > 0):
-            raise ValueError(f"lead must be > 0 s, got {lead!r}")
-        lead_ns = round(lead * 1e9)
-        underruns_before = self.status().underruns
-        first_seq = self._next_seq
+    def _start_stream(self, first_seq: int) -> None:
         self._command("START_STREAM", float(first_seq))
-        count = math.ceil(len(poses) / SETPOINTS_PER_CHUNK)
-        self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
-        t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
-        t_end = t_start + (len(poses) - 1) * spacing_ns
-        lateness = np.zeros(count, dtype=np.int64)
 
-        def report(sent: int, final: TableStatus | None) -> StreamReport:
-            underruns = (final or self.status()).underruns - underruns_before
-            return StreamReport(sent, min(sent * SETPOINTS_PER_CHUNK, len(poses)), underruns, t_start, t_end, lead,
-                                lateness[:sent], final)
+    def _encode_chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray,
+                      end_of_stream: bool) -> Any:
+        (chunk,) = setpoint_chunks(samples, t_start_ns, spacing_ns, seq, end_of_stream=end_of_stream)
+        return chunk
 
-        next_progress = time.monotonic_ns()
-        for k in range(count):  # each chunk made just before it is due: no burst of work at the start
-            first = k * SETPOINTS_PER_CHUNK
-            chunk_start = t_start + first * spacing_ns
-            (chunk,) = setpoint_chunks(poses[first:first + SETPOINTS_PER_CHUNK], chunk_start, spacing_ns,
-                                       (first_seq + k) % FIRST_SEQ_LIMIT, end_of_stream=k == count - 1)
-            lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
-            latest = self.feedback.latest
-            if latest is not None and latest.state in STOPPED_STATES:
-                raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
-                                         f"{', '.join(latest.faults) or 'none'})", report(k, latest))
-            self._send(chunk)
-            if on_progress is not None and time.monotonic_ns() >= next_progress:
-                on_progress(min(first + SETPOINTS_PER_CHUNK, len(poses)), len(poses))
-                next_progress += 100_000_000
-        remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
-        final = self.wait_for_status(
-            lambda s: s.state in STOPPED_STATES or (s.t_ns >= t_end and s.state != "streaming"), remaining + 2.0)
-        if on_progress is not None:
-            on_progress(len(poses), len(poses))
-        if final.state != "armed":
-            raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
-                                     f"{', '.join(final.faults) or 'none'})", report(count, final))
-        return report(count, final)
+    def _send_chunk(self, message: Any) -> None:
+        self._send(message)
 
     # ----- diagnostics ----------------------------------------------------------------------------------
 

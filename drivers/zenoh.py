@@ -37,7 +37,6 @@ Protocol decisions:
 
 from __future__ import annotations
 
-import math
 import secrets
 import threading
 import time
@@ -47,24 +46,17 @@ from collections.abc import Callable
 import numpy as np
 import zenoh
 
-from drivers.clock import ClockSync
+from drivers.chunked import ChunkedStreamController
 from drivers.controller import (
-    STOPPED_STATES,
-    TILT_AXES,
     AccelBatch,
     CommandDeniedError,
     CommandFailedError,
     CommandRejectedError,
     Detection,
-    StreamAbortedError,
-    StreamReport,
-    TableController,
     TableError,
     TableStatus,
     TableTimeoutError,
-    finite_poses,
     register_scheme,
-    sample_spacing,
     sleep_until,
 )
 from protocols.mavlink import load_signing_key
@@ -106,18 +98,17 @@ STATUS_WAIT = 0.1
 """After an accepted command, wait up to this long [s] for a status taken after it (so that ``status()`` shows its
 effect); the controller reports every state change at once and a status at least every 20 ms."""
 
-FIRST_SEQ_LIMIT = 2**24
-"""Chunk numbers of START_STREAM stay below this (exact in its float parameter)."""
-
 _MOTION_STATES = frozenset({"homing", "tilting"})
 
 
-class ZenohTable(TableController):
+class ZenohTable(ChunkedStreamController):
     """A table controller at ``zenoh://HOST:PORT/TABLE`` (module docstring).
 
     Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``command_timeout`` [s] per attempt and
     ``retries``; ``connect_timeout`` [s].
     """
+
+    samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, command_timeout: float = 0.15, retries: int = 4,
                  connect_timeout: float = 3.0) -> None:
@@ -127,7 +118,6 @@ class ZenohTable(TableController):
         self.command_timeout = command_timeout
         self.retries = retries
         self.connect_timeout = connect_timeout
-        self.clock = ClockSync()
         self._keys = {kind: table_key(self.address.table, kind) for kind in ("command", "clock", "setpoints",
                                                                             "host-heartbeat", "answer", "status",
                                                                             "overturn", "heartbeat")}
@@ -140,7 +130,6 @@ class ZenohTable(TableController):
         self._finals: dict[int, list[Answer]] = {}  # cmd id of a motion waited for -> its final answers
         self._clock_sent: deque[int] = deque(maxlen=64)
         self._next_cmd = secrets.randbits(63)
-        self._next_seq = 0
         self._accel_expected: dict[int, int] = {}
         self.accel_batches_lost = 0
         """Accelerometer batches missing from the sequence numbers received."""
@@ -386,12 +375,8 @@ class ZenohTable(TableController):
     def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
         self._motion("home", (0.0, 0.0), wait, timeout)
 
-    def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
-        if axis not in TILT_AXES:
-            raise ValueError(f"axis must be one of {TILT_AXES}, got {axis!r}")
-        if not math.isfinite(angle):
-            raise ValueError(f"angle must be finite, got {angle!r}")
-        self._motion("set_tilt", (angle, float(TILT_AXES.index(axis))), wait, timeout)
+    def _set_tilt(self, angle: float, axis_index: int, wait: bool, timeout: float) -> None:
+        self._motion("set_tilt", (angle, float(axis_index)), wait, timeout)
 
     def stop(self) -> None:
         self._command("stop")
@@ -399,55 +384,18 @@ class ZenohTable(TableController):
     def emergency_stop(self) -> None:
         self._command("emergency_stop")
 
-    # ----- streaming ------------------------------------------------------------------------------------
+    # ----- streaming (ChunkedStreamController) ---------------------------------------------------------
 
-    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
-               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
-        poses = finite_poses(poses)
-        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
-        if not (math.isfinite(lead) and lead > 0):
-            raise ValueError(f"lead must be > 0 s, got {lead!r}")
-        lead_ns = round(lead * 1e9)
-        underruns_before = self.status().underruns
-        first_seq = self._next_seq
+    def _start_stream(self, first_seq: int) -> None:
         self._command("start_stream", (float(first_seq), 0.0))
-        count = math.ceil(len(poses) / SETPOINTS_PER_CHUNK)
-        self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
-        t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
-        t_end = t_start + (len(poses) - 1) * spacing_ns
-        lateness = np.zeros(count, dtype=np.int64)
-        key = self._keys["setpoints"]
 
-        def report(sent: int, final: TableStatus | None) -> StreamReport:
-            underruns = (final or self.status()).underruns - underruns_before
-            return StreamReport(sent, min(sent * SETPOINTS_PER_CHUNK, len(poses)), underruns, t_start, t_end, lead,
-                                lateness[:sent], final)
+    def _encode_chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray,
+                      end_of_stream: bool) -> bytes:
+        return encode_setpoints(SetpointChunk(seq, t_start_ns, spacing_ns, samples, end_of_stream))
 
-        next_progress = time.monotonic_ns()
-        for k in range(count):  # each chunk made just before it is due: no burst of work at the start
-            first = k * SETPOINTS_PER_CHUNK
-            chunk_start = t_start + first * spacing_ns
-            message = encode_setpoints(SetpointChunk((first_seq + k) % FIRST_SEQ_LIMIT, chunk_start, spacing_ns,
-                                                     poses[first:first + SETPOINTS_PER_CHUNK], k == count - 1))
-            lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
-            latest = self.feedback.latest
-            if latest is not None and latest.state in STOPPED_STATES:
-                raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
-                                         f"{', '.join(latest.faults) or 'none'})", report(k, latest))
-            with self._setpoints_lock:
-                self._setpoints.put(self._signed(key, message))
-            if on_progress is not None and time.monotonic_ns() >= next_progress:
-                on_progress(min(first + SETPOINTS_PER_CHUNK, len(poses)), len(poses))
-                next_progress += 100_000_000
-        remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
-        final = self.wait_for_status(
-            lambda s: s.state in STOPPED_STATES or (s.t_ns >= t_end and s.state != "streaming"), remaining + 2.0)
-        if on_progress is not None:
-            on_progress(len(poses), len(poses))
-        if final.state != "armed":
-            raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
-                                     f"{', '.join(final.faults) or 'none'})", report(count, final))
-        return report(count, final)
+    def _send_chunk(self, message: bytes) -> None:
+        with self._setpoints_lock:
+            self._setpoints.put(self._signed(self._keys["setpoints"], message))
 
     # ----- diagnostics ----------------------------------------------------------------------------------
 

@@ -1,0 +1,118 @@
+"""Streaming by timestamped setpoint chunks sent ahead of the controller's clock (MAVLink, zenoh).
+
+The transports whose controller buffers setpoints (``docs/table-controller.md``) stream the same way: START_STREAM
+with the next chunk number (numbers run on across streams, below :data:`FIRST_SEQ_LIMIT`), then chunks of
+``samples_per_chunk`` poses, each made just before it is due and sent when the controller time of its first
+sample is ``lead`` s away (``time.sleep`` to the absolute host deadline from the clock estimate, never busy
+waiting), the last flagged end of stream; then wait until the controller reports the stream played. A backend
+says how to start a stream, encode a chunk and send it.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from abc import abstractmethod
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from drivers.clock import ClockSync
+from drivers.controller import (
+    STOPPED_STATES,
+    TILT_AXES,
+    StreamAbortedError,
+    StreamReport,
+    TableController,
+    TableStatus,
+    finite_poses,
+    sample_spacing,
+    sleep_until,
+)
+
+FIRST_SEQ_LIMIT = 2**24
+"""Chunk numbers stay below this (exact in START_STREAM's float parameter)."""
+
+
+class ChunkedStreamController(TableController):
+    """A `TableController` whose `stream` sends chunks ``lead`` ahead (module docstring)."""
+
+    samples_per_chunk: int
+    """Poses per setpoint chunk on this transport."""
+
+    def __init__(self, url: str) -> None:
+        super().__init__(url)
+        self.clock = ClockSync()
+        self._next_seq = 0
+
+    @abstractmethod
+    def _start_stream(self, first_seq: int) -> None:
+        """Send START_STREAM with the first chunk number (raises like any command)."""
+
+    @abstractmethod
+    def _encode_chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray,
+                      end_of_stream: bool) -> Any:
+        """The transport's message for one chunk (controller times in ns)."""
+
+    @abstractmethod
+    def _send_chunk(self, message: Any) -> None:
+        """Send one encoded chunk (signed where the transport signs)."""
+
+    @abstractmethod
+    def _set_tilt(self, angle: float, axis_index: int, wait: bool, timeout: float) -> None:
+        """Send SET_TILT (angle [rad], axis index in :data:`~drivers.controller.TILT_AXES`) and wait if asked."""
+
+    def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
+        if axis not in TILT_AXES:
+            raise ValueError(f"axis must be one of {TILT_AXES}, got {axis!r}")
+        if not math.isfinite(angle):
+            raise ValueError(f"angle must be finite, got {angle!r}")
+        self._set_tilt(angle, TILT_AXES.index(axis), wait, timeout)
+
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+        poses = finite_poses(poses)
+        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
+        if not (math.isfinite(lead) and lead > 0):
+            raise ValueError(f"lead must be > 0 s, got {lead!r}")
+        lead_ns = round(lead * 1e9)
+        per_chunk = self.samples_per_chunk
+        underruns_before = self.status().underruns
+        first_seq = self._next_seq
+        self._start_stream(first_seq)
+        count = math.ceil(len(poses) / per_chunk)
+        self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
+        t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
+        t_end = t_start + (len(poses) - 1) * spacing_ns
+        lateness = np.zeros(count, dtype=np.int64)
+
+        def report(sent: int, final: TableStatus | None) -> StreamReport:
+            underruns = (final or self.status()).underruns - underruns_before
+            return StreamReport(sent, min(sent * per_chunk, len(poses)), underruns, t_start, t_end, lead,
+                                lateness[:sent], final)
+
+        next_progress = time.monotonic_ns()
+        for k in range(count):  # each chunk made just before it is due: no burst of work at the start
+            first = k * per_chunk
+            chunk_start = t_start + first * spacing_ns
+            message = self._encode_chunk((first_seq + k) % FIRST_SEQ_LIMIT, chunk_start, spacing_ns,
+                                         poses[first:first + per_chunk], k == count - 1)
+            lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
+            latest = self.feedback.latest
+            if latest is not None and latest.state in STOPPED_STATES:
+                raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
+                                         f"{', '.join(latest.faults) or 'none'})", report(k, latest))
+            self._send_chunk(message)
+            if on_progress is not None and time.monotonic_ns() >= next_progress:
+                on_progress(min(first + per_chunk, len(poses)), len(poses))
+                next_progress += 100_000_000
+        remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
+        final = self.wait_for_status(
+            lambda s: s.state in STOPPED_STATES or (s.t_ns >= t_end and s.state != "streaming"), remaining + 2.0)
+        if on_progress is not None:
+            on_progress(len(poses), len(poses))
+        if final.state != "armed":
+            raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
+                                     f"{', '.join(final.faults) or 'none'})", report(count, final))
+        return report(count, final)
