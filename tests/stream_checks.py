@@ -1,0 +1,110 @@
+"""What every table transport must show when it streams a prepared drive to the emulator (issue 4's checks),
+and the trajectories the transport tests share. A plain module, imported by the transport tests."""
+
+from __future__ import annotations
+
+import dataclasses
+import itertools
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from drivers.controller import StreamReport, open_table
+from rig.drive import Drive, prepare_drive
+from rig.emulator import EmulatorProcess
+from rig.records import load_record
+
+TAU = 0.005  # the emulator's default leg lag [s]
+POSE_NOISE = 2e-5  # leg reading noise (1 µm) through the kinematics, float32 on the wire, interpolation [m, rad]
+SLENDER, STOCKY = "0.05x0.50@0.4,0", "0.15x0.45@-0.4,0"
+
+
+def drive_excerpt() -> Drive:
+    """The first 6 s of NORTHR/MUL009 prepared at β = 2° (0.5 Hz corner, 0.5 s holds): a 16.4 s drive."""
+    motion = load_record("fema:NORTHR/MUL009")
+    cut = dataclasses.replace(motion, acc_h=motion.acc_h[:round(6.0 / motion.dt)])
+    return prepare_drive(cut, angle=math.radians(2), settle=0.5, corner=0.5)
+
+
+def surge(duration: float, function: Any) -> tuple[np.ndarray, np.ndarray]:
+    t = np.arange(round(duration * 1000) + 1) * 1e-3
+    poses = np.zeros((len(t), 6))
+    poses[:, 0] = function(t)
+    return t, poses
+
+
+def smooth_ramp(t: np.ndarray, distance: float, duration: float) -> np.ndarray:
+    tau = np.clip(t / duration, 0, 1)
+    return distance * tau**3 * (10 - 15 * tau + 6 * tau**2)
+
+
+def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chunk: int,
+                     controller_type: type) -> dict[str, Any]:
+    """Stream ``drive`` through the transport of ``listen`` to an emulator with a slender and a stocky body and
+    two accelerometers; assert the issue's checks; return the emulator's counters for transport checks."""
+    emulator = EmulatorProcess.start(listen, "--body", SLENDER, "--body", STOCKY, "--accel", "0,0,0",
+                                     "--accel", "1.0,-0.5,0", key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            assert isinstance(table, controller_type)
+            statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
+            table.arm()
+            progress: list[tuple[int, int]] = []
+            report: StreamReport = table.stream(drive.t, drive.poses, lead=0.05,
+                                                on_progress=lambda *p: progress.append(p))
+            time.sleep(0.6)  # the last overturn event's repetitions (3 × 100 ms)
+            stats = table.link_stats()
+    finally:
+        counters = emulator.stop()
+    assert report.final is not None and report.final.state == "armed" and report.final.faults == ()
+    assert report.underruns == 0 and counters["underruns"] == 0 and counters["samples_late"] == 0
+    assert counters["chunk_margin_min_ns"] > 0 and counters["chunks_missing"] == 0
+    assert report.chunks == counters["chunks_accepted"] == math.ceil(len(drive.t) / samples_per_chunk)
+    assert progress[-1] == (len(drive.t), len(drive.t)) and len(progress) >= 10 * report.duration
+    assert all(a[0] <= b[0] for a, b in itertools.pairwise(progress))
+    spacing = round(1e9 / drive.rate)
+
+    # the achieved pose follows the command within the lag: |error| <= tau * max|v| (last 50 ms) + noise
+    during = [s for s in statuses.drain() if report.t_start_ns <= s.t_ns <= report.t_end_ns]
+    assert len(during) >= 0.95 * report.duration * 50  # 50 Hz status
+    times = np.array([s.t_ns for s in during])
+    achieved = np.array([s.pose for s in during])
+    k = (times - report.t_start_ns) / spacing
+    commanded = np.column_stack([np.interp(k, np.arange(len(drive.t)), drive.poses[:, j]) for j in range(6)])
+    speed = np.abs(drive.velocities)
+    window = np.array([speed[max(0, int(i) - 50):int(i) + 2].max(axis=0) for i in k])
+    error = np.abs(achieved - commanded)
+    assert np.all(error <= TAU * window * 1.02 + POSE_NOISE), (error - TAU * window).max(axis=0)
+    assert error.max(axis=0)[0] <= TAU * speed[:, 0].max() + POSE_NOISE  # the headline: v_max·τ + noise
+    assert error.max(axis=0)[0] > 0.2 * TAU * speed[:, 0].max()  # the lag is there
+
+    # every accelerometer sample once, in order, contiguous: count = duration × rate, for each sensor
+    received = accel.drain()
+    assert stats["accel_batches_lost"] == 0 and {b.sensor_id for b in received} == {0, 1}
+    for sensor in (0, 1):
+        batches = [b for b in received if b.sensor_id == sensor]
+        assert [b.seq for b in batches] == list(range(batches[0].seq, batches[0].seq + len(batches)))
+        sample_times = np.concatenate([b.times_ns() for b in batches])
+        assert np.all(np.diff(sample_times) == spacing)
+        inside = (sample_times >= report.t_start_ns) & (sample_times <= report.t_end_ns)
+        assert inside.sum() == report.t_end_ns // spacing - math.ceil(report.t_start_ns / spacing) + 1
+        force = np.concatenate([b.samples for b in batches])
+        hold = (sample_times >= report.t_start_ns + round((drive.motion[0] - 0.4) * 1e9)) & (
+            sample_times <= report.t_start_ns + round(drive.motion[0] * 1e9))  # resting at the tilt
+        beta = drive.angle
+        np.testing.assert_allclose(force[hold].mean(axis=0), [-9.81 * math.sin(beta), 0, 9.81 * math.cos(beta)],
+                                   atol=0.01)
+
+    # overturns: reported once each although every event came 4 times
+    found = detections.drain()
+    assert [(d.event_id, d.body_id, d.direction) for d in found] == [
+        (o["event_id"], o["body_id"], o["direction"]) for o in counters["overturns"]]
+    assert [d.t_ns for d in found] == [round(o["t"] * 1e9) for o in counters["overturns"]]
+    assert 0 in {d.body_id for d in found}  # the slender body fell
+    assert len({d.event_id for d in found}) == len(found) == len({d.body_id for d in found})
+    assert stats["duplicate_detections"] == 3 * len(found)
+    assert counters["link"]["overturn_messages_sent"] == 4 * len(found)
+    return counters
