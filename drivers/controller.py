@@ -442,7 +442,7 @@ Factory = Callable[..., TableController]
 
 _registry: dict[str, Factory] = {}
 
-_BUILTIN = {"mavlink": "drivers.mavlink", "zenoh": "drivers.zenoh"}
+_BUILTIN = {"mavlink": "drivers.mavlink", "canopen": "drivers.canopen", "zenoh": "drivers.zenoh"}
 """Schemes whose backend module registers itself on import (imported on first use)."""
 
 

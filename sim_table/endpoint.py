@@ -17,7 +17,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any, Protocol, runtime_checkable
 from urllib.parse import urlsplit
 
 import numpy as np
@@ -31,6 +31,7 @@ Action = Callable[[ControllerCore], None]
 #: Listen-URL scheme → module providing ``open_endpoint(url, options)``.
 ENDPOINT_MODULES: dict[str, str] = {
     "mavlink": "sim_table.mavlink_endpoint",
+    "canopen": "sim_table.canopen_endpoint",
     "zenoh": "sim_table.zenoh_endpoint",
 }
 
@@ -70,6 +71,14 @@ class Endpoint(Protocol):
     def service(self, now: int, state: State) -> None: ...
     def close(self) -> None: ...
     def counters_dict(self) -> dict[str, Any]: ...
+
+
+@runtime_checkable
+class LegFeedback(Protocol):
+    """An endpoint whose drives report each leg's measured length (CANopen: at every SYNC): the loop gives it the
+    legs' true lengths of every tick."""
+
+    def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray) -> None: ...
 
 
 def listen_scheme(url: str) -> str:

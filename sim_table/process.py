@@ -45,7 +45,7 @@ from protocols.mavlink import load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
-from sim_table.endpoint import EndpointOptions, listen_scheme, open_endpoint
+from sim_table.endpoint import EndpointOptions, LegFeedback, listen_scheme, open_endpoint
 from sim_table.scene import Specimen
 from sim_table.specimens import SpecimenScene
 
@@ -190,6 +190,8 @@ class Emulator:
         if step.stroke_limited:
             core.raise_fault(Fault.STROKE, int(times[-1]))
         core.observe(step.poses[-1])
+        if isinstance(endpoint, LegFeedback):
+            endpoint.add_legs(int(times[0]), self.tick_ns, step.lengths)
         for i, snap in statuses:
             pose = self.actuators.measure(step.lengths[i], step.poses[i])
             endpoint.send_status(replace(snap, pose=pose))

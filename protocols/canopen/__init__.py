@@ -6,6 +6,8 @@
 - :mod:`~protocols.canopen.scaling` — leg length [m] ↔ position increments (1 µm, 0 at the leg's minimum length)
 - :mod:`~protocols.canopen.cia402` — the drive state machine's controlword commands and statusword states
 - :mod:`~protocols.canopen.bus_load` — worst-case bus load of the SYNC cycle; the 500 Hz default rate
+- :mod:`~protocols.canopen.sensors` — the plate accelerometers (a TPDO on every SYNC) and the overturn detector
+  (an event TPDO per overturn): EDS, node ids, PDO maps, scaling
 """
 
 from protocols.canopen.bus_load import (

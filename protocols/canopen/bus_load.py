@@ -11,8 +11,12 @@ where the transmitter may insert a stuff bit after every 4 after the first, then
 (Davis, Burns, Bril, Lukkien 2007, "Controller Area Network (CAN) schedulability analysis: refuted, revisited
 and revised", eq. 1). Six axes: 12 × 115 + 55 = 1435 bits per cycle, i.e. 143.5 % of a 1 Mbit/s bus at
 1 kHz (does not fit at any limit) and 71.75 % at 500 Hz. The default limit, 80 %, leaves a fifth of the bus
-for SDO, heartbeats, NMT and EMCY; it admits up to 557 Hz with six axes at 1 Mbit/s, so the setpoint rate on
-CANopen is :data:`DEFAULT_RATE_HZ` = 500 Hz.
+for SDO, heartbeats, NMT, EMCY and the overturn detector's events; it admits up to 557 Hz with six axes at
+1 Mbit/s, so the setpoint rate on CANopen is :data:`DEFAULT_RATE_HZ` = 500 Hz.
+
+Plate accelerometers (:mod:`protocols.canopen.sensors`) add one 6-byte TPDO each to every cycle: with one,
+1435 + 115 = 1550 bits, 77.5 % at 500 Hz (up to 516 Hz within the limit); two need 1665 bits, 83.25 % at 500 Hz,
+over the limit (400 Hz: 66.6 %).
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import math
 import numbers
 
 from protocols.canopen.pdo_maps import RPDO1, TPDO1
+from protocols.canopen.sensors import ACCEL_TPDO1
 
 DEFAULT_RATE_HZ = 500
 """SYNC (setpoint) rate of the leg drives [Hz]."""
@@ -44,11 +49,15 @@ def frame_bits(data_bytes: int) -> int:
     return stuffed + 13 + (stuffed - 1) // 4
 
 
-def cycle_bits(axes: int) -> int:
-    """Worst-case bits of one SYNC cycle with ``axes`` drives: SYNC + one RPDO1 and one TPDO1 per axis."""
+def cycle_bits(axes: int, accelerometers: int = 0) -> int:
+    """Worst-case bits of one SYNC cycle with ``axes`` drives and ``accelerometers`` plate accelerometers: SYNC, one
+    RPDO1 and one TPDO1 per axis, one ACCEL_TPDO1 per accelerometer."""
     if isinstance(axes, bool) or not isinstance(axes, int) or axes < 1:
         raise BusLoadError(f"axes must be a positive integer, got {axes!r}")
-    return frame_bits(SYNC_BYTES) + axes * (frame_bits(RPDO1.size) + frame_bits(TPDO1.size))
+    if isinstance(accelerometers, bool) or not isinstance(accelerometers, int) or accelerometers < 0:
+        raise BusLoadError(f"accelerometers must be a non-negative integer, got {accelerometers!r}")
+    return (frame_bits(SYNC_BYTES) + axes * (frame_bits(RPDO1.size) + frame_bits(TPDO1.size))
+            + accelerometers * frame_bits(ACCEL_TPDO1.size))
 
 
 def _positive(value: float, what: str) -> float:
@@ -57,26 +66,30 @@ def _positive(value: float, what: str) -> float:
     return float(value)
 
 
-def bus_load(rate_hz: float, axes: int, bitrate: float) -> float:
-    """Fraction of ``bitrate`` [bit/s] the cycle takes at ``rate_hz`` [Hz] with ``axes`` drives (may exceed 1)."""
-    return cycle_bits(axes) * _positive(rate_hz, "rate_hz") / _positive(bitrate, "bitrate")
+def bus_load(rate_hz: float, axes: int, bitrate: float, accelerometers: int = 0) -> float:
+    """Fraction of ``bitrate`` [bit/s] the cycle takes at ``rate_hz`` [Hz] with ``axes`` drives and
+    ``accelerometers`` (may exceed 1)."""
+    return cycle_bits(axes, accelerometers) * _positive(rate_hz, "rate_hz") / _positive(bitrate, "bitrate")
 
 
-def max_rate_hz(axes: int, bitrate: float, limit: float = DEFAULT_LIMIT) -> float:
+def max_rate_hz(axes: int, bitrate: float, limit: float = DEFAULT_LIMIT, accelerometers: int = 0) -> float:
     """Highest SYNC rate [Hz] whose bus load stays within ``limit``."""
-    return _positive(limit, "limit") * _positive(bitrate, "bitrate") / cycle_bits(axes)
+    return _positive(limit, "limit") * _positive(bitrate, "bitrate") / cycle_bits(axes, accelerometers)
 
 
-def check_bus_load(rate_hz: float, axes: int, bitrate: float, limit: float = DEFAULT_LIMIT) -> float:
+def check_bus_load(rate_hz: float, axes: int, bitrate: float, limit: float = DEFAULT_LIMIT,
+                   accelerometers: int = 0) -> float:
     """The bus load of :func:`bus_load`; :class:`BusLoadError` naming the numbers when it exceeds ``limit``."""
-    load = bus_load(rate_hz, axes, bitrate)
+    load = bus_load(rate_hz, axes, bitrate, accelerometers)
     if load > _positive(limit, "limit"):
-        bits = cycle_bits(axes)
+        bits = cycle_bits(axes, accelerometers)
+        sensors = f" and {accelerometers} accelerometer{'s' if accelerometers > 1 else ''}" if accelerometers else ""
+        sensor_bits = f" + {accelerometers} × ACCEL_TPDO1 {frame_bits(ACCEL_TPDO1.size)}" if accelerometers else ""
         raise BusLoadError(
-            f"{axes} axes at {rate_hz:g} Hz need {bits * rate_hz:.0f} bit/s ({bits} bits per cycle: SYNC "
-            f"{frame_bits(SYNC_BYTES)} + {axes} × (RPDO1 {frame_bits(RPDO1.size)} + TPDO1 {frame_bits(TPDO1.size)}), "
-            f"worst-case bit stuffing), {load:.1%} of {bitrate:.0f} bit/s, over the {limit:.0%} limit; "
-            f"the highest rate within it is {max_rate_hz(axes, bitrate, limit):.1f} Hz")
+            f"{axes} axes{sensors} at {rate_hz:g} Hz need {bits * rate_hz:.0f} bit/s ({bits} bits per cycle: SYNC "
+            f"{frame_bits(SYNC_BYTES)} + {axes} × (RPDO1 {frame_bits(RPDO1.size)} + TPDO1 {frame_bits(TPDO1.size)})"
+            f"{sensor_bits}, worst-case bit stuffing), {load:.1%} of {bitrate:.0f} bit/s, over the {limit:.0%} "
+            f"limit; the highest rate within it is {max_rate_hz(axes, bitrate, limit, accelerometers):.1f} Hz")
     return load
 
 

@@ -53,6 +53,11 @@ SI_UNIT_POSITION = 0x60A8
 SI_UNIT_VELOCITY = 0x60A9
 FOLLOWING_ERROR_ACTUAL_VALUE = 0x60F4
 SUPPORTED_DRIVE_MODES = 0x6502
+TARGET_DELAY = 0x2010
+"""Manufacturer-specific, [µs]: a target position latched at a SYNC is reached this long after that SYNC (a CSP
+drive: one cycle, the next SYNC). The master computes each target for its SYNC's time plus this."""
+FEEDBACK_DELAY = 0x2011
+"""Manufacturer-specific, [µs]: the position actual value in TPDO1 was measured this long before its SYNC."""
 
 # ----- values -------------------------------------------------------------------------------------------
 
@@ -77,6 +82,10 @@ EMCY_REFERENCE_LIMIT = 0x8612
 """EMCY error code (CiA 402): reference limit (a target beyond 0x607D)."""
 EMCY_HEARTBEAT_ERROR = 0x8130
 """EMCY error code (CiA 301): life guard or heartbeat error (the master's heartbeat went silent)."""
+EMCY_SYNC_LOST = 0x8700
+"""EMCY error code (CiA 402): sync controller (SYNC, and with it the setpoints, stopped coming)."""
+EMCY_DEVICE_HARDWARE = 0x5000
+"""EMCY error code (CiA 301): device hardware (a fault of the drive itself)."""
 
 ERROR_REGISTER_GENERIC = 1 << 0
 ERROR_REGISTER_COMMUNICATION = 1 << 4

@@ -63,7 +63,7 @@ class Feedback(NamedTuple):
     position_actual: int
 
 
-R = TypeVar("R", Setpoint, Feedback)
+R = TypeVar("R", bound=tuple)  # the NamedTuple a PDO decodes to
 
 _FORMATS = {(8, False): "B", (8, True): "b", (16, False): "H", (16, True): "h", (32, False): "I", (32, True): "i"}
 

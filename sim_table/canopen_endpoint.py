@@ -1,0 +1,740 @@
+"""The emulator's CANopen side: the six CiA 402 leg drives, the plate accelerometers and the overturn detector as
+``canopen.LocalNode``\\ s on one python-can bus (`sim_table.endpoint`; the master is ``drivers.canopen``).
+
+Listen URL ``canopen://CHANNEL?interface=NAME[&accelerometers=N]``: python-can's channel and interface —
+``virtual`` within one process, ``udp_multicast`` (the channel a multicast group) between processes, and then
+**only inside a network namespace** with the group routed to ``lo``: elsewhere the datagrams leave through the
+default interface — and how many of the emulator's sensors are accelerometer nodes (default 1: a second one does
+not fit 1 Mbit/s at 500 Hz). In Python, ``udp_multicast`` carries about 250 Hz between two processes on two
+shared cores (every datagram costs tens of µs at both ends, and each end receives its own as well).
+
+Nodes (:mod:`protocols.canopen`): leg drive k = node k (``leg_drive.eds``), accelerometer i = node 0x21 + i
+(``accelerometer.eds``, one per emulated sensor), the detector = node 0x30 (``overturn_detector.eds``). The master
+configures them by SDO while they are pre-operational (PDO maps, heartbeat times, mode of operation, cycle
+period); a ``LocalNode`` does not pick up a PDO map written by SDO by itself, so each node reads its maps when NMT
+makes it operational, and a drive acts on SYNC itself (canopen's ``LocalNode`` does nothing on SYNC).
+
+**CSP on the controller core.** The core plays setpoint streams; cyclic synchronous position becomes one endless
+stream of one-sample chunks:
+
+- *SYNC clock.* A SYNC counts as arrived at its frame's time stamp: a drive answers a SYNC at once, while this
+  endpoint's bus thread may have had to wait its turn for the interpreter (counted: ``sync_handling_max_us``).
+  SYNC n of a series (a new series starts after a silence longer than :data:`SERIES_GAP`) is placed at
+  ``g_n = φ + n·T``: T the cycle period 0x1006, φ following the earliest arrivals (the least
+  delayed SYNC shows the master's cycle; a later one was held up and keeps its slot), as a drive's PLL does.
+  Counting is exact because the master never skips a SYNC (a late cycle goes out late).
+- *Setpoints.* At each SYNC every operational drive latches its last RPDO1: the controlword steps its CiA 402
+  state machine (:mod:`protocols.canopen.cia402`); while all six drives are *operation enabled* in CSP, the six
+  target positions → leg lengths → forward kinematics → one sample due at ``g_n + target delay`` (0x2010,
+  :data:`TARGET_DELAY`), which the core interpolates between at its 1 kHz tick. A CSP drive reaches its target at
+  the next SYNC; these declare 60 ms (what the MAVLink host's setpoints lead by): with the emulator's loop, both
+  ends of the bus and the master's cycle sharing one interpreter on two shared cores, a SYNC is handled up to tens
+  of ms late, and with a one-cycle delay the core would run dry at every late one. The master reads 0x2010 and
+  computes each target for its SYNC's time plus the delay, so the motion keeps its timing.
+- *Enable, disable, quick stop.* All six drives entering *operation enabled* at a SYNC → ARM + START_STREAM (the
+  core holds the achieved pose until the first sample is due). A drive entering *quick stop active* (the master's
+  emergency stop, or its reaction to a fault), or one enabled when NMT stops its PDOs → EMERGENCY_STOP (the legs
+  brake). Disable operation, shutdown or disable voltage (the master disarms only at rest) → the stream ends at the
+  last target and the core is DISARMed once it has played it.
+- *Faults of the core.* A drive fault (injected: leg 1's), no master heartbeat or no setpoints for 100 ms (the
+  core's watchdogs) → the drives concerned (leg 1; all) enter *fault reaction active* and send EMCY 0x5000, 0x8130
+  or 0x8700 while the core stops the table, then *fault* once the legs are braked. The core's STROKE and
+  SETPOINT_LIMIT set statusword bit 11 (internal limit active) on every drive.
+- *Feedback.* Every SYNC is answered by each operational drive's TPDO1 — its statusword at the SYNC and the
+  position actual value = the leg's length at ``g_n −`` the feedback delay (0x2011, :data:`FEEDBACK_DELAY`) — and
+  each accelerometer's TPDO with the specific force at ``g_n −`` its sample delay (0x2101, the same), both
+  interpolated in what the emulator loop gives :meth:`CanopenEndpoint.add_legs` and :meth:`~CanopenEndpoint.add_accel`
+  every tick. When the physics (2 ms batches) has not computed that instant yet, the answer waits until it has
+  (counted: ``feedback_deferred``); the TPDOs carry the SYNC's time stamp, which python-can's ``virtual`` bus passes
+  on (``preserve_timestamps``), so the master dates them right. One accelerometer sample per SYNC: a sensor's count
+  is duration × SYNC rate.
+- *Overturns.* The detector sends each event at once and :data:`~protocols.canopen.sensors.EVENT_REPEATS` times
+  100 ms apart (real time), each copy with its age.
+- *Heartbeats.* Every node produces them as the master set 0x1017 (canopen's ``NmtSlave``); the master's own
+  (COB-ID 0x77F) are the core's host heartbeats.
+
+**No authentication.** CAN has none: the CANopen transport relies on the bus being a private cable between the
+lab host and the table (nothing else attached, not bridged to a network). The emulator therefore takes every
+command and setpoint on this transport as signed; ``refused_commands`` stays 0.
+
+**Time.** The master's SYNC is the drives' clock, in real time: the emulator runs at speed 1 on this transport.
+Its fault injection times (``--drive-fault-at``, ``--stall-at``) count from the first time all six drives were
+enabled (the core's stream starts then).
+
+**Fault injection.** ``loss`` drops each RPDO a drive latches (it keeps its previous target) and each frame this
+side sends (TPDOs, EMCY, events) with that probability; SYNC, NMT, SDO and heartbeats are never dropped (a lost
+SYNC would shift every drive's cycle count). ``delay`` holds each SYNC (with the RPDOs latched when it arrived),
+each master heartbeat and each frame sent that long; :meth:`CanopenEndpoint.service` releases them.
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import asdict, dataclass
+from typing import Any
+from urllib.parse import parse_qs, urlsplit
+
+import can
+import canopen
+import numpy as np
+
+from analysis.table_model import TableModel
+from protocols.canopen import (
+    LEG_NODE_IDS,
+    MASTER_NODE_ID,
+    RPDO1,
+    TPDO1,
+    Command,
+    Feedback,
+    LegScaling,
+    PdoSpec,
+    State,
+    StatusBit,
+    statusword,
+    transition,
+)
+from protocols.canopen import od as drive_od
+from protocols.canopen.sensors import (
+    ACCEL_TPDO1,
+    ACCELEROMETER_NODE_IDS,
+    DETECTOR_NODE_ID,
+    EVENT_REPEAT_PERIOD,
+    EVENT_REPEATS,
+    EVENT_TPDO1,
+    OVERTURN_EVENT,
+    SAMPLE_DELAY,
+    SPECIFIC_FORCE,
+    ForceSample,
+    encode_force,
+    event_record,
+    load_accelerometer_od,
+    load_detector_od,
+)
+from sim_table.controller import BRAKED, ControllerCore, Done, Fault, Snapshot
+from sim_table.controller import Command as CoreCommand
+from sim_table.controller import State as CoreState
+from sim_table.endpoint import Action, EndpointOptions
+
+TARGET_DELAY = 0.060
+"""What the emulated drives declare in 0x2010 [s]: a target is reached this long after the SYNC that latched it."""
+
+FEEDBACK_DELAY = 0.004
+"""What the emulated drives declare in 0x2011 and the accelerometers in 0x2101 [s]: the position actual value and
+the acceleration sample of a SYNC's TPDO are this much older than the SYNC (two of the emulator loop's 2 ms batches:
+the physics has usually computed that instant when the SYNC is handled, and the answer need not wait)."""
+
+SERIES_GAP = 0.1
+"""A SYNC after this long without one [s, real time] starts a new series (a new master, or one that was stopped)."""
+
+DRIFT = 1e-4
+"""How fast the SYNC grid may drift later [s per s]: the master's clock may run slower than the controller's."""
+
+HISTORY = 512
+"""Ticks of leg lengths and accelerations kept for the feedback (512 ms at 1 kHz)."""
+
+SYNC_COB_ID = 0x80
+_NMT_COB_ID = 0x000
+_HEARTBEAT_COB_ID = 0x700
+_LIMITS = Fault.STROKE | Fault.SETPOINT_LIMIT
+_EMCY = {Fault.DRIVE: (drive_od.EMCY_DEVICE_HARDWARE, drive_od.ERROR_REGISTER_GENERIC),
+         Fault.HEARTBEAT_LOST: (drive_od.EMCY_HEARTBEAT_ERROR,
+                                drive_od.ERROR_REGISTER_GENERIC | drive_od.ERROR_REGISTER_COMMUNICATION),
+         Fault.STREAM_SILENT: (drive_od.EMCY_SYNC_LOST,
+                               drive_od.ERROR_REGISTER_GENERIC | drive_od.ERROR_REGISTER_COMMUNICATION)}
+"""EMCY (code, error register) a drive sends when the core raises a stopping fault."""
+_ENABLED = State.OPERATION_ENABLED
+_REMOTE, _VOLTAGE = int(StatusBit.REMOTE), int(StatusBit.VOLTAGE_ENABLED)
+_FOLLOWS, _LIMIT_ACTIVE = int(StatusBit.FOLLOWS_TARGET), int(StatusBit.INTERNAL_LIMIT_ACTIVE)
+
+
+@dataclass
+class BusCounters:
+    """What the endpoint counted (reported at exit)."""
+
+    syncs: int = 0
+    sync_series: int = 0
+    sync_delay_max_us: float = 0.0
+    """Largest arrival − grid slot of a SYNC [µs, controller time]: how late SYNCs came."""
+    sync_handling_max_us: float = 0.0
+    """Largest time from a SYNC's arrival to its handling [µs, real time] (the bus thread waiting its turn)."""
+    rpdos_lost: int = 0  # injected loss: a latched RPDO replaced by the previous one
+    frames_sent: int = 0
+    frames_not_sent: int = 0  # injected loss, outbound
+    master_heartbeats: int = 0
+    chunks_sent: int = 0
+    chunks_stalled: int = 0
+    feedback_deferred: int = 0
+    """SYNCs answered late, when the physics had computed the instant they report (the TPDOs keep their stamp)."""
+    answers_dropped: int = 0
+    accel_samples_sent: int = 0
+    emcy_sent: int = 0
+    overturn_events: int = 0
+    overturn_messages_sent: int = 0
+
+
+class SyncGrid:
+    """Places the SYNCs of a series on the master's cycle: SYNC n at ``φ + n·period`` [ns, controller time]
+    (module docstring). ``gap_ns``: a silence that starts a new series."""
+
+    def __init__(self, period_ns: int, gap_ns: int) -> None:
+        self.period_ns = period_ns
+        self.gap_ns = gap_ns
+        self._phase = 0
+        self._count = -1
+        self._last: int | None = None
+
+    def place(self, arrival_ns: int) -> tuple[int, bool]:
+        """The slot [ns] of a SYNC that arrived at ``arrival_ns``, and whether it starts a new series."""
+        new = self._last is None or arrival_ns - self._last > self.gap_ns
+        self._last = arrival_ns
+        if new:
+            self._count, self._phase = 0, arrival_ns
+            return arrival_ns, True
+        self._count += 1
+        drifted = self._phase + round(DRIFT * self.period_ns)
+        earliest = self._phase - self.period_ns // 2  # a slot never moves back by half a cycle or more
+        self._phase = max(min(drifted, arrival_ns - self._count * self.period_ns), earliest)
+        return self._phase + self._count * self.period_ns, False
+
+
+class Recent:
+    """The last ``capacity`` samples (``width`` values each) of a quantity sampled at evenly spaced times [ns]."""
+
+    def __init__(self, width: int, capacity: int = HISTORY) -> None:
+        self._times = np.zeros(capacity, dtype=np.int64)
+        self._values = np.zeros((capacity, width))
+        self._written = 0
+
+    def extend(self, t_start_ns: int, spacing_ns: int, block: np.ndarray) -> None:
+        """Append ``block`` (k, width), row j taken at ``t_start_ns + j·spacing_ns``."""
+        block = np.asarray(block, dtype=float)[-len(self._times):]
+        rows = (self._written + np.arange(len(block))) % len(self._times)
+        self._times[rows] = t_start_ns + spacing_ns * np.arange(len(block), dtype=np.int64)
+        self._values[rows] = block
+        self._written += len(block)
+
+    @property
+    def newest_ns(self) -> int | None:
+        """Time of the newest sample [ns] (None before the first)."""
+        return int(self._times[(self._written - 1) % len(self._times)]) if self._written else None
+
+    def at(self, t_ns: int) -> np.ndarray:
+        """The values at ``t_ns`` (not after the newest sample), interpolated linearly; the oldest kept before it."""
+        capacity = len(self._times)
+        newest = (self._written - 1) % capacity
+        t_new = int(self._times[newest])
+        if self._written == 1:
+            return self._values[newest].copy()
+        spacing = t_new - int(self._times[(self._written - 2) % capacity])
+        back = min(max(t_new - t_ns, 0) / spacing, min(self._written, capacity) - 1)
+        whole = math.floor(back)
+        late = self._values[(newest - whole) % capacity]
+        early = self._values[(newest - whole - 1) % capacity] if whole < back else late
+        return late + (early - late) * (back - whole)
+
+
+class _Node:
+    """One emulated node: its ``LocalNode``, the PDO maps it supports (``receives``/``transmits``: the specs of its
+    RPDO1/TPDO1), and whether it read the maps the master wrote since NMT last changed its state."""
+
+    receives: PdoSpec | None = None
+    transmits: PdoSpec | None = None
+
+    def __init__(self, node: canopen.LocalNode) -> None:
+        self.node = node
+        self.mapped = False
+        self.supported = False
+        node.add_read_callback(self._read)
+
+    def _read(self, index: int, subindex: int, od: Any) -> int | None:
+        """The live value of an object the device computes (None: the object dictionary's)."""
+        return None
+
+    @property
+    def operational(self) -> bool:
+        return self.node.nmt.state == "OPERATIONAL"
+
+    def pdos(self) -> bool:
+        """Whether the node's PDOs work: operational, and the maps the master wrote (read on the first call since
+        NMT started it) are the ones the device supports (its PDO specs; another map gets no PDO traffic)."""
+        if not self.operational:
+            return False
+        if not self.mapped:
+            self.node.pdo.read()
+            self.mapped = True
+            maps = ((self.node.rpdo.map.get(1), self.receives), (self.node.tpdo.map.get(1), self.transmits))
+            self.supported = all(_maps(pdo_map, spec) for pdo_map, spec in maps if spec is not None)
+        return self.supported
+
+
+def _maps(pdo_map: Any, spec: PdoSpec) -> bool:
+    """Whether a ``canopen`` PDO map holds exactly ``spec``'s objects (or is disabled)."""
+    return not pdo_map.enabled or [(v.index, v.subindex, v.length) for v in pdo_map.map] == [
+        (o.index, o.subindex, o.bits) for o in spec.objects]
+
+
+class _Drive(_Node):
+    """One emulated leg drive: CiA 402 state, latched setpoint, the position it reports."""
+
+    receives, transmits = RPDO1, TPDO1
+
+    def __init__(self, node: canopen.LocalNode) -> None:
+        super().__init__(node)
+        self.state = State.SWITCH_ON_DISABLED
+        self.previous_word = 0
+        self.target = 0
+        self.position = 0
+        self.flags = int(StatusBit.REMOTE)
+
+    def _read(self, index: int, subindex: int, od: Any) -> int | None:
+        if index == drive_od.STATUSWORD:
+            return statusword(self.state, self.flags)
+        if index == drive_od.POSITION_ACTUAL_VALUE:
+            return self.position
+        if index == drive_od.MODES_OF_OPERATION_DISPLAY:
+            return self.mode
+        if index == drive_od.TARGET_DELAY:
+            return round(TARGET_DELAY * 1e6)
+        if index == drive_od.FEEDBACK_DELAY:
+            return round(FEEDBACK_DELAY * 1e6)
+        return None
+
+    @property
+    def mode(self) -> int:
+        """Modes of operation 0x6060 as the master set it."""
+        od = self.node.object_dictionary[drive_od.MODES_OF_OPERATION]
+        return od.decode_raw(self.node.get_data(drive_od.MODES_OF_OPERATION, 0))
+
+
+class _Sensor(_Node):
+    """One emulated plate accelerometer: the samples of its sensor and the one it sends."""
+
+    transmits = ACCEL_TPDO1
+
+    def __init__(self, node: canopen.LocalNode) -> None:
+        super().__init__(node)
+        self.samples = Recent(3)
+        self.sample = ForceSample(0, 0, 0)
+
+    def _read(self, index: int, subindex: int, od: Any) -> int | None:
+        if index == SPECIFIC_FORCE and 1 <= subindex <= 3:
+            return self.sample[subindex - 1]
+        if index == SAMPLE_DELAY:
+            return round(FEEDBACK_DELAY * 1e6)
+        return None
+
+
+class _Detector(_Node):
+    """The emulated overturn detector and the event it is sending."""
+
+    transmits = EVENT_TPDO1
+
+    def __init__(self, node: canopen.LocalNode) -> None:
+        super().__init__(node)
+        self.record = event_record(0, 0, 1, 0.0, 0)
+
+    def _read(self, index: int, subindex: int, od: Any) -> int | None:
+        if index == OVERTURN_EVENT and 1 <= subindex <= 5:
+            return self.record[subindex - 1]
+        return None
+
+
+class CanopenEndpoint:
+    """The controller end of a CANopen bus (module docstring): ``interface``/``channel`` of python-can, ``sensors``
+    accelerometer nodes, the table model (leg scaling, kinematics), ``clock`` host → controller ns, injected
+    ``loss`` and ``delay`` [s] with ``seed``."""
+
+    def __init__(self, url: str, interface: str, channel: str, options: EndpointOptions, sensors: int) -> None:
+        if not (0.0 <= options.loss < 1.0 and options.delay >= 0.0 and math.isfinite(options.delay)):
+            raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {options.loss!r}, {options.delay!r}")
+        if not 0 <= sensors <= len(ACCELEROMETER_NODE_IDS):
+            raise ValueError(f"CANopen carries at most {len(ACCELEROMETER_NODE_IDS)} accelerometers, got {sensors}")
+        self.url = url
+        self.stall_chunks = False
+        """Set by the owner to drop every setpoint from then on (injected stalled stream)."""
+        self.counters = BusCounters()
+        self.table: TableModel = options.table
+        self.clock: Callable[[int], int] = options.clock
+        if options.clock(10**12) - options.clock(0) != 10**12:
+            raise ValueError("on CANopen the drives follow the master's SYNC in real time: the emulator's speed must "
+                             "be 1")
+        self.loss = options.loss
+        self.delay_ns = round(options.delay * 1e9)
+        self._rng = np.random.default_rng(options.seed)
+        g = self.table.geometry
+        self.scaling = LegScaling(g.leg_min, g.leg_max)
+        keep_stamps = {"preserve_timestamps": True} if interface == "virtual" else {}
+        self.network = canopen.Network(can.Bus(interface=interface, channel=channel, **keep_stamps))
+        self.network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
+        self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg))) for leg in LEG_NODE_IDS]
+        self.sensors = [_Sensor(self.network.create_node(node_id, load_accelerometer_od(node_id)))
+                        for node_id in ACCELEROMETER_NODE_IDS[:sensors]]
+        self.detector = _Detector(self.network.create_node(DETECTOR_NODE_ID, load_detector_od()))
+        self._lock = threading.RLock()
+        self._legs = Recent(6)
+        self._answers: deque[tuple[int, float, list[int]]] = deque()  # SYNCs to answer: (measured, stamp, words)
+        self._grid: SyncGrid | None = None
+        self._enabled = False  # all six drives operation enabled in CSP: the core follows
+        self._next_seq = 0
+        self._pose = np.zeros(6)  # the last target pose (forward kinematics' next guess)
+        self._last_sample_ns = 0
+        self._ending = False  # a stream end is queued: what follows waits for the core to play it
+        self._faults = Fault(0)
+        self._core_state = CoreState.IDLE
+        self._inbox: deque[tuple[int, int, Action]] = deque()  # (due host ns, arrival controller ns, action)
+        self._held: list[tuple[int, int, Callable[[], None]]] = []  # delayed work: (due host ns, n, work)
+        self._held_count = 0
+        self._events: list[tuple[int, int, int, int, int, float, int, int]] = []  # (due, n, copies left, event)
+        self.network.subscribe(SYNC_COB_ID, self._on_sync)
+        self.network.subscribe(_NMT_COB_ID, self._on_nmt)
+        self.network.subscribe(_HEARTBEAT_COB_ID + MASTER_NODE_ID, self._on_master_heartbeat)
+
+    # ----- life cycle -----------------------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start receiving; every node boots into pre-operational (heartbeats start when the master sets 0x1017)."""
+        self.network.connect()
+        for node in self._nodes():
+            node.nmt.state = "PRE-OPERATIONAL"
+
+    def close(self) -> None:
+        """Stop the nodes' heartbeats and the receive thread; release the bus."""
+        for node in self._nodes():
+            node.nmt.stop_heartbeat()
+        self.network.disconnect()
+
+    def _nodes(self) -> list[canopen.LocalNode]:
+        return [d.node for d in self.drives] + [s.node for s in self.sensors] + [self.detector.node]
+
+    # ----- the bus threads: SYNC, NMT, master heartbeat -------------------------------------------------
+
+    def _on_sync(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """A SYNC, handled as arrived at the frame's own time stamp ``timestamp`` [s, wall clock] (module docstring:
+        a drive answers at once; this thread may have had to wait for the interpreter)."""
+        now = time.monotonic_ns()
+        arrived = min(now, now - round((time.time() - timestamp) * 1e9))
+        with self._lock:
+            self.counters.sync_handling_max_us = max(self.counters.sync_handling_max_us, (now - arrived) * 1e-3)
+            latched = [self._latch(drive) for drive in self.drives]
+            if self.delay_ns:
+                delay = self.delay_ns
+                self._hold(now + delay, lambda: self._sync(arrived + delay, timestamp + delay * 1e-9, latched))
+            else:
+                self._sync(arrived, timestamp, latched)
+
+    def _latch(self, drive: _Drive) -> tuple[int, int] | None:
+        """The (controlword, target) of the drive's last RPDO1; None if its PDOs do not work (not operational, or
+        not the RPDO1 map it supports) or none came."""
+        if not drive.pdos():
+            return None
+        rx = drive.node.rpdo[1]
+        if rx.timestamp is None or (self.loss and self._rng.random() < self.loss):
+            self.counters.rpdos_lost += rx.timestamp is not None
+            return None
+        setpoint = RPDO1.decode(bytes(rx.data))
+        return setpoint.controlword, setpoint.target_position
+
+    def _sync(self, host_ns: int, stamp: float, latched: list[tuple[int, int] | None]) -> None:
+        """One SYNC, arrived at host time ``host_ns`` (``stamp`` [s, wall clock]) with the drives' latched RPDOs
+        (module docstring); the TPDOs answering it carry ``stamp``."""
+        arrival = self.clock(host_ns)
+        grid = self._sync_grid()
+        slot, new_series = grid.place(arrival)
+        self.counters.syncs += 1
+        self.counters.sync_series += new_series
+        self.counters.sync_delay_max_us = max(self.counters.sync_delay_max_us, (arrival - slot) * 1e-3)
+        was_enabled = self._enabled
+        actions = [self._step(drive, setpoint) for drive, setpoint in zip(self.drives, latched, strict=True)]
+        self._enabled = all(d.state is _ENABLED and d.mode == drive_od.MODE_CYCLIC_SYNCHRONOUS_POSITION
+                            for d in self.drives)
+        if self._enabled and not was_enabled and not self._ending:
+            first = self._next_seq % 2**24
+            self._next_seq = first
+            self._post(host_ns, arrival, lambda core: self._enable(core, first, arrival))
+        if Command.QUICK_STOP in actions:  # also after a fault of the core: the legs brake
+            self._post(host_ns, arrival, lambda core: self._emergency_stop(core, arrival))
+        elif was_enabled and not self._enabled and any(action is not None for action in actions):
+            self._end_stream(host_ns, arrival)
+        if self._enabled:
+            self._setpoint(host_ns, arrival, slot + _ns(TARGET_DELAY))
+        self._feedback(slot, stamp)
+
+    def _sync_grid(self) -> SyncGrid:
+        """The grid of the cycle period the master set (0x1006 [µs]; a new grid when it changes)."""
+        node = self.drives[0].node
+        period_us = node.object_dictionary[drive_od.COMMUNICATION_CYCLE_PERIOD].decode_raw(
+            node.get_data(drive_od.COMMUNICATION_CYCLE_PERIOD, 0))
+        period = period_us * 1000
+        if self._grid is None or self._grid.period_ns != period:
+            self._grid = SyncGrid(period, _ns(SERIES_GAP))
+        return self._grid
+
+    def _step(self, drive: _Drive, setpoint: tuple[int, int] | None) -> Command | None:
+        """Step the drive's state machine with its latched controlword; the command if it left operation
+        enabled by one (quick stop, or one that disables it)."""
+        if setpoint is None:
+            return None
+        word, drive.target = setpoint
+        before = drive.state
+        drive.state = transition(before, word, drive.previous_word)
+        drive.previous_word = word
+        if before is State.FAULT and drive.state is not State.FAULT:
+            self._emcy(drive, 0, 0)  # error reset
+        if before is _ENABLED and drive.state is not _ENABLED:
+            return Command.QUICK_STOP if drive.state is State.QUICK_STOP_ACTIVE else Command.DISABLE_OPERATION
+        return None
+
+    def _setpoint(self, host_ns: int, arrival: int, due: int) -> None:
+        if self.stall_chunks:
+            self.counters.chunks_stalled += 1
+            return
+        lengths = np.array(self.scaling.lengths([d.target for d in self.drives]))
+        self._pose = self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
+        seq, pose = self._next_seq, self._pose.copy()
+        self._next_seq = (seq + 1) % 2**32
+        self._last_sample_ns = due
+        self.counters.chunks_sent += 1
+        period = self._sync_grid().period_ns
+        self._post(host_ns, arrival, lambda core: core.chunk(seq, due, period, pose[None, :], False, True, arrival))
+
+    def _end_stream(self, host_ns: int, arrival: int) -> None:
+        """The drives were disabled (at rest): end the stream at the last target; once the core played it,
+        :meth:`_after_end` disarms it (or starts a new stream if the drives were enabled again meanwhile)."""
+        seq, pose, due = self._next_seq, self._pose.copy(), max(self._last_sample_ns, arrival) + 1
+        self._next_seq = (seq + 1) % 2**32
+        self._ending = True
+        period = self._sync_grid().period_ns
+        self._post(host_ns, arrival, lambda core: core.chunk(seq, due, period, pose[None, :], True, True, arrival))
+
+    def _feedback(self, slot: int, stamp: float) -> None:
+        """Answer the SYNC in ``slot`` (stamped ``stamp``): each drive's statusword as of now, positions and
+        accelerations as of ``slot −`` the feedback delay — at once if the physics has computed that instant, else
+        when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp)."""
+        follows = self._enabled and not self.stall_chunks and self._core_state is CoreState.STREAMING
+        flags = _REMOTE | (_LIMIT_ACTIVE if self._faults & _LIMITS else 0)
+        words = [statusword(d.state, flags | (_VOLTAGE if d.state is not State.SWITCH_ON_DISABLED else 0)
+                            | (_FOLLOWS if follows and d.state is _ENABLED else 0)) for d in self.drives]
+        if len(self._answers) >= HISTORY:  # the physics stopped (the emulator is closing)
+            self._answers.popleft()
+            self.counters.answers_dropped += 1
+        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, words))
+        self._answer()
+        self.counters.feedback_deferred += bool(self._answers)  # this one waits for the physics
+
+    def _answer(self) -> None:
+        """Send the waiting answers whose instant the physics has computed, in order."""
+        g = self.table.geometry
+        while self._answers:
+            measured, stamp, words = self._answers[0]
+            fed = [s.samples.newest_ns for s in self.sensors if s.samples.newest_ns is not None]
+            if self._legs.newest_ns is None or min([self._legs.newest_ns, *fed]) < measured:
+                return
+            self._answers.popleft()
+            legs = np.clip(self._legs.at(measured), g.leg_min, g.leg_max).tolist()
+            for drive, word, length in zip(self.drives, words, legs, strict=True):
+                drive.position = self.scaling.position(length)
+                drive.flags = word & ~0x6F
+                self._transmit(drive, Feedback(word, drive.position), stamp)
+            for sensor in self.sensors:
+                if sensor.samples.newest_ns is not None:
+                    sensor.sample = encode_force(sensor.samples.at(measured))
+                    self.counters.accel_samples_sent += self._transmit(sensor, sensor.sample, stamp)
+
+    def _transmit(self, device: _Node, values: tuple[int, ...], stamp: float | None = None) -> bool:
+        """Send the node's TPDO1 carrying ``values`` (time stamp ``stamp``, default now); whether it went out (PDOs
+        working, TPDO1 enabled, not lost)."""
+        if not device.pdos() or not device.node.tpdo[1].enabled:
+            return False
+        assert device.transmits is not None
+        return self._send(device.node.tpdo[1].cob_id, device.transmits.encode(values), stamp)
+
+    def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """After the nodes took an NMT command: PDO maps are read again once operational; a drive that stops being
+        operational while enabled quick-stops (the legs brake)."""
+        now = time.monotonic_ns()
+        with self._lock:
+            for device in [*self.drives, *self.sensors, self.detector]:
+                device.mapped = False
+            for drive in self.drives:
+                if not drive.operational and drive.state is _ENABLED:
+                    drive.state = State.QUICK_STOP_ACTIVE
+            if self._enabled and not all(d.operational for d in self.drives):
+                self._enabled = False
+                arrival = self.clock(now)
+                self._post(now, arrival, lambda core: self._emergency_stop(core, arrival))
+
+    def _on_master_heartbeat(self, can_id: int, data: bytearray, timestamp: float) -> None:
+        """The master's heartbeat, arrived at the frame's time stamp: the core's host heartbeat."""
+        now = time.monotonic_ns()
+        due = min(now, now - round((time.time() - timestamp) * 1e9)) + self.delay_ns
+        arrival = self.clock(due)
+        with self._lock:
+            self.counters.master_heartbeats += 1
+            self._post(due, arrival, lambda core: core.heartbeat(arrival))
+
+    # ----- actions on the core (the emulator's tick thread) ---------------------------------------------
+
+    def _post(self, host_ns: int, arrival: int, action: Action) -> None:
+        self._inbox.append((host_ns, arrival, action))
+
+    @staticmethod
+    def _enable(core: ControllerCore, first: int, arrival: int) -> None:
+        if core.state is not CoreState.STREAMING:
+            core.command(CoreCommand.ARM, (), True, arrival)
+            core.command(CoreCommand.START_STREAM, (float(first),), True, arrival)
+
+    @staticmethod
+    def _emergency_stop(core: ControllerCore, arrival: int) -> None:
+        if core.state not in BRAKED:
+            core.command(CoreCommand.EMERGENCY_STOP, (), True, arrival)
+
+    def _after_end(self, core: ControllerCore, arrival: int) -> None:
+        with self._lock:
+            if not self._ending or core.state is CoreState.STREAMING:
+                return  # done already, or the end of the stream is not played yet
+            self._ending = False
+            if self._enabled:
+                first = self._next_seq % 2**24
+                self._next_seq = first
+                self._enable(core, first, arrival)
+            elif core.state is CoreState.ARMED:
+                core.command(CoreCommand.DISARM, (), True, arrival)
+
+    def take(self, now: int) -> list[tuple[int, Action]]:
+        """Messages due by host time ``now`` [ns] as (arrival controller time [ns], action on the core)."""
+        with self._lock:
+            taken = []
+            while self._inbox and self._inbox[0][0] <= now:
+                _, arrival, action = self._inbox.popleft()
+                taken.append((arrival, action))
+            if self._ending:
+                arrival = self.clock(now)
+                taken.append((arrival, lambda core: self._after_end(core, arrival)))
+            return taken
+
+    def command_done(self, done: Done) -> None:
+        """Nothing the CANopen side asks of the core answers IN_PROGRESS: no final answer to send."""
+
+    def send_status(self, snap: Snapshot) -> None:
+        """The core's state and faults: its stopping faults become drive faults with EMCY (module docstring)."""
+        with self._lock:
+            raised = snap.faults & ~self._faults
+            self._faults, self._core_state = snap.faults, snap.state
+            braked = snap.state in BRAKED
+            for fault, (code, register) in _EMCY.items():
+                if raised & fault:
+                    for drive in self.drives[:1] if fault is Fault.DRIVE else self.drives:
+                        if drive.state not in (State.FAULT, State.FAULT_REACTION_ACTIVE):
+                            drive.state = State.FAULT if braked else State.FAULT_REACTION_ACTIVE
+                            self._emcy(drive, code, register)
+            if braked:
+                for drive in self.drives:
+                    if drive.state is State.FAULT_REACTION_ACTIVE:
+                        drive.state = State.FAULT
+
+    def _emcy(self, drive: _Drive, code: int, register: int) -> None:
+        self.counters.emcy_sent += 1
+        self._send(drive.node.emcy.cob_id, canopen.emcy.EMCY_STRUCT.pack(code, register, b""))
+
+    # ----- what the emulator loop hands over --------------------------------------------------------------
+
+    def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray) -> None:
+        """The legs' true lengths [m] (k, 6) at ticks ``t_start_ns + j·spacing_ns`` [ns, controller time]."""
+        with self._lock:
+            self._legs.extend(t_start_ns, spacing_ns, lengths)
+            self._answer()
+
+    def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
+        """A sensor's next samples (n, 3) [m/s²], the first at ``t_start_ns``; sent one per SYNC (accelerometer
+        nodes carry the first sensors; a sensor beyond them is not on the bus)."""
+        if sensor_id < len(self.sensors):
+            with self._lock:
+                self.sensors[sensor_id].samples.extend(t_start_ns, spacing_ns, samples)
+                self._answer()
+
+    def flush_accel(self) -> None:
+        """Nothing waits: every sample an accelerometer sends goes out on its SYNC."""
+
+    def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
+        """An overturn event: sent now and again :data:`EVENT_REPEATS` times, each copy with its age."""
+        with self._lock:
+            self.counters.overturn_events += 1
+            self._held_count += 1
+            heapq.heappush(self._events, (time.monotonic_ns(), self._held_count, EVENT_REPEATS + 1, event_id,
+                                          body_id, tilt, t_ns, direction))
+            self._send_events(time.monotonic_ns())
+
+    def _send_events(self, now: int) -> None:
+        detector = self.detector
+        while self._events and self._events[0][0] <= now:
+            due, n, left, event_id, body_id, tilt, t_ns, direction = heapq.heappop(self._events)
+            age = max(0, self.clock(now) - t_ns)
+            detector.record = event_record(event_id, body_id, direction, tilt, age)
+            self.counters.overturn_messages_sent += self._transmit(detector, detector.record)
+            if left > 1:
+                heapq.heappush(self._events, (due + round(EVENT_REPEAT_PERIOD * 1e9), n, left - 1, event_id,
+                                              body_id, tilt, t_ns, direction))
+
+    def service(self, now: int, state: CoreState) -> None:
+        """Periodic duties at host time ``now`` [ns]: event repetitions, delayed SYNCs and frames."""
+        with self._lock:
+            self._send_events(now)
+            while self._held and self._held[0][0] <= now:
+                heapq.heappop(self._held)[2]()
+
+    # ----- sending -----------------------------------------------------------------------------------------
+
+    def _hold(self, due: int, work: Callable[[], None]) -> None:
+        self._held_count += 1
+        heapq.heappush(self._held, (due, self._held_count, work))
+
+    def _send(self, cob_id: int, data: bytes, stamp: float | None = None) -> bool:
+        """Send one frame stamped ``stamp`` [s, wall clock; default now] through the injected loss and delay;
+        whether it was not lost. (On the virtual bus the receiver sees the stamp; other interfaces stamp frames
+        when they receive them.)"""
+        if self.loss and self._rng.random() < self.loss:
+            self.counters.frames_not_sent += 1
+            return False
+        frame = can.Message(arbitration_id=cob_id, data=data, is_extended_id=False,
+                            timestamp=time.time() if stamp is None else stamp)
+        if self.delay_ns:
+            frame.timestamp += self.delay_ns * 1e-9
+            self._hold(time.monotonic_ns() + self.delay_ns, lambda: self._put(frame))
+        else:
+            self._put(frame)
+        return True
+
+    def _put(self, frame: can.Message) -> None:
+        with self.network.send_lock:
+            self.network.bus.send(frame)
+        self.counters.frames_sent += 1
+
+    def counters_dict(self) -> dict[str, Any]:
+        return asdict(self.counters)
+
+
+def _ns(seconds: float) -> int:
+    return round(seconds * 1e9)
+
+
+def open_endpoint(url: str, options: EndpointOptions) -> CanopenEndpoint:
+    """The endpoint for ``canopen://CHANNEL?interface=NAME[&accelerometers=N]`` — `sim_table.endpoint`'s factory.
+
+    ``accelerometers`` (default 1) accelerometer nodes carry the emulator's first sensors (more than one does
+    not fit 1 Mbit/s at 500 Hz: :mod:`protocols.canopen.bus_load`)."""
+    parts = urlsplit(url)
+    query = {key: values[-1] for key, values in parse_qs(parts.query).items()}
+    unknown = set(query) - {"interface", "accelerometers"}
+    if parts.scheme != "canopen" or not parts.netloc or "interface" not in query or unknown:
+        raise ValueError(f"--listen {url!r}: expected canopen://CHANNEL?interface=NAME[&accelerometers=N]"
+                         + (f" (unknown {', '.join(sorted(unknown))})" if unknown else ""))
+    try:
+        sensors = int(query.get("accelerometers", "1"))
+    except ValueError:
+        raise ValueError(f"--listen {url!r}: accelerometers must be an integer") from None
+    return CanopenEndpoint(url, query["interface"], parts.netloc, options, sensors)
