@@ -33,6 +33,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from stream_checks import drive_excerpt, smooth_ramp, surge
 
 from drivers.canopen import CanopenTable, Move, Trajectory
 from drivers.controller import (
@@ -60,8 +61,6 @@ from protocols.canopen.sensors import (
     load_accelerometer_od,
     load_detector_od,
 )
-from rig.drive import Drive, prepare_drive
-from rig.records import load_record
 from sim_table.canopen_endpoint import FEEDBACK_DELAY, TARGET_DELAY, Recent, SyncGrid, open_endpoint
 from sim_table.endpoint import EndpointOptions
 from sim_table.process import Emulator, EmulatorConfig, parse_body
@@ -94,25 +93,6 @@ def emulated(**config: Any) -> Iterator[Emulator]:
         stop.set()
         thread.join(timeout=10)
         emulator.close()
-
-
-def surge(duration: float, function: Any) -> tuple[np.ndarray, np.ndarray]:
-    t = np.arange(round(duration * 1000) + 1) * 1e-3
-    poses = np.zeros((len(t), 6))
-    poses[:, 0] = function(t)
-    return t, poses
-
-
-def smooth_ramp(t: np.ndarray, distance: float, duration: float) -> np.ndarray:
-    tau = np.clip(t / duration, 0, 1)
-    return distance * tau**3 * (10 - 15 * tau + 6 * tau**2)
-
-
-def drive_excerpt() -> Drive:
-    """The first 6 s of NORTHR/MUL009 prepared at β = 2° (0.5 Hz corner, 0.5 s holds): a 16.4 s drive."""
-    motion = load_record("fema:NORTHR/MUL009")
-    cut = dataclasses.replace(motion, acc_h=motion.acc_h[:round(6.0 / motion.dt)])
-    return prepare_drive(cut, angle=math.radians(2), settle=0.5, corner=0.5)
 
 
 def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
