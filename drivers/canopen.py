@@ -81,6 +81,7 @@ import can
 import canopen
 import numpy as np
 
+from analysis.moves import Move, axis_limits
 from analysis.table_model import TableModel
 from drivers.controller import (
     STOPPED_STATES,
@@ -179,43 +180,6 @@ _QUERY = ("interface", "bitrate", "rate", "accelerometers")
 
 
 # ----- the motions the master plays ----------------------------------------------------------------------
-
-
-def axis_limits(table: TableModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per pose column: velocity [m/s, rad/s], acceleration [m/s², rad/s²] and jerk (inf for translations)."""
-    lim = table.limits
-    axes, tilt = (lim.surge, lim.lateral, lim.heave), lim.tilt
-    return (np.array([a.velocity for a in axes] + [tilt.rate] * 3),
-            np.array([a.acceleration for a in axes] + [tilt.acceleration] * 3),
-            np.array([math.inf] * 3 + [tilt.jerk] * 3))
-
-
-@dataclass(frozen=True, eq=False)
-class Move:
-    """A quintic move ``s = 10τ³ − 15τ⁴ + 6τ⁵`` from ``start`` to ``end`` (6,) over [t0_ns, t0_ns + duration_ns]."""
-
-    t0_ns: int
-    start: np.ndarray
-    end: np.ndarray
-    duration_ns: int
-
-    @classmethod
-    def shortest(cls, t0_ns: int, start: np.ndarray, end: np.ndarray, table: TableModel) -> Move:
-        """The shortest move within the axis limits: for a change Δ over T the quintic peaks at 15/8·Δ/T (rate),
-        10/√3·Δ/T² (acceleration) and 60·Δ/T³ (jerk)."""
-        velocity, acceleration, jerk = axis_limits(table)
-        change = np.abs(end - start)
-        duration = np.maximum.reduce([15 / 8 * change / velocity, np.sqrt(10 / math.sqrt(3) * change / acceleration),
-                                      np.cbrt(60 * change / jerk)]).max()
-        return cls(t0_ns, start.copy(), end.copy(), math.ceil(float(duration) * 1e9))
-
-    @property
-    def end_ns(self) -> int:
-        return self.t0_ns + self.duration_ns
-
-    def at(self, t_ns: int) -> np.ndarray:
-        tau = min(1.0, max(0.0, (t_ns - self.t0_ns) / self.duration_ns)) if self.duration_ns else 1.0
-        return self.start + (self.end - self.start) * (tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau))
 
 
 @dataclass(frozen=True, eq=False)

@@ -40,6 +40,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from analysis.moves import Move, axis_limits, shortest_duration
 from analysis.table_model import TableModel
 
 SEQ_MODULUS = 2**32
@@ -186,47 +187,6 @@ class Counters:
         return asdict(self)
 
 
-def _axis_limits(table: TableModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per pose column: velocity [m/s, rad/s], acceleration [m/s², rad/s²] and jerk (inf for translations)."""
-    lim = table.limits
-    axes = [lim.surge, lim.lateral, lim.heave]
-    tilt = lim.tilt
-    velocity = np.array([a.velocity for a in axes] + [tilt.rate] * 3)
-    acceleration = np.array([a.acceleration for a in axes] + [tilt.acceleration] * 3)
-    jerk = np.array([math.inf] * 3 + [tilt.jerk] * 3)
-    return velocity, acceleration, jerk
-
-
-def move_duration(start: np.ndarray, end: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray,
-                  jerk: np.ndarray) -> float:
-    """Shortest quintic move [s] from ``start`` to ``end`` (6,) keeping every axis within its limits.
-
-    The quintic's peaks for a change Δ over T: rate 15/8·Δ/T, acceleration 10/√3·Δ/T², jerk 60·Δ/T³.
-    """
-    change = np.abs(np.asarray(end) - np.asarray(start))
-    times = np.maximum.reduce([15.0 / 8.0 * change / velocity, np.sqrt(10.0 / math.sqrt(3.0) * change / acceleration),
-                               np.cbrt(60.0 * change / jerk)])
-    return float(times.max())
-
-
-@dataclass(frozen=True, eq=False)
-class Move:
-    """A quintic move from ``start`` to ``end`` (6,) starting at ``t0_ns``, lasting ``duration_ns``."""
-
-    t0_ns: int
-    start: np.ndarray
-    end: np.ndarray
-    duration_ns: int
-
-    def at(self, t_ns: int) -> np.ndarray:
-        tau = min(1.0, max(0.0, (t_ns - self.t0_ns) / self.duration_ns)) if self.duration_ns > 0 else 1.0
-        s = tau**3 * (10.0 - 15.0 * tau + 6.0 * tau * tau)
-        return self.start + (self.end - self.start) * s
-
-    def done(self, t_ns: int) -> bool:
-        return t_ns >= self.t0_ns + self.duration_ns
-
-
 class ControllerCore:
     """The controller's state machine and reference generator (module docstring).
 
@@ -239,7 +199,7 @@ class ControllerCore:
         self.table = table
         self.tick_ns = int(tick_ns)
         self.watchdog_ns = int(watchdog_ns)
-        self._velocity_limit, self._acceleration_limit, self._jerk_limit = _axis_limits(table)
+        self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
         self.state = State.IDLE
         self.faults = Fault(0)
         self.counters = Counters()
@@ -434,7 +394,8 @@ class ControllerCore:
     def _start_move(self, command: Command, target: np.ndarray, t_ns: int) -> Result:
         if self.state is not State.ARMED:
             return Result.REJECTED
-        duration = move_duration(self._p, target, self._velocity_limit, self._acceleration_limit, self._jerk_limit)
+        duration = shortest_duration(target - self._p, self._velocity_limit, self._acceleration_limit,
+                                      self._jerk_limit)
         if duration == 0.0:
             return Result.ACCEPTED
         self._move = Move(t_ns, self._p.copy(), target, math.ceil(duration * 1e9))
@@ -515,8 +476,8 @@ class ControllerCore:
         if self._move is None:
             pose = self._decelerate(dt)
             if np.array_equal(pose, self._p):  # at rest: go home
-                duration = move_duration(pose, np.zeros(6), self._velocity_limit, self._acceleration_limit,
-                                         self._jerk_limit)
+                duration = shortest_duration(pose, self._velocity_limit, self._acceleration_limit,
+                                             self._jerk_limit)
                 self._move = Move(t_ns, pose.copy(), np.zeros(6), math.ceil(duration * 1e9))
             return pose
         pose = self._move.at(t_ns)
