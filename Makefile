@@ -31,6 +31,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/prepare.py
 	$(BIN)/python benchmarks/stream.py --transport mavlink
 	$(BIN)/python benchmarks/stream.py --transport zenoh
+	$(BIN)/python benchmarks/stream.py --transport canopen
 
 clean:
 	rm -rf $(VENV) build *.egg-info
