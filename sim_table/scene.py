@@ -76,8 +76,8 @@ class ContactSettings:
     a body on a 7° plate creeps < 0.1 mm in 5 s.
     """
 
-    timestep: float = 5.0e-4
-    time_constant: float = 2.0e-3
+    timestep: float = 1.0e-3
+    time_constant: float = 4.0e-3
     solimp: tuple[float, float, float] = (0.99, 0.999, 1.0e-3)
 
     def __post_init__(self) -> None:
