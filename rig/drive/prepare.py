@@ -209,16 +209,19 @@ def _process(components: dict[str, np.ndarray], dt: float, fc: float, opts: dict
 
 
 def choose_corner(components: dict[str, np.ndarray], dt: float, limits: TableLimits, *,
-                  fc_min: float = FC_MIN, fc_max: float = FC_MAX, **opts: Any) -> float:
-    """The automatic high-pass corner [Hz] (module docstring), evaluated at the record's own ``dt``."""
+                  fc_min: float = FC_MIN, fc_max: float = FC_MAX, **opts: Any
+                  ) -> tuple[float, dict[str, processing.ProcessedChannel]]:
+    """The automatic high-pass corner [Hz] (module docstring), evaluated at the record's own ``dt``, with the
+    components processed at it."""
     nyquist = 0.5 / dt
     candidates = [fc for fc in corner_candidates(fc_min, fc_max) if fc < 0.5 * nyquist]
     if not candidates:
         raise DriveError(f"no corner frequency in [{fc_min:g}, {fc_max:g}] Hz fits below half of {nyquist:g} Hz")
     for fc in candidates:
-        if _displacement_fits(_peaks(_process(components, dt, fc, opts)), limits):
-            return float(fc)
-    return float(candidates[-1])
+        processed = _process(components, dt, fc, opts)
+        if _displacement_fits(_peaks(processed), limits):
+            break
+    return float(fc), processed
 
 
 def _scale(peaks: dict[str, dict[str, float]], limits: TableLimits, requested: float | None
@@ -272,9 +275,11 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
     components = _components(motion)
     dt = motion.dt
     try:
-        fc = choose_corner(components, dt, limits, fc_min=fc_min, fc_max=fc_max, **opts) if corner is None \
-            else float(corner)
-        processed = _process(components, dt, fc, opts)
+        if corner is None:
+            fc, processed = choose_corner(components, dt, limits, fc_min=fc_min, fc_max=fc_max, **opts)
+        else:
+            fc = float(corner)
+            processed = _process(components, dt, fc, opts)
         channels = {axis: processing.resample_channel(ch, dt, rate) for axis, ch in processed.items()}
     except ValueError as exc:  # a corner above Nyquist, a dt that does not resample to the rate
         raise DriveError(f"record {motion.name!r}: {exc}") from None
