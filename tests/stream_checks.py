@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from drivers.controller import StreamReport, open_table
+from drivers.controller import StreamReport, TableStatus, open_table
 from rig.drive import Drive, prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
@@ -41,6 +41,23 @@ def smooth_ramp(t: np.ndarray, distance: float, duration: float) -> np.ndarray:
     return distance * tau**3 * (10 - 15 * tau + 6 * tau**2)
 
 
+def assert_pose_follows(drive: Drive, report: StreamReport, statuses: list[TableStatus], pose_noise: float) -> None:
+    """The achieved pose of the statuses inside the stream follows the command within the actuators' lag:
+    |error| <= τ·max|v| over the last 50 ms + ``pose_noise`` [m, rad], and the lag is visible."""
+    during = [s for s in statuses if report.t_start_ns <= s.t_ns <= report.t_end_ns]
+    assert len(during) >= 0.95 * report.duration * 50  # 50 Hz status
+    times = np.array([s.t_ns for s in during])
+    achieved = np.array([s.pose for s in during])
+    k = (times - report.t_start_ns) / round(1e9 / drive.rate)
+    commanded = np.column_stack([np.interp(k, np.arange(len(drive.t)), drive.poses[:, j]) for j in range(6)])
+    speed = np.abs(drive.velocities)
+    window = np.array([speed[max(0, int(i) - 50):int(i) + 2].max(axis=0) for i in k])
+    error = np.abs(achieved - commanded)
+    assert np.all(error <= TAU * window * 1.02 + pose_noise), (error - TAU * window).max(axis=0)
+    assert error.max(axis=0)[0] <= TAU * speed[:, 0].max() + pose_noise  # the headline: v_max·τ + noise
+    assert error.max(axis=0)[0] > 0.2 * TAU * speed[:, 0].max()  # the lag is there
+
+
 def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chunk: int,
                      controller_type: type) -> dict[str, Any]:
     """Stream ``drive`` through the transport of ``listen`` to an emulator with a slender and a stocky body and
@@ -67,19 +84,7 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
     assert all(a[0] <= b[0] for a, b in itertools.pairwise(progress))
     spacing = round(1e9 / drive.rate)
 
-    # the achieved pose follows the command within the lag: |error| <= tau * max|v| (last 50 ms) + noise
-    during = [s for s in statuses.drain() if report.t_start_ns <= s.t_ns <= report.t_end_ns]
-    assert len(during) >= 0.95 * report.duration * 50  # 50 Hz status
-    times = np.array([s.t_ns for s in during])
-    achieved = np.array([s.pose for s in during])
-    k = (times - report.t_start_ns) / spacing
-    commanded = np.column_stack([np.interp(k, np.arange(len(drive.t)), drive.poses[:, j]) for j in range(6)])
-    speed = np.abs(drive.velocities)
-    window = np.array([speed[max(0, int(i) - 50):int(i) + 2].max(axis=0) for i in k])
-    error = np.abs(achieved - commanded)
-    assert np.all(error <= TAU * window * 1.02 + POSE_NOISE), (error - TAU * window).max(axis=0)
-    assert error.max(axis=0)[0] <= TAU * speed[:, 0].max() + POSE_NOISE  # the headline: v_max·τ + noise
-    assert error.max(axis=0)[0] > 0.2 * TAU * speed[:, 0].max()  # the lag is there
+    assert_pose_follows(drive, report, statuses.drain(), POSE_NOISE)
 
     # every accelerometer sample once, in order, contiguous: count = duration × rate, for each sensor
     received = accel.drain()
