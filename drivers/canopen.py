@@ -39,7 +39,9 @@ ARM               each drive through its CiA 402 states to *operation enabled* (
                   latched faults. Refused while a drive's heartbeat is missing.
 DISARM            disable operation on all six (only armed or faulted) → ``idle`` when none is enabled.
 HOME, SET_TILT    moves the master plays: quintic ``10τ³ − 15τ⁴ + 6τ⁵`` as in ``rig.drive.tilt``, as short as the axis
-                  velocity, acceleration and (rotations) tilt jerk limits allow.
+                  velocity, acceleration and (rotations) tilt jerk limits allow. A move (also a stop's return
+                  home) ends when its reference has arrived and the newest measured pose is within
+                  ``analysis.moves.IN_POSITION`` of its end; not in position ``SETTLE_TIME_NS`` later → DRIVE.
 START_STREAM      :meth:`CanopenTable.stream`: the master interpolates the trajectory at each ``t_n + D`` (from the
                   pose held when it was called, blending into the first sample ``lead`` s later; ``lead`` must
                   exceed D + T).
@@ -600,16 +602,28 @@ class CanopenTable(TableController):
         elif self._state == "stopping" and self._stop_reason is not None and not any(
                 e or s is State.FAULT_REACTION_ACTIVE for e, s in zip(enabled, states, strict=True)):
             self._set_state("faulted")
-        elif self._state in ("homing", "tilting") and self._move is not None and deadline >= self._move.end_ns:
+        elif self._state in ("homing", "tilting") and self._move is not None and self._arrived(self._move, deadline):
             self._move = None
             self._set_state("armed")
         elif self._state == "streaming" and self._trajectory is not None and deadline >= self._trajectory.t_end_ns:
             self._trajectory = None
             self._set_state("armed")
         elif (self._state == "stopping" and self._stop_reason is None and self._homing_after_stop
-              and self._move is not None and deadline >= self._move.end_ns):
+              and self._move is not None and self._arrived(self._move, deadline)):
             self._move = None
             self._set_state("armed")
+
+    def _arrived(self, move: Move, deadline: int) -> bool:
+        """Whether ``move`` has ended: its reference arrived and the newest measured pose is in position (a DRIVE
+        fault, which stops the table, when that is overdue)."""
+        if deadline < move.end_ns:
+            return False
+        complete = [index for index, frame in self._frames.items() if len(frame) == len(self._drives)]
+        if complete and move.in_position(self._frame_pose(self._frames[max(complete)])):
+            return True
+        if move.settle_overdue(deadline):
+            self._fault("DRIVE")  # a following error: the legs did not reach their targets
+        return False
 
     def _fault(self, name: str) -> None:
         """Latch a fault; a stopping one quick-stops every drive (module docstring)."""
@@ -687,6 +701,11 @@ class CanopenTable(TableController):
             self._faults.add("STROKE")
         return list(self.scaling.positions(lengths.tolist()))
 
+    def _frame_pose(self, frame: dict[int, int]) -> np.ndarray:
+        """The pose (6,) of the leg positions [µm] one SYNC's TPDOs reported (forward kinematics)."""
+        lengths = np.array(self.scaling.lengths([frame[leg] for leg in range(len(self._drives))]))
+        return self.table.pose_from_leg_lengths(lengths, guess=self._measured)
+
     def _measured_pose(self) -> np.ndarray:
         lengths = np.array(self.scaling.lengths([link.position for link in self._drives]))
         self._measured = self.table.pose_from_leg_lengths(lengths, guess=self._measured)
@@ -711,9 +730,7 @@ class CanopenTable(TableController):
 
     def _status(self, index: int, deadline: int, now: int) -> TableStatus:
         """The status of SYNC ``index`` (at ``deadline``): the pose its TPDOs report, the state now."""
-        frame = self._frames[index]
-        lengths = np.array(self.scaling.lengths([frame[leg] for leg in range(len(self._drives))]))
-        self._measured = self.table.pose_from_leg_lengths(lengths, guess=self._measured)
+        self._measured = self._frame_pose(self._frames[index])
         depth = 0
         if self._state == "streaming" and self._trajectory is not None:
             depth = len(self._trajectory.poses) - self._trajectory.due(self._tau)

@@ -21,6 +21,9 @@ Reference generation:
   jerk).
 - **Stopping** (STOP, a watchdog, a drive fault): decelerate to rest as in an underrun, then move home; then
   ``armed`` (STOP) or ``faulted``.
+- A move has ended when its reference has arrived and the achieved pose (:meth:`observe`) is in position
+  (``analysis.moves.IN_POSITION``); not in position ``SETTLE_TIME_NS`` after its reference arrived → DRIVE fault
+  (following error; a stop's return home then ends ``faulted`` where the plate is).
 
 Watchdogs: while streaming (before END_OF_STREAM arrived), no chunk for more than ``watchdog_ns`` →
 STREAM_SILENT; while armed, homing, tilting or streaming, no host heartbeat for more than ``watchdog_ns``
@@ -308,7 +311,7 @@ class ControllerCore:
         elif state in (State.HOMING, State.TILTING):
             assert self._move is not None
             pose = self._move.at(t_ns)
-            if self._move.done(t_ns):
+            if self._arrived(self._move, t_ns):
                 self._finish_motion(t_ns, Result.ACCEPTED)
                 self._set_state(State.ARMED, t_ns)
         elif state is State.STOPPING:
@@ -481,10 +484,21 @@ class ControllerCore:
                 self._move = Move(t_ns, pose.copy(), np.zeros(6), math.ceil(duration * 1e9))
             return pose
         pose = self._move.at(t_ns)
-        if self._move.done(t_ns):
+        if self._arrived(self._move, t_ns):
             self._move = None
             self._set_state(State.ARMED if self._stop_reason is None else State.FAULTED, t_ns)
         return pose
+
+    def _arrived(self, move: Move, t_ns: int) -> bool:
+        """Whether ``move`` has ended: reference arrived and the plate in position (a DRIVE fault when overdue;
+        a stop's return home ends then, faulted)."""
+        if not move.done(t_ns) or move.in_position(self._achieved):
+            return move.done(t_ns)
+        if move.settle_overdue(t_ns):
+            stopping = self.state is State.STOPPING
+            self.raise_fault(Fault.DRIVE, t_ns)  # a move in progress becomes a stop
+            return stopping
+        return False
 
     def _begin_stop(self, t_ns: int, reason: Fault | None) -> None:
         if reason is not None and reason & (Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST):

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from analysis.body import G
+from analysis.moves import IN_POSITION, SETTLE_TIME_NS
 from analysis.table_model import TableModel
 from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack
@@ -34,12 +35,16 @@ def streaming(first_seq: int = 0) -> ControllerCore:
 
 
 def run(core: ControllerCore, start_ms: int, stop_ms: int, *, heartbeat: bool = True) -> np.ndarray:
-    """Ticks start..stop (ms, inclusive) with a heartbeat before each; the references (n, 6)."""
+    """Ticks start..stop (ms, inclusive) with a heartbeat before each, ideal actuators (the achieved pose is the
+    reference); the references (n, 6)."""
     out = []
     for ms in range(start_ms, stop_ms + 1):
         if heartbeat:
             core.heartbeat(ms * MS)
-        out.append(core.tick(ms * MS)[0].copy())
+        reference, braked = core.tick(ms * MS)
+        if not braked:
+            core.observe(reference)
+        out.append(reference.copy())
     return np.array(out)
 
 
@@ -118,6 +123,40 @@ def test_stop_decelerates_then_goes_home_and_arms() -> None:
     np.testing.assert_allclose(refs[-1], np.zeros(6), atol=1e-15)
     assert core.counters.stops == 1 and core.faults == Fault(0)
     assert core.snapshot(1500 * MS, refs[-1]).buffer_depth == 0
+
+
+def test_a_move_ends_when_the_plate_is_in_position_and_a_plate_that_never_arrives_faults() -> None:
+    """The reference of a 5° tilt arrives at T; a plate that only then starts to follow (first-order lag, τ = 5 ms)
+    keeps the state ``tilting`` until it is within IN_POSITION of the target, τ·ln(β/IN_POSITION) ≈ 42 ms later;
+    a plate held 1 mrad short faults (DRIVE, following error) SETTLE_TIME_NS after T and the table stops."""
+    beta = math.radians(5)
+    arrival = ramp_duration(beta, TABLE.limits.tilt, 1000.0)  # [s]
+    end_ms = math.ceil(arrival * 1000)
+    core = armed()
+    assert core.command(Command.SET_TILT, (beta, 0.0), True, 0) is Result.IN_PROGRESS
+    achieved, armed_at = np.zeros(6), None
+    for ms in range(1, end_ms + 200):
+        core.heartbeat(ms * MS)
+        reference, _ = core.tick(ms * MS)
+        if ms > end_ms:
+            achieved = reference + (achieved - reference) * math.exp(-1e-3 / 0.005)
+        core.observe(achieved)
+        if armed_at is None and core.state is State.ARMED:
+            armed_at, error = ms, np.abs(achieved - [0, 0, 0, 0, beta, 0]).max()
+    # in position at T + ceil(42 ms); the tick after that observation arms
+    assert armed_at == end_ms + math.ceil(5 * math.log(beta / IN_POSITION)) + 1 and error <= IN_POSITION
+
+    core = armed()
+    core.command(Command.SET_TILT, (beta, 0.0), True, 0)
+    short = np.array([0, 0, 0, 0, beta - 1e-3, 0])
+    for ms in range(1, end_ms + SETTLE_TIME_NS // MS + 2):
+        core.heartbeat(ms * MS)
+        core.tick(ms * MS)
+        core.observe(short)
+        if core.state is not State.TILTING:
+            break
+    assert abs(ms * 1e-3 - (arrival + SETTLE_TIME_NS * 1e-9)) <= 1e-3  # the tick past the settle time
+    assert core.state is State.STOPPING and core.faults & Fault.DRIVE
 
 
 # ----- the setpoint buffer ----------------------------------------------------------------------------------
