@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from stream_checks import drive_excerpt
 
-from drivers.controller import StreamAbortedError, TableStatus, open_table
+from drivers.controller import TableStatus, open_table
 from protocols.mavlink import UdpLink, dialect, enable_signing
 from rig.emulator import EmulatorProcess
 
@@ -121,40 +121,38 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
-def test_five_percent_loss_during_a_drive_trips_the_heartbeat_watchdog(transport: str, key_file: Path) -> None:
-    """5 % of the messages lost both ways while streaming the 16.4 s drive excerpt. The host heartbeats at 20 Hz
-    against a 100 ms watchdog: a single lost heartbeat leaves a gap of ≥ 100 ms, so over ~330 heartbeats the
-    watchdog fires (P(no trip) ≈ 0.95^330); the outcome is the same for every seed tried, only the moment varies
-    (the emulator's one loss generator serves both directions in thread order). The stream aborts cleanly: a
-    controlled stop to home, ``faulted`` with HEARTBEAT_LOST, nothing left moving, no jump."""
+def test_five_percent_loss_during_a_drive_still_plays_it(transport: str, key_file: Path) -> None:
+    """5 % of the messages lost both ways while streaming the 16.4 s drive excerpt: the drive plays to its end.
+    The host heartbeats at 50 Hz against the 100 ms watchdog (five lost in a row to trip it) and sends every chunk
+    twice, so a chunk is missing only when both copies are lost; the controller bridges such a gap by
+    interpolation (CHUNK_GAP latched, not a stopping fault). The achieved pose follows the command."""
     drive = drive_excerpt()
     emulator = EmulatorProcess.start(LISTEN[transport], "--loss", "5", "--seed", "3", key_file=key_file)
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             statuses = table.statuses()
             table.arm()
-            with pytest.raises(StreamAbortedError, match="HEARTBEAT_LOST") as aborted:
-                table.stream(drive.t, drive.poses, lead=0.05)
-            final = table.wait_for_state("faulted", 15)
-            time.sleep(0.3)
-            rest = table.status()
+            report = table.stream(drive.t, drive.poses, lead=0.05)
             seen = statuses.drain()
     finally:
         counters = emulator.stop()
-    report = aborted.value.report
-    assert report.final is not None and report.final.state in ("stopping", "faulted")
-    assert report.samples < len(drive.t) and counters["streams_completed"] == 0
-    assert "HEARTBEAT_LOST" in final.faults
-    assert set(final.faults) <= {"HEARTBEAT_LOST", "CHUNK_GAP", "UNDERRUN", "STREAM_SILENT"}
-    assert counters["watchdog_stops"] == 1
-    states = [s.state for s in seen]
-    changes = [a for a, b in zip(states, [*states[1:], None], strict=True) if a != b]
-    assert changes[-3:] == ["streaming", "stopping", "faulted"]
-    surges = np.array([s.pose[0] for s in seen])
-    assert np.all(np.abs(np.diff(surges)) < 0.01)  # no jump between received statuses (some lost: 5 %)
-    assert rest.state == "faulted"
-    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # stopped and home
-    np.testing.assert_allclose(rest.pose, final.pose, atol=1e-4)  # and at rest there
+    link = counters["link"]
+    dropped = link.get("packets_dropped", link.get("messages_dropped"))
+    assert dropped > 0.03 * counters["chunks_accepted"]  # the loss was there
+    assert counters["streams_completed"] == 1 and counters["watchdog_stops"] == 0
+    assert counters["chunks_duplicate"] > 0.8 * counters["chunks_accepted"]  # the second copies arrived too
+    assert report.final is not None and report.final.state == "armed" and report.samples == len(drive.t)
+    assert set(report.final.faults) <= {"CHUNK_GAP"}
+    assert report.underruns == 0
+    streaming = [s for s in seen if s.state == "streaming"]
+    t_drive = (np.array([s.t_ns for s in streaming]) - report.t_start_ns) * 1e-9
+    inside = (t_drive >= 0.1) & (t_drive <= drive.t[-1])
+    command = np.interp(t_drive[inside], drive.t, drive.poses[:, 0])
+    achieved = np.array([s.pose[0] for s in streaming])[inside]
+    assert inside.sum() > 100
+    # the surge lag bound of the actuator model, v_max·τ (τ = 5 ms), plus the status timing and noise
+    v_max = np.abs(np.gradient(drive.poses[:, 0], drive.t)).max()
+    assert np.abs(achieved - command).max() <= v_max * 0.005 + 5e-4
 
 
 # ----- a replayed signed MAVLink message ------------------------------------------------------------------------
