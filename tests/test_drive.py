@@ -252,6 +252,23 @@ def test_drive_timeline_tilt_ramps_and_rest_at_both_ends() -> None:
     assert np.all(drive.poses[drive.t < start, :3] == 0.0)  # the plate tilts before it moves
 
 
+def test_a_drive_for_a_table_already_tilted_starts_and_ends_at_the_tilt() -> None:
+    """``ramps=False``: the same motion, without the ramps — shorter by both ramps, pitch β throughout, the
+    translations identical to the ramped drive's over the motion, at rest at both ends."""
+    dt = 0.005
+    _, _, _, acc = burst(0.05, 1.0, 8, dt)
+    beta = math.radians(5.0)
+    ramped = prepare_drive(motion_from(acc, dt), angle=beta)
+    tilted = prepare_drive(motion_from(acc, dt), angle=beta, ramps=False)
+    n_ramp = round(tilt.ramp_duration(beta, TABLE_IV.tilt, 1000.0) * 1000)
+    assert len(tilted.t) == len(ramped.t) - 2 * n_ramp
+    np.testing.assert_array_equal(tilted.poses[:, 4], beta)
+    np.testing.assert_array_equal(tilted.poses[:, :3], ramped.poses[n_ramp:len(ramped.t) - n_ramp, :3])
+    assert tilted.scale_factor == ramped.scale_factor
+    assert np.all(tilted.poses[[0, -1], :3] == 0.0) and np.all(tilted.velocities[[0, -1]] == 0.0)
+    assert tilted.motion[0] == pytest.approx(ramped.motion[0] - n_ramp / 1000)
+
+
 def test_ramp_duration_is_set_by_the_binding_tilt_limit() -> None:
     limits = TABLE_IV.tilt
     change = math.radians(7.0)

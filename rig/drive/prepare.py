@@ -244,7 +244,7 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
                   scale: float | None = None, corner: float | None = None, rate: float | None = None,
                   settle: float = SETTLE_SECONDS, order: int = processing.FILTER_ORDER,
                   baseline_degree: int = processing.BASELINE_DEGREE, taper: float = processing.TAPER_SECONDS,
-                  fc_min: float = FC_MIN, fc_max: float = FC_MAX) -> Drive:
+                  fc_min: float = FC_MIN, fc_max: float = FC_MAX, ramps: bool = True) -> Drive:
     """Prepare ``motion`` for the table at static tilt ``angle`` [rad] (see the module docstring).
 
     Args:
@@ -257,6 +257,9 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
         settle: seconds held at the tilt before and after the motion.
         order, baseline_degree, taper: the processing chain's options (`rig.drive.processing`).
         fc_min, fc_max: range of the automatic corner [Hz].
+        ramps: True: the drive starts and ends at home, tilting up to ``angle`` and back down in it; False: for
+            a table already tilted (SET_TILT, as a test sequence does once per angle), it starts and ends at the
+            tilt (pitch = ``angle``), only the holds of ``settle`` around the motion.
 
     Raises:
         DriveError: an option is out of range or a fixed ``scale`` does not fit.
@@ -294,16 +297,21 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
     for axis, by_quantity in unscaled_peaks.items():
         peaks[axis] = {q: scale_factor * v for q, v in by_quantity.items()}
     return _assemble(motion.name, channels, pad_seconds, angle, rate, settle, scale_factor, governing, fc,
-                     pga_ratio, peaks, table)
+                     pga_ratio, peaks, table, ramps)
 
 
 def _assemble(record: str, channels: dict[str, processing.ProcessedChannel], pad_seconds: float, angle: float,
               rate: float, settle: float, scale_factor: float, governing: Governing, fc: float,
-              pga_ratio: dict[str, float], peaks: dict[str, dict[str, float]], table: TableModel) -> Drive:
-    """Ramp up, hold, motion, hold, ramp down, home — then the check against the table model."""
-    ramp_time = tilt.ramp_duration(angle, table.limits.tilt, rate)
-    up = tilt.ramp(0.0, angle, ramp_time, rate)
-    down = tilt.ramp(angle, 0.0, ramp_time, rate)
+              pga_ratio: dict[str, float], peaks: dict[str, dict[str, float]], table: TableModel,
+              ramps: bool) -> Drive:
+    """Ramp up, hold, motion, hold, ramp down, home (without ``ramps``: hold, motion, hold at the tilt) — then the
+    check against the table model."""
+    if ramps:
+        ramp_time = tilt.ramp_duration(angle, table.limits.tilt, rate)
+        up = tilt.ramp(0.0, angle, ramp_time, rate)
+        down = tilt.ramp(angle, 0.0, ramp_time, rate)
+    else:
+        up = down = (np.zeros(0), np.zeros(0), np.zeros(0))
     n_ramp, n_settle = up[0].size, round(settle * rate)
     n_motion = max(ch.acceleration.size for ch in channels.values())
     n = 2 * n_ramp + 2 * n_settle + n_motion + 1
@@ -314,6 +322,8 @@ def _assemble(record: str, channels: dict[str, processing.ProcessedChannel], pad
         for out, values in ((poses, ch.displacement), (velocities, ch.velocity), (accelerations, ch.acceleration)):
             out[first:first + values.size, col] = scale_factor * values
     poses[n_ramp:n - 1 - n_ramp, PITCH] = angle
+    if not ramps:
+        poses[n - 1, PITCH] = angle
     for part, rows in ((up, slice(0, n_ramp)), (down, slice(n - 1 - n_ramp, n - 1))):
         poses[rows, PITCH] = part[0]
         velocities[rows, PITCH] = part[1]
