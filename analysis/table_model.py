@@ -57,12 +57,10 @@ joints), so that ``from_dict(to_dict())`` gives back an equal model exactly.
 
 from __future__ import annotations
 
-import difflib
 import math
 import numbers
-import re
 import tomllib
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -72,6 +70,8 @@ from numba import njit
 
 from analysis.body import G
 from analysis.errors import AnalysisInputError
+from analysis.toml_lines import find_line, key_lines, syntax_message
+from analysis.toml_lines import suggest as _suggest
 
 _DEG = math.pi / 180.0
 """One degree [rad]; every degree value of this module (defaults and files) is converted with it."""
@@ -555,7 +555,7 @@ class TableModel:
         try:
             data = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            raise TableModelError(_syntax_message(source, text, str(exc))) from None
+            raise TableModelError(syntax_message(source, text, str(exc))) from None
         return _Reader(source, text).model(data)
 
 
@@ -727,26 +727,16 @@ def _keys(spec: _Spec) -> list[str]:
     return [key for keys, _ in spec.values() for key in keys]
 
 
-def _suggest(word: str, choices: Iterable[str]) -> str:
-    close = difflib.get_close_matches(word, list(choices), n=1)
-    return f" (did you mean {close[0]!r}?)" if close else ""
-
-
 class _Reader:
     """Reads a configuration mapping; ``text`` (the TOML source) gives the line numbers of keys."""
 
     def __init__(self, source: str, text: str | None) -> None:
         self.source = source
-        self.lines = _key_lines(text) if text is not None else {}
+        self.lines = key_lines(text) if text is not None else {}
 
     def line(self, path: tuple[str, ...]) -> int | None:
         """The line of ``path``, else of the first key or header under it, else of its nearest parent."""
-        for end in range(len(path), 0, -1):
-            prefix = path[:end]
-            line = self.lines.get(prefix) or next((n for p, n in self.lines.items() if p[:end] == prefix), None)
-            if line:
-                return line
-        return None
+        return find_line(self.lines, path)
 
     def error(self, path: tuple[str, ...], problem: str) -> TableModelError:
         line = self.line(path)
@@ -839,50 +829,3 @@ class _Reader:
                 if not math.isfinite(self.number(coordinate, path)):
                     raise self.error(path, f"joint {k}: coordinates must be finite, got {row!r}")
         return np.array(rows, dtype=float)
-
-
-def _key_lines(text: str) -> dict[tuple[str, ...], int]:
-    """1-based line of each table header and ``key =`` of a TOML text, by full dotted path.
-
-    A small scanner, enough for configuration files: ``[a.b]`` headers, bare or quoted (dotted) keys,
-    and values that continue over several lines inside brackets (joint arrays).
-    """
-    lines: dict[tuple[str, ...], int] = {}
-    section: tuple[str, ...] = ()
-    depth = 0
-    for number, raw in enumerate(text.splitlines(), start=1):
-        line = raw.split("#", 1)[0].strip()
-        if depth > 0:
-            depth += line.count("[") - line.count("]")
-            continue
-        header = _HEADER.fullmatch(line)
-        if header:
-            section = _dotted(header.group(1))
-            lines.setdefault(section, number)
-            continue
-        key = _KEY.match(line)
-        if key:
-            lines.setdefault((*section, *_dotted(key.group(1))), number)
-            value = line[key.end():]
-            depth = value.count("[") - value.count("]")
-    return lines
-
-
-_NAME = r"""(?:[A-Za-z0-9_-]+|"[^"]*"|'[^']*')"""
-_HEADER = re.compile(rf"\[\s*({_NAME}(?:\s*\.\s*{_NAME})*)\s*\]")
-_KEY = re.compile(rf"({_NAME}(?:\s*\.\s*{_NAME})*)\s*=")
-
-
-def _dotted(name: str) -> tuple[str, ...]:
-    return tuple(part.strip().strip("\"'") for part in re.findall(_NAME, name))
-
-
-def _syntax_message(source: str, text: str, message: str) -> str:
-    """``FILE:LINE: TOML syntax error: ...`` from tomllib's ``... (at line L, column C)`` message."""
-    found = re.search(r"\s*\(at line (\d+), column (\d+)\)$", message)
-    if found:
-        return f"{source}:{found.group(1)}: TOML syntax error: {message[: found.start()]} (column {found.group(2)})"
-    if message.endswith("(at end of document)"):
-        line = text.count("\n") + (0 if text.endswith("\n") else 1)
-        return f"{source}:{line}: TOML syntax error: {message.removesuffix(' (at end of document)')} at the end"
-    return f"{source}: TOML syntax error: {message}"

@@ -1,0 +1,201 @@
+"""The parts of a sequence: placed bodies, record entries, operator steps, drive options, planned runs.
+
+Units: lengths in metres, mass in kg, angles in degrees where the name says ``_deg`` (as in the file) and
+radians otherwise, times in seconds, frequencies in Hz. Every part has a ``to_dict`` in the sequence file's
+own layout (plain JSON types), so that a sequence's ``to_dict`` reads back with ``Sequence.from_dict``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from analysis.body import Body
+from rig.drive.prepare import SETTLE_SECONDS
+
+
+class SequenceError(ValueError):
+    """A sequence that cannot be run: ``FILE:LINE: key.path: what is wrong, expected …``.
+
+    ``source`` is the file (or ``<dict>``), ``line`` the 1-based line of the key (None when unknown),
+    ``key`` the dotted key path (list items counted from 1, e.g. ``bodies[2].h``; empty for the whole file)
+    and ``problem`` the message without the place.
+    """
+
+    def __init__(self, source: str, line: int | None, key: str, problem: str) -> None:
+        where = f"{source}:{line}" if line else source
+        super().__init__(f"{where}: {key}: {problem}" if key else f"{where}: {problem}")
+        self.source, self.line, self.key, self.problem = source, line, key, problem
+
+
+DEFAULT_FRICTION = 0.8
+"""Friction coefficient μ between a body and the plate when the file gives none [-] (the emulator's)."""
+
+DEFAULT_PLATE = (3.0, 3.0)
+"""Usable top surface of the plate along x (fall line) and y [m]: the rig's ~3 m plate."""
+
+DEFAULT_PROMPT = "Place the bodies at their marks on the plate ({angle_deg:g}°), then confirm."
+"""The operator's prompt before each angle; ``{angle_deg}``, ``{bodies}`` and ``{sequence}`` are filled in."""
+
+PROMPT_FIELDS = ("angle_deg", "bodies", "sequence")
+"""The placeholders a ``place_bodies`` prompt may use."""
+
+
+@dataclass(frozen=True)
+class PlacedBody:
+    """One body at its place on the plate.
+
+    ``body_id`` is its 1-based position in the file (stable: the session file's ``body_id``); ``body`` its
+    dimensions b (along the fall line), h, depth [m] and mass [kg]; ``x``, ``y`` [m] the centre of its base
+    in the plate frame (x along the fall line, +x downhill); ``friction`` μ [-] between body and plate.
+    """
+
+    body_id: int
+    body: Body
+    x: float
+    y: float
+    friction: float = DEFAULT_FRICTION
+
+    @property
+    def name(self) -> str:
+        """The body's name (from the file, Table V's ``T5-N``, or ``body N``)."""
+        return self.body.name
+
+    @property
+    def depth(self) -> float:
+        """Extent along the plate's y [m]."""
+        return float(self.body.depth) if self.body.depth is not None else 2.0 * self.body.b
+
+    def footprint(self) -> tuple[float, float, float, float]:
+        """(x_min, x_max, y_min, y_max) of its base on the plate [m]."""
+        hb, hd = 0.5 * self.body.b, 0.5 * self.depth
+        return self.x - hb, self.x + hb, self.y - hd, self.y + hd
+
+    def standing_problem(self, angle_deg: float) -> str | None:
+        """Why the body cannot stand still on a plate tilted by ``angle_deg`` [deg], or None if it can.
+
+        A uniform block tips over once β ≥ α = atan(b/h) and slides once tan β ≥ μ.
+        """
+        beta = math.radians(angle_deg)
+        alpha = math.degrees(self.body.alpha)
+        what = f"body {self.body_id} ({self.name}, b = {self.body.b:g} m, h = {self.body.h:g} m)"
+        if beta >= self.body.alpha:
+            return (f"{what} cannot stand at β = {angle_deg:g}°: its slenderness angle α = atan(b/h) = "
+                    f"{alpha:.2f}°, and a block tips over once β ≥ α (expected β < {alpha:.2f}°)")
+        if math.tan(beta) >= self.friction:
+            return (f"{what} would slide at β = {angle_deg:g}°: tan β = {math.tan(beta):.3f} ≥ friction μ = "
+                    f"{self.friction:g} (expected tan β < μ)")
+        return None
+
+    def to_dict(self) -> dict[str, Any]:
+        b = self.body
+        return {"body_id": self.body_id, "name": b.name, "b": b.b, "h": b.h, "depth": self.depth,
+                "mass": b.mass, "x": self.x, "y": self.y, "friction": self.friction}
+
+
+@dataclass(frozen=True)
+class RecordEntry:
+    """One record of the sequence and how to play it.
+
+    ``spec`` is the record as written (``SUITE:NAME``, ``library:NAME``, a file or ``H1+H2[+UP]``),
+    ``resolved`` the same with file paths made absolute (relative paths are read from the sequence file's
+    folder). ``scale`` is None for the ``"table"`` policy (the largest factor ≤ 1 inside the table's limits)
+    or a fixed factor in (0, 1]. ``window`` (t0, t1) [s] plays only that part of the record (the drive
+    preparation tapers its ends and brings the table to rest). ``corner`` [Hz] fixes the high-pass corner
+    (None: the ``[drive]`` option, else automatic). ``dt`` [s] and ``units`` are for record files that do not
+    state them. ``key``/``line`` say where the entry is in the file (``records[2]``, ``records_from``).
+    """
+
+    spec: str
+    resolved: str
+    scale: float | None = None
+    window: tuple[float, float] | None = None
+    corner: float | None = None
+    dt: float | None = None
+    units: str | None = None
+    key: str = "records"
+    line: int | None = None
+
+    @property
+    def scale_policy(self) -> str | float:
+        """``"table"`` or the fixed factor."""
+        return "table" if self.scale is None else self.scale
+
+    def label(self) -> str:
+        """The spec with its window, e.g. ``fema:KOBE/NIS000 [5-10 s]``."""
+        return self.spec if self.window is None else f"{self.spec} [{self.window[0]:g}-{self.window[1]:g} s]"
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"record": self.resolved, "scale": self.scale_policy}
+        for key, value in (("window_s", self.window), ("corner_hz", self.corner), ("dt_s", self.dt),
+                           ("units", self.units)):
+            if value is not None:
+                out[key] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+@dataclass(frozen=True)
+class OperatorSteps:
+    """What the orchestrator asks of the operator.
+
+    ``place_bodies``: the prompt shown before each angle (placeholders ``{angle_deg}``, ``{bodies}``,
+    ``{sequence}``); ``confirm_before_run``: wait for a confirmation before each run moves the table;
+    ``ask_detections``: ask the operator which bodies overturned and which way after each run (instead of
+    relying on the sensors alone).
+    """
+
+    place_bodies: str = DEFAULT_PROMPT
+    confirm_before_run: bool = True
+    ask_detections: bool = False
+
+    def place_prompt(self, angle_deg: float, bodies: tuple[PlacedBody, ...] = (), sequence: str = "") -> str:
+        """The placement prompt for one angle [deg]."""
+        names = ", ".join(f"{b.body_id}: {b.name} at ({b.x:g}, {b.y:g}) m" for b in bodies)
+        return self.place_bodies.format(angle_deg=angle_deg, bodies=names, sequence=sequence)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"place_bodies": self.place_bodies, "confirm_before_run": self.confirm_before_run,
+                "ask_detections": self.ask_detections}
+
+
+@dataclass(frozen=True)
+class DriveOptions:
+    """Drive preparation options for every record: ``settle`` [s] held at the tilt before and after the
+    motion, ``corner`` [Hz] a fixed high-pass corner (None: automatic, as ``rig prepare``)."""
+
+    settle: float = SETTLE_SECONDS
+    corner: float | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {"settle_s": self.settle}
+        if self.corner is not None:
+            out["corner_hz"] = self.corner
+        return out
+
+
+@dataclass(frozen=True)
+class PlannedRun:
+    """One run of the plan: a record at an angle, one repetition.
+
+    ``plan_index`` 0…n−1 in the order the runs are played (per angle in file order, per record, per
+    repetition); ``angle_index`` and ``record_index`` index ``Sequence.angles_deg`` and ``Sequence.records``;
+    ``repetition`` counts from 0.
+    """
+
+    plan_index: int
+    angle_index: int
+    angle_deg: float
+    record_index: int
+    record: RecordEntry
+    repetition: int
+
+    @property
+    def angle(self) -> float:
+        """The plate tilt β [rad]."""
+        return math.radians(self.angle_deg)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"plan_index": self.plan_index, "angle_index": self.angle_index, "angle_deg": self.angle_deg,
+                "record_index": self.record_index, "record": self.record.resolved,
+                "scale": self.record.scale_policy, "repetition": self.repetition}
