@@ -15,7 +15,8 @@ of a cycle (SYNC, RPDO1 + TPDO1 per drive, a TPDO per accelerometer) must stay w
 numbers (:class:`~protocols.canopen.BusLoadError`, a ValueError). 500 Hz with one accelerometer takes 77.5 %.
 
 **Connecting.** NMT pre-operational; by SDO each drive gets CSP (0x6060 = 8, checked in 0x6061), the cycle period
-0x1006, the software position limits 0x607D and the speed limit 0x607F of the table model's legs, a heartbeat
+0x1006, the software position limits 0x607D and the speed limit 0x607F of the table model's legs, its following
+error window 0x6065 (:data:`FOLLOWING_ERROR_LAG` at the legs' top speed), a heartbeat
 every :data:`HEARTBEAT_PERIOD` (0x1017), the master's heartbeat to consume (0x1016: :data:`CONSUMER_TIME`) and its
 PDO maps (RPDO1 controlword + target, TPDO1 statusword + position actual); the master reads its target delay
 (0x2010) and feedback delay (0x2011). The accelerometers get their SYNC TPDO and heartbeat (sample delay 0x2101),
@@ -49,7 +50,9 @@ STOP              the master decelerates its reference at the axis accelerations
 EMERGENCY_STOP    the quick stop controlword to all six in one cycle (they latch it at the same SYNC): the legs stop
                   at once, no return home; only ARM leaves ``emergency_stopped``.
 faults            an EMCY (0x8130 → HEARTBEAT_LOST: the drives lost this master's heartbeat; 0x8700 →
-                  STREAM_SILENT: their setpoints stopped; other codes → DRIVE), a drive's statusword in fault, a
+                  STREAM_SILENT: their setpoints stopped; other codes → DRIVE, among them 0x8611, a leg's
+                  following error beyond 0x6065; the fault event names the node and code that raised it:
+                  :attr:`~drivers.controller.FaultEvent.sources`), a drive's statusword in fault, a
                   drive's heartbeat older than :data:`NODE_CONSUMER_TIME` (DRIVE) or statusword bit 11 (internal
                   limit: SETPOINT_LIMIT) latch a fault. DRIVE, HEARTBEAT_LOST and STREAM_SILENT stop the table: a
                   hexapod cannot make a coordinated move without one of its legs, so the master quick-stops every
@@ -92,6 +95,7 @@ from drivers.controller import (
     CommandFailedError,
     CommandRejectedError,
     Detection,
+    FaultSource,
     StreamAbortedError,
     StreamReport,
     TableController,
@@ -148,6 +152,12 @@ MASTER_HEARTBEAT_PERIOD = 0.02
 
 CONSUMER_TIME = 0.1
 """The drives' consumer time of the master's heartbeat [s] (0x1016): without one for this long they stop the table."""
+
+FOLLOWING_ERROR_LAG = 0.010
+"""How far behind its command a leg may be, as time at the legs' top speed [s]: each drive's following error window
+0x6065 is this × the table model's leg speed (9000 µm at 0.9 m/s). A leg that follows trails its command by τ·v (a
+first-order lag, τ = 5 ms for the table's drives), by at most 4.5 mm at top speed: the window is twice that bound.
+A leg that stops while moving at v trips it (9 mm − τ·v)/v later: 5 ms at top speed, 85 ms at 0.1 m/s."""
 
 NODE_CONSUMER_TIME = 0.2
 """The master's consumer time of each node's heartbeat [s] (four periods): older, the node is lost."""
@@ -350,6 +360,9 @@ class CanopenTable(TableController):
         """Largest lateness of a cycle [ns]."""
         self.silent_drives: set[int] = set()
         """Legs (1..6) whose heartbeat was lost since the last ARM."""
+        self.following_error_window_um = round(FOLLOWING_ERROR_LAG * self.table.geometry.leg_speed * 1e6)
+        """The following error window 0x6065 written to every drive [µm] (:data:`FOLLOWING_ERROR_LAG`)."""
+        self._sources: list[FaultSource] = []  # EMCYs since the last status (under _lock)
 
     # ----- connection -----------------------------------------------------------------------------------
 
@@ -401,6 +414,7 @@ class CanopenTable(TableController):
             sdo[drive_od.SOFTWARE_POSITION_LIMIT][1].raw = low
             sdo[drive_od.SOFTWARE_POSITION_LIMIT][2].raw = high
             sdo[drive_od.MAX_PROFILE_VELOCITY].raw = velocity_increments(geometry.leg_speed)
+            sdo[drive_od.FOLLOWING_ERROR_WINDOW].raw = self.following_error_window_um
             sdo[drive_od.MODES_OF_OPERATION].raw = drive_od.MODE_CYCLIC_SYNCHRONOUS_POSITION
             if sdo[drive_od.MODES_OF_OPERATION_DISPLAY].raw != drive_od.MODE_CYCLIC_SYNCHRONOUS_POSITION:
                 raise TableError(f"{self.url}: drive {node.id} did not take cyclic synchronous position mode")
@@ -523,6 +537,7 @@ class CanopenTable(TableController):
             return  # error reset
         with self._lock:
             link.emcy.append((error.code, time.monotonic_ns()))
+            self._sources.append(FaultSource(link.node.id, error.code))
             self._fault(_EMCY_FAULTS.get(error.code, "DRIVE"))
 
     # ----- the cycle ------------------------------------------------------------------------------------
@@ -536,16 +551,20 @@ class CanopenTable(TableController):
             while not self._closing.is_set():
                 self._next_deadline = deadline
                 lateness = sleep_until(deadline)
-                for status in self._cycle(index, deadline, lateness, index % heartbeat_every == 0, status_every):
-                    self.feedback.publish_status(status)
+                statuses, sources = self._cycle(index, deadline, lateness, index % heartbeat_every == 0,
+                                                status_every)
+                for status in statuses:
+                    self.feedback.publish_status(status, sources)
                 index += 1
                 deadline += self.period_ns
         except BaseException as exc:  # the drives' heartbeat consumers notice the silence and stop the table
             self._failure = exc
             self.feedback.notify()
 
-    def _cycle(self, index: int, deadline: int, lateness: int, heartbeat: bool, status_every: int) -> list[TableStatus]:
-        """One cycle at ``deadline`` (module docstring); the statuses to publish."""
+    def _cycle(self, index: int, deadline: int, lateness: int, heartbeat: bool,
+               status_every: int) -> tuple[list[TableStatus], tuple[FaultSource, ...]]:
+        """One cycle at ``deadline`` (module docstring); the statuses to publish and the EMCYs received before them
+        (the sources of the faults they raise)."""
         assert self._network is not None
         now = time.monotonic_ns()
         with self._lock:
@@ -563,7 +582,11 @@ class CanopenTable(TableController):
         if heartbeat:
             send(_HEARTBEAT_COB_ID + MASTER_NODE_ID, bytes([_NMT_OPERATIONAL]))
         with self._lock:
-            return self._statuses(now, status_every)
+            statuses = self._statuses(now, status_every)
+            sources = tuple(self._sources) if statuses else ()
+            if statuses:
+                self._sources.clear()
+            return statuses, sources
 
     def _count_lateness(self, lateness: int) -> None:
         self.lateness_max_ns = max(self.lateness_max_ns, lateness)
@@ -850,7 +873,8 @@ class CanopenTable(TableController):
     # ----- streaming ------------------------------------------------------------------------------------
 
     def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
-               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+               on_progress: Callable[[int, int], None] | None = None,
+               on_start: Callable[[int], None] | None = None) -> StreamReport:
         self._check_alive()
         poses = finite_poses(poses)
         spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
@@ -867,6 +891,8 @@ class CanopenTable(TableController):
             underruns_before = self._underruns
             self._lateness, self._stream_cycles, self._dry = [], 0, False
             self._set_state("streaming")
+        if on_start is not None:
+            on_start(trajectory.t_start_ns)
         next_progress = time.monotonic_ns() + 100_000_000
         while not self.feedback.wait_for(lambda: self._state != "streaming" or self._failure is not None,
                                          max(0.0, (next_progress - time.monotonic_ns()) * 1e-9)):

@@ -77,7 +77,8 @@ class ChunkedStreamController(TableController):
         self._set_tilt(angle, TILT_AXES.index(axis), wait, timeout)
 
     def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
-               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+               on_progress: Callable[[int, int], None] | None = None,
+               on_start: Callable[[int], None] | None = None) -> StreamReport:
         poses = finite_poses(poses)
         spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
         if not (math.isfinite(lead) and lead > 0):
@@ -92,6 +93,8 @@ class ChunkedStreamController(TableController):
         t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
         t_end = t_start + (len(poses) - 1) * spacing_ns
         lateness = np.zeros(count, dtype=np.int64)
+        if on_start is not None:
+            on_start(t_start)
 
         def report(sent: int, final: TableStatus | None) -> StreamReport:
             underruns = (final or self.status()).underruns - underruns_before

@@ -25,7 +25,7 @@ import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from typing import Any, Generic, TypeVar
+from typing import Any, Generic, NamedTuple, TypeVar
 from urllib.parse import urlsplit
 
 import numpy as np
@@ -136,14 +136,25 @@ class Detection:
     t_ns: int
 
 
+class FaultSource(NamedTuple):
+    """Which device reported a fault and how: its ``node`` (on CANopen the node id, leg k's drive = node k) and
+    the device's error ``code`` (CANopen: the EMCY error code, e.g. 0x8611 following error)."""
+
+    node: int
+    code: int
+
+
 @dataclass(frozen=True)
 class FaultEvent:
-    """Fault bits that became set (``raised``) in the status at ``t_ns``; ``faults`` all latched, ``state`` then."""
+    """Fault bits that became set (``raised``) in the status at ``t_ns``; ``faults`` all latched, ``state`` then;
+    ``sources`` the device reports that came with them, when the transport has them (CANopen: the EMCYs received
+    since the previous status; empty elsewhere)."""
 
     t_ns: int
     raised: tuple[str, ...]
     faults: tuple[str, ...]
     state: str
+    sources: tuple[FaultSource, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -272,14 +283,16 @@ class Feedback:
         for sub in self._subscribers[topic]:
             sub.put(item)
 
-    def publish_status(self, status: TableStatus) -> None:
+    def publish_status(self, status: TableStatus, sources: tuple[FaultSource, ...] = ()) -> None:
+        """Publish a status; a fault event when it latches new faults (with ``sources``: the device reports that
+        raised them)."""
         with self._lock:
             before = set(self.latest.faults) if self.latest is not None else set()
             self.latest = status
             self._publish("status", status)
             raised = tuple(name for name in status.faults if name not in before)
             if raised:
-                self._publish("fault", FaultEvent(status.t_ns, raised, status.faults, status.state))
+                self._publish("fault", FaultEvent(status.t_ns, raised, status.faults, status.state, sources))
             self._lock.notify_all()
 
     def publish_accel(self, batch: AccelBatch) -> None:
@@ -370,13 +383,16 @@ class TableController(ABC):
 
     @abstractmethod
     def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
-               on_progress: Callable[[int, int], None] | None = None) -> StreamReport:
+               on_progress: Callable[[int, int], None] | None = None,
+               on_start: Callable[[int], None] | None = None) -> StreamReport:
         """Play a trajectory: ``t`` (N,) evenly spaced sample times [s] (only the spacing matters), ``poses``
         (N, 6). Blocks until the controller reports the end of the stream consumed.
 
         Chunks are scheduled in controller time ``lead`` s ahead of their first sample, paced by sleeps to
         absolute deadlines. ``on_progress(samples_sent, samples_total)`` is called from this thread about 10
-        times a second. Raises :class:`StreamAbortedError` when the controller stops before the end (STOP, emergency
+        times a second; ``on_start(t_start_ns)`` once, before the first sample goes out, with the controller time
+        [ns] the first sample is due (the time base of the feedback: a logger puts measurements beside the command
+        with it). Raises :class:`StreamAbortedError` when the controller stops before the end (STOP, emergency
         stop, watchdog, fault) and the refusals of :meth:`arm` for START_STREAM.
         """
 

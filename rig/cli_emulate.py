@@ -1,6 +1,8 @@
 """``rig emulate --listen URL [options]``: run the table emulator in the foreground.
 
-URL: ``mavlink://127.0.0.1:PORT``, ``zenoh://127.0.0.1:PORT/TABLE`` or ``canopen://CHANNEL?interface=…``.
+URL: ``mavlink://127.0.0.1:PORT``, ``zenoh://127.0.0.1:PORT/TABLE`` or ``canopen://CHANNEL?interface=…``. The
+signing key (``--key-file FILE`` or ``$SHAKETABLE_MAVLINK_KEY``) is needed on mavlink and zenoh only: CANopen has no
+authentication (the bus is a private cable), and the emulator asks for no key there.
 
 The emulator is its own program (``python -m sim_table``, ARCHITECTURE §5: a separate process that speaks the
 controller's transports), and ``rig`` does not import it: this command *becomes* it (``exec``), with every option

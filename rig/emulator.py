@@ -14,11 +14,27 @@ import re
 import signal
 import subprocess
 import sys
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from rig.sequence import PlacedBody
+
 _LISTENING = re.compile(r"listening on (\S+)")
+
+
+def specimen_flags(bodies: Iterable[PlacedBody]) -> list[str]:
+    """The emulator's ``--body`` flags for a sequence's bodies, in their order (the emulator numbers its bodies
+    0, 1, … in this order: the orchestrator maps those back to the bodies' ids)."""
+    flags = []
+    for placed in bodies:
+        body = placed.body
+        options = [f"depth={placed.depth!r}", f"mu={placed.friction!r}"]
+        if body.mass is not None:
+            options.append(f"mass={body.mass!r}")
+        flags += ["--body", f"{body.b!r}x{body.h!r}@{placed.x!r},{placed.y!r};" + ";".join(options)]
+    return flags
 
 
 class EmulatorError(RuntimeError):

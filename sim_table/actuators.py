@@ -9,7 +9,8 @@ Per tick of ``dt`` seconds (``docs/table-controller.md``, "The emulator's physic
 3. Each leg follows its command as a first-order lag of time constant τ, exact for a command held over the
    tick: ``L ← c + (L − c)·e^(−dt/τ)``; its change per tick is limited to ``leg_speed·dt`` (``setpoint_limited``
    when that bites). With the drives braked (idle, faulted, emergency stop) the legs ignore the command and
-   their speed decays at ``brake_deceleration`` to rest.
+   their speed decays at ``brake_deceleration`` to rest; so does, for good, a leg whose actuator seized
+   (:attr:`Actuators.stalled`, an injected fault).
 4. Forward kinematics (``TableModel.pose_from_leg_lengths``) gives the achieved pose: Newton from the previous
    achieved pose advanced by the same lag applied to the poses (within ~1e-8 m of the answer, so one Newton step
    reaches the 1e-12 m tolerance; from the previous pose itself it takes two).
@@ -47,12 +48,14 @@ class ActuatorSettings:
 
 @dataclass(frozen=True, eq=False)
 class ActuatorStep:
-    """Ticks of the actuators: true achieved ``poses`` (k, 6) and leg ``lengths`` (k, 6) [m] at the ticks' ends;
-    whether a reference left the per-axis envelope or met a leg's speed limit (``setpoint_limited``) or a leg's
-    command left its stroke (``stroke_limited``)."""
+    """Ticks of the actuators: true achieved ``poses`` (k, 6) and leg ``lengths`` (k, 6) [m] at the ticks' ends,
+    each leg's ``commanded`` length (k, 6) [m] in the ticks (its drive's position demand: the command it follows,
+    its own length while the drives are braked); whether a reference left the per-axis envelope or met a leg's
+    speed limit (``setpoint_limited``) or a leg's command left its stroke (``stroke_limited``)."""
 
     poses: np.ndarray
     lengths: np.ndarray
+    commanded: np.ndarray
     setpoint_limited: bool
     stroke_limited: bool
 
@@ -77,6 +80,9 @@ class Actuators:
         self.lengths = table.leg_lengths(self.pose)
         """The true leg lengths after the last tick [m]."""
         self._rate = np.zeros(6)
+        self.stalled = np.zeros(6, dtype=bool)
+        """Legs whose actuator seized (set by the owner: injected fault): they brake to rest and stop following
+        their command."""
 
     def step(self, reference: np.ndarray, braked: np.ndarray) -> ActuatorStep:
         """Run k ticks: ``reference`` (k, 6) poses, ``braked`` (k,) whether the drives are braked at each."""
@@ -87,7 +93,7 @@ class Actuators:
         wanted = self.table.leg_lengths(clipped)
         commanded = np.clip(wanted, g.leg_min, g.leg_max)
         stroke_limited = not np.array_equal(commanded, wanted)
-        out = self._lag(commanded) if not braked.any() else None
+        out = self._lag(commanded) if not (braked.any() or self.stalled.any()) else None
         if out is None:
             out, rate_limited = self._lag_tick_by_tick(commanded, braked)
             setpoint_limited = setpoint_limited or rate_limited
@@ -96,7 +102,8 @@ class Actuators:
             guess = self._filter(clipped, self.pose)
         poses = self.table.pose_from_leg_lengths(out, guess=guess)
         self.pose = poses[-1]
-        return ActuatorStep(poses, out, setpoint_limited, stroke_limited)
+        demand = np.where(braked[:, None], out, commanded)
+        return ActuatorStep(poses, out, demand, setpoint_limited, stroke_limited)
 
     def _filter(self, commanded: np.ndarray, start: np.ndarray) -> np.ndarray:
         """The lag ``y ← c + (y − c)·e^(−dt/τ)`` run over k commands (k, 6) from ``start`` (6,), as one filter."""
@@ -113,11 +120,13 @@ class Actuators:
         return out
 
     def _lag_tick_by_tick(self, commanded: np.ndarray, braked: np.ndarray) -> tuple[np.ndarray, bool]:
-        """The legs tick by tick with speed limits and brakes; whether a speed limit bit."""
+        """The legs tick by tick with speed limits and brakes (a stalled leg brakes while the others follow);
+        whether a speed limit bit."""
         g = self.table.geometry
         out = np.empty_like(commanded)
         length, rate = self.lengths, self._rate
         brake = self.settings.brake_deceleration * self.dt
+        stalled = self.stalled.copy() if self.stalled.any() else None
         limited = False
         for i in range(len(commanded)):
             if braked[i]:
@@ -125,6 +134,9 @@ class Actuators:
                 change = rate * self.dt
             else:
                 change = (commanded[i] - length) * (1.0 - self._decay)
+                if stalled is not None:
+                    held = rate[stalled]
+                    change[stalled] = np.sign(held) * np.maximum(np.abs(held) - brake, 0.0) * self.dt
                 if np.abs(change).max() > self._max_step:
                     limited = True
                     change = np.clip(change, -self._max_step, self._max_step)

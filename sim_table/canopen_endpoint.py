@@ -40,6 +40,15 @@ stream of one-sample chunks:
   core's watchdogs) → the drives concerned (leg 1; all) enter *fault reaction active* and send EMCY 0x5000, 0x8130
   or 0x8700 while the core stops the table, then *fault* once the legs are braked. The core's STROKE and
   SETPOINT_LIMIT set statusword bit 11 (internal limit active) on every drive.
+- *Following error.* Each enabled drive watches its leg at every SYNC while the core streams, at the instant its
+  TPDO1 reports: following error 0x60F4 = commanded − actual leg length [µm] (the command the physics gave the leg
+  at that instant, a real drive's position demand; with the legs braked, the leg's own length). Beyond the window
+  0x6065 (as the master set it, else the EDS default; 0xFFFFFFFF: off) the drive sets statusword bit 13 (until a
+  fault reset), enters *fault reaction active* and sends EMCY 0x8611 (error register: generic), and the core gets a
+  DRIVE fault: the table stops as for any drive fault (that drive's fault, not leg 1's). A leg that follows trails
+  its command by τ·v (the emulator's τ = 5 ms: at most 4.5 mm at the legs' 0.9 m/s); a seized one
+  (``--leg-stall``) falls behind until the window trips. Counted: ``following_errors``, ``following_error_max_um``
+  (largest |0x60F4| of a watched drive).
 - *Feedback.* Every SYNC is answered by each operational drive's TPDO1 — its statusword at the SYNC and the
   position actual value = the leg's length at ``g_n −`` the feedback delay (0x2011, :data:`FEEDBACK_DELAY`) — and
   each accelerometer's TPDO with the specific force at ``g_n −`` its sample delay (0x2101, the same), both
@@ -58,8 +67,8 @@ lab host and the table (nothing else attached, not bridged to a network). The em
 command and setpoint on this transport as signed; ``refused_commands`` stays 0.
 
 **Time.** The master's SYNC is the drives' clock, in real time: the emulator runs at speed 1 on this transport.
-Its fault injection times (``--drive-fault-at``, ``--stall-at``) count from the first time all six drives were
-enabled (the core's stream starts then).
+Its fault injection times (``--drive-fault-at``, ``--stall-at``, ``--leg-stall``) count from the first time all
+six drives were enabled (the core's stream starts then).
 
 **Fault injection.** ``loss`` drops each RPDO a drive latches (it keeps its previous target) and each frame this
 side sends (TPDOs, EMCY, events) with that probability; SYNC, NMT, SDO and heartbeats are never dropped (a lost
@@ -150,6 +159,10 @@ _EMCY = {Fault.DRIVE: (drive_od.EMCY_DEVICE_HARDWARE, drive_od.ERROR_REGISTER_GE
 _ENABLED = State.OPERATION_ENABLED
 _REMOTE, _VOLTAGE = int(StatusBit.REMOTE), int(StatusBit.VOLTAGE_ENABLED)
 _FOLLOWS, _LIMIT_ACTIVE = int(StatusBit.FOLLOWS_TARGET), int(StatusBit.INTERNAL_LIMIT_ACTIVE)
+_FOLLOWING_ERROR = int(StatusBit.FOLLOWING_ERROR)
+_FAULTED = (State.FAULT, State.FAULT_REACTION_ACTIVE)
+_WINDOW_OFF = 0xFFFF_FFFF
+"""0x6065 value that switches the following-error supervision off (CiA 402)."""
 
 
 @dataclass
@@ -173,6 +186,10 @@ class BusCounters:
     answers_dropped: int = 0
     accel_samples_sent: int = 0
     emcy_sent: int = 0
+    following_errors: int = 0
+    """Drives that faulted on a following error beyond their window 0x6065."""
+    following_error_max_um: int = 0
+    """Largest |following error| [µm] a drive had while it watched it (enabled, the core streaming)."""
     overturn_events: int = 0
     overturn_messages_sent: int = 0
 
@@ -289,13 +306,26 @@ class _Drive(_Node):
         self.previous_word = 0
         self.target = 0
         self.position = 0
+        self.following_error = 0
+        """0x60F4 [µm]: commanded − actual leg length at the last SYNC answered."""
+        self.following_error_latched = False
+        """Statusword bit 13: the following error passed the window (until a fault reset)."""
         self.flags = int(StatusBit.REMOTE)
+        self._window: int | None = None
+        self._window_read = False  # 0x6065 read since the master last wrote it
+        node.add_write_callback(self._written)
+
+    def _written(self, index: int, subindex: int, od: Any, data: bytes) -> None:
+        if index == drive_od.FOLLOWING_ERROR_WINDOW:
+            self._window_read = False  # the value is stored after the callbacks: read it when next needed
 
     def _read(self, index: int, subindex: int, od: Any) -> int | None:
         if index == drive_od.STATUSWORD:
             return statusword(self.state, self.flags)
         if index == drive_od.POSITION_ACTUAL_VALUE:
             return self.position
+        if index == drive_od.FOLLOWING_ERROR_ACTUAL_VALUE:
+            return self.following_error
         if index == drive_od.MODES_OF_OPERATION_DISPLAY:
             return self.mode
         if index == drive_od.TARGET_DELAY:
@@ -309,6 +339,15 @@ class _Drive(_Node):
         """Modes of operation 0x6060 as the master set it."""
         od = self.node.object_dictionary[drive_od.MODES_OF_OPERATION]
         return od.decode_raw(self.node.get_data(drive_od.MODES_OF_OPERATION, 0))
+
+    @property
+    def following_error_window(self) -> int | None:
+        """Following error window 0x6065 [µm] as the master set it (else the EDS default); None when off."""
+        if not self._window_read:
+            od = self.node.object_dictionary[drive_od.FOLLOWING_ERROR_WINDOW]
+            window = od.decode_raw(self.node.get_data(drive_od.FOLLOWING_ERROR_WINDOW, 0))
+            self._window, self._window_read = (None if window == _WINDOW_OFF else window), True
+        return self._window
 
 
 class _Sensor(_Node):
@@ -377,7 +416,9 @@ class CanopenEndpoint:
         self.detector = _Detector(self.network.create_node(DETECTOR_NODE_ID, load_detector_od()))
         self._lock = threading.RLock()
         self._legs = Recent(6)
-        self._answers: deque[tuple[int, float, list[int]]] = deque()  # SYNCs to answer: (measured, stamp, words)
+        self._commands = Recent(6)  # the legs' commanded lengths, at the same ticks
+        self._answers: deque[tuple[int, float, list[int], list[int | None]]] = deque()
+        """SYNCs to answer: (measured, stamp, statuswords, following error windows [µm] of the watching drives)."""
         self._grid: SyncGrid | None = None
         self._enabled = False  # all six drives operation enabled in CSP: the core follows
         self._next_seq = 0
@@ -484,6 +525,7 @@ class CanopenEndpoint:
         drive.state = transition(before, word, drive.previous_word)
         drive.previous_word = word
         if before is State.FAULT and drive.state is not State.FAULT:
+            drive.following_error_latched = False
             self._emcy(drive, 0, 0)  # error reset
         if before is _ENABLED and drive.state is not _ENABLED:
             return Command.QUICK_STOP if drive.state is State.QUICK_STOP_ACTIVE else Command.DISABLE_OPERATION
@@ -514,15 +556,19 @@ class CanopenEndpoint:
     def _feedback(self, slot: int, stamp: float) -> None:
         """Answer the SYNC in ``slot`` (stamped ``stamp``): each drive's statusword as of now, positions and
         accelerations as of ``slot −`` the feedback delay — at once if the physics has computed that instant, else
-        when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp)."""
+        when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp). Each enabled drive
+        checks its following error at that instant (while the core streams: the legs follow their commands)."""
         follows = self._enabled and not self.stall_chunks and self._core_state is CoreState.STREAMING
         flags = _REMOTE | (_LIMIT_ACTIVE if self._faults & _LIMITS else 0)
         words = [statusword(d.state, flags | (_VOLTAGE if d.state is not State.SWITCH_ON_DISABLED else 0)
-                            | (_FOLLOWS if follows and d.state is _ENABLED else 0)) for d in self.drives]
+                            | (_FOLLOWS if follows and d.state is _ENABLED else 0)
+                            | (_FOLLOWING_ERROR if d.following_error_latched else 0)) for d in self.drives]
+        watching = self._core_state is CoreState.STREAMING
+        windows = [d.following_error_window if watching and d.state is _ENABLED else None for d in self.drives]
         if len(self._answers) >= HISTORY:  # the physics stopped (the emulator is closing)
             self._answers.popleft()
             self.counters.answers_dropped += 1
-        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, words))
+        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, words, windows))
         self._answer()
         self.counters.feedback_deferred += bool(self._answers)  # this one waits for the physics
 
@@ -530,20 +576,39 @@ class CanopenEndpoint:
         """Send the waiting answers whose instant the physics has computed, in order."""
         g = self.table.geometry
         while self._answers:
-            measured, stamp, words = self._answers[0]
+            measured, stamp, words, windows = self._answers[0]
             fed = [s.samples.newest_ns for s in self.sensors if s.samples.newest_ns is not None]
             if self._legs.newest_ns is None or min([self._legs.newest_ns, *fed]) < measured:
                 return
             self._answers.popleft()
-            legs = np.clip(self._legs.at(measured), g.leg_min, g.leg_max).tolist()
-            for drive, word, length in zip(self.drives, words, legs, strict=True):
+            legs = np.clip(self._legs.at(measured), g.leg_min, g.leg_max)
+            errors = np.rint((self._commands.at(measured) - legs) * 1e6).astype(int).tolist()
+            for drive, word, length, error, window in zip(self.drives, words, legs.tolist(), errors, windows,
+                                                          strict=True):
                 drive.position = self.scaling.position(length)
+                drive.following_error = error
+                if window is not None:
+                    self.counters.following_error_max_um = max(self.counters.following_error_max_um, abs(error))
+                    if abs(error) > window and drive.state is _ENABLED:
+                        word = self._following_error(drive, word)
                 drive.flags = word & ~0x6F
                 self._transmit(drive, Feedback(word, drive.position), stamp)
             for sensor in self.sensors:
                 if sensor.samples.newest_ns is not None:
                     sensor.sample = encode_force(sensor.samples.at(measured))
                     self.counters.accel_samples_sent += self._transmit(sensor, sensor.sample, stamp)
+
+    def _following_error(self, drive: _Drive, word: int) -> int:
+        """The drive's following error passed its window: bit 13, fault reaction, EMCY 0x8611, a DRIVE fault of the
+        core (which stops the table); the statusword it answers with."""
+        drive.state = State.FAULT_REACTION_ACTIVE
+        drive.following_error_latched = True
+        self.counters.following_errors += 1
+        self._emcy(drive, drive_od.EMCY_FOLLOWING_ERROR, drive_od.ERROR_REGISTER_GENERIC)
+        now = time.monotonic_ns()
+        arrival = self.clock(now)
+        self._post(now, arrival, lambda core: core.raise_fault(Fault.DRIVE, arrival))
+        return statusword(State.FAULT_REACTION_ACTIVE, (word & ~0x6F & ~_FOLLOWS) | _FOLLOWING_ERROR)
 
     def _transmit(self, device: _Node, values: tuple[int, ...], stamp: float | None = None) -> bool:
         """Send the node's TPDO1 carrying ``values`` (time stamp ``stamp``, default now); whether it went out (PDOs
@@ -628,8 +693,11 @@ class CanopenEndpoint:
             braked = snap.state in BRAKED
             for fault, (code, register) in _EMCY.items():
                 if raised & fault:
-                    for drive in self.drives[:1] if fault is Fault.DRIVE else self.drives:
-                        if drive.state not in (State.FAULT, State.FAULT_REACTION_ACTIVE):
+                    concerned = self.drives[:1] if fault is Fault.DRIVE else self.drives
+                    if fault is Fault.DRIVE and any(d.state in _FAULTED for d in self.drives):
+                        concerned = []  # a drive's own fault (following error) raised it: no other drive faults
+                    for drive in concerned:
+                        if drive.state not in _FAULTED:
                             drive.state = State.FAULT if braked else State.FAULT_REACTION_ACTIVE
                             self._emcy(drive, code, register)
             if braked:
@@ -643,9 +711,11 @@ class CanopenEndpoint:
 
     # ----- what the emulator loop hands over --------------------------------------------------------------
 
-    def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray) -> None:
-        """The legs' true lengths [m] (k, 6) at ticks ``t_start_ns + j·spacing_ns`` [ns, controller time]."""
+    def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray, commanded: np.ndarray) -> None:
+        """The legs' true and ``commanded`` lengths [m] (k, 6) at ticks ``t_start_ns + j·spacing_ns`` [ns, controller
+        time]."""
         with self._lock:
+            self._commands.extend(t_start_ns, spacing_ns, commanded)
             self._legs.extend(t_start_ns, spacing_ns, lengths)
             self._answer()
 

@@ -75,10 +75,10 @@ class Endpoint(Protocol):
 
 @runtime_checkable
 class LegFeedback(Protocol):
-    """An endpoint whose drives report each leg's measured length (CANopen: at every SYNC): the loop gives it the
-    legs' true lengths of every tick."""
+    """An endpoint whose drives report each leg's measured length (CANopen: at every SYNC) and watch its following
+    error: the loop gives it the legs' true and commanded lengths of every tick."""
 
-    def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray) -> None: ...
+    def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray, commanded: np.ndarray) -> None: ...
 
 
 def listen_scheme(url: str) -> str:

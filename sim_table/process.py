@@ -18,9 +18,13 @@ Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs k
 rest, where ``--body`` puts them) at every START_STREAM: the emulator is also the operator.
 
 Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
-drive fault and ``--stall-at S`` drops every setpoint chunk from S seconds (controller time) after the first
-START_STREAM. At exit (SIGINT, SIGTERM) the counters are written as one JSON object to stdout, or to
-``--counters FILE``.
+drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S`` seizes leg LEG's actuator (it
+brakes to rest and stops following its command: on CANopen its drive's following-error supervision trips) from
+S seconds (controller time) after the first START_STREAM. At exit (SIGINT, SIGTERM) the counters are written as
+one JSON object to stdout, or to ``--counters FILE``.
+
+Signing key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``): needed on the transports that sign, mavlink and
+zenoh; not on canopen, which has no authentication (the bus is a private cable).
 """
 
 from __future__ import annotations
@@ -28,6 +32,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import signal
 import sys
 import threading
@@ -41,7 +46,7 @@ import numpy as np
 
 from analysis import Body
 from analysis.table_model import TableModel
-from protocols.mavlink import load_signing_key
+from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
@@ -65,13 +70,21 @@ WATCHDOG_SECONDS = 0.1
 TIMING_WINDOW = 100_000
 """Batches kept for the tick-time percentiles in the counters."""
 
+SIGNING_SCHEMES = frozenset({"mavlink", "zenoh"})
+"""Transports that authenticate motion commands and setpoints with the rig's signing key (CANopen has no
+authentication: the bus is a private cable, and the emulator needs no key for it)."""
+
 
 @dataclass(frozen=True)
 class EmulatorConfig:
-    """Everything the emulator runs with (see :func:`parse_args` for the command line)."""
+    """Everything the emulator runs with (see :func:`parse_args` for the command line).
+
+    ``key``: the signing key, required on the transports that sign (:data:`SIGNING_SCHEMES`), unused on CANopen;
+    ``leg_stall``: (leg 1..6, seconds after the first START_STREAM) when that leg's actuator seizes.
+    """
 
     listen: str
-    key: bytes = field(repr=False)
+    key: bytes | None = field(default=None, repr=False)
     speed: float = 1.0
     specimens: tuple[Specimen, ...] = ()
     sensors: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),)
@@ -82,6 +95,7 @@ class EmulatorConfig:
     delay: float = 0.0
     drive_fault_at: float | None = None
     stall_at: float | None = None
+    leg_stall: tuple[int, float] | None = None
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -91,6 +105,14 @@ class EmulatorConfig:
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} must be >= 0 s, got {value!r}")
+        if self.leg_stall is not None:
+            leg, at = self.leg_stall
+            if not (isinstance(leg, int) and 1 <= leg <= 6 and math.isfinite(at) and at >= 0):
+                raise ValueError(f"leg_stall must be (leg 1..6, >= 0 s), got {self.leg_stall!r}")
+        scheme = listen_scheme(self.listen)
+        if scheme in SIGNING_SCHEMES and self.key is None:
+            raise ValueError(f"--listen {self.listen}: {scheme} signs motion commands and setpoints and needs the "
+                             f"rig's signing key: give --key-file FILE or set {KEY_ENV} (64 hexadecimal digits)")
 
 
 class Emulator:
@@ -110,13 +132,14 @@ class Emulator:
         self.scene = SpecimenScene(config.specimens) if config.specimens else None
         self._start = time.monotonic_ns()
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
-            key=config.key, clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
+            key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
             seed=config.seed + 2))
         self.url = self.endpoint.url
         self._next_tick = self.tick_ns
         self._pending: deque[tuple[int, Any]] = deque()
         self._events = 0
         self._drive_fault_done = False
+        self._leg_stalled = False
         self._batches: deque[tuple[int, int]] = deque(maxlen=TIMING_WINDOW)  # (ticks, busy ns)
         self._ticks = 0
         self._busy_ns = 0
@@ -191,7 +214,7 @@ class Emulator:
             core.raise_fault(Fault.STROKE, int(times[-1]))
         core.observe(step.poses[-1])
         if isinstance(endpoint, LegFeedback):
-            endpoint.add_legs(int(times[0]), self.tick_ns, step.lengths)
+            endpoint.add_legs(int(times[0]), self.tick_ns, step.lengths, step.commanded)
         for i, snap in statuses:
             pose = self.actuators.measure(step.lengths[i], step.poses[i])
             endpoint.send_status(replace(snap, pose=pose))
@@ -228,6 +251,9 @@ class Emulator:
             self.core.raise_fault(Fault.DRIVE, t)
         if cfg.stall_at is not None and t >= start + cfg.stall_at * 1e9:
             self.endpoint.stall_chunks = True
+        if cfg.leg_stall is not None and not self._leg_stalled and t >= start + cfg.leg_stall[1] * 1e9:
+            self._leg_stalled = True
+            self.actuators.stalled[cfg.leg_stall[0] - 1] = True
 
     def counters(self) -> dict[str, Any]:
         """Everything counted, as plain JSON types."""
@@ -260,14 +286,23 @@ class Emulator:
 
 
 def parse_body(text: str) -> Specimen:
-    """``BxH[@X,Y]``: a block b × h [m] whose base centre stands at plate (x, y) [m] (default the centre)."""
-    size, _, place = text.partition("@")
+    """``BxH[@X,Y][;depth=D][;mass=M][;mu=F]``: a block b × h [m] whose base centre stands at plate (x, y) [m]
+    (default the centre), optionally its depth [m], mass [kg] and friction coefficient μ (Specimen's defaults)."""
+    head, *options = text.split(";")
+    size, _, place = head.partition("@")
     body = Body.parse(size)
     try:
         x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
+        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)}
     except ValueError:
-        raise ValueError(f"--body {text!r}: expected BxH@X,Y in metres, e.g. 0.05x0.50@0.3,0") from None
-    return Specimen(body, x=x, y=y)
+        raise ValueError(f"--body {text!r}: expected BxH@X,Y[;depth=D][;mass=M][;mu=F] in metres and kg, "
+                         "e.g. 0.05x0.50@0.3,0;depth=0.1;mass=5") from None
+    unknown = set(extra) - {"depth", "mass", "mu"}
+    if unknown:
+        raise ValueError(f"--body {text!r}: unknown option(s) {', '.join(sorted(unknown))} (depth, mass, mu)")
+    if "depth" in extra or "mass" in extra:
+        body = Body(body.b, body.h, depth=extra.get("depth"), mass=extra.get("mass"), name=body.name)
+    return Specimen(body, x=x, y=y, **({"friction": extra["mu"]} if "mu" in extra else {}))
 
 
 def _point(text: str) -> tuple[float, float, float]:
@@ -278,6 +313,17 @@ def _point(text: str) -> tuple[float, float, float]:
     return x, y, z
 
 
+def _leg_stall(text: str) -> tuple[int, float]:
+    leg, _, at = text.partition("@")
+    try:
+        stall = int(leg), float(at)
+    except ValueError:
+        stall = (0, math.nan)
+    if not (1 <= stall[0] <= 6 and math.isfinite(stall[1]) and stall[1] >= 0):
+        raise argparse.ArgumentTypeError(f"expected LEG@S, a leg 1..6 and seconds >= 0, got {text!r}")
+    return stall
+
+
 def _argument_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
                                 description="The emulated shake-table controller (docs/table-controller.md): "
@@ -286,16 +332,21 @@ def _argument_parser() -> argparse.ArgumentParser:
                    help="the transport and address to listen on: mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE "
                         "(port 0: any free port) or canopen://CHANNEL?interface=…")
     p.add_argument("--speed", type=float, default=1.0, help="controller time per real time")
-    p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y",
-                   help="a specimen b x h [m] at plate (x, y) [m]; repeat for more")
+    p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F]",
+                   help="a specimen b x h [m] at plate (x, y) [m], optionally its depth [m], mass [kg] and "
+                        "friction coefficient; repeat for more (body ids 0, 1, … in this order)")
     p.add_argument("--accel", action="append", type=_point, metavar="X,Y,Z",
                    help="an accelerometer at plate (x, y, z) [m]; repeat for more (default: one at the centre)")
     p.add_argument("--loss", type=float, default=0.0, metavar="PCT", help="drop this %% of datagrams, both ways")
     p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay every datagram, both ways")
     p.add_argument("--drive-fault-at", type=float, metavar="S", help="drive fault S s after the first stream start")
     p.add_argument("--stall-at", type=float, metavar="S", help="drop all chunks from S s after the first stream start")
+    p.add_argument("--leg-stall", type=_leg_stall, metavar="LEG@S",
+                   help="leg LEG's actuator (1..6) seizes S s after the first stream start: it brakes to rest and "
+                        "stops following its command (CANopen: its drive's following-error supervision trips)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random number (noise, loss)")
-    p.add_argument("--key-file", type=Path, help="signing key file (default: $SHAKETABLE_MAVLINK_KEY)")
+    p.add_argument("--key-file", type=Path,
+                   help=f"signing key file (default: ${KEY_ENV}); mavlink and zenoh only: canopen does not sign")
     p.add_argument("--rig-config", type=Path, help="rig configuration TOML (default: Table IV, default hexapod)")
     p.add_argument("--leg-noise", type=float, default=ActuatorSettings.noise, metavar="M",
                    help="σ of a leg-length reading [m]")
@@ -309,14 +360,15 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
     p = _argument_parser()
     args = p.parse_args(argv)
     try:
+        signs = listen_scheme(args.listen) in SIGNING_SCHEMES
+        key = load_signing_key(args.key_file) if signs and (args.key_file or os.environ.get(KEY_ENV)) else None
         config = EmulatorConfig(
-            listen=args.listen, key=load_signing_key(args.key_file), speed=args.speed,
+            listen=args.listen, key=key, speed=args.speed,
             specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
             table=TableModel.from_toml(args.rig_config) if args.rig_config else TableModel(),
             actuators=ActuatorSettings(noise=args.leg_noise), accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
-            stall_at=args.stall_at, seed=args.seed)
-        listen_scheme(config.listen)
+            stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed)
     except ValueError as exc:
         p.error(str(exc))
     return config, args.counters

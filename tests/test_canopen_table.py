@@ -39,11 +39,21 @@ from drivers.canopen import CanopenTable, Move, Trajectory
 from drivers.controller import (
     CommandFailedError,
     CommandRejectedError,
+    FaultSource,
     StreamAbortedError,
     TableStatus,
     open_table,
 )
-from protocols.canopen import BusLoadError, PdoError, bus_load, check_bus_load, cycle_bits, max_rate_hz
+from protocols.canopen import (
+    BusLoadError,
+    PdoError,
+    State,
+    StatusBit,
+    bus_load,
+    check_bus_load,
+    cycle_bits,
+    max_rate_hz,
+)
 from protocols.canopen import od as drive_od
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
@@ -312,6 +322,38 @@ def test_setpoints_that_stop_coming_fault_the_drives_and_the_table_goes_home() -
         np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # the core's stop went home
     counters = emulator.counters()
     assert counters["watchdog_stops"] == 1 and counters["link"]["chunks_stalled"] > 0
+
+
+def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -> None:
+    """Leg 3's actuator seizes 1.5 s into a surge ramp (it brakes and stops following): its drive's following error
+    passes the window the master set (0x6065, 9 mm), it sets statusword bit 13, sends EMCY 0x8611 and enters fault
+    reaction; the core stops the table, the master quick-stops every drive: the stream aborts, the table ends
+    faulted, and the fault event names leg 3 and the code. ARM resets the fault."""
+    t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))  # leg 3 lengthens by 53 mm, up to 25 mm/s
+    with emulated(leg_stall=(3, 1.5)) as emulator, open_table(emulator.url) as table:
+        assert isinstance(table, CanopenTable) and table.following_error_window_um == 9000
+        faults = table.faults()
+        table.arm()
+        with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
+            table.stream(t, poses)
+        final = table.wait_for_state("faulted", 5)
+        assert final.faults == ("DRIVE",) and aborted.value.report.final.state in ("stopping", "faulted")
+        event = faults.get(1)
+        assert event.raised == ("DRIVE",) and event.sources == (FaultSource(3, drive_od.EMCY_FOLLOWING_ERROR),)
+        assert table.link_stats()["emcy"] == {3: [drive_od.EMCY_FOLLOWING_ERROR]}
+        drive = emulator.endpoint.drives[2]
+        assert drive.following_error_window == 9000  # 0x6065 [µm], as the master wrote it
+        assert drive.flags & StatusBit.FOLLOWING_ERROR and drive.state is State.FAULT
+        assert all(d.state is State.QUICK_STOP_ACTIVE for i, d in enumerate(emulator.endpoint.drives) if i != 2)
+        table.wait_for_status(lambda s: emulator.core.state.value == "emergency_stopped", 1)  # all legs braked
+        table.arm()  # the seized leg holds where it stopped, and so do the others: no following error at rest
+        assert table.status().state == "armed" and table.status().faults == ()
+        assert not drive.flags & StatusBit.FOLLOWING_ERROR
+    counters = emulator.counters()
+    assert counters["faults_raised"] == {"DRIVE": 1}
+    link = counters["link"]
+    assert link["following_errors"] == 1 and 9000 < link["following_error_max_um"] < 9500  # tripped at once
+    assert link["emcy_sent"] == 2  # 0x8611 from leg 3 and its error reset: no other drive faulted
 
 
 def test_injected_loss_and_delay_are_survived() -> None:

@@ -3,7 +3,14 @@ model and the virtual accelerometers (``docs/table-controller.md``)."""
 
 from __future__ import annotations
 
+import json
 import math
+import os
+import signal
+import subprocess
+import sys
+import uuid
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -11,6 +18,7 @@ import pytest
 from analysis.body import G
 from analysis.moves import IN_POSITION, SETTLE_TIME_NS
 from analysis.table_model import TableModel
+from protocols.mavlink import KEY_ENV
 from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
@@ -357,3 +365,36 @@ def test_bodies_on_the_command_line() -> None:
     assert (parse_body("0.1x0.4").x, parse_body("0.1x0.4").y) == (0.0, 0.0)
     with pytest.raises(ValueError, match="BxH@X,Y"):
         parse_body("0.1x0.4@1")
+    full = parse_body("0.039x0.2@0,-0.15;depth=0.081;mass=0.36;mu=0.5")
+    assert (full.body.depth, full.body.mass, full.friction, full.y) == (0.081, 0.36, 0.5, -0.15)
+    with pytest.raises(ValueError, match=r"unknown option.*colour"):
+        parse_body("0.1x0.4;colour=1")
+    with pytest.raises(ValueError, match="mass=M"):
+        parse_body("0.1x0.4;mass=heavy")
+
+
+def test_the_emulator_asks_for_a_signing_key_only_on_transports_that_sign(tmp_path: Path) -> None:
+    """``rig emulate`` (registered on an app of its own here: it becomes ``python -m sim_table``) with no key in the
+    environment: canopen:// listens (CAN has no authentication); mavlink:// and zenoh:// are refused, naming the key
+    option and variable."""
+    code = ("import typer\nfrom rig import cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
+            "@app.callback()\ndef main() -> None: pass\napp()")
+    env = {name: value for name, value in os.environ.items() if name != KEY_ENV}
+    counters = tmp_path / "counters.json"
+    proc = subprocess.Popen([sys.executable, "-c", code, "emulate", "--listen",
+                             f"canopen://emulate-{uuid.uuid4().hex}?interface=virtual", "--counters", str(counters)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert proc.stderr is not None
+        line = proc.stderr.readline()
+        assert "listening on canopen://emulate-" in line, line + proc.stderr.read()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=20) == 0
+    finally:
+        proc.kill()
+    assert json.loads(counters.read_text())["state"] == "idle"
+    for url in ("mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"):
+        refused = subprocess.run([sys.executable, "-c", code, "emulate", "--listen", url], capture_output=True,
+                                 text=True, env=env, timeout=60)
+        assert refused.returncode == 2 and "listening" not in refused.stderr
+        assert "needs the rig's signing key: give --key-file FILE or set SHAKETABLE_MAVLINK_KEY" in refused.stderr

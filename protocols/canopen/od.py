@@ -43,7 +43,8 @@ MODES_OF_OPERATION = 0x6060
 MODES_OF_OPERATION_DISPLAY = 0x6061
 POSITION_ACTUAL_VALUE = 0x6064
 FOLLOWING_ERROR_WINDOW = 0x6065
-"""[increments]; the drive sets statusword bit 13 and faults when |following error| exceeds it."""
+"""[increments]; the drive sets statusword bit 13 and faults (EMCY :data:`EMCY_FOLLOWING_ERROR`) when |following
+error| exceeds it; 0xFFFFFFFF switches the supervision off."""
 TARGET_POSITION = 0x607A
 SOFTWARE_POSITION_LIMIT = 0x607D
 """ARRAY; sub 1 min, sub 2 max position limit [increments]."""
@@ -52,6 +53,7 @@ MAX_PROFILE_VELOCITY = 0x607F
 SI_UNIT_POSITION = 0x60A8
 SI_UNIT_VELOCITY = 0x60A9
 FOLLOWING_ERROR_ACTUAL_VALUE = 0x60F4
+"""[increments]: position demand − position actual value (readable by SDO, not in TPDO1)."""
 SUPPORTED_DRIVE_MODES = 0x6502
 TARGET_DELAY = 0x2010
 """Manufacturer-specific, [µs]: a target position latched at a SYNC is reached this long after that SYNC (a CSP
