@@ -354,6 +354,7 @@ class CanopenTable(TableController):
         self._syncs: deque[tuple[float, int, int]] = deque(maxlen=512)  # (wall time sent, index, deadline ns)
         self._frames: dict[int, dict[int, int]] = {}  # SYNC index -> {leg index: position}
         self._measured = np.zeros(6)
+        self._played: Trajectory | None = None  # the last trajectory streamed to its end
         self.late_cycles = 0
         """Cycles that went out a whole period or more after their deadline."""
         self.lateness_max_ns = 0
@@ -629,7 +630,7 @@ class CanopenTable(TableController):
             self._move = None
             self._set_state("armed")
         elif self._state == "streaming" and self._trajectory is not None and deadline >= self._trajectory.t_end_ns:
-            self._trajectory = None
+            self._played, self._trajectory = self._trajectory, None
             self._set_state("armed")
         elif (self._state == "stopping" and self._stop_reason is None and self._homing_after_stop
               and self._move is not None and self._arrived(self._move, deadline)):
@@ -908,7 +909,8 @@ class CanopenTable(TableController):
             self._lateness = None
             report = StreamReport(self._stream_cycles, len(poses), self._underruns - underruns_before,
                                   trajectory.t_start_ns, trajectory.t_end_ns, lead, lateness, final)
-        if final.state != "armed":
+            played = self._played is trajectory
+        if final.state != "armed" or not played:  # stopped (and home again) before its end
             raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
                                      f"{', '.join(final.faults) or 'none'})", report)
         return report

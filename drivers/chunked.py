@@ -110,7 +110,7 @@ class ChunkedStreamController(TableController):
                                          poses[first:first + per_chunk], k == count - 1)
             lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
             latest = self.feedback.latest
-            if latest is not None and latest.state in STOPPED_STATES:
+            if latest is not None and (latest.state in STOPPED_STATES or _left_stream(latest, t_start)):
                 raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
                                          f"{', '.join(latest.faults) or 'none'})", report(k, latest))
             self._send_chunk(message)
@@ -124,10 +124,19 @@ class ChunkedStreamController(TableController):
             self._send_chunk(previous)
         remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
         final = self.wait_for_status(
-            lambda s: s.state in STOPPED_STATES or (s.t_ns >= t_end and s.state != "streaming"), remaining + 2.0)
+            lambda s: s.state in STOPPED_STATES or _left_stream(s, t_start), remaining + 2.0)
         if on_progress is not None:
             on_progress(len(poses), len(poses))
-        if final.state != "armed":
+        last_seq = (first_seq + count - 1) % FIRST_SEQ_LIMIT
+        if final.state != "armed" or final.last_chunk_seq != last_seq:  # stopped (and home) before its end
             raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
-                                     f"{', '.join(final.faults) or 'none'})", report(count, final))
+                                     f"{', '.join(final.faults) or 'none'}, last chunk taken "
+                                     f"{final.last_chunk_seq} of {first_seq}…{last_seq})", report(count, final))
         return report(count, final)
+
+
+def _left_stream(status: TableStatus, t_start: int) -> bool:
+    """Whether ``status`` shows the controller out of the stream that began at ``t_start`` [ns, controller time]:
+    armed again after the first sample was due (a stop while at rest passes through ``stopping`` and its return
+    home within one status period)."""
+    return status.state == "armed" and status.t_ns >= t_start

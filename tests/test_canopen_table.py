@@ -235,6 +235,20 @@ def test_arm_tilt_home_disarm_and_the_refusals() -> None:
     assert counters["link"]["sync_series"] == 1 and counters["link"]["emcy_sent"] == 0
 
 
+def test_a_stop_while_the_stream_holds_still_aborts_it() -> None:
+    """STOP during the drive's leading hold: the plate is at rest, so the stop and its return home pass within a
+    status period — the stream still ends as aborted, not as played."""
+    t, poses = surge(4.0, lambda t: smooth_ramp(np.maximum(t - 2.0, 0.0), 0.05, 2.0))
+    with emulated() as emulator, open_table(emulator.url) as table:
+        table.arm()
+        thread, outcome = in_background(lambda: table.stream(t, poses))
+        table.wait_for_status(lambda s: s.state == "streaming", 10)
+        time.sleep(0.3)
+        table.stop()
+        thread.join()
+        assert isinstance(outcome.get("error"), StreamAbortedError), outcome
+
+
 def test_stop_decelerates_and_goes_home_emergency_stop_holds() -> None:
     t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))
     with emulated() as emulator, open_table(emulator.url) as table:

@@ -10,6 +10,7 @@ import socket
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -18,7 +19,7 @@ import numpy as np
 import pytest
 from stream_checks import drive_excerpt
 
-from drivers.controller import TableStatus, open_table
+from drivers.controller import StreamAbortedError, TableStatus, open_table
 from protocols.mavlink import UdpLink, dialect, enable_signing
 from rig.emulator import EmulatorProcess
 
@@ -115,6 +116,41 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
     assert np.all(np.abs(np.diff([s.pose[0] for s in after])) < 0.005)  # 50 Hz statuses: no jump (the move home
     # from 5 mm peaks at ~0.11 m/s, 2.2 mm a status)
     assert counters["watchdog_stops"] == 1 and counters["streams_completed"] == 0
+
+
+# ----- a stop while the stream holds still -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
+def test_a_stop_while_the_stream_holds_still_aborts_it(transport: str, key_file: Path) -> None:
+    """STOP during the drive's leading hold: the plate is at rest, so the stop and its return home pass within a
+    status period — the stream still ends as aborted (not as played), before its remaining chunks go out."""
+    t = np.arange(4001) * 1e-3
+    poses = np.zeros((len(t), 6))
+    poses[:, 0] = 0.05 * np.clip(t - 2.0, 0.0, 1.0) ** 3
+    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            outcome: dict[str, Any] = {}
+
+            def stream() -> None:
+                try:
+                    outcome["report"] = table.stream(t, poses)
+                except StreamAbortedError as exc:
+                    outcome["aborted"] = exc
+
+            thread = threading.Thread(target=stream)
+            thread.start()
+            table.wait_for_status(lambda s: s.state == "streaming", 10)
+            time.sleep(0.3)
+            table.stop()
+            thread.join()
+    finally:
+        counters = emulator.stop()
+    assert "aborted" in outcome, outcome
+    assert outcome["aborted"].report.chunks < 0.5 * len(t) / table.samples_per_chunk  # it stopped sending
+    assert counters["stops"] == 1 and counters["streams_completed"] == 0
 
 
 # ----- packet loss during a stream ------------------------------------------------------------------------------
