@@ -1,0 +1,238 @@
+"""Benchmark: sustained logging rate of the session writer (`rig.session`) and the data at risk on a crash.
+
+Prints one JSON object:
+
+* ``figure``/``value``/``unit``: samples per second the session writer takes in *and* gets onto disk, pushing
+  as fast as it accepts them for ``--seconds`` with ``--channels`` accelerometers plus the commanded stream
+  (`RunLog.append_commanded`). One sample = one row of one stream: a (t, ax, ay, az) row of one
+  accelerometer, or a (t, surge, …, yaw) row of the commanded stream. The time runs from the first append to
+  the end of `RunLog.end` (everything flushed, file closed, final attributes committed);
+* ``compared_with``: the real-time requirement (``channels`` × 1 kHz plus the 1 kHz commanded stream), the
+  issue's target of 1,000,000 samples/s, and plain h5py appending the same rows to a file without SWMR, queue
+  or thread (measured in the same run);
+* ``data_at_risk_s``: the largest time between a sample's append and the end of the flush that put it on
+  disk (what a ``kill -9`` can lose), with the producer paced by the clock at the real-time rate and at the
+  1,000,000 samples/s target, and unpaced (saturated: then it is the queue's length in time);
+* append latency (the producer's cost per call), begin/end durations, file size, and how late a 1 kHz
+  sleep-paced thread in the same process runs while the writer logs in real time (vs. alone, same run).
+
+Usage: ``python benchmarks/logging.py [--seconds 5] [--channels 8] [--dir DIR]``.
+`measure_writer` is importable for benchmarks that stream to the emulator at the same time.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+# This file is named like the standard library's `logging`; as a script its directory comes first on sys.path
+# and would shadow it for every module that imports logging. Replace that entry by the repository root.
+_HERE = Path(__file__).resolve().parent
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+sys.path.insert(0, str(_HERE.parent))
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import tempfile  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+
+import h5py  # noqa: E402
+import numpy as np  # noqa: E402
+
+from rig.session import SessionLog  # noqa: E402
+
+TARGET = 1_000_000.0  # [samples/s] the issue's target
+RATE = 1000.0  # [Hz] real-time rate of each accelerometer and of the commanded stream
+BODIES = [{"body_id": 1, "b": 0.1, "h": 0.5, "depth": 0.1, "mass": 4.0, "x": 0.0, "y": 0.0}]
+
+
+def _begin(log: SessionLog, channels: int) -> object:
+    return log.begin_run(0, record="benchmark", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((0, 7)),
+                         bodies=BODIES, sensors=[f"acc{i}" for i in range(channels)])
+
+
+class _PacingProbe(threading.Thread):
+    """A 1 kHz loop paced by ``time.sleep`` to absolute deadlines (like the setpoint sender): its lateness [ms]
+    shows how long other threads of the process (the session writer inside h5py) keep it from running."""
+
+    def __init__(self) -> None:
+        super().__init__(daemon=True)
+        self.late_ms: list[float] = []
+        self._stop_event = threading.Event()
+
+    def run(self) -> None:
+        period, next_t = 1e-3, time.perf_counter()
+        while not self._stop_event.is_set():
+            next_t += period
+            time.sleep(max(0.0, next_t - time.perf_counter()))
+            self.late_ms.append((time.perf_counter() - next_t) * 1e3)
+
+    def stop(self) -> dict:
+        self._stop_event.set()
+        self.join()
+        late = np.array(self.late_ms[10:])
+        return {"p50": float(np.percentile(late, 50)), "p99": float(np.percentile(late, 99)),
+                "max": float(late.max())}
+
+
+def measure_writer(seconds: float, channels: int = 8, *, rate: float | None = None, block: int = 1000,
+                   directory: str | None = None, max_queue_mb: float = 256.0, probe: bool = False) -> dict:
+    """Push ``block`` rows per stream per round (``channels`` accelerometers + the commanded stream) into one run
+    for ``seconds``: paced by the clock to ``rate`` samples/s in total, or (``rate=None``) as fast as the writer
+    takes them, the producer pausing only while more than ``max_queue_mb`` MB are queued.
+
+    Returns the rate achieved [samples/s] (first append to the end of `RunLog.end`: all on disk, committed),
+    counts, the producer's append-call latency [µs], the writer's worst append-to-disk latency [s] (data at risk
+    on a crash), its longest flush [s], begin/end durations [s] and the file size [MB]; with ``probe``, the
+    lateness [ms] of a 1 kHz sleep-paced thread running meanwhile (`_PacingProbe`)."""
+    with tempfile.TemporaryDirectory(dir=directory, prefix="sess_bench_") as tmp:
+        path = Path(tmp) / "bench.h5"
+        log = SessionLog.create(path, {"benchmark": True}, {}, "benchmark")
+        t0 = time.perf_counter()
+        run = _begin(log, channels)
+        begin_s = time.perf_counter() - t0
+        sensors = [f"acc{i}" for i in range(channels)]
+        rng = np.random.default_rng(1)
+        xyz = rng.normal(size=(block, 3))
+        pose = rng.normal(size=(block, 6)) * 1e-3
+        per_round = block * (channels + 1)
+        cap = int(max_queue_mb * 1e6 / 40)  # rows (32-56 bytes each)
+        calls: list[float] = []
+        pushed = k = 0
+        pacing = _PacingProbe() if probe else None
+        if pacing is not None:
+            pacing.start()
+        start = time.perf_counter()
+        deadline = start + seconds
+        while (now := time.perf_counter()) < deadline:
+            if rate is not None:
+                time.sleep(max(0.0, start + pushed / rate - now))
+            elif pushed - sum(run.stats.rows.values()) > cap:
+                time.sleep(0.001)
+                continue
+            t = (np.arange(block) + k) / RATE
+            for sensor in sensors:
+                c0 = time.perf_counter()
+                run.append_accel(sensor, t, xyz)
+                calls.append(time.perf_counter() - c0)
+            c0 = time.perf_counter()
+            run.append_commanded(t, pose)
+            calls.append(time.perf_counter() - c0)
+            pushed += per_round
+            k += block
+        t_end = time.perf_counter()
+        run.end("completed")
+        done = time.perf_counter()
+        pacing_late = pacing.stop() if pacing is not None else None
+        stats = run.stats
+        written = sum(stats.rows.values())
+        log.close()
+        size = path.stat().st_size
+    calls_us = np.array(calls) * 1e6
+    return {
+        "samples_per_s": written / (done - start),
+        "paced_at_samples_per_s": rate,
+        "samples": written,
+        "rows_per_stream": k,
+        "channels": channels,
+        "block_rows": block,
+        "seconds": done - start,
+        "megabytes_per_s": size / 1e6 / (done - start),
+        "append_call_us": {"p50": float(np.percentile(calls_us, 50)), "p99": float(np.percentile(calls_us, 99)),
+                           "max": float(calls_us.max())},
+        "max_append_to_disk_s": stats.max_latency_s,
+        "max_flush_s": stats.max_flush_s,
+        "max_flush_gap_s": stats.max_flush_gap_s,
+        "flushes": stats.flushes,
+        "writer_busy_fraction": stats.busy_s / (done - start),
+        "begin_run_s": begin_s,
+        "end_s": done - t_end,
+        "file_mb": size / 1e6,
+        "pacing_probe_late_ms": pacing_late,
+    }
+
+
+def measure_pacing_alone(seconds: float) -> dict:
+    """The `_PacingProbe` with nothing else running in the process (baseline) [ms late]."""
+    pacing = _PacingProbe()
+    pacing.start()
+    time.sleep(seconds)
+    return pacing.stop()
+
+
+def measure_raw_h5py(seconds: float, channels: int = 8, *, block: int = 1000, directory: str | None = None) -> dict:
+    """Baseline: plain h5py (no SWMR, no queue, no thread) appending the same rows to chunked datasets."""
+    with tempfile.TemporaryDirectory(dir=directory, prefix="sess_bench_") as tmp, \
+            h5py.File(Path(tmp) / "raw.h5", "w", libver="latest") as h5:
+        sets = [h5.create_dataset(f"acc{i}", shape=(0, 4), maxshape=(None, 4), chunks=(4096, 4), dtype="<f8")
+                for i in range(channels)]
+        sets.append(h5.create_dataset("commanded", shape=(0, 7), maxshape=(None, 7), chunks=(2048, 7), dtype="<f8"))
+        rows4 = np.random.default_rng(1).normal(size=(block, 4))
+        rows7 = np.random.default_rng(2).normal(size=(block, 7))
+        start = time.perf_counter()
+        n = 0
+        while time.perf_counter() - start < seconds:
+            for ds in sets:
+                ds.resize(n + block, axis=0)
+                ds[n:] = rows7 if ds.shape[1] == 7 else rows4
+            n += block
+        h5.flush()
+        elapsed = time.perf_counter() - start
+    return {"samples_per_s": n * len(sets) / elapsed, "seconds": elapsed}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--seconds", type=float, default=5.0, help="duration of each measurement [s]")
+    parser.add_argument("--channels", type=int, default=8, help="accelerometers")
+    parser.add_argument("--dir", default=None, help="directory for the temporary session files")
+    args = parser.parse_args()
+    required = (args.channels + 1) * RATE
+    full = measure_writer(args.seconds, args.channels, directory=args.dir)
+    at_target = measure_writer(args.seconds, args.channels, rate=TARGET, directory=args.dir)
+    realtime = measure_writer(args.seconds, args.channels, rate=required, block=10, directory=args.dir, probe=True)
+    pacing_alone = measure_pacing_alone(min(args.seconds, 3.0))
+    raw = measure_raw_h5py(min(args.seconds, 3.0), args.channels, directory=args.dir)
+    rate = full["samples_per_s"]
+    print(json.dumps({
+        "figure": "session writer sustained logging rate",
+        "value": round(rate),
+        "unit": "samples/s (1 sample = one row of one stream: (t,ax,ay,az) of an accelerometer or "
+                "(t,surge..yaw) of the commanded stream), appended and on disk including the run's end",
+        "compared_with": {
+            "required_realtime_samples_per_s": required,
+            "required_is": f"{args.channels} accelerometers x 1 kHz + commanded stream x 1 kHz",
+            "times_required": round(rate / required, 1),
+            "target_samples_per_s": TARGET,
+            "meets_target": rate >= TARGET,
+            "plain_h5py_samples_per_s": round(raw["samples_per_s"]),
+            "plain_h5py_is": "same rows appended with plain h5py, no SWMR/queue/thread, same run",
+        },
+        "data_at_risk_s": {
+            "bound": 1.0,
+            "definition": "largest time from append() to the end of the flush that put the sample on disk",
+            "flush_interval_s": 0.25,
+            "at_realtime_rate": round(realtime["max_append_to_disk_s"], 4),
+            "at_target_rate": round(at_target["max_append_to_disk_s"], 4),
+            "at_saturation": round(full["max_append_to_disk_s"], 4),
+            "at_saturation_note": "unpaced producer keeps the queue full: latency = queued data / write speed",
+        },
+        "pacing_1khz_thread_late_ms": {
+            "with_writer_at_realtime_rate": realtime["pacing_probe_late_ms"],
+            "alone": pacing_alone,
+            "note": "a sleep-paced 1 kHz thread in the same process (as the setpoint sender), same run",
+        },
+        "saturation": full,
+        "paced_at_target": at_target,
+        "paced_realtime": realtime,
+        "python": sys.version.split()[0],
+        "h5py": h5py.version.version,
+        "hdf5": h5py.version.hdf5_version,
+        "cpus": os.cpu_count(),
+    }, indent=2))
+
+
+if __name__ == "__main__":
+    main()

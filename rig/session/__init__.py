@@ -1,0 +1,42 @@
+"""The crash-safe session log: one HDF5 file per session (schema ``shaketable-rig/session/1``, ARCHITECTURE §7).
+
+Writing::
+
+    log = SessionLog.create(path, rig_config, sequence, software_version)   # or SessionLog.resume(path)
+    run = log.begin_run(plan_index, record=..., scale_factor=..., angle_deg=..., commanded=..., bodies=...,
+                        sensors=["plate"])
+    run.append_accel("plate", t, xyz)          # cheap, any thread; on disk within `FLUSH_INTERVAL` s
+    run.end("completed")
+    log.close()
+
+Reading (any process, any time, also during a run or after a crash): `read_session`, `list_sessions`, or
+``h5py.File(path, "r", swmr=True)`` — see `rig.session.reader`. Layout and units: `rig.session.schema`.
+Crash safety: `rig.session.atomic` (structure changes) and `rig.session.writer` (samples).
+"""
+
+from .errors import SessionError, SessionExistsError
+from .log import FLUSH_INTERVAL, MAX_FLUSH_INTERVAL, SessionLog
+from .reader import list_sessions, open_session, read_session, writer_flags
+from .run import RunLog
+from .runinfo import RunInfo
+from .schema import DONE_STATUSES, FINAL_STATUSES, RUNNING, SCHEMA
+from .writer import WriterStats
+
+__all__ = [
+    "DONE_STATUSES",
+    "FINAL_STATUSES",
+    "FLUSH_INTERVAL",
+    "MAX_FLUSH_INTERVAL",
+    "RUNNING",
+    "SCHEMA",
+    "RunInfo",
+    "RunLog",
+    "SessionError",
+    "SessionExistsError",
+    "SessionLog",
+    "WriterStats",
+    "list_sessions",
+    "open_session",
+    "read_session",
+    "writer_flags",
+]

@@ -1,0 +1,109 @@
+"""Writing the session file's structure (see `rig.session.schema`): the root, a run group, a run's end.
+
+These functions only create objects and attributes; `rig.session.atomic` makes each call sequence one atomic
+change of the file. They never read variable-length data of the file, so HDF5 puts new strings in a new
+global-heap collection (new space) rather than rewriting an existing one in place.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import h5py
+import numpy as np
+
+from . import schema
+from .hdf5props import EST_RUN_LINKS, EST_RUNS, create_group
+
+#: HDF5 fixed-length string attributes hold at least one byte.
+_FIXED_LEN = 16
+
+
+def attr_value(name: str, value: Any) -> Any:
+    """An attribute value h5py stores natively: bool/int/float/str scalars as such, lists and dicts as JSON
+    text. ValueError for anything else (and for non-finite numbers inside JSON)."""
+    if isinstance(value, bool | np.bool_):
+        return np.bool_(value)
+    if isinstance(value, int | np.integer):
+        return np.int64(value)
+    if isinstance(value, float | np.floating):
+        return np.float64(value)
+    if isinstance(value, str):
+        return value
+    if isinstance(value, list | tuple | dict):
+        try:
+            return json.dumps(value, allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise ValueError(f"attribute {name!r}: {exc}; expected JSON-able data") from None
+    raise ValueError(f"attribute {name!r} is a {type(value).__name__}; expected a bool, int, float, str, "
+                     "list or dict")
+
+
+def create_root(h5: h5py.File, *, software_version: str, created: str, rig_config: str, sequence: str) -> None:
+    """Root attributes and the empty ``/runs`` group (compact links, sized for `EST_RUNS` runs in page 0)."""
+    h5.attrs["schema"] = schema.SCHEMA
+    h5.attrs["software_version"] = software_version
+    h5.attrs["created"] = created
+    h5.attrs["rig_config"] = rig_config
+    h5.attrs["sequence"] = sequence
+    create_group(h5, "runs", links=EST_RUNS)
+
+
+def _columns(ds: h5py.Dataset, columns: Sequence[str], units: Sequence[str]) -> None:
+    ds.attrs["columns"] = ",".join(columns)
+    ds.attrs["units"] = ",".join(units)
+
+
+def _growing(parent: h5py.Group, name: str, width: int, chunk: int, data: np.ndarray | None = None) -> h5py.Dataset:
+    """A float64 (n, width) dataset, chunked, unlimited along rows (SWMR appends), uncompressed (a chunk keeps its
+    address while it fills, so rewriting it never moves samples already on disk)."""
+    initial = np.zeros((0, width)) if data is None else data
+    return parent.create_dataset(name, data=initial, maxshape=(None, width), chunks=(chunk, width), dtype="<f8",
+                                 track_times=False)
+
+
+def _table(parent: h5py.Group, name: str, dtype: np.dtype, rows: np.ndarray | None = None) -> h5py.Dataset:
+    initial = np.zeros(0, dtype=dtype) if rows is None else rows
+    return parent.create_dataset(name, data=initial, maxshape=(None,), chunks=(schema.TABLE_CHUNK,), dtype=dtype,
+                                 track_times=False)
+
+
+def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, record: str, scale_factor: float,
+               angle_deg: float, started: str, commanded: np.ndarray, bodies: np.ndarray, sensors: Sequence[str],
+               attrs: Mapping[str, Any]) -> None:
+    """The run group ``runs/name`` with its attributes (status ``"running"``) and all its datasets."""
+    group = create_group(runs, name, links=EST_RUN_LINKS, name_len=16)
+    group.attrs["record"] = record
+    group.attrs["scale_factor"] = np.float64(scale_factor)
+    group.attrs["angle_deg"] = np.float64(angle_deg)
+    group.attrs["plan_index"] = np.int64(plan_index)
+    group.attrs["attempt"] = np.int64(attempt)
+    group.attrs["started"] = started
+    group.attrs["sensors"] = json.dumps(list(sensors))
+    # fixed-length while running: the end replaces them by changing this header only (schema docstring)
+    group.attrs.create("status", np.bytes_(schema.RUNNING.encode()), dtype=h5py.string_dtype("utf-8", _FIXED_LEN))
+    group.attrs.create("ended", np.bytes_(b""), dtype=h5py.string_dtype("utf-8", _FIXED_LEN))
+    for key, value in attrs.items():
+        group.attrs[key] = value
+    _columns(_growing(group, "commanded", 7, schema.POSE_CHUNK, commanded), schema.POSE_COLUMNS, schema.POSE_UNITS)
+    _columns(_growing(group, "pose", 7, schema.POSE_CHUNK), schema.POSE_COLUMNS, schema.POSE_UNITS)
+    accel = create_group(group, "accel")
+    for sensor in sensors:
+        _columns(_growing(accel, sensor, 4, schema.ACCEL_CHUNK), schema.ACCEL_COLUMNS, schema.ACCEL_UNITS)
+    _table(group, "detections", schema.DETECTION)
+    _table(group, "faults", schema.FAULT)
+    _table(group, "events", schema.EVENT)
+    _table(group, "bodies", schema.BODY, bodies)
+
+
+def finish_run(group: h5py.Group, *, status: str, ended: str, attrs: Mapping[str, Any]) -> None:
+    """Final ``status`` and ``ended`` (as ordinary strings) and extra attributes of a run group."""
+    for key in ("status", "ended"):
+        if key in group.attrs:
+            del group.attrs[key]
+    group.attrs["status"] = status
+    group.attrs["ended"] = ended
+    for key, value in attrs.items():
+        group.attrs[key] = value

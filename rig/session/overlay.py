@@ -1,0 +1,113 @@
+"""The file object a session-file transaction opens with h5py (see `rig.session.atomic`).
+
+HDF5 reads and writes through it instead of the file: writes at or beyond ``boundary`` (the end of allocation
+when the transaction began: new space no metadata of the file refers to yet) go straight to the file; writes
+below it ("in place") are kept in memory per 4 KiB page, and reads see them. After h5py has closed the file,
+`Overlay.changed_pages` tells the committer which pages the transaction changes in place.
+"""
+
+from __future__ import annotations
+
+import io
+import os
+
+from .hdf5props import PAGE
+
+
+class Overlay(io.RawIOBase):
+    """A read-write file object over descriptor ``fd`` for h5py's file-object driver (see the module doc);
+    ``boundary``: the file's end of allocation [bytes] when the transaction began."""
+
+    def __init__(self, fd: int, boundary: int) -> None:
+        super().__init__()
+        self._fd = fd
+        self._boundary = boundary
+        self._size = os.fstat(fd).st_size
+        self._pos = 0
+        self._pages: dict[int, bytearray] = {}
+
+    # -- file-object protocol used by h5py's driver ------------------------------------------------------
+    def readable(self) -> bool:
+        return True
+
+    def writable(self) -> bool:
+        return True
+
+    def seekable(self) -> bool:
+        return True
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        base = {os.SEEK_SET: 0, os.SEEK_CUR: self._pos, os.SEEK_END: self._size}[whence]
+        self._pos = base + offset
+        return self._pos
+
+    def tell(self) -> int:
+        return self._pos
+
+    def _disk(self, offset: int, n: int) -> bytes:
+        data = os.pread(self._fd, n, offset)
+        return data if len(data) == n else data.ljust(n, b"\0")
+
+    def _page(self, index: int) -> bytearray:
+        page = self._pages.get(index)
+        if page is None:
+            page = self._pages[index] = bytearray(self._disk(index * PAGE, PAGE))
+        return page
+
+    def readinto(self, buffer: memoryview | bytearray) -> int:  # type: ignore[override]
+        view = memoryview(buffer).cast("B")
+        n, pos, done = len(view), self._pos, 0
+        while done < n:
+            at = pos + done
+            if at < self._boundary:
+                index, offset = divmod(at, PAGE)
+                k = min(PAGE - offset, n - done, self._boundary - at)
+                page = self._pages.get(index)
+                view[done : done + k] = page[offset : offset + k] if page is not None else self._disk(at, k)
+            else:
+                k = n - done
+                view[done:] = self._disk(at, k)
+            done += k
+        self._pos += n
+        return n
+
+    def write(self, data: bytes | memoryview) -> int:  # type: ignore[override]
+        view = memoryview(data).cast("B")
+        n, pos, done = len(view), self._pos, 0
+        while done < n:
+            at = pos + done
+            if at < self._boundary:
+                index, offset = divmod(at, PAGE)
+                k = min(PAGE - offset, n - done, self._boundary - at)
+                self._page(index)[offset : offset + k] = view[done : done + k]
+            else:
+                k = n - done
+                written = 0
+                while written < k:
+                    written += os.pwrite(self._fd, view[done + written : done + k], at + written)
+            done += k
+        self._pos += n
+        self._size = max(self._size, self._pos)
+        return n
+
+    def truncate(self, size: int | None = None) -> int:
+        self._size = self._pos if size is None else size
+        return self._size
+
+    def flush(self) -> None:
+        pass
+
+    # -- commit --------------------------------------------------------------------------------------------
+    def changed_pages(self) -> dict[int, tuple[bytes, bytes]]:
+        """Pages below the boundary whose kept bytes differ from the file: index → (old, new)."""
+        changed = {}
+        for index, page in sorted(self._pages.items()):
+            old = self._disk(index * PAGE, PAGE)
+            if old != page:
+                changed[index] = (old, bytes(page))
+        return changed
+
+    @property
+    def new_size(self) -> int:
+        """The file length HDF5 left (its EOA at close) [bytes]."""
+        return self._size

@@ -1,0 +1,178 @@
+"""Reading session files, also while they are being written and after their writer was killed.
+
+How any program must open a session file: ``h5py.File(path, "r", swmr=True)`` (h5py's ``locking=False`` is
+also fine). While a run is recorded the file is in HDF5 SWMR-write mode and its superblock says so; a reader
+without ``swmr=True`` is refused ("file is already open for write") — also after a writer was killed, until
+`SessionLog.resume` clears the flag. A SWMR reader sees each dataset grow after ``Dataset.refresh()``; run
+groups added after it opened the file appear when it opens the file again. In the *writer's* process a reader
+must not keep the file open across `SessionLog.begin_run` (HDF5 shares one open file per process and cannot
+turn a read-only handle into the SWMR writer): use `read_session`, which opens and closes the file.
+
+A metadata block may be caught half-written by a reader at the moment the writer replaces it (HDF5's
+checksums detect it); `open_session` and `read_session` retry for a while before giving up.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from . import schema, superblock
+from .errors import SessionError
+
+#: How long `read_session` keeps retrying a file caught mid-update [s].
+RETRY_SECONDS = 5.0
+_RETRYABLE = (OSError, RuntimeError, KeyError, ValueError)
+
+
+def open_session(path: str | os.PathLike[str], *, timeout: float = RETRY_SECONDS) -> h5py.File:
+    """Open a session file for reading the way every reader should (SWMR read, no HDF5 file lock), retrying
+    briefly; `SessionError` if it cannot be opened within ``timeout`` seconds."""
+    path = Path(path)
+    if not path.is_file():
+        raise SessionError(f"{path}: no such session file")
+    deadline = time.monotonic() + timeout
+    delay = 0.005
+    while True:
+        try:
+            return h5py.File(path, "r", swmr=True, locking=False)
+        except OSError as exc:
+            if time.monotonic() >= deadline:
+                raise SessionError(f"{path}: cannot open as an HDF5 session file ({exc})") from None
+        time.sleep(delay)
+        delay = min(delay * 2, 0.2)
+
+
+def plain(value: Any) -> Any:
+    """h5py/numpy values as plain Python: bytes → str, numpy scalars → int/float/bool, arrays kept (string arrays
+    → lists of str)."""
+    if isinstance(value, bytes | np.bytes_):
+        return bytes(value).decode("utf-8", "replace")
+    if isinstance(value, np.ndarray):
+        if value.dtype.kind in "SOU":
+            return [plain(v) for v in value.tolist()]
+        return value
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _records(ds: h5py.Dataset) -> list[dict[str, Any]]:
+    data = ds[()]
+    names = data.dtype.names or ()
+    return [{name: plain(row[name]) for name in names} for row in data]
+
+
+def _attrs(obj: h5py.HLObject) -> dict[str, Any]:
+    return {key: plain(obj.attrs[key]) for key in obj.attrs}
+
+
+def _tree(group: h5py.Group) -> dict[str, Any]:
+    """Any group (e.g. ``analysis``) as nested dicts: attributes under ``"attrs"``, datasets as arrays/records."""
+    out: dict[str, Any] = {"attrs": _attrs(group)}
+    for key, node in group.items():
+        if isinstance(node, h5py.Group):
+            out[key] = _tree(node)
+        elif node.dtype.names:
+            out[key] = _records(node)
+        else:
+            out[key] = plain(node[()])
+    return out
+
+
+def _run(group: h5py.Group, name: str, data: bool) -> dict[str, Any]:
+    attrs = _attrs(group)
+    run: dict[str, Any] = {"name": name}
+    for key in ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt"):
+        run[key] = attrs.get(key)
+    try:
+        run["sensors"] = json.loads(attrs.get("sensors", "[]"))
+    except (TypeError, ValueError):
+        run["sensors"] = sorted(group.get("accel", {}))
+    run["attrs"] = attrs
+    if not data:
+        run["samples"] = {f"accel/{s}": group["accel"][s].shape[0] for s in group.get("accel", {})}
+        return run
+    for key in ("commanded", "pose"):
+        run[key] = group[key][()] if key in group else np.zeros((0, 7))
+    run["accel"] = {sensor: ds[()] for sensor, ds in group["accel"].items()} if "accel" in group else {}
+    for key in ("detections", "bodies", "faults", "events"):
+        run[key] = _records(group[key]) if key in group else []
+    if "analysis" in group:
+        run["analysis"] = _tree(group["analysis"])
+    return run
+
+
+def _read(path: Path, data: bool) -> dict[str, Any]:
+    with open_session(path, timeout=0.0) as h5:
+        attrs = _attrs(h5)
+        if attrs.get("schema") != schema.SCHEMA:
+            raise SessionError(f"{path}: schema attribute is {attrs.get('schema')!r}; expected {schema.SCHEMA!r}")
+        out: dict[str, Any] = {"path": str(path), "schema": attrs["schema"]}
+        for key in ("software_version", "created"):
+            out[key] = attrs.get(key)
+        for key in ("rig_config", "sequence"):
+            out[key] = json.loads(attrs[key]) if isinstance(attrs.get(key), str) else None
+        out["attrs"] = attrs
+        runs = h5.get("runs")
+        out["runs"] = [_run(runs[name], name, data) for name in sorted(runs)] if runs is not None else []
+        return out
+
+
+def read_session(path: str | os.PathLike[str], *, data: bool = True, timeout: float = RETRY_SECONDS) -> dict[str, Any]:
+    """A session file as plain data (also while it is written): ``{"path", "schema", "software_version", "created",
+    "rig_config": dict, "sequence": dict, "attrs", "runs": [...]}``; each run a dict with ``name``, ``record``,
+    ``scale_factor``, ``angle_deg``, ``status``, ``started``, ``ended``, ``plan_index``, ``attempt``, ``sensors``,
+    ``attrs`` and, with ``data``, ``commanded``/``pose`` (n, 7) arrays, ``accel`` {sensor: (m, 4) array},
+    ``detections``/``bodies``/``faults``/``events`` as lists of dicts, ``analysis`` if present (without
+    ``data``: ``samples``, the row count per accelerometer). Strings are ``str``."""
+    path = Path(path)
+    deadline = time.monotonic() + timeout
+    delay = 0.005
+    while True:
+        try:
+            return _read(path, data)
+        except SessionError as exc:
+            if "schema attribute" in str(exc) or not path.is_file() or time.monotonic() >= deadline:
+                raise
+        except _RETRYABLE as exc:
+            if time.monotonic() >= deadline:
+                raise SessionError(f"{path}: unreadable session file ({exc!r})") from None
+        time.sleep(delay)
+        delay = min(delay * 2, 0.2)
+
+
+def writer_flags(path: str | os.PathLike[str]) -> int:
+    """The superblock's consistency flags: 0 if no writer has the file open (or one closed it cleanly), non-zero
+    while a run is recorded or after a writer died mid-run (until resumed)."""
+    with open(path, "rb") as f:
+        return superblock.parse(f.read(superblock.SIZE), path).flags
+
+
+def list_sessions(directory: str | os.PathLike[str]) -> list[dict[str, Any]]:
+    """Session files (``*.h5``/``*.hdf5`` with the session schema) in ``directory``, oldest first: ``path``,
+    ``created``, ``software_version``, ``runs`` (count), ``statuses`` ({status: count}), ``open_for_write``
+    (a run is being recorded, or its writer died and the session was not resumed). Other files are skipped."""
+    found = []
+    for path in sorted(Path(directory).iterdir()):
+        if path.name.startswith(".") or path.suffix.lower() not in (".h5", ".hdf5") or not path.is_file():
+            continue
+        try:
+            flags = writer_flags(path)
+            session = read_session(path, data=False, timeout=1.0)
+        except (SessionError, OSError, ValueError):
+            continue
+        statuses: dict[str, int] = {}
+        for run in session["runs"]:
+            statuses[str(run["status"])] = statuses.get(str(run["status"]), 0) + 1
+        found.append({"path": str(path), "created": session["created"],
+                      "software_version": session["software_version"], "runs": len(session["runs"]),
+                      "statuses": statuses, "open_for_write": bool(flags)})
+    found.sort(key=lambda s: (str(s["created"]), s["path"]))
+    return found
