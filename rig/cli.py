@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import math
 import sys
+from pathlib import Path
 from typing import Annotated, NoReturn
 
 import numpy as np
@@ -19,7 +20,7 @@ from rich.table import Table
 
 from analysis import TABLE_I, AnalysisInputError, Body, simulate
 from analysis.study import StudyResult, study
-from rig import cli_design, cli_emulate, cli_prepare, cli_records
+from rig import cli_design, cli_emulate, cli_prepare, cli_records, cli_run, cli_sessions
 from rig.records import RecordError, load_record, load_records
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
@@ -174,19 +175,20 @@ def print_cor_table(res: StudyResult) -> None:
 
 @app.command("demo")
 def demo_cmd(
-    records: Annotated[str, typer.Option(help="record suite for the demo study")] = "fema",
+    output_dir: Annotated[Path, typer.Option("--output-dir", help="where the session file goes")] = Path("demo-output"),
+    speed: Annotated[float, typer.Option(help="the emulator's controller time per real time")] = 1.0,
 ) -> None:
-    """The demo: until the emulated table lands, a study of the paper's 12 bodies on real records."""
-    console.print(f"[bold]shaketable-rig demo[/]: rocking-model study of the paper's Table I bodies on "
-                  f"the FEMA P695 records ({records}), both signs, 0–7°.")
-    study_cmd(records=records, bodies="table1", angles="0:7:0.5", model="rocking", restitution="0",
-              friction=1.0, as_json=False)
+    """The demo: the emulated table (its own process, MAVLink on loopback, two Table V bodies on the plate) runs
+    examples/quick.toml unattended; the session file is written and summarised."""
+    cli_run.demo(output_dir, speed, fail=fail, console=console)
 
 
 cli_records.register(app)
 cli_prepare.register(app)
 cli_design.register(app)
 cli_emulate.register(app)
+cli_run.register(app, fail, console)
+cli_sessions.register(app, fail, console)
 
 
 def main() -> None:  # pragma: no cover - console entry

@@ -1,0 +1,337 @@
+"""``rig run``: a test sequence on the table (or the emulated one), logged to a new session file.
+
+The orchestrator runs in a worker thread; this thread draws the progress (a bar for the run and one for the
+session, a status line: table state, setpoint buffer, peak plate acceleration, detections), asks the operator's
+questions and takes Ctrl-C: the first pauses at the end of the current record (then: resume, or end the
+session there — it stays resumable), the second aborts at once (controlled stop, the run marked ``aborted``).
+Exit codes: 0 all runs done, 1 the session stopped early (resumable with ``--resume``), 2 bad input.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import queue
+import secrets
+import signal
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator
+from datetime import datetime
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.console import Group
+from rich.live import Live
+from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
+from rich.prompt import Confirm, Prompt
+from rich.text import Text
+
+from rig.emulator import EmulatorError, EmulatorProcess, specimen_flags
+from rig.orchestrator import Orchestrator, OrchestratorState
+from rig.orchestrator import Progress as RunProgress
+from rig.orchestrator.states import OperatorDeclinedError
+from rig.sequence import PlacedBody, PlannedRun, Sequence, SequenceError, load_sequence
+from rig.session import SessionError, SessionLog, read_session
+
+EMULATOR_LISTEN = "mavlink://127.0.0.1:0"
+"""Where ``--emulate`` starts the emulated table (MAVLink on loopback, any free port)."""
+
+REFRESH = 8.0
+"""Screen refreshes per second."""
+
+
+def software_version() -> str:
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("shaketable-rig")
+    except PackageNotFoundError:
+        return "unknown"
+
+
+def default_session_path(sequence: Sequence, directory: Path | None = None) -> Path:
+    """``session-YYYYMMDD-HHMMSS-NAME.h5`` in ``directory`` (default: the current one)."""
+    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+    safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in sequence.name)
+    return (directory or Path.cwd()) / f"session-{stamp}-{safe}.h5"
+
+
+# ----- the operator at this terminal ---------------------------------------------------------------------------
+
+
+class TerminalOperator:
+    """The operator's steps asked on this terminal: the orchestrator's thread posts a question, the screen's
+    thread asks it (the live display paused) and posts the answer back."""
+
+    def __init__(self) -> None:
+        self.questions: queue.Queue[tuple[Callable[[], Any], queue.Queue[Any]]] = queue.Queue()
+
+    def _ask(self, question: Callable[[], Any]) -> Any:
+        answer: queue.Queue[Any] = queue.Queue(maxsize=1)
+        self.questions.put((question, answer))
+        result = answer.get()
+        if isinstance(result, BaseException):
+            raise result
+        return result
+
+    def place_bodies(self, prompt: str) -> None:
+        def ask() -> None:
+            if not Confirm.ask(f"[bold]{prompt}[/]\nBodies placed?", default=True):
+                raise OperatorDeclinedError("bodies not placed")
+
+        self._ask(ask)
+
+    def confirm_run(self, run: PlannedRun, description: str) -> None:
+        def ask() -> None:
+            if not Confirm.ask(f"Run {run.plan_index + 1}: {description}. Start?", default=True):
+                raise OperatorDeclinedError(f"run {run.plan_index + 1} not started")
+
+        self._ask(ask)
+
+    def which_fell(self, run: PlannedRun, bodies: tuple[PlacedBody, ...]) -> list[tuple[int, int]]:
+        def ask() -> list[tuple[int, int]]:
+            fell = []
+            for body in bodies:
+                answer = Prompt.ask(f"Body {body.body_id} ({body.name}): fell to the low side (+), the high side (-) "
+                                    "or stood (0)?", choices=["+", "-", "0"], default="0")
+                if answer != "0":
+                    fell.append((body.body_id, 1 if answer == "+" else -1))
+            return fell
+
+        return self._ask(ask)
+
+
+# ----- the screen ----------------------------------------------------------------------------------------------
+
+
+class Screen:
+    """Progress bars and the status line, drawn from the orchestrator's progress."""
+
+    def __init__(self, progress: RunProgress) -> None:
+        self.progress = progress
+        self.bars = Progress(TextColumn("{task.description}"), BarColumn(), TaskProgressColumn(),
+                             TimeRemainingColumn(), transient=False)
+        self.session_task = self.bars.add_task("session", total=max(progress.runs_total, 1))
+        self.run_task = self.bars.add_task("run", total=1)
+
+    def render(self) -> Group:
+        p = self.progress
+        self.bars.update(self.session_task, completed=p.runs_done, total=max(p.runs_total, 1),
+                         description=f"session {p.runs_done}/{p.runs_total}")
+        label = f"run {p.run.plan_index + 1}" if p.run is not None else "run"
+        self.bars.update(self.run_task, completed=p.samples_sent, total=max(p.samples_total, 1), description=label)
+        status = Text.assemble(
+            ("state ", "dim"), (p.state.value, "bold"), ("  table ", "dim"), (p.table_state or "-", ""),
+            ("  buffer ", "dim"), (f"{p.buffer_depth}", ""), ("  peak ", "dim"), (f"{p.peak_accel / 9.81:.3f} g", ""),
+            ("  overturns ", "dim"), (f"{p.detections}", ""), ("  ", ""), (p.message, "italic"))
+        return Group(self.bars, status)
+
+
+@contextlib.contextmanager
+def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Path | None,
+              speed: float) -> Iterator[tuple[str, dict[str, Any], Callable[[], dict[str, Any]] | None]]:
+    """The table URL and driver options; with ``emulate``, an emulator process started (and stopped after) with
+    the sequence's bodies on its plate and a one-session signing key unless ``key_file`` is given."""
+    if not emulate:
+        url = table or sequence.table_url
+        if url is None:
+            raise typer.BadParameter("give --table URL (or table_url in the sequence), or --emulate")
+        yield url, ({"key_file": str(key_file)} if key_file else {}), None
+        return
+    with tempfile.TemporaryDirectory(prefix="rig-run-") as scratch:
+        if key_file is None:
+            key_file = Path(scratch) / "session.key"
+            key_file.write_text(secrets.token_hex(32) + "\n")
+        flags = [*specimen_flags(sequence.bodies), "--speed", f"{speed:g}"]
+        emulator = EmulatorProcess.start(EMULATOR_LISTEN, *flags, key_file=key_file)
+        counters: dict[str, Any] = {}
+        try:
+            yield emulator.url, {"key_file": str(key_file)}, lambda: counters
+        finally:
+            counters.update(emulator.stop())
+
+
+def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str, Any], *, yes: bool,
+                console: Any) -> bool:
+    """Play the session with the screen, the prompts and Ctrl-C handling (module docstring); whether every run of
+    the plan is done."""
+    operator = None if yes else TerminalOperator()
+    orchestrator = Orchestrator(sequence, url, log, table_options=options, operator=operator)
+    screen = Screen(orchestrator.progress)
+    result: list[OrchestratorState | BaseException] = []
+
+    def work() -> None:
+        try:
+            result.append(orchestrator.run())
+        except BaseException as exc:
+            result.append(exc)
+
+    interrupts = [0]
+
+    def on_sigint(signum: int, frame: object) -> None:
+        interrupts[0] += 1
+        if interrupts[0] == 1:
+            orchestrator.pause()
+        else:
+            threading.Thread(target=orchestrator.abort, daemon=True).start()
+
+    worker = threading.Thread(target=work, name="orchestrator")
+    previous = signal.signal(signal.SIGINT, on_sigint)
+    try:
+        with Live(screen.render(), console=console, refresh_per_second=REFRESH, transient=False) as live:
+            worker.start()
+            while worker.is_alive():
+                live.update(screen.render())
+                asked = _next_question(operator)
+                if asked is not None:
+                    live.stop()
+                    _answer(*asked)
+                    live.start()
+                if orchestrator.state is OrchestratorState.PAUSED:
+                    live.stop()
+                    _paused(orchestrator, interrupts, yes, console)
+                    live.start()
+                time.sleep(1 / REFRESH)
+            live.update(screen.render())
+    finally:
+        signal.signal(signal.SIGINT, previous)
+        worker.join()
+    outcome = result[0]
+    if isinstance(outcome, BaseException):
+        raise outcome
+    progress = orchestrator.progress
+    console.print(f"\n[bold]{outcome.value}[/]: {progress.message}")
+    return outcome is OrchestratorState.DONE and progress.runs_done == progress.runs_total
+
+
+def write_emulator_counters(session: Path, counters: dict[str, Any]) -> Path:
+    """The emulator's counters (its overturns, underruns, stops, refused commands) beside the session file, as
+    ``SESSION.emulator.json``: what the emulated table itself saw, to compare with the session's log."""
+    path = session.with_name(session.name.removesuffix(".h5") + ".emulator.json")
+    path.write_text(json.dumps(counters, indent=1) + "\n")
+    return path
+
+
+def _next_question(operator: TerminalOperator | None) -> tuple[Callable[[], Any], queue.Queue[Any]] | None:
+    if operator is None:
+        return None
+    try:
+        return operator.questions.get_nowait()
+    except queue.Empty:
+        return None
+
+
+def _answer(question: Callable[[], Any], answer: queue.Queue[Any]) -> None:
+    try:
+        answer.put(question())
+    except (OperatorDeclinedError, EOFError, KeyboardInterrupt) as exc:
+        answer.put(exc if isinstance(exc, OperatorDeclinedError) else OperatorDeclinedError("no answer"))
+
+
+def _paused(orchestrator: Orchestrator, interrupts: list[int], yes: bool, console: Any) -> None:
+    """Paused at the end of a record: resume, or end the session here (resumable)."""
+    if interrupts[0] >= 2:
+        return
+    if yes:
+        console.print("paused (Ctrl-C): the session ends here; continue it with rig run --resume")
+        orchestrator.abort()
+        return
+    try:
+        go_on = Confirm.ask("Paused at the end of the record. Resume?", default=True)
+    except (EOFError, KeyboardInterrupt):
+        go_on = False
+    if go_on:
+        interrupts[0] = 0
+        orchestrator.resume()
+    else:
+        orchestrator.abort()
+
+
+def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+    """Add ``rig run`` to the ``rig`` application."""
+
+    @app.command("run")
+    def run(sequence_file: Annotated[Path | None, typer.Argument(metavar="SEQUENCE.toml",
+                                                                 help="the test sequence (not with --resume)")] = None,
+            table: Annotated[str | None, typer.Option(help="table URL, e.g. mavlink://192.168.1.20:14600")] = None,
+            emulate: Annotated[bool, typer.Option(help="start the emulated table (MAVLink on loopback) and "
+                                                       "stop it after")] = False,
+            output: Annotated[Path | None, typer.Option("-o", "--output", help="new session file (default: "
+                                                        "session-DATE-TIME-NAME.h5 here)")] = None,
+            resume: Annotated[Path | None, typer.Option(help="continue this session file from its first run "
+                                                             "that did not complete")] = None,
+            yes: Annotated[bool, typer.Option("--yes", "-y", help="unattended: no operator prompts")] = False,
+            key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
+                                                               "$SHAKETABLE_MAVLINK_KEY)")] = None,
+            speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+            ) -> None:
+        """Run a test sequence on the table, logging every run to a session file."""
+        try:
+            if resume is not None:
+                sequence = Sequence.from_dict(read_session(resume, data=False)["sequence"], source=str(resume))
+                sequence.check()
+                log = SessionLog.resume(resume)
+                path = resume
+            else:
+                if sequence_file is None:
+                    fail("give a SEQUENCE.toml (or --resume SESSION.h5)")
+                sequence = load_sequence(sequence_file)
+                sequence.check()
+                path = output or default_session_path(sequence)
+                log = None
+            with table_for(sequence, table, emulate, key_file, speed) as (url, options, counters):
+                if log is None:
+                    log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
+                                            software_version=software_version())
+                console.print(f"session file: {path}")
+                try:
+                    complete = run_session(sequence, log, url, options, yes=yes, console=console)
+                finally:
+                    log.close()
+            if counters is not None:
+                write_emulator_counters(path, counters())
+        except (SequenceError, SessionError, EmulatorError, typer.BadParameter) as exc:
+            fail(str(exc))
+        if not complete:
+            console.print(f"the session stopped early: continue it with rig run --resume {path}")
+            raise typer.Exit(code=1)
+
+
+QUICK_SEQUENCE = Path(__file__).resolve().parents[1] / "examples" / "quick.toml"
+"""The demo's sequence: two Table V bodies, two angles, three short records."""
+
+
+def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console: Any) -> None:
+    """``rig demo``: the emulated table runs the quick sequence unattended into a new session file in
+    ``output_dir``; the session and what the emulator itself saw are summarised, and the files named."""
+    from rig.cli_sessions import print_session
+
+    try:
+        sequence = load_sequence(QUICK_SEQUENCE)
+        sequence.check()
+        output_dir.mkdir(parents=True, exist_ok=True)
+        path = default_session_path(sequence, output_dir)
+        console.print(f"[bold]shaketable-rig demo[/]: {sequence.name!r} ({len(sequence.plan())} runs, "
+                      f"{sequence.table_seconds():.0f} s of table time) on the emulated table over MAVLink "
+                      f"(loopback), bodies {', '.join(b.name for b in sequence.bodies)} on the plate")
+        with table_for(sequence, None, True, None, speed) as (url, options, counters):
+            assert counters is not None
+            log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
+                                    software_version=software_version())
+            try:
+                complete = run_session(sequence, log, url, options, yes=True, console=console)
+            finally:
+                log.close()
+        emulator_file = write_emulator_counters(path, counters())
+    except (SequenceError, SessionError, EmulatorError) as exc:
+        fail(str(exc))
+    print_session(path, console)
+    seen = json.loads(emulator_file.read_text())
+    console.print(f"the emulator's specimens overturned {len(seen['overturns'])} times; it counted "
+                  f"{seen['underruns']} underruns and {seen['refused_commands']} refused commands")
+    console.print(f"session file:      {path}\nemulator counters: {emulator_file}")
+    if not complete:
+        raise typer.Exit(code=1)

@@ -1,0 +1,308 @@
+"""The orchestrator: a test sequence played on a table, run by run, each run logged to the session file.
+
+:meth:`Orchestrator.run` blocks in the caller's thread and walks the plan (``docs/orchestrator.md``):
+
+- **connecting**: the table URL is opened and armed. Before that, every run's drive has been prepared and
+  checked against the table model and every body checked to stand at every angle (``Sequence.check``): a bad
+  sequence is refused before anything moves.
+- per angle: **tilting** (SET_TILT, held for all the angle's runs), **waiting for the operator** to place the
+  bodies; per run: (waiting for the operator to confirm, if the sequence asks) the drive prepared again and
+  checked (a run that cannot be played is logged ``refused`` with the reason and skipped), **running**: the run's
+  group is opened in the session file with the commanded trajectory, the table's feedback is recorded while the
+  drive streams (:class:`~rig.orchestrator.recorder.RunRecorder`), the overturns come from the table's sensors —
+  or from the operator when the sensors report none and the sequence asks — and the run ends ``completed``.
+- then **stopping** (home, disarm) and **done**.
+
+From any other thread: :meth:`pause` takes effect at the end of the current record (a record is never resumed
+mid-way; the table holds its tilt while **paused**), :meth:`resume` continues, :meth:`abort` stops the table at
+once (a controlled stop: decelerate, home) and :meth:`emergency_stop` brakes it; either marks the current run
+``aborted`` and ends the session's invocation (``done`` after an abort, ``faulted`` after an emergency stop or a
+table fault). A session file left by any of these, or by a crash, is continued with ``rig run --resume``: the
+plan entries with a completed (or refused) run are skipped, the rest run in order.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import threading
+from collections.abc import Callable
+from typing import Any, NoReturn
+
+import numpy as np
+
+from drivers.controller import StreamAbortedError, TableController, TableError, open_table
+from rig.orchestrator.recorder import RunRecorder
+from rig.orchestrator.states import Operator, OperatorDeclinedError, OrchestratorState, Progress, Unattended
+from rig.sequence import PlannedRun, Sequence, SequenceError
+
+LEAD = 0.075
+"""How far ahead of its first sample each setpoint chunk is sent [s] (docs/table-controller.md: 50–100 ms)."""
+
+LINGER = 0.5
+"""How long the feedback is still recorded after a drive has played [s]: the last accelerometer batches and the
+repetitions of a late overturn event."""
+
+COMMAND_TIMEOUT = 120.0
+"""Longest tilt or home move waited for [s]."""
+
+State = OrchestratorState
+
+
+class SessionStoppedError(Exception):
+    """The session's invocation ended before its plan did (abort, emergency stop, operator, table fault);
+    ``faulted``: the table needs attention (emergency stop, fault) rather than a plain resume."""
+
+    def __init__(self, message: str, faulted: bool = False) -> None:
+        super().__init__(message)
+        self.faulted = faulted
+
+
+class Orchestrator:
+    """Plays ``sequence`` on the table at ``table_url`` into the session ``log`` (module docstring).
+
+    ``log`` is an open :class:`rig.session.SessionLog` (new or resumed); ``table_options`` go to
+    :func:`drivers.controller.open_table` (e.g. ``key_file``); ``sensors`` the accelerometer ids the table reports
+    (logged as ``accel/<id>``); ``operator`` answers the operator's steps (default: unattended);
+    ``on_update(progress)`` is called from the orchestrator's threads whenever the state or the progress changes
+    (at most about ten times a second while streaming).
+    """
+
+    def __init__(self, sequence: Sequence, table_url: str, log: Any, *, table_options: dict[str, Any] | None = None,
+                 sensors: tuple[int, ...] = (0,), operator: Operator | None = None,
+                 on_update: Callable[[Progress], None] | None = None) -> None:
+        self.sequence = sequence
+        self.table_url = table_url
+        self.log = log
+        self.table_options = table_options or {}
+        self.sensors = {sensor: str(sensor) for sensor in sensors}
+        self.operator: Operator = operator or Unattended()
+        self.progress = Progress(runs_total=len(sequence.plan()))
+        self._on_update = on_update
+        self._lock = threading.Condition()
+        self._pause_requested = False
+        self._stop_requested: str | None = None  # "abort" | "emergency stop"
+        self._table: TableController | None = None
+        self._run_log: Any = None
+
+    # ----- control from other threads -----------------------------------------------------------------
+
+    @property
+    def state(self) -> OrchestratorState:
+        return self.progress.state
+
+    def pause(self) -> None:
+        """Pause at the end of the current record (the table holds its tilt)."""
+        with self._lock:
+            self._pause_requested = True
+            self._lock.notify_all()
+        self._note("pause requested: the session pauses at the end of the current record")
+
+    def resume(self) -> None:
+        """Continue after a pause (or cancel a pause not yet taken)."""
+        with self._lock:
+            self._pause_requested = False
+            self._lock.notify_all()
+        self._note("resume requested")
+
+    def abort(self) -> None:
+        """Stop now: a controlled stop of the table (decelerate, home), the current run marked ``aborted``."""
+        self._request_stop("abort")
+
+    def emergency_stop(self) -> None:
+        """Brake the table now (only ARM leaves it), the current run marked ``aborted``."""
+        self._request_stop("emergency stop")
+
+    def _request_stop(self, kind: str) -> None:
+        with self._lock:
+            if self._stop_requested == "emergency stop":
+                return
+            self._stop_requested = kind
+            self._lock.notify_all()
+            table = self._table
+        self._note(f"{kind} requested")
+        if table is not None:
+            try:
+                table.emergency_stop() if kind == "emergency stop" else table.stop()
+            except TableError as exc:  # the table is already stopped, or gone: the run loop reports it
+                self._note(f"{kind}: {exc}")
+
+    # ----- the session ----------------------------------------------------------------------------------
+
+    def run(self) -> OrchestratorState:
+        """Play the plan's runs that have not completed; the final state (``done`` or ``faulted``)."""
+        self.sequence.check()
+        done = self.log.done_plan_indices()
+        plan = [run for run in self.sequence.plan() if run.plan_index not in done]
+        self.progress.runs_done = self.progress.runs_total - len(plan)
+        self._set(State.CONNECTING, f"connecting to {self.table_url}")
+        try:
+            with open_table(self.table_url, **self.table_options) as table:
+                with self._lock:
+                    self._table = table
+                try:
+                    self._play(table, plan)
+                finally:
+                    with self._lock:
+                        self._table = None
+        except SessionStoppedError as exc:
+            final = State.FAULTED if exc.faulted else State.DONE
+            self._set(final, str(exc))
+            return final
+        except (TableError, OSError) as exc:
+            self._set(State.FAULTED, f"table: {exc}")
+            return State.FAULTED
+        self._set(State.DONE, f"{self.progress.runs_done} of {self.progress.runs_total} runs done")
+        return State.DONE
+
+    def _play(self, table: TableController, plan: list[PlannedRun]) -> None:
+        self._check_stop()
+        if table.status().state != "armed":
+            table.arm()
+        for angle_index, group in itertools.groupby(plan, key=lambda run: run.angle_index):
+            runs = list(group)
+            angle_deg = self.sequence.angles_deg[angle_index]
+            self._check_stop()
+            self._set(State.TILTING, f"tilting the plate to {angle_deg:g}°")
+            self._motion(lambda a=angle_deg: table.set_tilt(math.radians(a), timeout=COMMAND_TIMEOUT))
+            self._set(State.WAITING, "place the bodies")
+            prompt = self.sequence.operator.place_prompt(angle_deg, self.sequence.bodies, self.sequence.name)
+            self._ask(lambda p=prompt: self.operator.place_bodies(p))
+            for run in runs:
+                self._wait_while_paused()
+                self._play_run(table, run)
+        self._set(State.STOPPING, "all runs played: home")
+        self._motion(lambda: table.home(timeout=COMMAND_TIMEOUT))
+        table.disarm()
+
+    def _play_run(self, table: TableController, run: PlannedRun) -> None:
+        self.progress.run = run
+        entry = self.sequence.records[run.record_index]
+        try:
+            drive = self.sequence.prepare(run)
+        except SequenceError as exc:
+            refused = self.log.begin_run(run.plan_index, record=entry.label(), scale_factor=float("nan"),
+                                         angle_deg=run.angle_deg, commanded=np.zeros((0, 7)),
+                                         bodies=self._bodies(), sensors=list(self.sensors.values()),
+                                         attrs={"reason": str(exc)})
+            refused.end("refused", reason=str(exc))
+            self._finish(run, "refused", f"run {run.plan_index + 1} refused: {exc}")
+            return
+        if self.sequence.operator.confirm_before_run:
+            self._set(State.WAITING, f"confirm run {run.plan_index + 1}")
+            self._ask(lambda: self.operator.confirm_run(run, (
+                f"{entry.label()} at {run.angle_deg:g}°, scale factor {drive.scale_factor:.3f} "
+                f"({drive.governing.axis} {drive.governing.quantity}), {drive.duration:.1f} s")))
+            self._wait_while_paused()
+        run_log = self.log.begin_run(
+            run.plan_index, record=entry.label(), scale_factor=drive.scale_factor, angle_deg=run.angle_deg,
+            commanded=np.column_stack([drive.t, drive.poses]), bodies=self._bodies(),
+            sensors=list(self.sensors.values()),
+            attrs={"repetition": run.repetition, "governing_axis": drive.governing.axis,
+                   "governing_quantity": drive.governing.quantity, "corner_frequency": drive.corner_frequency,
+                   "record_start": drive.record_start, "rate": drive.rate, "table_url": self.table_url})
+        recorder = RunRecorder(table, run_log, self.sensors, [b.body_id for b in self.sequence.bodies],
+                               self.progress)
+        self.progress.samples_sent, self.progress.samples_total = 0, len(drive.t)
+        self.progress.peak_accel, self.progress.detections = 0.0, 0
+        self._set(State.RUNNING, f"run {run.plan_index + 1}: {entry.label()} at {run.angle_deg:g}°")
+        try:
+            report = table.stream(drive.t, drive.poses, lead=LEAD, on_progress=self._streamed,
+                                  on_start=recorder.start)
+        except StreamAbortedError as exc:
+            self._end_aborted(table, run, recorder, run_log, f"the table stopped the stream: {exc}")
+        except TableError as exc:
+            self._end_aborted(table, run, recorder, run_log, f"table error: {exc}")
+        recorder.finish(LINGER)
+        if not recorder.detections and self.sequence.operator.ask_detections:
+            self._set(State.WAITING, "which bodies fell?")
+            for body_id, direction in self._ask(lambda: self.operator.which_fell(run, self.sequence.bodies)):
+                run_log.add_detection(float("nan"), body_id, direction, "operator")
+        run_log.end("completed", underruns=report.underruns, t_start_controller_ns=report.t_start_ns)
+        self._finish(run, "completed", f"run {run.plan_index + 1} completed: {len(recorder.detections)} overturns")
+
+    def _end_aborted(self, table: TableController, run: PlannedRun, recorder: RunRecorder, run_log: Any,
+                     reason: str) -> NoReturn:
+        """The stream ended early: log the run ``aborted`` and stop the session (SessionStoppedError)."""
+        recorder.finish(LINGER)
+        why = self._stop_requested or "fault"
+        run_log.add_event(float("nan"), f"{why}: {reason}")
+        run_log.end("aborted", reason=f"{why}: {reason}")
+        self._finish(run, "aborted", f"run {run.plan_index + 1} aborted ({why})")
+        if self._stop_requested != "emergency stop":
+            self._settle_after_stop(table)
+        raise SessionStoppedError(f"run {run.plan_index + 1} aborted ({why}): {reason}", faulted=why != "abort")
+
+    def _settle_after_stop(self, table: TableController) -> None:
+        """After an abort or a table fault: wait until the table is at rest (armed home, or faulted)."""
+        self._set(State.STOPPING, "the table stops and returns home")
+        try:
+            table.wait_for_status(lambda s: s.state in ("armed", "faulted", "emergency_stopped", "idle"),
+                                  COMMAND_TIMEOUT)
+        except TableError as exc:
+            self._note(f"the table did not report rest: {exc}")
+
+    # ----- steps ----------------------------------------------------------------------------------------
+
+    def _motion(self, move: Callable[[], None]) -> None:
+        """A tilt or home move; an abort during it stops the session (the table is already stopping)."""
+        try:
+            move()
+        except TableError as exc:
+            if self._stop_requested is not None:
+                raise SessionStoppedError(f"{self._stop_requested} during a move: {exc}",
+                                     faulted=self._stop_requested != "abort") from None
+            raise
+        self._check_stop()
+
+    def _ask(self, step: Callable[[], Any]) -> Any:
+        try:
+            answer = step()
+        except OperatorDeclinedError as exc:
+            raise SessionStoppedError(f"the operator declined: {exc}") from None
+        self._check_stop()
+        return answer
+
+    def _wait_while_paused(self) -> None:
+        with self._lock:
+            if not self._pause_requested:
+                return
+        self._set(State.PAUSED, "paused at the end of the record: resume to continue")
+        with self._lock:
+            while self._pause_requested and self._stop_requested is None:
+                self._lock.wait(0.5)
+        self._check_stop()
+
+    def _check_stop(self) -> None:
+        if self._stop_requested is not None:
+            raise SessionStoppedError(f"{self._stop_requested} requested", faulted=self._stop_requested != "abort")
+
+    def _streamed(self, sent: int, total: int) -> None:
+        self.progress.samples_sent, self.progress.samples_total = sent, total
+        self._update()
+
+    def _bodies(self) -> list[dict[str, Any]]:
+        return [{"body_id": b.body_id, "name": b.name, "b": b.body.b, "h": b.body.h, "depth": b.depth,
+                 "mass": b.body.mass if b.body.mass is not None else float("nan"), "x": b.x, "y": b.y}
+                for b in self.sequence.bodies]
+
+    # ----- progress -------------------------------------------------------------------------------------
+
+    def _finish(self, run: PlannedRun, status: str, message: str) -> None:
+        self.progress.outcomes[run.plan_index] = status
+        if status in ("completed", "refused"):
+            self.progress.runs_done += 1
+        self._note(message)
+
+    def _set(self, state: OrchestratorState, message: str) -> None:
+        self.progress.state = state
+        self._note(message)
+
+    def _note(self, message: str) -> None:
+        self.progress.message = message
+        self._update()
+
+    def _update(self) -> None:
+        if self._on_update is not None:
+            self._on_update(self.progress)
+

@@ -1,0 +1,121 @@
+"""A run's recorder: the table's feedback (accelerations, measured pose, detections, faults) into the run's log.
+
+It subscribes when made (before the stream starts, so nothing is missed) and writes from its own thread once
+:meth:`RunRecorder.start` has the controller time of the drive's first sample: every time in the run's log is
+seconds from that instant (the commanded trajectory's t = 0), negative for what was measured before it.
+Accelerometer ids map to the run's sensor names; detection body ids are the bodies' order on the table (the
+emulator's ``--body`` order, a real detector's channel order), mapped to the sequence's body ids.
+"""
+
+from __future__ import annotations
+
+import threading
+from typing import Any
+
+import numpy as np
+
+from drivers.controller import AccelBatch, Detection, FaultEvent, TableController, TableStatus
+from rig.orchestrator.states import Progress
+
+POLL_SECONDS = 0.02
+"""How often the recorder drains the subscriptions [s]."""
+
+BASELINE_SAMPLES = 200
+"""Samples per sensor that give the static plate-x reading (the tilt's gravity component) for the status line."""
+
+
+class RunRecorder:
+    """Feeds ``run_log`` (a :class:`rig.session.RunLog`) from ``table``'s feedback (module docstring).
+
+    ``sensors`` maps accelerometer ids to the log's sensor names; ``body_ids`` maps the table's body index to
+    the sequence's body id; ``progress`` gets the peak horizontal acceleration and the detection count.
+    """
+
+    def __init__(self, table: TableController, run_log: Any, sensors: dict[int, str], body_ids: list[int],
+                 progress: Progress) -> None:
+        self.run_log = run_log
+        self.sensors = sensors
+        self.body_ids = body_ids
+        self.progress = progress
+        self.detections: list[tuple[float, int, int]] = []
+        self._accel = table.accelerations()
+        self._statuses = table.statuses()
+        self._detections = table.detections()
+        self._faults = table.faults()
+        self._t0_ns: int | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._loop, name="run-recorder", daemon=True)
+        self._baseline: dict[int, list[float]] = {}
+        self._undeclared: set[int] = set()
+
+    def start(self, t0_ns: int) -> None:
+        """The drive's first sample is due at controller time ``t0_ns``: start writing."""
+        self._t0_ns = t0_ns
+        self._thread.start()
+
+    def finish(self, linger: float = 0.0) -> None:
+        """Keep recording ``linger`` s more (late detections, the last batches), then drain and stop."""
+        if self._thread.is_alive():
+            self._stop.wait(linger)
+            self._stop.set()
+            self._thread.join()
+        for sub in (self._accel, self._statuses, self._detections, self._faults):
+            sub.close()
+
+    def _loop(self) -> None:
+        while not self._stop.wait(POLL_SECONDS):
+            self._drain()
+        self._drain()
+
+    def _seconds(self, t_ns: int | np.ndarray) -> Any:
+        assert self._t0_ns is not None
+        return (np.asarray(t_ns) - self._t0_ns) * 1e-9
+
+    def _drain(self) -> None:
+        for batch in self._accel.drain():
+            self._write_accel(batch)
+        statuses = self._statuses.drain()
+        if statuses:
+            self._write_poses(statuses)
+        for detection in self._detections.drain():
+            self._write_detection(detection)
+        for fault in self._faults.drain():
+            self._write_fault(fault)
+
+    def _write_accel(self, batch: AccelBatch) -> None:
+        name = self.sensors.get(batch.sensor_id)
+        if name is None:
+            if batch.sensor_id not in self._undeclared:
+                self._undeclared.add(batch.sensor_id)
+                self.run_log.add_event(float(self._seconds(batch.t_start_ns)),
+                                       f"accelerometer {batch.sensor_id} is not declared in the run: not logged")
+            return
+        self.run_log.append_accel(name, self._seconds(batch.times_ns()), batch.samples)
+        baseline = self._baseline.setdefault(batch.sensor_id, [])
+        if len(baseline) < BASELINE_SAMPLES:
+            baseline.extend(batch.samples[:BASELINE_SAMPLES - len(baseline), 0].tolist())
+        if baseline:
+            peak = float(np.abs(batch.samples[:, 0] - np.mean(baseline)).max())
+            self.progress.peak_accel = max(self.progress.peak_accel, peak)
+
+    def _write_poses(self, statuses: list[TableStatus]) -> None:
+        t = self._seconds(np.array([s.t_ns for s in statuses], dtype=np.int64))
+        self.run_log.append_pose(t, np.array([s.pose for s in statuses]))
+        self.progress.table_state = statuses[-1].state
+        self.progress.buffer_depth = statuses[-1].buffer_depth
+
+    def _write_detection(self, detection: Detection) -> None:
+        t = float(self._seconds(detection.t_ns))
+        if not 0 <= detection.body_id < len(self.body_ids):
+            self.run_log.add_event(t, f"overturn reported for body index {detection.body_id}, which is not on the "
+                                      f"plate (bodies 0–{len(self.body_ids) - 1}): not logged")
+            return
+        body_id = self.body_ids[detection.body_id]
+        self.run_log.add_detection(t, body_id, detection.direction, "sensor")
+        self.detections.append((t, body_id, detection.direction))
+        self.progress.detections += 1
+
+    def _write_fault(self, fault: FaultEvent) -> None:
+        t = float(self._seconds(fault.t_ns))
+        for name in fault.raised:
+            self.run_log.add_fault(t, name, f"table {fault.state}; latched: {', '.join(fault.faults)}")
