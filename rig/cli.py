@@ -193,3 +193,7 @@ cli_sessions.register(app, fail, console)
 
 def main() -> None:  # pragma: no cover - console entry
     app()
+
+
+if __name__ == "__main__":  # pragma: no cover - python -m rig.cli
+    main()

@@ -1,0 +1,120 @@
+"""``rig run`` end to end: the real command line, the emulator as its own process over loopback UDP (MAVLink),
+the session file read back. The quick sequence unattended; ``kill -9`` mid-record and ``--resume``; bad
+sequence files refused before the table moves."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from test_orchestrator import TINY
+
+from rig.sequence import load_sequence
+from rig.session import read_session
+
+ROOT = Path(__file__).resolve().parents[1]
+RIG = [sys.executable, "-m", "rig.cli"]
+
+
+def rig(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*RIG, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "COLUMNS": "160"})
+
+
+def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -> None:
+    session = tmp_path / "quick.h5"
+    done = rig("run", str(ROOT / "examples" / "quick.toml"), "--emulate", "--yes", "-o", str(session), cwd=tmp_path)
+    assert done.returncode == 0, done.stderr + done.stdout
+    sequence = load_sequence(ROOT / "examples" / "quick.toml")
+    plan = sequence.plan()
+    data = read_session(session)
+    assert data["schema"] == "shaketable-rig/session/1" and data["sequence"]["name"] == "quick"
+    runs = data["runs"]
+    assert [(r["plan_index"], r["status"]) for r in runs] == [(p.plan_index, "completed") for p in plan]
+    emulator = json.loads((tmp_path / "quick.emulator.json").read_text())
+    assert emulator["underruns"] == 0 and emulator["streams_completed"] == len(plan)
+    starts = []
+    for run, planned in zip(runs, plan, strict=True):
+        drive = sequence.prepare(planned)  # the commanded trajectory is the prepared drive, sample for sample
+        np.testing.assert_array_equal(run["commanded"], np.column_stack([drive.t, drive.poses]))
+        assert run["scale_factor"] == drive.scale_factor and run["angle_deg"] == planned.angle_deg
+        t = run["accel"]["0"][:, 0]  # every sample over the drive's duration, none missing
+        inside = t[(t >= 0.0) & (t <= drive.duration)]
+        assert inside[0] < 1e-3 and inside[-1] > drive.duration - 1e-3
+        np.testing.assert_allclose(np.diff(inside), 1e-3, atol=1e-9)
+        assert abs(len(inside) - drive.duration * 1000) <= 1
+        # at rest on the plate tilted by β (x downhill): the specific force is −g in the plate frame,
+        # (−g sin β, 0, g cos β), ± the sensor's noise
+        tilt = math.radians(planned.angle_deg)
+        rest = run["accel"]["0"][t < 0.2, 1:].mean(axis=0)
+        np.testing.assert_allclose(rest, [-9.81 * math.sin(tilt), 0, 9.81 * math.cos(tilt)], atol=0.05)
+        starts.append(run["attrs"]["t_start_controller_ns"] * 1e-9)
+    # the detections of each run are the overturns the emulator reported in that run's time, body by body
+    ids = [b.body_id for b in sequence.bodies]
+    for k, run in enumerate(runs):
+        end = starts[k + 1] if k + 1 < len(runs) else math.inf
+        reported = sorted((ids[o["body_id"]], o["direction"]) for o in emulator["overturns"]
+                          if starts[k] <= o["t"] < end)
+        logged = sorted((d["body_id"], d["direction"]) for d in run["detections"])
+        assert logged == reported
+        assert all(d["source"] == "sensor" for d in run["detections"])
+    assert sum(len(r["detections"]) for r in runs) == len(emulator["overturns"]) > 0
+
+
+def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp_path: Path) -> None:
+    (tmp_path / "tiny.toml").write_text(TINY)
+    session = tmp_path / "s.h5"
+    proc = subprocess.Popen([*RIG, "run", "tiny.toml", "--emulate", "--yes", "-o", str(session)], cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        seen, deadline = 0.0, time.monotonic() + 120
+        while seen < 1.5:  # well into the first record
+            assert time.monotonic() < deadline and proc.poll() is None
+            time.sleep(0.2)
+            if session.exists():
+                runs = read_session(session)["runs"]
+                if runs and len(runs[0]["accel"].get("0", [])):
+                    seen = runs[0]["accel"]["0"][-1, 0]
+        seen_at = time.monotonic()
+        time.sleep(0.4)
+        proc.send_signal(signal.SIGKILL)
+        killed_at = time.monotonic()
+        proc.wait()
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # the emulator it started
+    with h5py.File(session, "r", swmr=True) as h5:  # the file opens
+        assert h5["runs/0001"].attrs["status"] in (b"running", "running")
+    cut = read_session(session)["runs"][0]
+    last = cut["accel"]["0"][-1, 0]
+    assert last >= seen + (killed_at - seen_at) - 1.0  # at most the last second lost
+
+    done = rig("run", "--resume", str(session), "--emulate", "--yes", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr + done.stdout
+    runs = read_session(session)["runs"]
+    assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"),
+                                                              (1, "completed")]
+    np.testing.assert_array_equal(runs[0]["accel"]["0"][: len(cut["accel"]["0"])], cut["accel"]["0"])
+
+
+@pytest.mark.parametrize(("edit", "where"), [
+    (lambda text: text.replace('angles_deg = [0]', 'angles_deg = [12]'), "tiny.toml:2: angles_deg"),
+    (lambda text: text.replace('KOBE/NIS000', 'KOBE/NOPE'), "tiny.toml:5: records[2]"),
+    (lambda text: text.replace('table5 = 5', 'table5 = "five"'), "tiny.toml:16: bodies[1].table5"),
+])
+def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path, edit: object, where: str) -> None:
+    (tmp_path / "tiny.toml").write_text(edit(TINY))  # type: ignore[operator]
+    done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--yes", "-o", "s.h5", cwd=tmp_path)
+    assert done.returncode == 2
+    assert where in done.stderr, done.stderr
+    assert not (tmp_path / "s.h5").exists()  # nothing written, nothing contacted
