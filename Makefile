@@ -32,6 +32,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/stream.py --transport mavlink
 	$(BIN)/python benchmarks/stream.py --transport zenoh
 	$(BIN)/python benchmarks/stream.py --transport canopen
+	$(BIN)/python benchmarks/logging.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

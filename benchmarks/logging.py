@@ -16,7 +16,11 @@ Prints one JSON object:
 * append latency (the producer's cost per call), begin/end durations, file size, and how late a 1 kHz
   sleep-paced thread in the same process runs while the writer logs in real time (vs. alone, same run).
 
-Usage: ``python benchmarks/logging.py [--seconds 5] [--channels 8] [--dir DIR]``.
+* ``while_streaming``: a drive streamed at 1 kHz over MAVLink to the emulator (its own process, loopback) with
+  the writer saturated by the same process meanwhile, against the same drive streamed without it (same run):
+  the emulator's setpoint underruns, the setpoint sender's lateness, and the logging rate achieved meanwhile.
+
+Usage: ``python benchmarks/logging.py [--seconds 5] [--channels 8] [--stream-seconds 20] [--dir DIR]``.
 `measure_writer` is importable for benchmarks that stream to the emulator at the same time.
 """
 
@@ -183,12 +187,54 @@ def measure_raw_h5py(seconds: float, channels: int = 8, *, block: int = 1000, di
     return {"samples_per_s": n * len(sets) / elapsed, "seconds": elapsed}
 
 
+def measure_streaming(seconds: float, channels: int, *, logging: bool, directory: str | None = None) -> dict:
+    """Stream a ``seconds`` long 1 kHz drive (a 0.5 Hz, 50 mm surge sine between quintic ramps) over MAVLink to
+    the emulator; with ``logging``, `measure_writer` saturates a session writer in this process meanwhile. The
+    emulator's underruns, the chunks' send lateness [ms] and, with logging, the writer's rate [samples/s]."""
+    import secrets
+
+    from drivers.controller import open_table
+    from rig.emulator import EmulatorProcess
+
+    t = np.arange(round(seconds * RATE) + 1) / RATE
+    envelope = np.clip(np.minimum(t, t[-1] - t) / 1.0, 0.0, 1.0)
+    poses = np.zeros((len(t), 6))
+    poses[:, 0] = 0.05 * envelope**3 * (10 - 15 * envelope + 6 * envelope**2) * np.sin(2 * np.pi * 0.5 * t)
+    with tempfile.TemporaryDirectory(prefix="sess_bench_key_") as tmp:
+        key = Path(tmp) / "rig.key"
+        key.write_text(secrets.token_hex(32) + "\n")
+        emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", key_file=key)
+        writer: dict = {}
+        try:
+            with open_table(emulator.url, key_file=str(key)) as table:
+                table.arm()
+                logger = None
+                if logging:
+                    logger = threading.Thread(target=lambda: writer.update(
+                        measure_writer(seconds, channels, directory=directory)))
+                    logger.start()
+                report = table.stream(t, poses, lead=0.05)
+                if logger is not None:
+                    logger.join()
+        finally:
+            counters = emulator.stop()
+    late_ms = report.send_lateness_ns * 1e-6
+    return {"logging": logging, "underruns": counters["underruns"], "samples_late": counters["samples_late"],
+            "send_late_p50_ms": round(float(np.percentile(late_ms, 50)), 3),
+            "send_late_p99_ms": round(float(np.percentile(late_ms, 99)), 3),
+            "send_late_max_ms": round(float(late_ms.max()), 3),
+            "logging_samples_per_s": round(writer["samples_per_s"]) if writer else None}
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=5.0, help="duration of each measurement [s]")
     parser.add_argument("--channels", type=int, default=8, help="accelerometers")
+    parser.add_argument("--stream-seconds", type=float, default=20.0, help="the drive streamed meanwhile [s]")
     parser.add_argument("--dir", default=None, help="directory for the temporary session files")
     args = parser.parse_args()
+    streaming_alone = measure_streaming(args.stream_seconds, args.channels, logging=False)
+    streaming_logged = measure_streaming(args.stream_seconds, args.channels, logging=True, directory=args.dir)
     required = (args.channels + 1) * RATE
     full = measure_writer(args.seconds, args.channels, directory=args.dir)
     at_target = measure_writer(args.seconds, args.channels, rate=TARGET, directory=args.dir)
@@ -218,6 +264,13 @@ def main() -> None:
             "at_target_rate": round(at_target["max_append_to_disk_s"], 4),
             "at_saturation": round(full["max_append_to_disk_s"], 4),
             "at_saturation_note": "unpaced producer keeps the queue full: latency = queued data / write speed",
+        },
+        "while_streaming": {
+            "with_logging": streaming_logged,
+            "without_logging": streaming_alone,
+            "underruns_caused_by_logging": streaming_logged["underruns"] - streaming_alone["underruns"],
+            "note": "1 kHz drive over MAVLink to the emulator (own process, loopback); the writer saturated by "
+                    "the streaming process meanwhile, same run",
         },
         "pacing_1khz_thread_late_ms": {
             "with_writer_at_realtime_rate": realtime["pacing_probe_late_ms"],
