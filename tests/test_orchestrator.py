@@ -104,7 +104,7 @@ def test_pause_takes_effect_at_the_end_of_the_record_and_resume_continues(tiny: 
     assert seen == [(1, 1), (1, 1)]  # paused after the first record, which completed; the second not begun
     runs = read_session(tmp_path / "s.h5")["runs"]
     assert [r["status"] for r in runs] == ["completed", "completed"]
-    assert counters["streams_completed"] == 2 and counters["stops"] == 0
+    assert counters["streams_completed"] == 2 and counters["stops"] == 0 and counters["watchdog_stops"] == 0
 
 
 @pytest.mark.parametrize("kind", ["abort", "emergency_stop"])
@@ -128,6 +128,7 @@ def test_abort_and_emergency_stop_act_at_once_and_the_run_is_logged_aborted(kind
     assert kind.replace("_", " ") in runs[0]["attrs"]["reason"]
     assert counters["streams_completed"] == 0
     assert counters["stops" if kind == "abort" else "emergency_stops"] == 1
+    assert counters["watchdog_stops"] == 0  # left disarmed (abort) or braked (emergency stop), not cut off
     # the table stopped streaming at once: the run's commanded drive is ~5 s, the logged motion ends early
     accel = runs[0]["accel"]["0"]
     assert accel[-1, 0] < runs[0]["commanded"][-1, 0] - 0.5

@@ -145,6 +145,7 @@ class Orchestrator:
                 finally:
                     with self._lock:
                         self._table = None
+                    _disarm_at_rest(table)
         except SessionStoppedError as exc:
             final = State.FAULTED if exc.faulted else State.DONE
             self._set(final, str(exc))
@@ -173,7 +174,6 @@ class Orchestrator:
                 self._play_run(table, run)
         self._set(State.STOPPING, "all runs played: home")
         self._motion(lambda: table.home(timeout=COMMAND_TIMEOUT))
-        table.disarm()
 
     def _play_run(self, table: TableController, run: PlannedRun) -> None:
         self.progress.run = run
@@ -306,3 +306,12 @@ class Orchestrator:
         if self._on_update is not None:
             self._on_update(self.progress)
 
+
+def _disarm_at_rest(table: TableController) -> None:
+    """Leave the table disarmed when it is armed (at rest) — before the connection closes, so that its heartbeat
+    watchdog does not fault it; a table faulted or emergency stopped is left as it is for the operator."""
+    try:
+        if table.status().state == "armed":
+            table.disarm()
+    except TableError:
+        pass
