@@ -20,7 +20,7 @@ from rich.table import Table
 
 from analysis import TABLE_I, AnalysisInputError, Body, simulate
 from analysis.study import StudyResult, study
-from rig import cli_design, cli_emulate, cli_prepare, cli_records, cli_run, cli_sessions
+from rig import cli_design, cli_emulate, cli_prepare, cli_records, cli_run, cli_serve, cli_sessions
 from rig.records import RecordError, load_record, load_records
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
@@ -189,6 +189,7 @@ cli_design.register(app)
 cli_emulate.register(app)
 cli_run.register(app, fail, console)
 cli_sessions.register(app, fail, console)
+cli_serve.register(app, fail, console)
 
 
 def main() -> None:  # pragma: no cover - console entry

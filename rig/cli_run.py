@@ -267,8 +267,15 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                                "$SHAKETABLE_MAVLINK_KEY)")] = None,
             speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+            service: Annotated[str | None, typer.Option(help="have a rig service (rig serve) at this zenoh "
+                                                             "endpoint run it, e.g. tcp/127.0.0.1:7447")] = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
+        if service is not None:
+            from rig.cli_serve import drive_service
+
+            raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
+                                           resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
         try:
             if resume is not None:
                 sequence = Sequence.from_dict(read_session(resume, data=False)["sequence"], source=str(resume))

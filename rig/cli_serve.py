@@ -1,0 +1,318 @@
+"""``rig serve`` (the orchestrator as a service, zenoh control plane), ``rig service …`` (its one-shot commands) and
+:func:`drive_service` (what ``rig run --service`` runs: start a sequence on the service and follow it).
+
+``rig serve --listen tcp/127.0.0.1:7447`` runs until SIGINT or SIGTERM; then a running session is aborted (a
+controlled stop, the run logged ``aborted``, the file resumable) and the service waits for the table to come to rest.
+A second signal makes that an emergency stop. ``start``/``resume`` must be signed with the rig's key (``--key-file``
+or ``$SHAKETABLE_MAVLINK_KEY``) unless ``--no-auth``; pause, abort and emergency stop are open to any client
+(``rig.service.server``).
+"""
+
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+from collections.abc import Callable
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+from rich.live import Live
+from rich.prompt import Confirm
+from rich.text import Text
+
+from rig.service import OrchestratorService, ServiceClient, ServiceError, ServiceUnavailableError
+from rig.service.client import SILENCE, TelemetryFeed
+
+DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
+"""Where ``rig serve`` listens and the clients connect by default."""
+
+FINAL = ("done", "faulted")
+"""Orchestrator states that end a session's invocation."""
+
+ConnectOption = Annotated[str, typer.Option("--connect", help="the rig service's zenoh endpoint")]
+KeyOption = Annotated[Path | None, typer.Option(help="the rig's key file (default: $SHAKETABLE_MAVLINK_KEY)")]
+
+
+# ----- rig run --service -------------------------------------------------------------------------------------
+
+
+def drive_service(connect: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
+                  resume: Path | None, yes: bool, console: Any, key_file: Path | None = None,
+                  speed: float = 1.0) -> int:
+    """Start ``sequence`` (or ``resume`` a session file) on the rig service at ``connect`` and follow it.
+
+    The status line shows the service's telemetry. Ctrl-C sends pause (the session pauses at the end of the current
+    record; then: resume, or end the session there — with ``yes`` it ends there), a second Ctrl-C sends abort.
+    Without ``yes`` the operator confirms the start first (the service runs sequences unattended). Returns the exit
+    code: 0 all runs done, 1 the session stopped early (or was not started), 2 the service refused or is absent.
+    """
+    try:
+        client = ServiceClient(connect, key_file)
+    except ServiceError as exc:
+        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        return 2
+    with client, client.telemetry() as feed:
+        what = f"resume {resume}" if resume is not None else f"run {sequence}"
+        if not yes and not _confirm(f"{what.capitalize()} on the rig service at {connect}? It runs unattended: "
+                                    "the bodies are taken as placed and every run starts at once.", console):
+            console.print("not started")
+            return 1
+        interrupts = [0]  # Ctrl-C while the service prepares the session: acted on once it runs
+
+        def on_sigint(signum: int, frame: object) -> None:
+            interrupts[0] += 1
+
+        previous = _handle_sigint(on_sigint)
+        try:
+            try:
+                session = client.start(sequence, table=table, emulate=emulate, speed=speed, output=output,
+                                       resume=resume)
+                seq = client.state()["seq"]
+            except ServiceError as exc:
+                console.print(f"[bold red]error:[/] {exc}", highlight=False)
+                return 2
+            console.print(f"session file: {session}", highlight=False)
+            final = _follow(client, feed, session, seq, interrupts, yes, console)
+        finally:
+            _handle_sigint(previous)
+    if final is None:
+        return 1
+    progress = final["progress"]
+    console.print(f"[bold]{final['state']}[/]: {final['message']}", highlight=False)
+    if final["state"] == "done" and progress["runs_done"] == progress["runs_total"]:
+        return 0
+    console.print(f"{progress['runs_done']} of {progress['runs_total']} runs done; continue the session with "
+                  f"rig run --service {connect} --resume {session}", highlight=False)
+    return 1
+
+
+class _Display:
+    """The status line: redrawn in place on a terminal, else printed when the state or the runs done change."""
+
+    def __init__(self, console: Any) -> None:
+        self.console = console
+        self.live = Live(Text("waiting for the service's telemetry"), console=console, transient=False,
+                         refresh_per_second=8) if console.is_terminal else None
+        self._last: tuple[Any, ...] | None = None
+
+    def __enter__(self) -> _Display:
+        if self.live is not None:
+            self.live.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.hold()
+
+    def update(self, status: dict[str, Any]) -> None:
+        if self.live is not None:
+            self.live.update(status_line(status))
+            return
+        key = (status["state"], status["progress"]["runs_done"])
+        if key != self._last:
+            self._last = key
+            self.console.print(status_line(status))
+
+    def print(self, message: str) -> None:
+        self.console.print(message, highlight=False)
+
+    def hold(self) -> None:
+        """Stop redrawing (a prompt follows)."""
+        if self.live is not None:
+            self.live.stop()
+
+    def go_on(self) -> None:
+        if self.live is not None:
+            self.live.start()
+
+
+def _follow(client: ServiceClient, feed: TelemetryFeed, session: str, seq: int, interrupts: list[int], yes: bool,
+            console: Any) -> dict[str, Any] | None:
+    """Show the session's telemetry until its final state (returned; None if the service went away);
+    ``interrupts[0]`` counts the Ctrl-C (the caller's SIGINT handler)."""
+    sent = 0
+    ours_paused = False
+    silent = 0.0
+    try:
+        with _Display(console) as display:
+            while True:
+                if interrupts[0] > sent:
+                    sent = interrupts[0]
+                    ours_paused = _interrupt(client, sent, display) or ours_paused
+                status = feed.get(0.1)
+                if status is None:
+                    silent += 0.1
+                    if silent <= SILENCE:
+                        continue
+                    status = client.state()  # ServiceUnavailableError when the service is gone
+                silent = 0.0
+                if status["session"] != session or status["seq"] < seq:
+                    continue
+                display.update(status)
+                if status["state"] in FINAL:
+                    return status
+                if status["state"] == "paused" and ours_paused:
+                    ours_paused = False
+                    display.hold()
+                    if _after_pause(client, yes, console):
+                        interrupts[0] = sent = 0
+                    display.go_on()
+    except ServiceUnavailableError as exc:
+        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        return None
+
+
+def _interrupt(client: ServiceClient, count: int, display: _Display) -> bool:
+    """Ctrl-C number ``count``: pause (True), then abort."""
+    try:
+        if count == 1:
+            client.pause()
+            display.print("pause requested: the session pauses at the end of the current record "
+                          "(Ctrl-C again: abort)")
+            return True
+        client.abort()
+        display.print("abort requested: the table stops and returns home")
+    except ServiceError as exc:
+        display.print(f"error: {exc}")
+    return False
+
+
+def _after_pause(client: ServiceClient, yes: bool, console: Any) -> bool:
+    """Paused at the end of a record on our Ctrl-C: resume (True), or end the session there (resumable)."""
+    go_on = not yes and _confirm("Paused at the end of the record. Resume?", console)
+    try:
+        if go_on:
+            client.resume()
+            return True
+        console.print("the session ends here; continue it with --resume SESSION.h5")
+        client.abort()
+    except ServiceError as exc:
+        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+    return False
+
+
+def _confirm(question: str, console: Any) -> bool:
+    try:
+        return Confirm.ask(question, default=True, console=console)
+    except (EOFError, KeyboardInterrupt):
+        return False
+
+
+def _handle_sigint(handler: Any) -> Any:
+    """Install ``handler`` for SIGINT (only the main thread can); the previous one."""
+    try:
+        return signal.signal(signal.SIGINT, handler)
+    except ValueError:
+        return None
+
+
+def status_line(status: dict[str, Any]) -> Text:
+    """One line of the service's status: state, runs, the run's samples, table, peak acceleration, message."""
+    p = status["progress"]
+    run = p["run"]
+    label = f"run {run['plan_index'] + 1}" if isinstance(run, dict) and "plan_index" in run else "run -"
+    peak = p["peak_accel"] or 0.0
+    return Text.assemble(
+        ("state ", "dim"), (status["state"], "bold"), ("  runs ", "dim"), (f"{p['runs_done']}/{p['runs_total']}", ""),
+        ("  ", ""), (label, "dim"), (f" {p['samples_sent']}/{p['samples_total']}", ""),
+        ("  table ", "dim"), (p["table_state"] or "-", ""), ("  peak ", "dim"), (f"{peak / 9.81:.3f} g", ""),
+        ("  overturns ", "dim"), (f"{p['detections']}", ""), ("  ", ""), (status["message"], "italic"))
+
+
+# ----- rig serve and rig service -----------------------------------------------------------------------------
+
+
+def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool, fail: Callable[[str], Any]) -> None:
+    """Run the service until SIGINT/SIGTERM (module docstring)."""
+
+    def say(message: str) -> None:
+        print(f"rig serve: {message}", file=sys.stderr, flush=True)
+
+    try:
+        service = OrchestratorService(listen, key_file=key_file, sessions_dir=sessions_dir,
+                                      require_auth=not no_auth, say=say)
+    except ServiceError as exc:
+        fail(str(exc))
+    signals = [0]
+    stop = threading.Event()
+
+    def on_signal(signum: int, frame: object) -> None:
+        signals[0] += 1
+        stop.set()
+        if signals[0] >= 2:
+            threading.Thread(target=service.stop_session, args=("emergency stop",), daemon=True).start()
+
+    previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        auth = "start/resume must be signed" if service.authenticated else "start/resume NOT authenticated"
+        say(f"listening on {listen} (sessions in {service.sessions_dir}; {auth})")
+        while not stop.wait(0.5):
+            pass
+        say("stopping")
+        service.close()
+    finally:
+        for number, handler in previous.items():
+            signal.signal(number, handler)
+    say("stopped")
+
+
+def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+    """Add ``rig serve`` and the ``rig service`` commands to the ``rig`` application."""
+
+    @app.command("serve")
+    def serve_cmd(
+        listen: Annotated[str, typer.Option(help="zenoh endpoint to listen on (loopback)")] = DEFAULT_ENDPOINT,
+        sessions_dir: Annotated[Path, typer.Option(help="where the session files go")] = Path("."),
+        key_file: KeyOption = None,
+        no_auth: Annotated[bool, typer.Option("--no-auth", help="accept unsigned start/resume (a bench without a "
+                                                                "table)")] = False,
+    ) -> None:
+        """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
+        serve(listen, sessions_dir, key_file, no_auth, fail)
+
+    service_app = typer.Typer(help="Commands to a running `rig serve`.", no_args_is_help=True)
+
+    def command(name: str, method: str, help_text: str) -> None:
+        @service_app.command(name, help=help_text)
+        def run_command(connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
+                        as_json: Annotated[bool, typer.Option("--json", help="print the reply as JSON")] = False,
+                        ) -> None:
+            try:
+                with ServiceClient(connect, key_file) as client:
+                    reply = getattr(client, method)()
+            except ServiceError as exc:
+                fail(str(exc))
+            if as_json:
+                sys.stdout.write(json.dumps(reply) + "\n")
+            elif name == "state":
+                console.print(status_line(reply))
+                console.print(f"session: {reply['session'] or '-'}", highlight=False)
+            else:
+                console.print(reply["message"], highlight=False)
+
+    command("pause", "pause", "Pause at the end of the current record.")
+    command("resume", "resume", "Continue a paused session (signed with the rig's key).")
+    command("abort", "abort", "Stop now: controlled stop, the run logged aborted.")
+    command("estop", "emergency_stop", "Emergency stop: the table brakes.")
+    command("state", "state", "The service's state, progress and session file.")
+    app.add_typer(service_app, name="service")
+
+
+def main() -> None:  # pragma: no cover - ``python -m rig.cli_serve`` until ``rig.cli`` registers these commands
+    from rich.console import Console
+
+    app = typer.Typer(no_args_is_help=True, add_completion=False)
+    err = Console(stderr=True)
+
+    def fail(message: str) -> None:
+        err.print(f"[bold red]error:[/] {message}", highlight=False)
+        raise typer.Exit(code=2)
+
+    register(app, fail, Console())
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,318 @@
+"""``rig serve``: the orchestrator as a service whose control plane is zenoh.
+
+:class:`OrchestratorService` opens a zenoh session that listens on a loopback endpoint (scouting off,
+:func:`protocols.zenoh.session_config`) and declares the queryables of :mod:`rig.service.keys`. Each query is
+handled in a thread of its own (zenoh's threads are never blocked); requests and replies are those of
+:mod:`rig.service.wire`:
+
+==========  =========================================================  =================================
+command     args                                                       reply (``ok`` true)
+==========  =========================================================  =================================
+``start``   :class:`~rig.service.session.StartRequest` (sequence file  ``session``: the session file;
+            or text, table URL or ``emulate``, output or ``resume``)   sent once the session runs
+``pause``   ``{}``                                                     pauses at the end of the record
+``resume``  ``{}``                                                     continues
+``abort``   ``{}``                                                     controlled stop now
+``estop``   ``{}``                                                     emergency stop (brake) now
+``state``   ``{}``                                                     the progress and session path
+==========  =========================================================  =================================
+
+Every reply carries ``state``, ``message``, ``session``, ``active``, ``progress`` and ``seq`` (the number of the
+last STATUS published before it: a status with a lower one is older than the reply). Refusals (``ok`` false):
+a malformed request, a bad sequence (its ``FILE:LINE: key: problem``), a session file that exists, a table or an
+emulator that cannot be reached, ``start`` while a session is prepared or played, and ``pause``/``resume``/
+``abort``/``estop`` with no session running. A payload that is no CONTROL_REQUEST gets a zenoh error reply.
+
+One session at a time, played by :class:`~rig.service.session.ServiceSession` in a worker thread; its progress is
+published as telemetry (:mod:`rig.service.telemetry`).
+
+**Authentication.** ``start`` and ``resume`` make the table move: they are accepted only when signed with the rig's
+key (the table link's HMAC-SHA256 scheme, :mod:`protocols.zenoh.auth`, with its replay stamps; the signature is the
+query's attachment). ``pause``, ``abort``, ``estop`` and ``state`` are accepted from anyone on the zenoh network:
+stopping the table must never wait for a key, and the network is loopback only. The key is ``key_file``, else
+``$SHAKETABLE_MAVLINK_KEY``; the same key goes to the table's driver (and the emulator of ``emulate`` sessions).
+``require_auth=False`` (``rig serve --no-auth``) checks no signatures (``key_file`` then only goes to the table), for
+a bench without a table.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import zenoh
+
+from protocols.mavlink import KEY_ENV, SigningKeyError, load_signing_key
+from protocols.zenoh import EndpointError, session_config
+from protocols.zenoh.auth import Verdict, Verifier
+from protocols.zenoh.payloads import PayloadError
+from rig.orchestrator import Progress
+from rig.service.keys import COMMANDS, DEFAULT_RIG, SIGNED_COMMANDS, ServiceKeys
+from rig.service.session import ServiceSession, StartRefusedError, StartRequest
+from rig.service.telemetry import TelemetryPublisher
+from rig.service.wire import REFUSALS, ServiceError, decode_request, encode_reply, verify
+
+FINISH_WAIT = 30.0
+"""How long ``start`` waits for a finished session to let go of its table or emulator [s]."""
+
+SHUTDOWN_WAIT = 150.0
+"""How long :meth:`OrchestratorService.close` waits for an aborted session to come to rest [s]."""
+
+
+class OrchestratorService:
+    """The rig service (module docstring) listening on ``listen`` (e.g. ``tcp/127.0.0.1:7447``).
+
+    ``sessions_dir`` holds the session files (created if missing; relative paths of requests are taken from it);
+    ``key_file`` the rig's key (else ``$SHAKETABLE_MAVLINK_KEY``); ``rig`` the rig's name in the key space;
+    ``say(message)`` reports what happens (e.g. to stderr). Raises :class:`ServiceError` when it cannot listen or
+    has no key while ``require_auth``. :meth:`close` aborts a running session and closes the zenoh session.
+    """
+
+    def __init__(self, listen: str, *, key_file: Path | None = None, sessions_dir: Path, rig: str = DEFAULT_RIG,
+                 require_auth: bool = True, say: Callable[[str], None] = lambda message: None) -> None:
+        self.listen = listen
+        self.keys = ServiceKeys.for_rig(rig)
+        self.key_file = key_file
+        self.sessions_dir = Path(sessions_dir).expanduser().resolve()
+        self._say = say
+        self._verifier = self._load_verifier(key_file, require_auth)
+        self._verify_lock = threading.Lock()
+        self._lock = threading.Lock()
+        self._starting: ServiceSession | None = None
+        self._current: ServiceSession | None = None
+        try:
+            self.sessions_dir.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ServiceError(f"sessions directory {self.sessions_dir}: {exc}") from None
+        try:
+            self._zenoh = zenoh.open(session_config(listen=[listen]))
+        except EndpointError as exc:
+            raise ServiceError(str(exc)) from None
+        except zenoh.ZError as exc:
+            raise ServiceError(f"cannot listen on {listen}: {exc}") from None
+        self._telemetry = TelemetryPublisher(self._zenoh, self.keys, self.snapshot)
+        self._queryables = [self._zenoh.declare_queryable(self.keys.commands[command],
+                                                          lambda query, c=command: self._arrived(c, query))
+                            for command in COMMANDS]
+        self._token = self._zenoh.liveliness().declare_token(self.keys.alive)
+        self._closed = False
+
+    @property
+    def authenticated(self) -> bool:
+        """``start`` and ``resume`` must be signed."""
+        return self._verifier is not None
+
+    @staticmethod
+    def _load_verifier(key_file: Path | None, require_auth: bool) -> Verifier | None:
+        if not require_auth:
+            return None
+        try:
+            return Verifier(load_signing_key(key_file))
+        except SigningKeyError as exc:
+            hint = "" if key_file is not None else f" (give --key-file or set ${KEY_ENV}; --no-auth to go without)"
+            raise ServiceError(f"the service needs the rig's key to check start and resume: {exc}{hint}") from None
+
+    # ----- state ----------------------------------------------------------------------------------------
+
+    def snapshot(self) -> dict[str, Any]:
+        """The status fields of every reply and STATUS publication (:mod:`rig.service.wire`)."""
+        with self._lock:
+            session = self._starting or self._current
+        if session is None:
+            return {"state": "idle", "message": "no session yet", "session": None, "active": False,
+                    "progress": _plain(_progress_dict(None))}
+        progress = _progress_dict(session)
+        starting = session.orchestrator is None and session.alive
+        return {"state": "starting" if starting else progress["state"], "message": progress["message"],
+                "session": None if session.path is None else str(session.path), "active": session.alive,
+                "progress": _plain(progress)}
+
+    def _running(self) -> ServiceSession | None:
+        """The session being played (not finished), else None."""
+        with self._lock:
+            current = self._current
+        return current if current is not None and current.alive and not current.finished else None
+
+    # ----- queries ----------------------------------------------------------------------------------------
+
+    def _arrived(self, command: str, query: zenoh.Query) -> None:
+        """zenoh's callback: hand the query to a thread of its own."""
+        payload = query.payload.to_bytes() if query.payload is not None else b""
+        attachment = query.attachment.to_bytes() if query.attachment is not None else None
+        threading.Thread(target=self._handle, args=(command, query, payload, attachment),
+                         name=f"service-{command}", daemon=True).start()
+
+    def _handle(self, command: str, query: zenoh.Query, payload: bytes, attachment: bytes | None) -> None:
+        try:
+            try:
+                asked, args = decode_request(payload)
+            except PayloadError as exc:
+                query.reply_err(f"{command}: {exc}".encode())
+                return
+            if asked != command:
+                ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
+            elif (refusal := self._refusal(command, payload, attachment)) is not None:
+                ok, message, extra = False, f"{command} refused: {refusal}", {}
+            else:
+                ok, message, extra = getattr(self, f"_{command}")(args)
+            if not ok:
+                self._say(f"{command}: {message}")
+            status = {**self.snapshot(), "seq": self._telemetry.published, **extra}
+            status.pop("message")
+            query.reply(self.keys.commands[command], encode_reply(ok, status.pop("state"), message, **status))
+        except zenoh.ZError:  # the querier went away
+            pass
+        except Exception as exc:  # a bug: answer it rather than leave the client waiting
+            self._say(f"{command}: {type(exc).__name__}: {exc}")
+            with contextlib.suppress(zenoh.ZError):
+                query.reply_err(f"{command}: the service failed: {type(exc).__name__}: {exc}".encode())
+        finally:
+            query.drop()
+
+    def _refusal(self, command: str, payload: bytes, attachment: bytes | None) -> str | None:
+        if command not in SIGNED_COMMANDS or self._verifier is None:
+            return None
+        with self._verify_lock:
+            verdict = verify(self._verifier, self.keys.commands[command], payload, attachment)
+        return None if verdict is Verdict.SIGNED else REFUSALS[verdict]
+
+    def _start(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        try:
+            request = StartRequest.from_args(args, self.sessions_dir)
+        except StartRefusedError as exc:
+            return False, str(exc), {}
+        deadline = time.monotonic() + FINISH_WAIT
+        while True:
+            with self._lock:
+                busy = self._starting or self._current
+                if busy is None or not busy.alive:
+                    session = ServiceSession(request, sessions_dir=self.sessions_dir, key_file=self.key_file,
+                                             on_update=self._telemetry.changed, say=self._say)
+                    self._starting = session
+                    break
+                if busy is self._starting or not busy.finished or time.monotonic() > deadline:
+                    where = busy.path or "a new session"
+                    return False, (f"a session is running ({where}, {busy.progress.state.value}): only one at a "
+                                   "time; pause, abort or wait for it"), {}
+            busy.thread.join(0.1)  # finished: it lets go of its table or emulator
+        self._telemetry.changed()
+        session.start()
+        session.wait_started()
+        with self._lock:
+            self._starting = None
+            if session.error is None:
+                self._current = session
+        self._telemetry.changed()
+        if session.error is not None:
+            return False, session.error, {}
+        return True, f"session started: {session.path}", {}
+
+    def _pause(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        session = self._running()
+        if session is None or session.orchestrator is None:
+            return False, self._nothing("pause"), {}
+        session.orchestrator.pause()
+        return True, "pause requested: the session pauses at the end of the current record", {}
+
+    def _resume(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        session = self._running()
+        if session is None or session.orchestrator is None:
+            return False, self._nothing("resume"), {}
+        session.orchestrator.resume()
+        return True, "resume requested", {}
+
+    def _abort(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        return self._stop("abort", "abort requested: the table stops and returns home, the run is logged aborted")
+
+    def _estop(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        return self._stop("emergency stop", "emergency stop requested: the table brakes, the run is logged aborted")
+
+    def _stop(self, kind: str, message: str) -> tuple[bool, str, dict[str, Any]]:
+        with self._lock:
+            starting = self._starting
+        session = starting or self._running()
+        if session is None:
+            return False, self._nothing(kind), {}
+        session.stop(kind)
+        return True, message, {}
+
+    def _state(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        return True, self.snapshot()["message"], {}
+
+    def _nothing(self, what: str) -> str:
+        with self._lock:
+            starting = self._starting is not None
+        if starting:
+            return f"cannot {what}: the session is still being prepared"
+        return f"cannot {what}: no session is running on the rig service at {self.listen}"
+
+    # ----- shutdown -------------------------------------------------------------------------------------
+
+    def stop_session(self, kind: str = "abort") -> bool:
+        """Abort (or ``"emergency stop"``) the session being prepared or played; False if there is none."""
+        with self._lock:
+            sessions = [s for s in (self._starting, self._current) if s is not None and s.alive and not s.finished]
+        for session in sessions:
+            session.stop(kind)
+        return bool(sessions)
+
+    def wait_idle(self, timeout: float = SHUTDOWN_WAIT) -> bool:
+        """Wait until no session is prepared or played, at most ``timeout`` [s]; False if one still is."""
+        deadline = time.monotonic() + timeout
+        while True:
+            with self._lock:
+                sessions = [s for s in (self._starting, self._current) if s is not None and s.alive]
+            if not sessions:
+                return True
+            if time.monotonic() > deadline:
+                return False
+            sessions[0].thread.join(min(0.5, max(0.0, deadline - time.monotonic())))
+
+    def close(self, timeout: float = SHUTDOWN_WAIT) -> None:
+        """Abort a running session, wait for it to come to rest (at most ``timeout`` [s]) and close."""
+        if self._closed:
+            return
+        if self.stop_session("abort"):
+            self._say("shutting down: the running session is aborted")
+        self.wait_idle(timeout)
+        self._closed = True
+        self._telemetry.close()
+        with contextlib.suppress(zenoh.ZError):
+            self._token.undeclare()
+            for queryable in self._queryables:
+                queryable.undeclare()
+        with contextlib.suppress(zenoh.ZError):
+            self._zenoh.close()
+
+    def __enter__(self) -> OrchestratorService:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _progress_dict(session: ServiceSession | None) -> dict[str, Any]:
+    """The session's progress as JSON types (read while the orchestrator's threads change it: retried)."""
+    progress = Progress() if session is None else session.progress
+    for _ in range(10):
+        try:
+            return progress.as_dict()
+        except RuntimeError:  # "dictionary changed size during iteration": the outcomes grew meanwhile
+            continue
+    return Progress(state=progress.state, message=progress.message).as_dict()
+
+
+def _plain(value: Any) -> Any:
+    """``value`` with non-finite floats as None (JSON has no NaN)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_plain(v) for v in value]
+    return value
