@@ -72,19 +72,8 @@ def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -
 
 
 def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp_path: Path) -> None:
-    (tmp_path / "tiny.toml").write_text(TINY)
-    session = tmp_path / "s.h5"
-    proc = subprocess.Popen([*RIG, "run", "tiny.toml", "--emulate", "--yes", "-o", str(session)], cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    proc, session, seen = start_tiny(tmp_path)
     try:
-        seen, deadline = 0.0, time.monotonic() + 120
-        while seen < 1.5:  # well into the first record
-            assert time.monotonic() < deadline and proc.poll() is None
-            time.sleep(0.2)
-            if session.exists():
-                runs = read_session(session)["runs"]
-                if runs and len(runs[0]["accel"].get("0", [])):
-                    seen = runs[0]["accel"]["0"][-1, 0]
         seen_at = time.monotonic()
         time.sleep(0.4)
         proc.send_signal(signal.SIGKILL)
@@ -105,6 +94,39 @@ def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"),
                                                               (1, "completed")]
     np.testing.assert_array_equal(runs[0]["accel"]["0"][: len(cut["accel"]["0"])], cut["accel"]["0"])
+
+
+def start_tiny(tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path, float]:
+    """``rig run`` of the tiny sequence on the emulator, in its own process group; returned once it is 1 s into
+    the first record, with the time [s] of the last sample seen then."""
+    (tmp_path / "tiny.toml").write_text(TINY)
+    session = tmp_path / "s.h5"
+    proc = subprocess.Popen([*RIG, "run", "tiny.toml", "--emulate", "--yes", "-o", str(session)], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+    seen, deadline = 0.0, time.monotonic() + 120
+    while seen < 1.0:
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.2)
+        if session.exists():
+            runs = read_session(session)["runs"]
+            if runs and len(runs[0]["accel"].get("0", [])):
+                seen = runs[0]["accel"]["0"][-1, 0]
+    return proc, session, seen
+
+
+@pytest.mark.parametrize("interrupts", [1, 2])
+def test_ctrl_c_pauses_at_the_end_of_the_record_twice_aborts(tmp_path: Path, interrupts: int) -> None:
+    """Unattended, the first Ctrl-C ends the session after the record being played (it completes, the next is not
+    begun); a second one aborts that record at once. Either way the session is resumable: exit code 1."""
+    proc, session, _ = start_tiny(tmp_path)
+    for _ in range(interrupts):
+        proc.send_signal(signal.SIGINT)  # the rig process only, as a terminal's Ctrl-C reaches the foreground job
+        time.sleep(0.2)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 1, out
+    runs = read_session(session)["runs"]
+    assert [r["status"] for r in runs] == (["completed"] if interrupts == 1 else ["aborted"])
+    assert b"rig run --resume" in out
 
 
 @pytest.mark.parametrize(("edit", "where"), [
