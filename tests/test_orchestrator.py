@@ -59,12 +59,13 @@ def new_log(sequence: Sequence, path: Path) -> SessionLog:
                              software_version="test")
 
 
-def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None) -> tuple[OrchestratorState,
-                                                                                           dict[str, Any]]:
+def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None,
+         operator: Any = None) -> tuple[OrchestratorState, dict[str, Any]]:
     """Run the orchestrator in a thread against a fresh emulator; ``during(orchestrator)`` from this thread."""
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), key_file=key_file)
     try:
-        orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)})
+        orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
+                                    operator=operator)
         result: list[OrchestratorState] = []
         worker = threading.Thread(target=lambda: result.append(orchestrator.run()))
         worker.start()
@@ -160,3 +161,42 @@ def test_resume_plays_again_what_did_not_complete(tiny: Sequence, tmp_path: Path
         assert inside[0] < 1e-3 and inside[-1] > duration - 1e-3
         np.testing.assert_allclose(np.diff(inside), 1e-3, atol=1e-9)
         assert abs(len(inside) - duration * 1000) <= 1
+
+
+class ScriptedOperator:
+    """An operator who answers from a script and notes what was asked."""
+
+    def __init__(self) -> None:
+        self.asked: list[str] = []
+
+    def place_bodies(self, prompt: str) -> None:
+        self.asked.append(f"place: {prompt}")
+
+    def confirm_run(self, run: Any, description: str) -> None:
+        self.asked.append(f"confirm {run.plan_index}: {description}")
+
+    def which_fell(self, run: Any, bodies: Any) -> list[tuple[int, int]]:
+        self.asked.append(f"which fell {run.plan_index}")
+        return [(bodies[0].body_id, -1)]
+
+
+def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_path: Path, key_file: Path) -> None:
+    """A stocky body that stands through a weak record: the sensors report nothing, so the operator is asked which
+    bodies fell; the answer is logged with source ``operator``. Placing and confirming are asked in order."""
+    text = TINY.replace("confirm_before_run = false", "confirm_before_run = true\nask_detections = true")
+    text = text.replace("table5 = 5", "table5 = 3")  # 152 x 500 mm: α = 16.9°
+    text = text.replace('window_s = [0.5, 3.5]', 'window_s = [0.0, 0.5]').replace('window_s = [5.0, 8.0]',
+                                                                                  'window_s = [0.0, 0.5]')
+    path = tmp_path / "ask.toml"
+    path.write_text(text)
+    sequence = load_sequence(path)
+    log = new_log(sequence, tmp_path / "s.h5")
+    operator = ScriptedOperator()
+    state, counters = play(sequence, log, key_file, operator=operator)
+    log.close()
+    assert state is OrchestratorState.DONE and counters["overturns"] == []
+    kinds = [a.split(":")[0].split(" ")[0] for a in operator.asked]
+    assert kinds == ["place", "confirm", "which", "confirm", "which"]
+    assert "scale factor" in operator.asked[1]
+    for run in read_session(tmp_path / "s.h5")["runs"]:
+        assert [(d["body_id"], d["direction"], d["source"]) for d in run["detections"]] == [(1, -1, "operator")]
