@@ -154,7 +154,7 @@ class StudyResult:
         beta = np.array([r["angle_rad"] for r in avg])
         observed = np.array([r["cor"] for r in avg])
         out["gcor_paper"] = {"c1": design.PAPER_GCOR[0], "c2": design.PAPER_GCOR[1],
-                             "eq12_error": design.eq12_error(observed, design.gcor(beta))}
+                             "eq12_error": design.eq12_error(observed, design.gcor(beta)) if avg else None}
         try:
             fit = self.fit_gcor()
             out["gcor"] = {**fit.as_dict(), "eq12_error": design.eq12_error(observed, design.gcor(beta, *fit.coeffs))}

@@ -22,6 +22,8 @@ from analysis import TABLE_I, AnalysisInputError, Body, simulate
 from analysis.study import StudyResult, study
 from rig import cli_design, cli_emulate, cli_prepare, cli_records, cli_run, cli_serve, cli_sessions
 from rig.records import RecordError, load_record, load_records
+from rig.study_file import StudyFileError, write_study
+from rig.study_summary import coefficient_table, estimator_table, study_summary
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
                   no_args_is_help=True, add_completion=False)
@@ -124,25 +126,38 @@ def study_cmd(
     model: Annotated[str, typer.Option(help="rocking | general")] = "rocking",
     restitution: Annotated[str, typer.Option(help="0 (plastic), 'housner' or a number")] = "0",
     friction: Annotated[float, typer.Option(help="friction coefficient (general model)")] = 1.0,
+    output: Annotated[Path | None, typer.Option("-o", "--output", help="save the study as HDF5 (STUDY.h5)")] = None,
+    dask: Annotated[str | None, typer.Option("--dask", help="run on the Dask scheduler at tcp://HOST:PORT "
+                                             "(default: all local cores)")] = None,
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
-    """The paper's analytical study: bodies × records × both signs × angles; COR per body and angle."""
+    """The paper's analytical study: bodies × records × both signs × angles; COR per body and angle, Eqs. 11
+    and 13 fitted beside the paper's, Eq. 12 errors and Table III's estimators."""
     try:
         recs = load_records(records)
-        res = study(parse_bodies(bodies), recs, parse_angles(angles), model=model,  # type: ignore[arg-type]
-                    restitution=restitution, friction=friction)
-    except (RecordError, AnalysisInputError) as exc:
+        scenes = (parse_bodies(bodies), recs, parse_angles(angles))
+        if dask:
+            from analysis.study_dask import study_dask
+
+            res = study_dask(*scenes, model=model, restitution=restitution, friction=friction,  # type: ignore[arg-type]
+                             scheduler=dask)
+        else:
+            res = study(*scenes, model=model, restitution=restitution, friction=friction)  # type: ignore[arg-type]
+        summary = study_summary(res)
+        if output is not None:
+            summary["output"] = str(write_study(res, summary, output))
+    except (RecordError, AnalysisInputError, StudyFileError) as exc:
         fail(str(exc))
-    summary = res.summary()
     if as_json:
         emit_json(summary)
         return
-    print_cor_table(res)
+    print_cor_table(res, summary)
 
 
-def print_cor_table(res: StudyResult) -> None:
+def print_cor_table(res: StudyResult, summary: dict | None = None) -> None:
     """COR (%) per angle (rows) and body (columns), the body average, the overturn count and Eq. 11
-    with the paper's and the fitted coefficients."""
+    with the paper's and the fitted coefficients; with the ``summary`` (`rig.study_summary`), the fitted
+    coefficients beside the paper's and Table III's estimators too."""
     from analysis.design import gcor
 
     rows = res.cor()
@@ -168,7 +183,12 @@ def print_cor_table(res: StudyResult) -> None:
         table.add_row(f"{math.degrees(beta):g}", *cells, pct(avg[m]["cor"]), str(avg[m]["overturned"]),
                       pct(float(gcor(beta))), pct(float(gcor(beta, fit.c1, fit.c2))) if fit else "–")
     console.print(table)
-    if fit:
+    if summary is not None:
+        console.print(coefficient_table(summary))
+        console.print(estimator_table(summary))
+        if "output" in summary:
+            console.print(f"saved {summary['output']} ({summary['where']})", highlight=False)
+    elif fit:
         console.print(f"Eq. 11 fitted to the average: c1 = {fit.c1:.4f} (95 % CI {fit.c1_ci[0]:.4f}–"
                       f"{fit.c1_ci[1]:.4f}), c2 = {fit.c2:.3f}; the paper: c1 = 0.048, c2 = 0.48.")
 

@@ -1,7 +1,8 @@
 """``rig design``: the plate inclination that reaches a target controlled-overturning rate.
 
 Inverts the paper's Eq. 13 (SCOR, body-specific, default) or Eq. 11 (GCOR) with the paper's
-coefficients (``analysis.design``). Angles are in degrees at the CLI; the confidence is a fraction.
+coefficients (``analysis.design``) or those fitted by a study (``--study STUDY.h5`` or a ``--json`` output).
+Angles are in degrees at the CLI; the confidence is a fraction.
 ``--json`` prints exactly one JSON object on stdout (ARCHITECTURE §7); errors go to stderr, exit 2.
 """
 
@@ -32,7 +33,15 @@ class EquationName(StrEnum):
 
 
 def study_coefficients(path: Path, equation: Equation) -> tuple[float, ...]:
-    """The fitted coefficients of ``equation`` from a saved ``rig study --json`` output."""
+    """The fitted coefficients of ``equation`` from a study file (``rig study -o STUDY.h5``) or a saved
+    ``rig study --json`` output."""
+    from rig.study_file import StudyFileError, is_study_file, read_study
+
+    if is_study_file(path):
+        try:
+            return read_study(path).coefficients(equation)
+        except StudyFileError as exc:
+            raise AnalysisInputError(f"--study {exc}") from None
     try:
         summary = json.loads(path.read_text())
     except (OSError, json.JSONDecodeError) as exc:
@@ -96,7 +105,8 @@ def design(
     ] = EquationName.SCOR,
     study: Annotated[
         Path | None,
-        typer.Option("--study", help="Use the coefficients fitted by a study: a `rig study --json` output file."),
+        typer.Option("--study", help="Use the coefficients fitted by a study: a `rig study -o STUDY.h5` file "
+                                "or a `rig study --json` output."),
     ] = None,
     as_json: Annotated[bool, typer.Option("--json", help="Print one JSON object on stdout.")] = False,
 ) -> None:

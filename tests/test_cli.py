@@ -83,3 +83,13 @@ def test_bad_input_exits_2_and_says_what_is_wrong(args: list[str], message: str)
     assert result.exit_code == 2
     assert message in result.output
     assert "Traceback" not in result.output
+
+
+def test_a_study_in_which_nothing_overturns_is_summarised_not_refused() -> None:
+    """A large stocky body on one weak record: no overturn, no COR to fit — the summary says so, exit 0."""
+    result = runner.invoke(app, ["study", "--records", "fema-farfield:NORTHR/MUL009", "--bodies", "0.38x1.5",
+                                 "--angles", "0", "--json"])
+    assert result.exit_code == 0, result.output
+    out = json.loads(result.stdout)
+    assert out["cor"][0]["overturned"] == 0 and out["gcor_paper"]["eq12_error"] is None
+    assert "error" in out["gcor"]
