@@ -32,7 +32,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/stream.py --transport mavlink
 	$(BIN)/python benchmarks/stream.py --transport zenoh
 	$(BIN)/python benchmarks/stream.py --transport canopen
-	$(BIN)/python benchmarks/logging.py
+	$(BIN)/python benchmarks/session_logging.py
+	$(BIN)/python benchmarks/study.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

@@ -20,32 +20,25 @@ Prints one JSON object:
   the writer saturated by the same process meanwhile, against the same drive streamed without it (same run):
   the emulator's setpoint underruns, the setpoint sender's lateness, and the logging rate achieved meanwhile.
 
-Usage: ``python benchmarks/logging.py [--seconds 5] [--channels 8] [--stream-seconds 20] [--dir DIR]``.
+Usage: ``python benchmarks/session_logging.py [--seconds 5] [--channels 8] [--stream-seconds 20] [--dir DIR]``.
 `measure_writer` is importable for benchmarks that stream to the emulator at the same time.
 """
 
 from __future__ import annotations
 
+import argparse
+import json
+import os
 import sys
+import tempfile
+import threading
+import time
 from pathlib import Path
 
-# This file is named like the standard library's `logging`; as a script its directory comes first on sys.path
-# and would shadow it for every module that imports logging. Replace that entry by the repository root.
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
-sys.path.insert(0, str(_HERE.parent))
+import h5py
+import numpy as np
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import os  # noqa: E402
-import tempfile  # noqa: E402
-import threading  # noqa: E402
-import time  # noqa: E402
-
-import h5py  # noqa: E402
-import numpy as np  # noqa: E402
-
-from rig.session import SessionLog  # noqa: E402
+from rig.session import SessionLog
 
 TARGET = 1_000_000.0  # [samples/s] the issue's target
 RATE = 1000.0  # [Hz] real-time rate of each accelerometer and of the commanded stream
