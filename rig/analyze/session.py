@@ -1,0 +1,134 @@
+"""`analyze_session`: the paper's models re-run on every run's *measured* plate motion, predictions beside
+observations, and the Fig. 13 comparison (ARCHITECTURE §6; the paper's EXPERIMENTAL RESULTS).
+
+For every ``completed`` run (others are skipped and listed with their status: ``aborted``, ``interrupted``,
+``refused``, ``skipped``, ``running``): the run's accelerometer samples → the models' input
+(`rig.analyze.transform`), then every body of the run's ``bodies`` table and every model through
+``analysis.simulate`` at the run's angle (plastic impacts and the general model's default high friction, as in
+the paper's analysis; ``restitution`` can change the impact rule). The observed direction of a body is its first
+detection in the run (sensor or operator), 0 if none. The Fig. 13 table and its COR definition:
+`rig.analyze.fig13`; the file layout: `rig.analyze.store`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from analysis import AnalysisInputError, Body, simulate
+from analysis.simulate import resolve_restitution
+from rig.session import read_session
+
+from . import fig13, store
+from .results import Agreement, Prediction, RunAnalysis, SessionAnalysis, SkippedRun
+from .transform import TransformError, measured_inputs
+
+MODELS = ("rocking", "general")
+SOLVERS = ("fast", "reference")
+
+
+def observed_directions(detections: list[dict[str, Any]]) -> dict[int, tuple[int, float]]:
+    """{body_id: (direction, t)} from a run's detections: each body's first overturn (by time; an operator's
+    answer, without a time, after the timed ones). Rows with direction 0 say "did not overturn" and are skipped."""
+    def key(row: dict[str, Any]) -> tuple[bool, float]:
+        t = float(row["t"])
+        return (math.isnan(t), 0.0 if math.isnan(t) else t)
+
+    out: dict[int, tuple[int, float]] = {}
+    for row in sorted(detections, key=key):
+        direction = int(row["direction"])
+        if direction and int(row["body_id"]) not in out:
+            out[int(row["body_id"])] = (direction, float(row["t"]))
+    return out
+
+
+def body_of(row: dict[str, Any]) -> Body:
+    """A session ``bodies`` row → `analysis.Body` (uniform block; depth and mass carried when given)."""
+    def optional(value: Any) -> float | None:
+        v = float(value)
+        return v if math.isfinite(v) and v > 0 else None
+
+    return Body(b=float(row["b"]), h=float(row["h"]), depth=optional(row["depth"]), mass=optional(row["mass"]),
+                name=str(row.get("name", "")))
+
+
+def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor: str | None = None,
+                restitution: float | str = 0.0) -> RunAnalysis:
+    """One run (as `rig.session.read_session` returns it) → its predictions. `TransformError` if it has no usable
+    accelerometer samples."""
+    angle_deg = float(run["angle_deg"])
+    beta = math.radians(angle_deg)
+    inp = measured_inputs(run["accel"], beta, sensor)
+    observed = observed_directions(run["detections"])
+    predictions: list[Prediction] = []
+    skipped: list[tuple[int, str]] = []
+    for row in run["bodies"]:
+        body_id = int(row["body_id"])
+        seen, t_seen = observed.get(body_id, (0, math.nan))
+        try:
+            body = body_of(row)
+            for model in models:
+                res = simulate(body, inp.acc_h, inp.dt, beta=beta, acc_v=inp.acc_v, model=model,  # type: ignore[arg-type]
+                               solver=solver, restitution=restitution)  # type: ignore[arg-type]
+                t_over = math.nan if res.t_overturn is None else inp.t0 + res.t_overturn
+                predictions.append(Prediction(run["name"], body_id, body.name, model, res.direction, t_over,
+                                              res.theta_max, res.status, seen, t_seen))
+        except AnalysisInputError as exc:
+            skipped.append((body_id, str(exc)))
+    return RunAnalysis(run["name"], str(run["record"]), angle_deg, inp, predictions, skipped)
+
+
+def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solver: str, sensor: str | None,
+             restitution: float | str, written: bool) -> SessionAnalysis:
+    runs: list[RunAnalysis] = []
+    skipped: list[SkippedRun] = []
+    for run in session["runs"]:
+        status = str(run["status"])
+        if status != "completed":
+            reason = run["attrs"].get("reason") or f"status {status}: only completed runs are analysed"
+            skipped.append(SkippedRun(run["name"], status, str(reason)))
+            continue
+        try:
+            runs.append(analyze_run(run, models, solver, sensor, restitution))
+        except TransformError as exc:
+            skipped.append(SkippedRun(run["name"], status, str(exc)))
+    predictions = [p for r in runs for p in r.predictions]
+    angle = {r.run: r.angle_deg for r in runs}
+    cases = [fig13.Case(angle[p.run], p.body_id, p.model, p.direction, p.observed) for p in predictions]
+    rows = fig13.fig13_rows(cases)
+    diff = fig13.max_difference(rows)
+    return SessionAnalysis(
+        path=str(path), models=models, solver=solver, restitution=str(restitution), runs=runs, skipped=skipped,
+        fig13=rows, max_difference={m: diff.get(m) for m in models},
+        agreement={m: Agreement.of(m, predictions) for m in models}, written=written)
+
+
+def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS, solver: str = "fast", *,
+                    sensor: str | None = None, restitution: float | str = 0.0, write: bool = True
+                    ) -> SessionAnalysis:
+    """Re-run ``models`` (``"rocking"``, ``"general"``) with ``solver`` (``"fast"``/``"reference"``) on every
+    completed run of the session file at ``path`` (module docstring) and, with ``write``, store the result in its
+    ``analysis`` groups, replacing earlier ones (`rig.analyze.store`; raw data untouched).
+
+    ``sensor``: use that accelerometer only (default: the mean of all). ``restitution``: the models' impact rule,
+    0 (plastic, the paper's analysis: default), ``"housner"`` (1 − 1.5 sin²α, a rigid block's no-bounce impact)
+    or a number in [0, 1]. Raises `AnalysisInputError` for a bad model/solver/restitution,
+    `rig.session.SessionError` for a file that cannot be read or (with ``write``) is being
+    written (`rig.analyze.store.SessionBusyError`).
+    """
+    models = tuple(dict.fromkeys(models))
+    if not models or any(m not in MODELS for m in models):
+        raise AnalysisInputError(f"models {list(models)!r}: expected one or both of {list(MODELS)}")
+    if solver not in SOLVERS:
+        raise AnalysisInputError(f"solver {solver!r}: expected one of {list(SOLVERS)}")
+    resolve_restitution(Body(b=0.1, h=0.5), restitution)  # a bad value fails here, not as skipped bodies
+    path = Path(path)
+    if not write:
+        return _analyze(read_session(path), path, models, solver, sensor, restitution, written=False)
+    with store.locked(path) as file:
+        result = _analyze(read_session(path), path, models, solver, sensor, restitution, written=True)
+        store.write(file, result)
+    return result
