@@ -339,6 +339,11 @@ def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console:
     seen = json.loads(emulator_file.read_text())
     console.print(f"the emulator's specimens overturned {len(seen['overturns'])} times; it counted "
                   f"{seen['underruns']} underruns and {seen['refused_commands']} refused commands")
+    from rig.analyze import analyze_session
+    from rig.cli_analyze import print_analysis
+
+    console.print("[bold]analysis[/]: both models re-run on the measured plate motion (rig analyze)")
+    print_analysis(analyze_session(path), console)
     console.print(f"session file:      {path}\nemulator counters: {emulator_file}")
     if not complete:
         raise typer.Exit(code=1)
