@@ -34,6 +34,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/stream.py --transport canopen
 	$(BIN)/python benchmarks/session_logging.py
 	$(BIN)/python benchmarks/study.py
+	$(BIN)/python benchmarks/report.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info

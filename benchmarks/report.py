@@ -17,31 +17,24 @@ Usage: ``python benchmarks/report.py [--runs 125] [--seconds 60] [--repeat 1] [-
 
 from __future__ import annotations
 
-import sys
+import argparse
+import json
+import math
+import shutil
+import statistics
+import tempfile
+import time
 from pathlib import Path
 
-# benchmarks/logging.py is named like the standard library's `logging`: as a script this directory comes first on
-# sys.path and would shadow it. Drop that entry (the project is importable from its install).
-_HERE = Path(__file__).resolve().parent
-sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != _HERE]
+import h5py
+import numpy as np
+from scipy import signal
 
-import argparse  # noqa: E402
-import json  # noqa: E402
-import math  # noqa: E402
-import shutil  # noqa: E402
-import statistics  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-
-import h5py  # noqa: E402
-import numpy as np  # noqa: E402
-from scipy import signal  # noqa: E402
-
-from analysis import TABLE_I, TABLE_V  # noqa: E402
-from analysis.body import G  # noqa: E402
-from analysis.design import fit_gcor, fit_scor, scor, table3_estimators  # noqa: E402
-from rig.report import write_report  # noqa: E402
-from rig.session import SessionLog  # noqa: E402
+from analysis import TABLE_I, TABLE_V
+from analysis.body import G
+from analysis.design import fit_gcor, fit_scor, scor, table3_estimators
+from rig.report import write_report
+from rig.session import SessionLog
 
 RATE = 1000.0  # [Hz] commanded trajectory and accelerometer
 ANGLES = (0.0, 4.0, 4.5, 5.0, 5.5)  # [deg] the paper's campaign
@@ -178,10 +171,11 @@ def main() -> None:
     work.mkdir(parents=True, exist_ok=True)
     try:
         session = work / "campaign.h5"
-        t0 = time.perf_counter()
+        synth = None
         if not session.exists():
+            t0 = time.perf_counter()
             make_campaign(session, args.runs, args.seconds)
-        synth = time.perf_counter() - t0
+            synth = round(time.perf_counter() - t0, 1)
         seconds, result = _time(session, work / "campaign.html", args.repeat)
         study_file = work / "study.h5"
         if not study_file.exists():
@@ -190,7 +184,7 @@ def main() -> None:
         out = {
             "figure": "report generation time, paper-style campaign session", "value": round(seconds, 2), "unit": "s",
             "session": {"runs": args.runs, "bodies": 7, "drive_seconds": args.seconds, "rate_hz": RATE,
-                        "file_bytes": session.stat().st_size, "synthesis_seconds": round(synth, 1),
+                        "file_bytes": session.stat().st_size, "synthesis_seconds": synth,
                         "report_seconds": round(seconds, 2), "per_run_ms": round(1000 * seconds / args.runs, 1),
                         "report": result},
             "study": {"bodies": 12, "records": 314, "angles": 15, "file_bytes": study_file.stat().st_size,

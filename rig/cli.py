@@ -20,7 +20,17 @@ from rich.table import Table
 
 from analysis import TABLE_I, AnalysisInputError, Body, simulate
 from analysis.study import StudyResult, study
-from rig import cli_analyze, cli_design, cli_emulate, cli_prepare, cli_records, cli_run, cli_serve, cli_sessions
+from rig import (
+    cli_analyze,
+    cli_design,
+    cli_emulate,
+    cli_prepare,
+    cli_records,
+    cli_report,
+    cli_run,
+    cli_serve,
+    cli_sessions,
+)
 from rig.records import RecordError, load_record, load_records
 from rig.study_file import StudyFileError, write_study
 from rig.study_summary import coefficient_table, estimator_table, study_summary
@@ -211,6 +221,7 @@ cli_run.register(app, fail, console)
 cli_sessions.register(app, fail, console)
 cli_serve.register(app, fail, console)
 cli_analyze.register(app, fail, console)
+cli_report.register(app, fail, console)
 
 
 def main() -> None:  # pragma: no cover - console entry

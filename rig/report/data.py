@@ -1,0 +1,218 @@
+"""Reading what a report shows: a session file's runs one at a time (a campaign holds hundreds of MB of
+samples), the ``analysis`` results ``rig analyze`` adds to it, and a study file. Every file is opened read-only
+the way session readers must (``swmr=True``, no HDF5 file lock); nothing is ever written to an input.
+
+Analysis results in a session file (written by ``rig analyze``):
+
+* ``/runs/<NNNN>/analysis/predictions``: compound (body_id i4, model S16, direction i1, t_overturn f8 — NaN if
+  none, theta_max f8, observed i1);
+* ``/analysis/fig13``: compound (angle_deg f8, body_id i4 — 0 the average over the bodies, model S16, runs i4,
+  overturned_analysis i4, towards_low_analysis i4, cor_analysis f8, overturned_experiment i4,
+  towards_low_experiment i4, cor_experiment f8, difference f8), attributes ``max_difference_<model>``.
+
+Study file (schema ``shaketable-rig/study/1``): root attributes ``schema``, ``software_version``, ``created``,
+``model``, ``restitution``, ``friction``, ``records`` (JSON list of names), ``bodies`` (JSON list of
+{b, h, name}), ``angles_deg``, ``seconds``, ``scenes``, ``where``; datasets ``direction`` int8 (bodies, records,
+signs, angles), ``cor`` compound (body_index i4 — −1 the average, angle_deg, overturned, desired, cor),
+``estimators`` compound (body_index, equation S8, max_difference, absolute_area, error); groups ``fits/gcor``
+(attributes c1, c2, c1_ci_low, c1_ci_high, c2_ci_low, c2_ci_high) and ``fits/scor`` (its coefficients).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from rig.session import SCHEMA as SESSION_SCHEMA
+from rig.session import open_session, read_session
+from rig.session.reader import plain
+
+STUDY_SCHEMA = "shaketable-rig/study/1"
+
+
+class ReportError(ValueError):
+    """The input cannot be reported on (unknown kind, unreadable, missing parts); the message says which."""
+
+
+def open_h5(path: str | os.PathLike[str]) -> h5py.File:
+    """Open any of our HDF5 files for reading: as a SWMR reader first (a session file may be being written),
+    else plainly; no HDF5 file lock either way."""
+    path = Path(path)
+    if not path.is_file():
+        raise ReportError(f"{path}: no such file")
+    try:
+        return h5py.File(path, "r", swmr=True, locking=False)
+    except OSError:
+        try:
+            return h5py.File(path, "r", locking=False)
+        except OSError as exc:
+            raise ReportError(f"{path}: not an HDF5 file ({exc})") from None
+
+
+def file_kind(path: str | os.PathLike[str]) -> str:
+    """``"session"`` or ``"study"``, by the root ``schema`` attribute; `ReportError` otherwise."""
+    with open_h5(path) as h5:
+        schema = plain(h5.attrs.get("schema"))
+    if schema == SESSION_SCHEMA:
+        return "session"
+    if schema == STUDY_SCHEMA:
+        return "study"
+    raise ReportError(f"{path}: schema attribute is {schema!r}; expected {SESSION_SCHEMA!r} (a session file) or "
+                      f"{STUDY_SCHEMA!r} (a study file)")
+
+
+def records(ds: h5py.Dataset) -> list[dict[str, Any]]:
+    """A compound dataset as dicts of plain values (bytes → str)."""
+    data = ds[()]
+    names = data.dtype.names or ()
+    return [{name: plain(row[name]) for name in names} for row in np.atleast_1d(data)]
+
+
+def attrs(obj: h5py.HLObject) -> dict[str, Any]:
+    """Attributes as plain values."""
+    return {key: plain(obj.attrs[key]) for key in obj.attrs}
+
+
+# -- sessions -------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class RunData:
+    """One run as the report needs it (times in s on the run's clock, SI units)."""
+
+    name: str
+    record: str
+    scale_factor: float | None
+    angle_deg: float
+    status: str
+    attrs: dict[str, Any]
+    commanded: np.ndarray
+    """(N, 7): t, surge, sway, heave [m], roll, pitch, yaw [rad]."""
+    accel: dict[str, np.ndarray]
+    """sensor → (M, 4): t, ax, ay, az [m/s², plate-frame specific force]."""
+    bodies: list[dict[str, Any]] = field(default_factory=list)
+    detections: list[dict[str, Any]] = field(default_factory=list)
+    faults: list[dict[str, Any]] = field(default_factory=list)
+    events: list[dict[str, Any]] = field(default_factory=list)
+    predictions: list[dict[str, Any]] | None = None
+    """``analysis/predictions`` rows, None when the run was not analysed."""
+
+
+@dataclass
+class SessionData:
+    """A session's header: the parsed root attributes and the runs' summaries (no samples)."""
+
+    path: Path
+    software_version: str | None
+    created: str | None
+    rig_config: dict[str, Any]
+    sequence: dict[str, Any]
+    runs: list[dict[str, Any]]
+    fig13: list[dict[str, Any]] | None
+    """``/analysis/fig13`` rows, None when the session was not analysed."""
+    analysis_attrs: dict[str, Any]
+
+
+def read_header(path: str | os.PathLike[str]) -> SessionData:
+    """The session's root attributes, its runs' attributes and the Fig. 13 table (if analysed)."""
+    session = read_session(path, data=False)
+    fig13, analysis_attrs = None, {}
+    with open_session(path) as h5:
+        group = h5.get("analysis")
+        if isinstance(group, h5py.Group):
+            analysis_attrs = attrs(group)
+            if isinstance(group.get("fig13"), h5py.Dataset):
+                fig13 = records(group["fig13"])
+    return SessionData(path=Path(path), software_version=session.get("software_version"),
+                       created=session.get("created"), rig_config=session.get("rig_config") or {},
+                       sequence=session.get("sequence") or {}, runs=session["runs"], fig13=fig13,
+                       analysis_attrs=analysis_attrs)
+
+
+def _run(group: h5py.Group, name: str) -> RunData:
+    a = attrs(group)
+    scale = a.get("scale_factor")
+    return RunData(
+        name=name, record=str(a.get("record", "")),
+        scale_factor=None if scale is None or not np.isfinite(scale) else float(scale),
+        angle_deg=float(a.get("angle_deg", 0.0)), status=str(a.get("status", "")), attrs=a,
+        commanded=group["commanded"][()] if "commanded" in group else np.zeros((0, 7)),
+        accel={s: ds[()] for s, ds in group["accel"].items()} if "accel" in group else {},
+        **{key: records(group[key]) if key in group else [] for key in ("bodies", "detections", "faults",
+                                                                         "events")},
+        predictions=(records(group["analysis/predictions"])
+                     if isinstance(group.get("analysis/predictions"), h5py.Dataset) else None),
+    )
+
+
+def iter_runs(path: str | os.PathLike[str]) -> Iterator[RunData]:
+    """The session's runs in order, each read when it is asked for (one run's samples in memory at a time)."""
+    with open_session(path) as h5:
+        runs = h5.get("runs")
+        for name in sorted(runs) if runs is not None else []:
+            yield _run(runs[name], name)
+
+
+# -- studies --------------------------------------------------------------------------------------------------
+
+
+@dataclass
+class StudyData:
+    """A study file's content (module docstring)."""
+
+    path: Path
+    attrs: dict[str, Any]
+    bodies: list[dict[str, Any]]
+    """{b, h, name} [m]."""
+    records: list[str]
+    angles_deg: np.ndarray
+    direction: np.ndarray | None
+    """int8 (bodies, records, signs, angles): +1 towards the low side, −1 the high side, 0 none."""
+    cor: list[dict[str, Any]]
+    gcor: dict[str, Any] | None
+    scor: dict[str, Any] | None
+    estimators: list[dict[str, Any]]
+
+
+def _json_list(value: Any, what: str, path: Path) -> list[Any]:
+    if isinstance(value, list):
+        return value
+    try:
+        out = json.loads(value) if isinstance(value, str) else None
+    except ValueError:
+        out = None
+    if not isinstance(out, list):
+        raise ReportError(f"{path}: root attribute {what!r} is {value!r}; expected a JSON list")
+    return out
+
+
+def read_study(path: str | os.PathLike[str]) -> StudyData:
+    """Everything a study report shows (`ReportError` if the file is not a study file or lacks ``cor``)."""
+    path = Path(path)
+    with open_h5(path) as h5:
+        a = attrs(h5)
+        if a.get("schema") != STUDY_SCHEMA:
+            raise ReportError(f"{path}: schema attribute is {a.get('schema')!r}; expected {STUDY_SCHEMA!r}")
+        if not isinstance(h5.get("cor"), h5py.Dataset):
+            raise ReportError(f"{path}: no 'cor' dataset; expected a complete {STUDY_SCHEMA} file")
+        fits = h5.get("fits")
+
+        def fit(name: str) -> dict[str, Any] | None:
+            group = fits.get(name) if isinstance(fits, h5py.Group) else None
+            return attrs(group) if isinstance(group, h5py.Group) else None
+
+        return StudyData(
+            path=path, attrs=a, bodies=_json_list(a.get("bodies", "[]"), "bodies", path),
+            records=[str(r) for r in _json_list(a.get("records", "[]"), "records", path)],
+            angles_deg=np.atleast_1d(np.asarray(a.get("angles_deg", []), dtype=float)),
+            direction=h5["direction"][()] if isinstance(h5.get("direction"), h5py.Dataset) else None,
+            cor=records(h5["cor"]), gcor=fit("gcor"), scor=fit("scor"),
+            estimators=records(h5["estimators"]) if isinstance(h5.get("estimators"), h5py.Dataset) else [],
+        )
