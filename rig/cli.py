@@ -209,7 +209,7 @@ def demo_cmd(
     speed: Annotated[float, typer.Option(help="the emulator's controller time per real time")] = 1.0,
 ) -> None:
     """The demo: the emulated table (its own process, MAVLink on loopback, two Table V bodies on the plate) runs
-    examples/quick.toml unattended; the session file is written and summarised."""
+    examples/quick.toml unattended; the session file is written, analysed and reported (HTML)."""
     cli_run.demo(output_dir, speed, fail=fail, console=console)
 
 

@@ -313,7 +313,8 @@ QUICK_SEQUENCE = Path(__file__).resolve().parents[1] / "examples" / "quick.toml"
 
 def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console: Any) -> None:
     """``rig demo``: the emulated table runs the quick sequence unattended into a new session file in
-    ``output_dir``; the session and what the emulator itself saw are summarised, and the files named."""
+    ``output_dir``; the session and what the emulator itself saw are summarised, the models re-run on the
+    measured motion (`rig analyze`), the HTML report written (`rig report`), and the files named."""
     from rig.cli_sessions import print_session
 
     try:
@@ -344,6 +345,10 @@ def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console:
 
     console.print("[bold]analysis[/]: both models re-run on the measured plate motion (rig analyze)")
     print_analysis(analyze_session(path), console)
-    console.print(f"session file:      {path}\nemulator counters: {emulator_file}")
+    from rig.report import write_report
+
+    report = write_report(path, path.with_suffix(".html"))
+    console.print(f"session file:      {path}\nemulator counters: {emulator_file}\n"
+                  f"report:            {report.output} ({report.figures} figures; open it in a browser)")
     if not complete:
         raise typer.Exit(code=1)
