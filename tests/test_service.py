@@ -17,33 +17,13 @@ from typing import Any
 
 import pytest
 import zenoh
+from test_orchestrator import TINY
 
 from protocols.zenoh import session_config
 from protocols.zenoh.auth import Signer
 from rig.service import ServiceClient, ServiceError, ServiceKeys, ServiceUnavailableError
 from rig.service.wire import decode_reply, encode_request, sign
 from rig.session import read_session
-
-TINY = """\
-name = "tiny"
-angles_deg = [0]
-records = [
-    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] },
-    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },
-]
-
-[drive]
-corner_hz = 1.0
-settle_s = 0.3
-
-[operator]
-confirm_before_run = false
-
-[[bodies]]
-table5 = 5
-x = 0.0
-y = 0.0
-"""
 
 SETTLE_LINE = 10
 """The line of ``settle_s`` in :data:`TINY`."""
