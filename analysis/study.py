@@ -167,6 +167,39 @@ class StudyResult:
         return out
 
 
+def check_study_inputs(bodies: Sequence[Body], records: Sequence[RecordLike], angles: np.ndarray, model: str,
+                       signs: Sequence[int], restitution: float | str, criterion: str) -> np.ndarray:
+    """The checks of a study's arguments other than the records' samples (`checked_records`), before any work:
+    model, non-empty bodies/records/angles [rad], signs, every body standing at every angle, criterion. Returns
+    each body's coefficient of restitution; raises :class:`AnalysisInputError` naming what is wrong."""
+    if model not in ("rocking", "general"):
+        raise AnalysisInputError(f"model must be 'rocking' or 'general', got {model!r}")
+    if not bodies or not records or angles.size == 0:
+        raise AnalysisInputError("study needs at least one body, one record and one angle")
+    if any(s not in (1, -1) for s in signs) or not signs:
+        raise AnalysisInputError(f"signs must be drawn from (1, -1), got {tuple(signs)}")
+    for body in bodies:
+        for beta in angles:
+            check_angle(body, float(beta))
+    e = np.array([resolve_restitution(b, restitution) for b in bodies])
+    if criterion not in ("fall", "static"):
+        raise AnalysisInputError(f"criterion must be 'fall' or 'static', got {criterion!r}")
+    return e
+
+
+def checked_records(records: Sequence[RecordLike], use_vertical: bool
+                    ) -> list[tuple[np.ndarray, float, np.ndarray | None]]:
+    """Each record's checked horizontal acceleration [g], step [s] and vertical acceleration [g] (None when it
+    has none or ``use_vertical`` is off)."""
+    out = []
+    for rec in records:
+        acc_h = check_record(rec.acc_h, f"record {rec.name}: acc_h")
+        dt = check_dt(rec.dt)
+        vert = rec.acc_v if (use_vertical and rec.acc_v is not None) else None
+        out.append((acc_h, dt, check_record(vert, f"record {rec.name}: acc_v") if vert is not None else None))
+    return out
+
+
 def study(
     bodies: Sequence[Body],
     records: Sequence[RecordLike],
@@ -188,27 +221,13 @@ def study(
     ``signs``: +1 the record as given along +x, −1 negated (the paper analyses both).
     ``use_vertical``: apply a record's vertical component when it has one.
     """
-    if model not in ("rocking", "general"):
-        raise AnalysisInputError(f"model must be 'rocking' or 'general', got {model!r}")
-    if not bodies or not records or len(angles) == 0:
-        raise AnalysisInputError("study needs at least one body, one record and one angle")
-    if any(s not in (1, -1) for s in signs) or not signs:
-        raise AnalysisInputError(f"signs must be drawn from (1, -1), got {tuple(signs)}")
     angles_arr = np.asarray(angles, dtype=float)
-    for body in bodies:
-        for beta in angles_arr:
-            check_angle(body, float(beta))
-    e = np.array([resolve_restitution(b, restitution) for b in bodies])
-    if criterion not in ("fall", "static"):
-        raise AnalysisInputError(f"criterion must be 'fall' or 'static', got {criterion!r}")
+    e = check_study_inputs(bodies, records, angles_arr, model, signs, restitution, criterion)
 
     # pack records: one series per (record, sign), trailing zero sample each, m/s²
     ax_parts, ay_parts, dts, has_v = [], [], [], []
-    for rec in records:
-        acc_h = check_record(rec.acc_h, f"record {rec.name}: acc_h")
-        dt = check_dt(rec.dt)
-        vert = rec.acc_v if (use_vertical and rec.acc_v is not None) else None
-        acc_v = check_record(vert, f"record {rec.name}: acc_v") if vert is not None else np.zeros_like(acc_h)
+    for acc_h, dt, vert in checked_records(records, use_vertical):
+        acc_v = vert if vert is not None else np.zeros_like(acc_h)
         for sgn in signs:
             ax_parts.append(np.append(sgn * acc_h * G, 0.0))
             ay_parts.append(np.append(acc_v * G, 0.0))

@@ -34,12 +34,8 @@ from analysis.simulate import (
     DEFAULT_STEP,
     Criterion,
     Model,
-    check_angle,
-    check_dt,
-    check_record,
-    resolve_restitution,
 )
-from analysis.study import RecordLike, StudyResult, study
+from analysis.study import RecordLike, StudyResult, check_study_inputs, checked_records, study
 
 if TYPE_CHECKING:
     from distributed import Client
@@ -116,30 +112,6 @@ def warm_up(client: Client, model: Model = "rocking") -> dict[str, int]:
     return {address: int(part["threads"]) for address, part in zip(addresses, client.gather(futures), strict=True)}
 
 
-def _validate(bodies: Sequence[Body], records: Sequence[RecordLike], angles: np.ndarray, model: str,
-              signs: Sequence[int], restitution: float | str, criterion: str) -> None:
-    """The local study's input checks, on the client, before anything is shipped."""
-    if model not in ("rocking", "general"):
-        raise AnalysisInputError(f"model must be 'rocking' or 'general', got {model!r}")
-    if not bodies or not records or angles.size == 0:
-        raise AnalysisInputError("study needs at least one body, one record and one angle")
-    if not signs or any(s not in (1, -1) for s in signs):
-        raise AnalysisInputError(f"signs must be drawn from (1, -1), got {tuple(signs)}")
-    if criterion not in ("fall", "static"):
-        raise AnalysisInputError(f"criterion must be 'fall' or 'static', got {criterion!r}")
-    for body in bodies:
-        resolve_restitution(body, restitution)
-        for beta in angles:
-            check_angle(body, float(beta))
-    for rec in records:
-        check_record(rec.acc_h, f"record {rec.name}: acc_h")
-        check_dt(rec.dt)
-
-
-def _ship(rec: RecordLike, use_vertical: bool) -> ShippedRecord:
-    vert = rec.acc_v if (use_vertical and rec.acc_v is not None) else None
-    return ShippedRecord(rec.name, float(rec.dt), np.asarray(rec.acc_h, dtype=float),
-                         None if vert is None else np.asarray(vert, dtype=float))
 
 
 def _connect(scheduler: str | Client, timeout: float) -> tuple[Client, bool]:
@@ -189,9 +161,10 @@ def study_dask(
     or has no worker, :class:`AnalysisInputError` for input the local study would refuse.
     """
     angles_arr = np.asarray(angles, dtype=float)
-    _validate(bodies, records, angles_arr, model, signs, restitution, criterion)
+    check_study_inputs(bodies, records, angles_arr, model, signs, restitution, criterion)
     signs_t = tuple(int(s) for s in signs)
-    shipped = [_ship(rec, use_vertical) for rec in records]
+    shipped = [ShippedRecord(rec.name, dt, acc_h, acc_v)
+               for rec, (acc_h, dt, acc_v) in zip(records, checked_records(records, use_vertical), strict=True)]
     options = {"signs": signs_t, "restitution": restitution, "friction": friction, "criterion": criterion,
                "t_after": t_after, "step": step, "use_vertical": True}
     client, owned = _connect(scheduler, timeout)
