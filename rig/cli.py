@@ -12,7 +12,6 @@ import sys
 from pathlib import Path
 from typing import Annotated, NoReturn
 
-import numpy as np
 import typer
 from rich import box
 from rich.console import Console
@@ -31,6 +30,7 @@ from rig import (
     cli_serve,
     cli_sessions,
 )
+from rig.json_numpy import json_default
 from rig.records import RecordError, load_record, load_records
 from rig.study_file import StudyFileError, write_study
 from rig.study_summary import coefficient_table, estimator_table, study_summary
@@ -49,17 +49,7 @@ def fail(message: str) -> NoReturn:
 
 def emit_json(obj: dict) -> None:
     """One JSON object on stdout."""
-    sys.stdout.write(json.dumps(obj, default=_json_default) + "\n")
-
-
-def _json_default(o: object) -> object:
-    if isinstance(o, np.integer):
-        return int(o)
-    if isinstance(o, np.floating):
-        return float(o)
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+    sys.stdout.write(json.dumps(obj, default=json_default) + "\n")
 
 
 def parse_angles(text: str) -> list[float]:

@@ -42,6 +42,7 @@ import numpy as np
 from analysis.body import Body
 from analysis.study import StudyResult, cor_counts
 from rig import __version__
+from rig.json_numpy import json_default
 
 SCHEMA = "shaketable-rig/study/1"
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -64,16 +65,7 @@ def _nan(x: float | None) -> float:
 
 
 def _json(obj: Any) -> str:
-    def default(o: object) -> object:
-        if isinstance(o, np.integer):
-            return int(o)
-        if isinstance(o, np.floating):
-            return float(o)
-        if isinstance(o, np.ndarray):
-            return o.tolist()
-        raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-    return json.dumps(obj, default=default)
+    return json.dumps(obj, default=json_default)
 
 
 def direction_array(res: StudyResult) -> np.ndarray:
