@@ -53,6 +53,7 @@ class Sequence:
     operator: OperatorSteps
     lines: dict[KeyPath, int] = field(default_factory=dict, repr=False)
     _motions: dict[int, GroundMotion] = field(default_factory=dict, repr=False)
+    _durations: dict[tuple[int, int], float] = field(default_factory=dict, repr=False)
 
     # ----- construction -----------------------------------------------------------------------------
 
@@ -146,17 +147,21 @@ class Sequence:
         for r in range(len(self.records)):
             self.motion(r)
         if prepare_drives:
-            for run in self.plan():
-                if run.repetition == 0:
-                    self.prepare(run)
+            self._drive_durations()
+
+    def _drive_durations(self) -> dict[tuple[int, int], float]:
+        """Every (angle, record) drive prepared and checked once — the sequence does not change, so a second
+        `check` or `table_seconds` does not prepare them again; their durations [s]."""
+        for run in self.plan():
+            key = (run.angle_index, run.record_index)
+            if key not in self._durations:
+                self._durations[key] = self.prepare(run).duration
+        return self._durations
 
     def table_seconds(self) -> float:
         """Table time of the whole plan [s]: every run's drive and the tilt moves from level to each angle in turn
-        and back (prepares every drive)."""
-        durations = {(run.angle_index, run.record_index): 0.0 for run in self.plan()}
-        for run in self.plan():
-            if run.repetition == 0:
-                durations[run.angle_index, run.record_index] = self.prepare(run).duration
+        and back (prepares every drive not prepared yet)."""
+        durations = self._drive_durations()
         angles = [0.0, *(math.radians(a) for a in self.angles_deg), 0.0]
         tilting = [ramp_duration(abs(b - a), self.table.limits.tilt, self.table.controller_rate)
                    for a, b in itertools.pairwise(angles)]
