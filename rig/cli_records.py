@@ -148,7 +148,8 @@ def _pga_columns(components: list[dict[str, Any]]) -> list[tuple[str, str]]:
 
 
 def _print_listing(data: dict[str, Any]) -> None:
-    title = f"{data['suite']} ({data['count']} components)" + (f" in {data['path']}" if "path" in data else "")
+    noun = "component" if data["count"] == 1 else "components"
+    title = f"{data['suite']} ({data['count']} {noun})" + (f" in {data['path']}" if "path" in data else "")
     table = Table(title=Text(title))
     table.add_column("name", overflow="fold")
     pga_columns = _pga_columns(data["components"])
@@ -237,7 +238,7 @@ def show_command(
         str,
         typer.Argument(
             help="SUITE:NAME (e.g. fema-farfield:NORTHR/MUL009), library:NAME, a record file "
-            "(.AT2, .txt, .dat, .acc, .csv, .h5) or H1+H2[+UP]."
+            "(.AT2, .txt, .dat, .acc, .csv, .h5, COSMOS .V1/.V2) or H1+H2[+UP]."
         ),
     ],
     dt: DtOption = None,
@@ -263,7 +264,7 @@ def import_command(
         list[str],
         typer.Argument(
             metavar="FILE_OR_PAIR",
-            help="Record files (.AT2, .txt, .dat, .acc, .csv, .h5) or H1+H2[+UP] component sets.",
+            help="Record files (.AT2, .txt, .dat, .acc, .csv, .h5, COSMOS .V1/.V2) or H1+H2[+UP] component sets.",
         ),
     ],
     name: Annotated[
