@@ -85,6 +85,11 @@ def test_library_dir_precedence(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
     assert default_library_dir() == (
         tmp_path / "home" / "Library" / "Application Support" / "shaketable-rig" / "records"
     )
+    monkeypatch.setattr("sys.platform", "win32")
+    monkeypatch.setenv("LOCALAPPDATA", str(tmp_path / "local"))
+    assert default_library_dir() == tmp_path / "local" / "shaketable-rig" / "records"
+    monkeypatch.delenv("LOCALAPPDATA")
+    assert default_library_dir() == tmp_path / "home" / "AppData" / "Local" / "shaketable-rig" / "records"
 
 
 # --------------------------------------------------------------------------------------------------

@@ -6,7 +6,8 @@ Where it is, first that applies:
 2. the environment variable ``RIG_RECORD_LIBRARY``;
 3. the platform's user data directory: ``$XDG_DATA_HOME/shaketable-rig/records`` (an absolute
    ``XDG_DATA_HOME`` only), else ``~/.local/share/shaketable-rig/records``; on macOS
-   ``~/Library/Application Support/shaketable-rig/records``.
+   ``~/Library/Application Support/shaketable-rig/records``; on Windows
+   ``%LOCALAPPDATA%\\shaketable-rig\\records`` (else ``~\\AppData\\Local\\shaketable-rig\\records``).
 
 Each record is ``<file name>.h5`` (schema in `h5record`), the file name being the record's name with every
 character other than letters, digits, blanks and ``_ . - + , = @`` percent-encoded (``NORTHR/MUL009`` →
@@ -46,6 +47,10 @@ def default_library_dir() -> Path:
     """The platform's default library directory (see the module docstring)."""
     if sys.platform == "darwin":
         return Path.home() / "Library" / "Application Support" / "shaketable-rig" / "records"
+    if sys.platform == "win32":
+        local = os.environ.get("LOCALAPPDATA", "")
+        base = Path(local) if local else Path.home() / "AppData" / "Local"
+        return base / "shaketable-rig" / "records"
     xdg = os.environ.get("XDG_DATA_HOME", "")
     base = Path(xdg) if xdg and Path(xdg).is_absolute() else Path.home() / ".local" / "share"
     return base / "shaketable-rig" / "records"
