@@ -132,11 +132,25 @@ def test_downsampling_to_1khz_folds_nothing_back() -> None:
     assert np.max(np.abs(y[1000:-1000])) == pytest.approx(1.0, rel=0.01)  # the 50 Hz tone keeps its amplitude
 
 
-def test_resample_ratio_refuses_an_irrational_step() -> None:
+def test_resample_ratio_is_the_simplest_fraction_within_a_microsecond_a_second() -> None:
     assert processing.resample_ratio(0.005, 1000.0) == (5, 1)
     assert processing.resample_ratio(0.0024, 1000.0) == (12, 5)
-    with pytest.raises(ValueError, match="is not a ratio of whole numbers"):
-        processing.resample_ratio(math.pi / 1000, 1000.0)
+    assert processing.resample_ratio(0.00833333, 1000.0) == (25, 3)  # 120 Hz written with 6 digits
+    assert processing.resample_ratio(0.00833, 1000.0) == (833, 100)  # not 1/120: 4e-4 away from 25/3
+    assert processing.resample_ratio(math.pi / 1000, 1000.0) == (355, 113)  # 8.5e-8 relative
+    with pytest.raises(ValueError, match="is within 1e-06 of no ratio of whole numbers"):
+        processing.resample_ratio(0.001 * (1 + 2**0.5 * 1e-5), 1000.0)  # 1/1 is 1.4e-5 away, others further
+
+
+def test_a_120_hz_record_written_with_six_digits_resamples_to_the_tone_it_carries() -> None:
+    f = 5.0
+    n = 1200
+    dt_file = 0.00833333
+    x = np.sin(2 * math.pi * f * np.arange(n) / 120.0)
+    y = processing.resample(x, dt_file, 1000.0)
+    assert len(y) == pytest.approx(n * 25 / 3, abs=2)
+    t = np.arange(len(y)) / 1000.0
+    np.testing.assert_allclose(y[500:-500], np.sin(2 * math.pi * f * t[500:-500]), atol=2e-3)
 
 
 # --------------------------------------------------------------------------------------------------

@@ -206,15 +206,29 @@ def trim_pads(channels: dict[str, ProcessedChannel], dt: float, record_samples: 
     return out
 
 
+#: Largest relative difference between ``rate · dt`` and the resampling ratio: the drive's time base may be
+#: stretched by at most 1 µs a second (a 120 Hz record whose file writes dt = 0.00833333 s plays at 25/3).
+RATIO_TOLERANCE = 1e-6
+#: Largest denominator of the resampling ratio (it sets the length of the polyphase filter).
+MAX_DENOMINATOR = 1000
+
+
+@functools.lru_cache(maxsize=256)
 def resample_ratio(dt: float, rate: float) -> tuple[int, int]:
-    """``(up, down)`` with ``up / down = rate · dt`` (relative error < 1e-9, ``down`` ≤ 1000)."""
-    ratio = Fraction(rate * dt).limit_denominator(1000)
-    if ratio <= 0 or abs(float(ratio) - rate * dt) > 1e-9 * rate * dt:
-        raise ValueError(
-            f"cannot resample dt = {dt!r} s to {rate:g} Hz: {rate * dt!r} is not a ratio of whole numbers "
-            "with a denominator up to 1000 (check the record's dt)"
-        )
-    return ratio.numerator, ratio.denominator
+    """``(up, down)``: the fraction with the smallest ``down`` ≤ `MAX_DENOMINATOR` whose value differs from
+    ``rate · dt`` by at most `RATIO_TOLERANCE` (relative)."""
+    target = rate * dt
+    if not (math.isfinite(target) and target > 0):
+        raise ValueError(f"cannot resample dt = {dt!r} s to {rate:g} Hz: rate · dt must be finite and > 0")
+    exact = Fraction(target)
+    for down in range(1, MAX_DENOMINATOR + 1):
+        ratio = exact.limit_denominator(down)
+        if ratio > 0 and abs(float(ratio) - target) <= RATIO_TOLERANCE * target:
+            return ratio.numerator, ratio.denominator
+    raise ValueError(
+        f"cannot resample dt = {dt!r} s to {rate:g} Hz: {target!r} is within {RATIO_TOLERANCE:g} of no ratio "
+        f"of whole numbers with a denominator up to {MAX_DENOMINATOR} (check the record's dt)"
+    )
 
 
 #: Anti-aliasing / anti-imaging low-pass: flat to 80 % of the lower Nyquist frequency, 80 dB down at it.
