@@ -37,6 +37,9 @@ FORMATS: dict[str, tuple[str, dict[str, str]]] = {
     "csv-3-components": ("three_components.csv", {}),
     "h5": ("record.h5", {}),
     "pair-vertical": (PAIR[2], {}),
+    "cosmos-1-channel": ("cosmos_sine.V2", {}),
+    "cosmos-3-channels": ("cosmos_3chan.V2C", {}),
+    "cosmos-touching-fields": ("cosmos_touching.v1", {}),
 }
 
 TOKENS = [
@@ -45,6 +48,9 @@ TOKENS = [
     b"NPTS=", b"NPTS=     12, DT=   .0000 SEC,", b"  12   0.0100   NPTS, DT", b"IN UNITS OF CM/S/S",
     b"\x00", b"\xff\xfe", b"\xc3\xa9", b"\r", b"\n", b"\r\n", b"1.5.2", b"0x10", b"9" * 400, b"1e308",
     b"time_s,acc_g", b"t [s],acc_h2 [g]", b'"0.1"', b"", b" ",
+    b"End-of-data for Chan  1 acceleration", b"     401", b"     400", b"    -999", b"-999.000000", b"(04)", b"(02)",
+    b"units=g(02)", b"Format=(8F10.5)", b"(1E15.6)", b" 100 Integer-header values follow on  10 lines",
+    b"with 14 text lines", b"velocity", b"|", b"-123.456-234.567",
 ]
 
 _offset = st.floats(min_value=0.0, max_value=1.0, allow_nan=False, exclude_max=True)

@@ -532,9 +532,10 @@ def test_dispatch_by_suffix_any_case(tmp_path: Path, name: str, kwargs: dict) ->
 
 
 def test_dispatch_errors(tmp_path: Path) -> None:
-    other = write(tmp_path, "x.v2", "whatever")
+    other = write(tmp_path, "x.sac", "whatever")
     assert error_of(load_record, str(other)) == (
-        f"{other}: unsupported record file type '.v2'; expected one of .at2, .txt, .dat, .acc, .csv, .h5, .hdf5"
+        f"{other}: unsupported record file type '.sac'; expected one of .at2, .txt, .dat, .acc, .csv, .h5, .hdf5, "
+        ".v1, .v2, .v1c, .v2c"
     )
     assert error_of(load_record, "fema-farfield:NORTHR/MUL009", dt=0.01) == (
         "'fema-farfield:NORTHR/MUL009' has its own dt and units; expected dt/units only with a record file"

@@ -6,7 +6,9 @@ A record spec is one of:
   (``fema:NAME`` looks in both FEMA P695 suites: ``fema-farfield``, ``fema-nearfield``);
 * ``library:NAME`` — a record imported into the user's record library (`library`);
 * a path to a record file, read by its suffix (`files`): ``.AT2`` (PEER), ``.txt``/``.dat``/``.acc``
-  (plain text), ``.csv``, ``.h5``/``.hdf5`` (the project's own record file);
+  (plain text), ``.csv``, ``.h5``/``.hdf5`` (the project's own record file), ``.V1``/``.V2``/``.V1C``/``.V2C``
+  (COSMOS strong-motion files from CESMD or the USGS: one acceleration channel, or two horizontal
+  and an optional vertical one as one bidirectional record);
 * ``H1+H2`` or ``H1+H2+UP`` — one bidirectional record from two horizontal files and, optionally, a
   vertical one (`pairs`), e.g.
   ``RSN6_IMPVALL.I_I-ELC180.AT2+RSN6_IMPVALL.I_I-ELC270.AT2+RSN6_IMPVALL.I_I-ELC-UP.AT2``
@@ -24,6 +26,7 @@ from __future__ import annotations
 import difflib
 from pathlib import Path
 
+from .cosmos import read_cosmos
 from .csvfile import read_csv
 from .fema import SUITES, load_suite, load_suite_record, suite_names
 from .files import FILE_SUFFIXES, read_record_file
@@ -73,6 +76,7 @@ __all__ = [
     "load_suite_record",
     "read_at2",
     "read_components",
+    "read_cosmos",
     "read_csv",
     "read_file_spec",
     "read_h5",
