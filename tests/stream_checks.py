@@ -58,6 +58,36 @@ def assert_pose_follows(drive: Drive, report: StreamReport, statuses: list[Table
     assert error.max(axis=0)[0] > 0.2 * TAU * speed[:, 0].max()  # the lag is there
 
 
+def assert_played_through(drive: Drive, report: StreamReport, progress: list[tuple[int, int]],
+                          counters: dict[str, Any]) -> None:
+    """The stream of ``drive`` played to its end on time, with no fault; its progress reports came at 10 Hz or more,
+    in order, the last one complete."""
+    assert report.final is not None and report.final.state == "armed" and report.final.faults == ()
+    assert report.underruns == 0 and counters["underruns"] == 0 and counters["samples_late"] == 0
+    assert progress[-1] == (len(drive.t), len(drive.t)) and len(progress) >= 10 * report.duration
+    assert all(a[0] <= b[0] for a, b in itertools.pairwise(progress))
+
+
+def assert_resting_force(drive: Drive, report: StreamReport, sample_times: np.ndarray, force: np.ndarray) -> None:
+    """An accelerometer's specific force over the last 0.4 s of the drive's leading hold, resting at the tilt β:
+    (−g sin β, 0, g cos β) within 0.01 m/s²."""
+    hold = (sample_times >= report.t_start_ns + round((drive.motion[0] - 0.4) * 1e9)) & (
+        sample_times <= report.t_start_ns + round(drive.motion[0] * 1e9))  # resting at the tilt
+    beta = drive.angle
+    np.testing.assert_allclose(force[hold].mean(axis=0), [-9.81 * math.sin(beta), 0, 9.81 * math.cos(beta)],
+                               atol=0.01)
+
+
+def assert_overturns_reported_once(found: list[Any], stats: dict[str, Any], counters: dict[str, Any]) -> None:
+    """The detections ``found`` are the emulator's overturns, in order, each once although every event came 4
+    times; the slender body (0) is among them."""
+    assert [(d.event_id, d.body_id, d.direction) for d in found] == [
+        (o["event_id"], o["body_id"], o["direction"]) for o in counters["overturns"]]
+    assert 0 in {d.body_id for d in found}  # the slender body fell
+    assert stats["duplicate_detections"] == 3 * len(found)
+    assert counters["link"]["overturn_messages_sent"] == 4 * len(found)
+
+
 def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chunk: int,
                      controller_type: type) -> dict[str, Any]:
     """Stream ``drive`` through the transport of ``listen`` to an emulator with a slender and a stocky body and
@@ -76,12 +106,9 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
             stats = table.link_stats()
     finally:
         counters = emulator.stop()
-    assert report.final is not None and report.final.state == "armed" and report.final.faults == ()
-    assert report.underruns == 0 and counters["underruns"] == 0 and counters["samples_late"] == 0
+    assert_played_through(drive, report, progress, counters)
     assert counters["chunk_margin_min_ns"] > 0 and counters["chunks_missing"] == 0
     assert report.chunks == counters["chunks_accepted"] == math.ceil(len(drive.t) / samples_per_chunk)
-    assert progress[-1] == (len(drive.t), len(drive.t)) and len(progress) >= 10 * report.duration
-    assert all(a[0] <= b[0] for a, b in itertools.pairwise(progress))
     spacing = round(1e9 / drive.rate)
 
     assert_pose_follows(drive, report, statuses.drain(), POSE_NOISE)
@@ -96,20 +123,11 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
         assert np.all(np.diff(sample_times) == spacing)
         inside = (sample_times >= report.t_start_ns) & (sample_times <= report.t_end_ns)
         assert inside.sum() == report.t_end_ns // spacing - math.ceil(report.t_start_ns / spacing) + 1
-        force = np.concatenate([b.samples for b in batches])
-        hold = (sample_times >= report.t_start_ns + round((drive.motion[0] - 0.4) * 1e9)) & (
-            sample_times <= report.t_start_ns + round(drive.motion[0] * 1e9))  # resting at the tilt
-        beta = drive.angle
-        np.testing.assert_allclose(force[hold].mean(axis=0), [-9.81 * math.sin(beta), 0, 9.81 * math.cos(beta)],
-                                   atol=0.01)
+        assert_resting_force(drive, report, sample_times, np.concatenate([b.samples for b in batches]))
 
     # overturns: reported once each although every event came 4 times
     found = detections.drain()
-    assert [(d.event_id, d.body_id, d.direction) for d in found] == [
-        (o["event_id"], o["body_id"], o["direction"]) for o in counters["overturns"]]
+    assert_overturns_reported_once(found, stats, counters)
     assert [d.t_ns for d in found] == [round(o["t"] * 1e9) for o in counters["overturns"]]
-    assert 0 in {d.body_id for d in found}  # the slender body fell
     assert len({d.event_id for d in found}) == len(found) == len({d.body_id for d in found})
-    assert stats["duplicate_detections"] == 3 * len(found)
-    assert counters["link"]["overturn_messages_sent"] == 4 * len(found)
     return counters

@@ -33,7 +33,19 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from stream_checks import assert_pose_follows, drive_excerpt, smooth_ramp, surge
+from stream_checks import (
+    SLENDER,
+    STOCKY,
+    TAU,
+    assert_overturns_reported_once,
+    assert_played_through,
+    assert_pose_follows,
+    assert_resting_force,
+    drive_excerpt,
+    smooth_ramp,
+    surge,
+)
+from table_checks import emergency_stop_while_streaming
 
 from drivers.canopen import CanopenTable, Move, Trajectory
 from drivers.controller import (
@@ -75,9 +87,7 @@ from sim_table.canopen_endpoint import FEEDBACK_DELAY, TARGET_DELAY, Recent, Syn
 from sim_table.endpoint import EndpointOptions
 from sim_table.process import Emulator, EmulatorConfig, parse_body
 
-TAU = 0.005  # the emulator's default leg lag [s]
 POSE_NOISE = 2e-5  # 1 µm positions through the kinematics, interpolation of the 500 Hz targets [m, rad]
-SLENDER, STOCKY = "0.05x0.50@0.4,0", "0.15x0.45@-0.4,0"
 RATE = 500
 PERIOD_NS = 2_000_000
 UDP_RATE = 100
@@ -136,12 +146,9 @@ def test_stream_a_prepared_fema_drive_excerpt_at_500_hz() -> None:
             stats = table.link_stats()
             received, found, during = accel.drain(), detections.drain(), statuses.drain()
         counters = emulator.counters()
-    assert report.final is not None and report.final.state == "armed" and report.final.faults == ()
-    assert report.underruns == 0 and counters["underruns"] == 0 and counters["samples_late"] == 0
+    assert_played_through(drive, report, progress, counters)
     assert counters["chunks_missing"] == 0 and counters["refused_commands"] == 0  # CAN: nothing is signed
     assert report.chunks == len(report.send_lateness_ns) >= report.duration * RATE
-    assert progress[-1] == (len(drive.t), len(drive.t)) and len(progress) >= 10 * report.duration
-    assert all(a[0] <= b[0] for a, b in itertools.pairwise(progress))
 
     # the achieved pose follows the command within the lag: |error| <= tau * max|v| (last 50 ms) + noise
     assert_pose_follows(drive, report, during, POSE_NOISE)
@@ -155,23 +162,13 @@ def test_stream_a_prepared_fema_drive_excerpt_at_500_hz() -> None:
     inside = (sample_times >= report.t_start_ns) & (sample_times <= report.t_end_ns)
     expected = (report.t_end_ns - phase) // PERIOD_NS - -((phase - report.t_start_ns) // PERIOD_NS) + 1
     assert inside.sum() == expected and abs(expected - report.duration * RATE) <= 1
-    force = np.concatenate([b.samples for b in received])
-    hold = (sample_times >= report.t_start_ns + round((drive.motion[0] - 0.4) * 1e9)) & (
-        sample_times <= report.t_start_ns + round(drive.motion[0] * 1e9))  # resting at the tilt
-    beta = drive.angle
-    np.testing.assert_allclose(force[hold].mean(axis=0), [-9.81 * math.sin(beta), 0, 9.81 * math.cos(beta)],
-                               atol=0.01)
+    assert_resting_force(drive, report, sample_times, np.concatenate([b.samples for b in received]))
 
     # overturns: reported once each although every event came 4 times, dated by their age
-    overturns = counters["overturns"]
-    assert [(d.event_id, d.body_id, d.direction) for d in found] == [
-        (o["event_id"], o["body_id"], o["direction"]) for o in overturns]
-    assert 0 in {d.body_id for d in found}  # the slender body fell
-    for detection, overturn in zip(found, overturns, strict=True):
+    assert_overturns_reported_once(found, stats, counters)
+    for detection, overturn in zip(found, counters["overturns"], strict=True):
         assert emulator.controller_time(detection.t_ns) * 1e-9 == pytest.approx(overturn["t"], abs=5e-4)
         assert detection.tilt == pytest.approx(overturn["tilt"], abs=1e-5)
-    assert stats["duplicate_detections"] == 3 * len(found)
-    assert counters["link"]["overturn_messages_sent"] == 4 * len(found)
 
 
 # ----- bus load ---------------------------------------------------------------------------------------------------
@@ -261,21 +258,7 @@ def test_stop_decelerates_and_goes_home_emergency_stop_holds() -> None:
         final = table.wait_for_state("armed", 10)
         np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)
 
-        thread, outcome = in_background(lambda: table.stream(t, poses))
-        table.wait_for_status(lambda s: s.pose[0] > 0.03, 10)
-        statuses = table.statuses()
-        table.emergency_stop()
-        thread.join()
-        stopped = table.wait_for_state("emergency_stopped", 1)
-        time.sleep(0.3)
-        after = [s.pose[0] for s in statuses.drain() if s.t_ns >= stopped.t_ns]
-        assert isinstance(outcome["error"], StreamAbortedError)
-        assert max(after) - min(after) < 0.001 and after[-1] > 0.03  # braked within a millimetre: no return home
-        assert emulator.core.state.value == "emergency_stopped"
-        table.arm()
-        assert table.status().state == "armed" and table.status().pose[0] == pytest.approx(after[-1], abs=1e-4)
-        table.home()
-        np.testing.assert_allclose(table.status().pose, np.zeros(6), atol=1e-4)
+        emergency_stop_while_streaming(table, t, poses, 0.03, state=lambda: emulator.core.state.value)
     counters = emulator.counters()
     assert counters["emergency_stops"] == 1 and counters["underruns"] == 0
 

@@ -20,25 +20,19 @@ from typing import Any
 
 import numpy as np
 import pytest
-from stream_checks import drive_excerpt, smooth_ramp, stream_and_check, surge
+import table_checks
+from stream_checks import drive_excerpt, stream_and_check, surge
 
-from drivers.controller import (
-    CommandDeniedError,
-    StreamAbortedError,
-    TableError,
-    TableStatus,
-    TableTimeoutError,
-    open_table,
-    register_scheme,
-)
+from drivers.controller import StreamAbortedError, TableError, TableStatus, open_table, register_scheme
 from drivers.mavlink import MavlinkTable
-from protocols.mavlink import KEY_ENV, SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks
+from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks
 from protocols.mavlink.signing import signing_timestamp
 from rig.drive import Drive, prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
 
 D = dialect()
+LISTEN = "mavlink://127.0.0.1:0"
 
 
 # ----- the emulator process -----------------------------------------------------------------------------------
@@ -50,8 +44,8 @@ def mavlink_address(emulator: EmulatorProcess) -> tuple[str, int]:
     return host, int(port)
 
 
-def start_emulator(*flags: str, key_file: Path | None = None, env: dict[str, str] | None = None) -> EmulatorProcess:
-    return EmulatorProcess.start("mavlink://127.0.0.1:0", *flags, key_file=key_file, env=env)
+def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess:
+    return EmulatorProcess.start(LISTEN, *flags, key_file=key_file)
 
 
 @pytest.fixture(scope="module")
@@ -77,9 +71,11 @@ def at_rest(table: MavlinkTable) -> TableStatus:
 # ----- a hand-driven host -------------------------------------------------------------------------------------
 
 
-class RawHost:
+class RawHost(table_checks.Host):
     """A host on its own socket with ids (system, 190): signs with ``key`` if given (starting at ``timestamp``),
     sends heartbeats at 20 Hz while ``beating``, collects statuses and COMMAND_ACKs."""
+
+    per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, address: tuple[str, int], key: bytes | None = None, *, system: int = 250,
                  timestamp: int | None = None) -> None:
@@ -114,8 +110,9 @@ class RawHost:
                 self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
             time.sleep(0.05)
 
-    def command(self, command: int, *params: float) -> int:
-        """Send COMMAND_LONG once; the result of its ACK."""
+    def command(self, name: str, *params: float) -> str:
+        """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …)."""
+        command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
         count = len(self.acks)
         values = [*params] + [0.0] * (7 - len(params))
         self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values))
@@ -123,32 +120,25 @@ class RawHost:
         while time.monotonic() < deadline:
             answers = [a for a in self.acks[count:] if a.command == command]
             if answers:
-                return answers[0].result
+                return D.enums["MAV_RESULT"][answers[0].result].name.removeprefix("MAV_RESULT_").lower()
             time.sleep(0.005)
         raise AssertionError(f"no COMMAND_ACK for {command}")
 
-    def controller_now(self) -> int:
-        """Controller time [ns] estimated from the last status (its delay on loopback is well below 1 ms)."""
-        received, status = self.statuses[-1]
-        return status.t_ns + time.monotonic_ns() - received
+    def chunk(self, samples: np.ndarray, t_start_ns: int, seq: int) -> None:
+        (chunk,) = setpoint_chunks(samples, t_start_ns, 1_000_000, seq)
+        self.send(chunk)
 
-    def wait(self, predicate: Any, timeout: float) -> Any:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if self.statuses and predicate(self.statuses[-1][1]):
-                return self.statuses[-1][1]
-            time.sleep(0.005)
-        raise AssertionError(f"no matching status; last {self.statuses[-1][1] if self.statuses else None}")
+    def state(self, status: Any) -> str:
+        return D.enums["SHAKETABLE_STATE"][status.state].name.removeprefix("SHAKETABLE_STATE_").lower()
+
+    def fault(self, name: str) -> int:
+        return getattr(D, f"SHAKETABLE_FAULT_{name}")
 
     def close(self) -> None:
         self._running = False
         for thread in self._threads:
             thread.join()
         self.link.close()
-
-
-def state_name(status: Any) -> str:
-    return D.enums["SHAKETABLE_STATE"][status.state].name.removeprefix("SHAKETABLE_STATE_").lower()
 
 
 # ----- trajectories -------------------------------------------------------------------------------------------
@@ -158,7 +148,7 @@ def state_name(status: Any) -> str:
 
 
 def check_stream(drive: Drive, key_file: Path) -> None:
-    stream_and_check(drive, "mavlink://127.0.0.1:0", key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
+    stream_and_check(drive, LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
 
 
 def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
@@ -181,44 +171,21 @@ def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorPro
         forged = RawHost(mavlink_address(plain), secrets.token_bytes(32), system=255,  # the driver's own ids and link,
                          timestamp=signing_timestamp(time.time() + 3600))  # a timestamp an hour ahead
         try:
-            assert unsigned.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_DENIED
-            assert forged.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_DENIED
-            assert unsigned.command(D.MAV_CMD_SHAKETABLE_STOP) == D.MAV_RESULT_ACCEPTED
+            assert unsigned.command("arm") == "denied"
+            assert forged.command("arm") == "denied"
+            assert unsigned.command("stop") == "accepted"
             after = table.wait_for_status(lambda s: s.refused_commands >= before.refused_commands + 2, 2)
             assert after.refused_commands == before.refused_commands + 2 and after.state == before.state
             assert "UNSIGNED_COMMAND" in after.faults
-
-            table.arm()  # the forged timestamp did not lock the real host out
-            t, poses = surge(2.0, lambda t: 0.01 * np.sin(2 * np.pi * t))
-            result: dict[str, Any] = {}
-            streamer = threading.Thread(target=lambda: result.update(report=table.stream(t, poses, lead=0.05)))
-            statuses = table.statuses()
-            streamer.start()
-            playing = table.wait_for_status(lambda s: s.state == "streaming" and s.last_chunk_seq >= 5, 2)
-            wild = np.tile([0.2, 0, 0, 0, 0, 0], (8, 1))
-            for k in range(10):  # chunk numbers the real stream is about to use, a wild pose 20 ms ahead
-                for host in (unsigned, forged):
-                    (chunk,) = setpoint_chunks(wild, table.clock.to_controller(time.monotonic_ns()) + 20_000_000,
-                                               1_000_000, playing.last_chunk_seq + 10 + 2 * k)
-                    host.send(chunk)
-                time.sleep(0.01)
-            streamer.join()
+            # it arms: the forged timestamp did not lock the real host out
+            table_checks.motion_from_others_is_refused(table, (unsigned, forged), before.refused_commands + 2)
         finally:
             unsigned.close()
             forged.close()
-        report = result["report"]
-        assert report.underruns == 0 and report.final.state == "armed"
-        assert report.final.refused_commands == before.refused_commands + 2 + 20
-        assert "CHUNK_GAP" not in report.final.faults
-        assert max(abs(s.pose[0]) for s in statuses.drain()) < 0.0101
 
 
 def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
-    other = tmp_path / "other.key"
-    other.write_text(secrets.token_hex(32))
-    table = open_table(plain.url, key_file=str(other))
-    with table, pytest.raises(CommandDeniedError, match="ARM refused: missing or bad signature"):
-        table.arm()  # telemetry needs no signature: it connected
+    table_checks.wrong_key_is_refused(plain.url, tmp_path)
 
 
 # ----- watchdogs, stops, faults -------------------------------------------------------------------------------
@@ -227,110 +194,22 @@ def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_p
 @pytest.mark.parametrize("silent", ["heartbeat", "stream"])
 def test_a_silent_host_gets_the_table_stopped_and_home(plain: EmulatorProcess, key_file: Path, silent: str) -> None:
     host = RawHost(mavlink_address(plain), bytes.fromhex(key_file.read_text()))
-    try:
-        host.wait(lambda s: state_name(s) not in ("stopping", "homing", "tilting", "streaming"), 15)
-        assert host.command(D.MAV_CMD_SHAKETABLE_ARM) == D.MAV_RESULT_ACCEPTED
-        assert host.command(D.MAV_CMD_SHAKETABLE_START_STREAM, 0.0) == D.MAV_RESULT_ACCEPTED
-        t0 = host.controller_now() + 50_000_000
-        _, poses = surge(1.2, lambda t: smooth_ramp(t, 0.03, 0.6))
-        for k in range(0, len(poses), 8):
-            if k == 400:  # 0.4 s into the stream: go silent
-                host.beating = silent != "heartbeat"
-                if silent == "stream":
-                    break
-            due = t0 + k * 1_000_000 - 50_000_000
-            time.sleep(max(0.0, (due - host.controller_now()) * 1e-9))
-            host.send(setpoint_chunks(poses[k:k + 8], t0 + k * 1_000_000, 1_000_000, k // 8)[0])
-        final = host.wait(lambda s: state_name(s) == "faulted", 10)
-    finally:
-        host.close()
-    seen = [state_name(s) for _, s in host.statuses]
-    changes = [a for a, b in zip(seen, [*seen[1:], None], strict=True) if a != b]
-    assert changes[-3:] == ["streaming", "stopping", "faulted"]
-    fault = D.SHAKETABLE_FAULT_HEARTBEAT_LOST if silent == "heartbeat" else D.SHAKETABLE_FAULT_STREAM_SILENT
-    assert final.faults & fault
-    assert (final.faults & D.SHAKETABLE_FAULT_UNDERRUN) == (silent == "stream") * D.SHAKETABLE_FAULT_UNDERRUN
-    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # home
+    table_checks.silent_host_gets_the_table_stopped(host, silent)
 
 
 def test_emergency_stop_mid_stream_stops_at_once_and_stays(key_file: Path) -> None:
-    emulator = start_emulator("--speed", "2", key_file=key_file)
-    try:
-        with open_table(emulator.url, key_file=str(key_file)) as table:
-            table.arm()
-            t, poses = surge(5.0, lambda t: smooth_ramp(t, 0.2, 5.0))  # 0.06 m/s at its fastest
-            errors: list[BaseException] = []
-
-            def play() -> None:
-                try:
-                    table.stream(t, poses)
-                except BaseException as exc:
-                    errors.append(exc)
-
-            streamer = threading.Thread(target=play)
-            streamer.start()
-            table.wait_for_status(lambda s: s.pose[0] > 0.08, 10)
-            statuses = table.statuses()
-            table.emergency_stop()
-            streamer.join()
-            stopped = table.wait_for_status(lambda s: s.state == "emergency_stopped", 1)
-            time.sleep(0.3)
-            after = [s for s in statuses.drain() if s.t_ns >= stopped.t_ns]
-            assert table.status().state == "emergency_stopped"
-            surges = np.array([s.pose[0] for s in after])
-            assert surges.max() - surges.min() < 0.001  # braked within a millimetre: no return home
-            assert surges[-1] > 0.08
-            table.arm()
-            assert table.status().state == "armed" and table.status().pose[0] == pytest.approx(surges[-1], abs=1e-4)
-            table.home()
-            np.testing.assert_allclose(table.status().pose, np.zeros(6), atol=1e-4)
-    finally:
-        counters = emulator.stop()
-    assert len(errors) == 1 and isinstance(errors[0], StreamAbortedError)
-    assert errors[0].report.final is not None and errors[0].report.final.state == "emergency_stopped"
-    assert counters["emergency_stops"] == 1 and counters["streams_completed"] == 0
+    table_checks.emergency_stop_mid_stream(LISTEN, key_file)
 
 
 def test_commands_survive_packet_loss_and_run_once(key_file: Path) -> None:
     """20 % of the datagrams lost both ways: retries get every command through, de-duplication runs each once."""
-    emulator = start_emulator("--loss", "20", "--seed", "4", key_file=key_file)
-    try:
-        with MavlinkTable(emulator.url, key_file=str(key_file), command_timeout=0.05, retries=12) as table:
-            for k in range(40):
-                table.stop() if k % 2 else table.disarm()  # alternate: no two equal commands in a row
-    finally:
-        counters = emulator.stop()
-    assert counters["commands_accepted"] == 40 and counters["stops"] == 20
-    link = counters["link"]
-    assert link["duplicate_commands"] > 0 and link["packets_dropped"] > 0 and link["packets_not_sent"] > 0
+    table_checks.commands_survive_loss(LISTEN, key_file, MavlinkTable, 0.05, "packets")
 
 
 def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.MonkeyPatch, key_file: Path) -> None:
     """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
     controller's clock at twice real time."""
-    env = {KEY_ENV: key_file.read_text().strip()}
-    monkeypatch.setenv(KEY_ENV, env[KEY_ENV])
-    emulator = start_emulator("--delay", "10", "--drive-fault-at", "1.0", "--speed", "2", env=env)
-    try:
-        with open_table(emulator.url) as table:
-            faults = table.faults()
-            table.arm()
-            table.set_tilt(math.radians(1))
-            assert table.status().state == "armed" and table.status().pose[4] == pytest.approx(math.radians(1),
-                                                                                             abs=1e-4)
-            t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
-            poses[:, 4] = math.radians(1)
-            with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
-                table.stream(t, poses)
-            final = table.wait_for_state("faulted", 10)
-            raised = [name for event in faults.drain() for name in event.raised]
-            assert table.clock.stats()["rate"] == pytest.approx(2.0, rel=1e-3)
-    finally:
-        counters = emulator.stop()
-    assert aborted.value.report.underruns == 0 and counters["samples_late"] == 0
-    assert "DRIVE" in final.faults and raised == ["DRIVE"]
-    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # stopped, then home with the tilt undone
-    assert counters["faults_raised"] == {"DRIVE": 1}
+    table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch)
 
 
 def test_stalled_stream_underruns_then_the_watchdog_stops_the_table(key_file: Path) -> None:
@@ -366,8 +245,7 @@ def test_urls_pick_the_backend_and_options_reach_it(key_file: Path) -> None:
 
 
 def test_connect_without_a_controller_times_out(key_file: Path) -> None:
-    with pytest.raises(TableTimeoutError, match="no answer from the table controller"):
-        open_table("mavlink://127.0.0.1:9", key_file=str(key_file), connect_timeout=0.3).connect()
+    table_checks.connect_without_a_controller_times_out("mavlink://127.0.0.1:9", key_file)
 
 
 def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_file: Path) -> None:

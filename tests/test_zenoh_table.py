@@ -18,18 +18,12 @@ from typing import Any
 
 import numpy as np
 import pytest
+import table_checks
 import zenoh
-from stream_checks import drive_excerpt, smooth_ramp, stream_and_check, surge
+from stream_checks import drive_excerpt, stream_and_check
 
-from drivers.controller import (
-    CommandDeniedError,
-    StreamAbortedError,
-    TableError,
-    TableTimeoutError,
-    open_table,
-)
+from drivers.controller import TableError, TableTimeoutError, open_table
 from drivers.zenoh import ZenohTable
-from protocols.mavlink import KEY_ENV
 from protocols.zenoh import Key, KeyExprError, parse_key, session_config, table_accel_selector, table_key
 from protocols.zenoh.auth import TRAILER_BYTES, Received, Signer, Verdict, Verifier
 from protocols.zenoh.payloads import PayloadError
@@ -195,9 +189,11 @@ def test_signatures() -> None:
 # ----- the emulator process -----------------------------------------------------------------------------------
 
 
-def start_emulator(*flags: str, key_file: Path | None = None, env: dict[str, str] | None = None,
-                   table: str = "table") -> EmulatorProcess:
-    return EmulatorProcess.start(f"zenoh://127.0.0.1:0/{table}", *flags, key_file=key_file, env=env)
+LISTEN = "zenoh://127.0.0.1:0/table"
+
+
+def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess:
+    return EmulatorProcess.start(LISTEN, *flags, key_file=key_file)
 
 
 @pytest.fixture(scope="module")
@@ -218,9 +214,11 @@ def plain(key_file: Path) -> Iterator[EmulatorProcess]:
 # ----- a hand-driven host -------------------------------------------------------------------------------------
 
 
-class RawHost:
+class RawHost(table_checks.Host):
     """A host on its own zenoh session: signs with ``key`` if given (as sender ``sender``), publishes heartbeats at
     20 Hz while ``beating``, collects statuses."""
+
+    per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, key: bytes | None = None, *, sender: int = 1) -> None:
         address = parse_table_url(url)
@@ -270,18 +268,8 @@ class RawHost:
         self.setpoints.put(self.sign("setpoints", encode_setpoints(SetpointChunk(seq, t_start_ns, 1_000_000, samples,
                                                                                  False))))
 
-    def controller_now(self) -> int:
-        """Controller time [ns] estimated from the last status (its delay on loopback is well below 1 ms)."""
-        received, status = self.statuses[-1]
-        return status.t_ns + time.monotonic_ns() - received
-
-    def wait(self, predicate: Any, timeout: float) -> StatusReport:
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            if self.statuses and predicate(self.statuses[-1][1]):
-                return self.statuses[-1][1]
-            time.sleep(0.005)
-        raise AssertionError(f"no matching status; last {self.statuses[-1][1] if self.statuses else None}")
+    def fault(self, name: str) -> int:
+        return int(Fault[name])
 
     def close(self) -> None:
         self._running = False
@@ -339,30 +327,15 @@ def test_unsigned_forged_or_replayed_motion_is_refused_stopping_is_not(key_file:
                 recorded = honest.sign("command", arm)
                 assert honest.query(recorded) == "accepted"
                 assert honest.query(recorded) == "denied"  # the same signed bytes again: a replay
-                table.arm()  # the forged future stamp did not lock the driver out
-                t, poses = surge(2.0, lambda t: 0.01 * np.sin(2 * np.pi * t))
-                result: dict[str, Any] = {}
-                streamer = threading.Thread(target=lambda: result.update(report=table.stream(t, poses, lead=0.05)))
-                statuses = table.statuses()
-                streamer.start()
-                playing = table.wait_for_status(lambda s: s.state == "streaming" and s.last_chunk_seq >= 5, 2)
-                wild = np.tile([0.2, 0, 0, 0, 0, 0], (10, 1))
-                for k in range(10):  # chunk numbers the real stream is about to use, a wild pose 20 ms ahead
-                    for host in (unsigned, forged):
-                        host.chunk(wild, table.clock.to_controller(time.monotonic_ns()) + 20_000_000,
-                                   playing.last_chunk_seq + 10 + 2 * k)
-                    time.sleep(0.01)
-                streamer.join()
+                # it arms: the forged future stamp did not lock the driver out
+                report = table_checks.motion_from_others_is_refused(table, (unsigned, forged),
+                                                                    before.refused_commands + 4)
             finally:
                 for host in (unsigned, forged, honest):
                     host.close()
     finally:
         counters = emulator.stop()
-    report = result["report"]
-    assert report.underruns == 0 and report.final.state == "armed"
-    assert report.final.refused_commands == before.refused_commands + 4 + 20 == counters["refused_commands"]
-    assert "CHUNK_GAP" not in report.final.faults
-    assert max(abs(s.pose[0]) for s in statuses.drain()) < 0.0101
+    assert report.final.refused_commands == counters["refused_commands"]
     link = counters["link"]  # why: the unsigned ARM, STOP and 10 chunks; the forged ARM, HOME, 10 chunks; the replay
     assert (link["unsigned"], link["bad_signatures"], link["stale_signatures"]) == (12, 12, 1)
 
@@ -371,86 +344,18 @@ def test_unsigned_forged_or_replayed_motion_is_refused_stopping_is_not(key_file:
 
 
 def test_emergency_stop_mid_stream_stops_at_once_and_stays(key_file: Path) -> None:
-    emulator = start_emulator("--speed", "2", key_file=key_file)
-    try:
-        with open_table(emulator.url, key_file=str(key_file)) as table:
-            table.arm()
-            t, poses = surge(5.0, lambda t: smooth_ramp(t, 0.2, 5.0))  # 0.06 m/s at its fastest
-            errors: list[BaseException] = []
-
-            def play() -> None:
-                try:
-                    table.stream(t, poses)
-                except BaseException as exc:
-                    errors.append(exc)
-
-            streamer = threading.Thread(target=play)
-            streamer.start()
-            table.wait_for_status(lambda s: s.pose[0] > 0.08, 10)
-            statuses = table.statuses()
-            table.emergency_stop()
-            streamer.join()
-            stopped = table.wait_for_status(lambda s: s.state == "emergency_stopped", 1)
-            time.sleep(0.3)
-            after = [s for s in statuses.drain() if s.t_ns >= stopped.t_ns]
-            assert table.status().state == "emergency_stopped"
-            surges = np.array([s.pose[0] for s in after])
-            assert surges.max() - surges.min() < 0.001  # braked within a millimetre: no return home
-            assert surges[-1] > 0.08
-            table.arm()
-            assert table.status().state == "armed" and table.status().pose[0] == pytest.approx(surges[-1], abs=1e-4)
-            table.home()
-            np.testing.assert_allclose(table.status().pose, np.zeros(6), atol=1e-4)
-    finally:
-        counters = emulator.stop()
-    assert len(errors) == 1 and isinstance(errors[0], StreamAbortedError)
-    assert errors[0].report.final is not None and errors[0].report.final.state == "emergency_stopped"
-    assert counters["emergency_stops"] == 1 and counters["streams_completed"] == 0
+    table_checks.emergency_stop_mid_stream(LISTEN, key_file)
 
 
 def test_commands_survive_message_loss_and_run_once(key_file: Path) -> None:
     """20 % of the messages lost both ways: retries get every command through, de-duplication runs each once."""
-    emulator = start_emulator("--loss", "20", "--seed", "4", key_file=key_file)
-    try:
-        with ZenohTable(emulator.url, key_file=str(key_file), command_timeout=0.1, retries=12) as table:
-            for k in range(40):
-                table.stop() if k % 2 else table.disarm()
-            unanswered = table.link_stats()["command_attempts_unanswered"]
-    finally:
-        counters = emulator.stop()
-    assert counters["commands_accepted"] == 40 and counters["stops"] == 20
-    link = counters["link"]
-    assert link["duplicate_commands"] > 0 and link["messages_dropped"] > 0 and link["messages_not_sent"] > 0
-    assert unanswered > 0
+    table_checks.commands_survive_loss(LISTEN, key_file, ZenohTable, 0.1, "messages", counts_unanswered=True)
 
 
 def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.MonkeyPatch, key_file: Path) -> None:
     """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
     controller's clock at twice real time."""
-    env = {KEY_ENV: key_file.read_text().strip()}
-    monkeypatch.setenv(KEY_ENV, env[KEY_ENV])
-    emulator = start_emulator("--delay", "10", "--drive-fault-at", "1.0", "--speed", "2", env=env)
-    try:
-        with open_table(emulator.url) as table:
-            assert isinstance(table, ZenohTable)
-            faults = table.faults()
-            table.arm()
-            table.set_tilt(math.radians(1))
-            assert table.status().state == "armed" and table.status().pose[4] == pytest.approx(math.radians(1),
-                                                                                             abs=1e-4)
-            t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
-            poses[:, 4] = math.radians(1)
-            with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
-                table.stream(t, poses)
-            final = table.wait_for_state("faulted", 10)
-            raised = [name for event in faults.drain() for name in event.raised]
-            assert table.clock.stats()["rate"] == pytest.approx(2.0, rel=1e-3)
-    finally:
-        counters = emulator.stop()
-    assert aborted.value.report.underruns == 0 and counters["samples_late"] == 0
-    assert "DRIVE" in final.faults and raised == ["DRIVE"]
-    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # stopped, then home with the tilt undone
-    assert counters["faults_raised"] == {"DRIVE": 1}
+    table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch, ZenohTable)
 
 
 # ----- connection and registry --------------------------------------------------------------------------------
@@ -467,48 +372,20 @@ def test_urls_pick_the_backend_and_options_reach_it(key_file: Path) -> None:
 
 
 def test_connect_without_a_controller_times_out(key_file: Path) -> None:
-    with pytest.raises(TableTimeoutError, match="no answer from the table controller"):
-        open_table("zenoh://127.0.0.1:9/table", key_file=str(key_file), connect_timeout=0.3).connect()
+    table_checks.connect_without_a_controller_times_out("zenoh://127.0.0.1:9/table", key_file)
 
 
 # ----- one emulator for the tests that leave it at rest (started last: it runs beside the others) -------------
 
 
 def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
-    other = tmp_path / "other.key"
-    other.write_text(secrets.token_hex(32))
-    table = open_table(plain.url, key_file=str(other))
-    with table, pytest.raises(CommandDeniedError, match="ARM refused: missing or bad signature"):
-        table.arm()  # telemetry needs no signature: it connected
+    table_checks.wrong_key_is_refused(plain.url, tmp_path)
 
 
 @pytest.mark.parametrize("silent", ["heartbeat", "stream"])
 def test_a_silent_host_gets_the_table_stopped_and_home(plain: EmulatorProcess, key_file: Path, silent: str) -> None:
     host = RawHost(plain.url, bytes.fromhex(key_file.read_text()))
-    try:
-        host.wait(lambda s: s.state not in ("stopping", "homing", "tilting", "streaming"), 15)
-        assert host.command("arm") == "accepted"
-        assert host.command("start_stream", 0.0) == "accepted"
-        t0 = host.controller_now() + 50_000_000
-        _, poses = surge(1.2, lambda t: smooth_ramp(t, 0.03, 0.6))
-        for k in range(0, len(poses), 10):
-            if k == 400:  # 0.4 s into the stream: go silent
-                host.beating = silent != "heartbeat"
-                if silent == "stream":
-                    break
-            due = t0 + k * 1_000_000 - 50_000_000
-            time.sleep(max(0.0, (due - host.controller_now()) * 1e-9))
-            host.chunk(poses[k:k + 10], t0 + k * 1_000_000, k // 10)
-        final = host.wait(lambda s: s.state == "faulted", 10)
-    finally:
-        host.close()
-    seen = [s.state for _, s in host.statuses]
-    changes = [a for a, b in zip(seen, [*seen[1:], None], strict=True) if a != b]
-    assert changes[-3:] == ["streaming", "stopping", "faulted"]
-    fault = Fault.HEARTBEAT_LOST if silent == "heartbeat" else Fault.STREAM_SILENT
-    assert final.faults & fault
-    assert bool(final.faults & Fault.UNDERRUN) == (silent == "stream")
-    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # home
+    table_checks.silent_host_gets_the_table_stopped(host, silent)
 
 
 def test_another_table_name_at_the_same_address_hears_nothing(key_file: Path, plain: EmulatorProcess) -> None:
