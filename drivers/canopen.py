@@ -21,7 +21,9 @@ every :data:`HEARTBEAT_PERIOD` (0x1017), the master's heartbeat to consume (0x10
 PDO maps (RPDO1 controlword + target, TPDO1 statusword + position actual); the master reads its target delay
 (0x2010) and feedback delay (0x2011). The accelerometers get their SYNC TPDO and heartbeat (sample delay 0x2101),
 the detector its event TPDO and heartbeat. Then NMT operational, the cycle starts, and :meth:`CanopenTable.connect`
-returns with the first status.
+returns with the first status once every node's heartbeat reports *operational* (a node whose heartbeat after the
+start command still reports another state — it missed the command, or booted again — is sent it again; ARM is
+refused while a drive is not operational: a drive that rebooted has lost its configuration, connect again).
 
 **The cycle** (one thread, sleeping to absolute deadlines ``t_n = t_0 + n·T``): the master takes the feedback,
 checks faults and heartbeats, advances its reference to ``t_n + D`` (D the drives' target delay: a target latched
@@ -228,16 +230,20 @@ class Trajectory:
 
 
 class _Link:
-    """What the master knows of one node: its ``RemoteNode``, last heartbeat [host ns] and EMCYs."""
+    """What the master knows of one node: its ``RemoteNode``, last heartbeat [host ns], the NMT state that heartbeat
+    reported, and EMCYs."""
 
     def __init__(self, node: canopen.RemoteNode) -> None:
         self.node = node
         self.heartbeat_ns: int | None = None
+        self.nmt_state: int | None = None
+        self.started_ns = 0  # when the master last sent it the NMT start command [host ns]
         self.emcy: list[tuple[int, int]] = []  # (code, host ns)
         node.nmt.add_heartbeat_callback(self._beat)
 
     def _beat(self, state: int) -> None:
         self.heartbeat_ns = time.monotonic_ns()
+        self.nmt_state = state
 
     def heartbeat_age(self, now: int) -> float | None:
         """Seconds since its last heartbeat (None before the first)."""
@@ -381,19 +387,50 @@ class CanopenTable(TableController):
             self._detector = _Link(network.add_node(DETECTOR_NODE_ID, load_detector_od())) if self.detector else None
             network.nmt.state = "PRE-OPERATIONAL"
             self._configure()
+            started = time.monotonic_ns()
             network.nmt.state = "OPERATIONAL"
+            for link in self._links():
+                link.started_ns = started
             self._closing.clear()
             self._thread = threading.Thread(target=self._run, name="canopen-cycle", daemon=True)
             self._thread.start()
-            if not self.feedback.wait_for(lambda: self._failure is not None or (
-                    self.feedback.latest is not None and all(link.heartbeat_ns for link in self._drives)),
-                    self.connect_timeout):
-                raise TableTimeoutError(f"{self.url}: no feedback or heartbeat from the drives within "
-                                        f"{self.connect_timeout} s")
+            self._wait_operational(time.monotonic() + self.connect_timeout)
             self._check_alive()
         except BaseException:
             self.close()
             raise
+
+    def _links(self) -> list[_Link]:
+        return [*self._drives, *self._sensors, *([self._detector] if self._detector else [])]
+
+    def _wait_operational(self, deadline: float) -> None:
+        """Until every node's heartbeat reports NMT operational and the first status is out (at most until
+        ``deadline`` [s, monotonic]). A node whose heartbeat, sent after the last start command, reports another
+        state (it missed the command, or booted again) is started once more."""
+        def ready() -> bool:
+            return self._failure is not None or (self.feedback.latest is not None and not self._behind())
+
+        while not self.feedback.wait_for(ready, HEARTBEAT_PERIOD):
+            if time.monotonic() > deadline:
+                raise TableTimeoutError(f"{self.url}: not every node reported operational in its heartbeat within "
+                                        f"{self.connect_timeout} s ({self._nmt_states()})")
+            for link in self._behind():
+                if link.heartbeat_ns is not None and link.heartbeat_ns > link.started_ns:
+                    link.started_ns = time.monotonic_ns()
+                    link.node.nmt.state = "OPERATIONAL"
+
+    def _behind(self) -> list[_Link]:
+        """The nodes whose last heartbeat did not report NMT operational."""
+        return [link for link in self._links() if link.nmt_state != _NMT_OPERATIONAL]
+
+    def nmt_states(self) -> dict[int, str]:
+        """Each node's NMT state as its last heartbeat reported it (node id → name; "silent" before one)."""
+        names = {0x00: "booting", 0x04: "stopped", 0x05: "operational", 0x7F: "pre-operational"}
+        return {link.node.id: "silent" if link.nmt_state is None else names.get(link.nmt_state, hex(link.nmt_state))
+                for link in self._links()}
+
+    def _nmt_states(self) -> str:
+        return ", ".join(f"node {node} {state}" for node, state in self.nmt_states().items())
 
     def _configure(self) -> None:
         """SDO configuration of every node (module docstring)."""
@@ -791,6 +828,11 @@ class CanopenTable(TableController):
             if silent:
                 raise CommandFailedError("ARM", "FAILED", self._state,
                                          f"no heartbeat from leg {', '.join(map(str, silent))}")
+            stopped = [leg for leg, link in enumerate(self._drives, start=1) if link.nmt_state != _NMT_OPERATIONAL]
+            if stopped:  # its PDOs do not work (a drive that rebooted has lost its configuration: connect again)
+                legs = ", ".join(map(str, stopped))
+                raise CommandFailedError("ARM", "FAILED", self._state,
+                                         f"leg {legs} not NMT operational ({self._nmt_states()})")
             self._faults.clear()
             self.silent_drives.clear()
             self._stop_reason = None
@@ -919,15 +961,16 @@ class CanopenTable(TableController):
 
     def link_stats(self) -> dict[str, Any]:
         """Bus load, rate, cycle lateness, accelerometer samples lost, duplicate overturn events dropped, each
-        node's heartbeat age [s] and the EMCY codes received per node."""
+        node's heartbeat age [s] and NMT state, and the EMCY codes received per node."""
         now = time.monotonic_ns()
-        links: list[_Link] = [*self._drives, *self._sensors, *([self._detector] if self._detector else [])]
+        links = self._links()
         return {"rate_hz": self.rate, "bitrate": self.bitrate, "bus_load": self.bus_load,
                 "target_delay_s": self.target_delay_ns * 1e-9, "feedback_delay_s": self.feedback_delay_ns * 1e-9,
                 "late_cycles": self.late_cycles, "lateness_max_s": self.lateness_max_ns * 1e-9,
                 "accel_samples_lost": sum(s.lost for s in self._sensors),
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "heartbeat_age_s": {link.node.id: link.heartbeat_age(now) for link in links},
+                "nmt_state": self.nmt_states(),
                 "emcy": {link.node.id: [code for code, _ in link.emcy] for link in links if link.emcy},
                 "silent_drives": sorted(self.silent_drives)}
 

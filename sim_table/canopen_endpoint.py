@@ -438,10 +438,12 @@ class CanopenEndpoint:
     # ----- life cycle -----------------------------------------------------------------------------------
 
     def start(self) -> None:
-        """Start receiving; every node boots into pre-operational (heartbeats start when the master sets 0x1017)."""
-        self.network.connect()
+        """Every node boots into pre-operational (heartbeats start when the master sets 0x1017), then receiving
+        starts: no node answers the master before it has booted (else a master quick enough could configure it
+        and start it, and the boot would put it back into pre-operational)."""
         for node in self._nodes():
             node.nmt.state = "PRE-OPERATIONAL"
+        self.network.connect()
 
     def close(self) -> None:
         """Stop the nodes' heartbeats and the receive thread; release the bus."""

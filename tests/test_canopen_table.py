@@ -54,6 +54,7 @@ from drivers.controller import (
     FaultSource,
     StreamAbortedError,
     TableStatus,
+    TableTimeoutError,
     open_table,
 )
 from protocols.canopen import (
@@ -283,6 +284,58 @@ def test_emcy_from_an_injected_drive_fault_surfaces_as_a_fault() -> None:
         np.testing.assert_allclose(table.status().pose, np.zeros(6), atol=1e-4)
     counters = emulator.counters()
     assert counters["faults_raised"] == {"DRIVE": 1} and counters["link"]["emcy_sent"] == 2  # the fault, its reset
+
+
+def miss_start_commands(emulator: Emulator, leg: int, times: int) -> list[int]:
+    """Make leg ``leg``'s drive miss the first ``times`` NMT start commands addressed to it (as a drive that was not
+    listening yet); returns the list the start commands addressed to it are counted in (node id, 0 = all)."""
+    node = emulator.endpoint.drives[leg - 1].node
+    network = emulator.endpoint.network
+    starts: list[int] = []
+
+    def on_nmt(can_id: int, data: bytearray, timestamp: float) -> None:
+        if data[0] == 0x01 and data[1] in (0, node.id):  # start remote node: all, or this one
+            starts.append(data[1])
+            if len(starts) <= times:
+                return
+        node.nmt.on_command(can_id, data, timestamp)
+
+    network.unsubscribe(0x000, node.nmt.on_command)
+    network.subscribe(0x000, on_nmt)
+    return starts
+
+
+def test_a_drive_that_missed_the_start_command_is_started_again() -> None:
+    """The master watches each node's NMT state in its heartbeat: a drive still pre-operational after the start
+    command (it missed it, or rebooted) is sent the command again; connecting and arming then work."""
+    with emulated() as emulator:
+        starts = miss_start_commands(emulator, leg=3, times=1)
+        with open_table(emulator.url) as table:
+            assert starts[0] == 0 and starts[1:] == [emulator.endpoint.drives[2].node.id]  # broadcast, then leg 3
+            assert all(d.node.nmt.state == "OPERATIONAL" for d in emulator.endpoint.drives)
+            table.arm()
+            assert table.status().state == "armed"
+
+
+def test_arm_is_refused_while_a_drive_is_not_operational() -> None:
+    with emulated() as emulator, open_table(emulator.url) as table:
+        emulator.endpoint.drives[2].node.nmt.state = "PRE-OPERATIONAL"  # leg 3, as after a reboot
+        table.wait_for_status(lambda s: table.link_stats()["nmt_state"][3] == "pre-operational", 1)
+        with pytest.raises(CommandFailedError, match=r"ARM refused: leg 3 not NMT operational \(node 1 operational, "
+                                                     r"node 2 operational, node 3 pre-operational, node 4 operational"):
+            table.arm()
+        assert table.status().state == "idle"
+
+
+def test_a_drive_that_never_gets_operational_fails_the_connection_naming_it() -> None:
+    with emulated() as emulator:
+        starts = miss_start_commands(emulator, leg=3, times=10**6)
+        node = emulator.endpoint.drives[2].node.id
+        with pytest.raises(TableTimeoutError, match=(
+                rf"not every node reported operational in its heartbeat within 1(\.0)? s \(node 1 operational, "
+                rf".*node {node} pre-operational, node 4 operational")):
+            open_table(emulator.url, connect_timeout=1.0).connect()
+        assert len(starts) > 3  # the broadcast, then leg 3 again after each of its heartbeats
 
 
 def test_a_drive_whose_heartbeat_stops_is_a_fault() -> None:
