@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import io
 import os
+from collections.abc import Iterator
 
 from .hdf5props import PAGE
 
@@ -54,38 +55,46 @@ class Overlay(io.RawIOBase):
             page = self._pages[index] = bytearray(self._disk(index * PAGE, PAGE))
         return page
 
-    def readinto(self, buffer: memoryview | bytearray) -> int:  # type: ignore[override]
-        view = memoryview(buffer).cast("B")
-        n, pos, done = len(view), self._pos, 0
+    def _spans(self, n: int) -> Iterator[tuple[int, int, int, int | None]]:
+        """The ``n`` bytes from the position in spans ``(done, at, k, page)``: ``k`` bytes at file offset ``at``,
+        ``done`` bytes into the request; ``page`` the index of the kept page holding them below the boundary
+        (one span per page), None at or beyond it (one span for the rest)."""
+        pos, done = self._pos, 0
         while done < n:
             at = pos + done
             if at < self._boundary:
                 index, offset = divmod(at, PAGE)
                 k = min(PAGE - offset, n - done, self._boundary - at)
-                page = self._pages.get(index)
-                view[done : done + k] = page[offset : offset + k] if page is not None else self._disk(at, k)
+                yield done, at, k, index
             else:
                 k = n - done
-                view[done:] = self._disk(at, k)
+                yield done, at, k, None
             done += k
+
+    def readinto(self, buffer: memoryview | bytearray) -> int:  # type: ignore[override]
+        view = memoryview(buffer).cast("B")
+        n = len(view)
+        for done, at, k, index in self._spans(n):
+            page = None if index is None else self._pages.get(index)
+            if page is None:
+                view[done : done + k] = self._disk(at, k)
+            else:
+                offset = at - index * PAGE
+                view[done : done + k] = page[offset : offset + k]
         self._pos += n
         return n
 
     def write(self, data: bytes | memoryview) -> int:  # type: ignore[override]
         view = memoryview(data).cast("B")
-        n, pos, done = len(view), self._pos, 0
-        while done < n:
-            at = pos + done
-            if at < self._boundary:
-                index, offset = divmod(at, PAGE)
-                k = min(PAGE - offset, n - done, self._boundary - at)
-                self._page(index)[offset : offset + k] = view[done : done + k]
-            else:
-                k = n - done
+        n = len(view)
+        for done, at, k, index in self._spans(n):
+            if index is None:
                 written = 0
                 while written < k:
                     written += os.pwrite(self._fd, view[done + written : done + k], at + written)
-            done += k
+            else:
+                offset = at - index * PAGE
+                self._page(index)[offset : offset + k] = view[done : done + k]
         self._pos += n
         self._size = max(self._size, self._pos)
         return n
