@@ -425,8 +425,8 @@ class CanopenTable(TableController):
 
     def nmt_states(self) -> dict[int, str]:
         """Each node's NMT state as its last heartbeat reported it (node id → name; "silent" before one)."""
-        names = {0x00: "booting", 0x04: "stopped", 0x05: "operational", 0x7F: "pre-operational"}
-        return {link.node.id: "silent" if link.nmt_state is None else names.get(link.nmt_state, hex(link.nmt_state))
+        return {link.node.id: "silent" if link.nmt_state is None
+                else canopen.nmt.NMT_STATES.get(link.nmt_state, hex(link.nmt_state)).lower()
                 for link in self._links()}
 
     def _nmt_states(self) -> str:
