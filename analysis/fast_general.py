@@ -38,185 +38,51 @@ from numba import njit
 
 from analysis import hermite
 from analysis.equations import (
-    pivot_reactions,
     plate_gravity,
-    rocking_acceleration,
     rocking_sliding_acceleration,
     sliding_acceleration,
 )
 from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4, step_window
+from analysis.general_stages import (
+    DEN_MIN,
+    EXIT_FLIGHT,
+    EXIT_NONE,
+    EXIT_ROCK_MINUS,
+    EXIT_ROCK_PLUS,
+    EXIT_SLIDE_MINUS,
+    EXIT_SLIDE_PLUS,
+    FLAT,
+    MAX_INSTANT,
+    ST_FLIGHT,
+    ST_REST,
+    ST_ROCK,
+    ST_ROCKSLIDE,
+    ST_SLIDE,
+    after_reaction,
+    break_instant_chain,
+    corner_impact_velocity,
+    enter_stage,
+    flight_entry,
+    landing_omega,
+    leave_rest,
+    rest_exit,
+    rest_margins,
+    rock_margin,
+    rs_denominator,
+)
 
 __all__ = ["OVERTURNED", "REST", "UNDECIDED", "simulate_general"]
 
-# stages
-ST_REST = 0
-ST_SLIDE = 1
-ST_ROCK = 2
-ST_ROCKSLIDE = 3
-ST_FLIGHT = 4
-
-# exits from REST (see _next_exit)
-EXIT_NONE = 0
-EXIT_ROCK_PLUS = 1
-EXIT_ROCK_MINUS = 2
-EXIT_SLIDE_PLUS = 3
-EXIT_SLIDE_MINUS = 4
-EXIT_FLIGHT = 5
-
-FLAT = 1e-9
-"""|θ| [rad] below which a landing is flat (docs/general-model.md)."""
-DEN_MIN = 1e-3
-"""Smallest accepted denominator of Eq. 9, relative to i_g² + r² (Painlevé guard)."""
 RS_SPLITS = 24
 """ROCKSLIDE: how many times a step may be halved (fast slide near the Painlevé limit)."""
 RS_TOL = 1e-9
 """ROCKSLIDE: local error accepted per step (θ, ω·H, v·H/r) [rad], about that of a rocking step at
 p·h = 0.05."""
-MAX_INSTANT = 12
-"""Transitions in a row that take no time before the pivot is held for one step."""
 ILLINOIS_ITER = 40
 
 
 # --------------------------------------------------------------------------------------------------
-# shared rules (also used by analysis.reference_general)
-
-
-@njit(cache=True)
-def rs_denominator(theta: float, s: float, slip: float, alpha: float, r: float, ig2: float, mu: float) -> float:
-    """Denominator of Eq. 9, i_g² + r² sin ψ (sin ψ − μ s slip cos ψ) [m²]; ≤ 0: Painlevé.
-    ψ = α − s θ, as in :mod:`analysis.equations`."""
-    psi = alpha - s * theta
-    sn = math.sin(psi)
-    return ig2 + r * r * sn * (sn - mu * s * slip * math.cos(psi))
-
-
-@njit(cache=True)
-def corner_impact_velocity(v: float, omega_minus: float, e: float, r: float, alpha: float) -> float:
-    """Sliding velocity of the base (new pivot) after a corner impact at θ = 0 of a sliding pivot.
-
-    docs/general-model.md keeps the pivot's velocity v. That is the tangential impulse of the
-    sticking rocking impact, r cos α (e − 1) ω⁻ per unit mass, and it is kept when it opposes the
-    slide (v ω⁻ ≥ 0). When v ω⁻ < 0 that impulse would push the sliding corner *along* its slide
-    (a friction impulse doing positive work: the kinetic energy can grow); then no tangential impulse
-    acts (the centre of mass keeps its tangential velocity), v⁺ = v + r cos α (1 − e) ω⁻, and friction
-    stops the slide rather than reverse it (v⁺ = 0 if the sign would change). Both branches never
-    increase the kinetic energy, and v = 0 (ROCK) gives v⁺ = 0: the rocking model's impact.
-    """
-    if v == 0.0 or v * omega_minus >= 0.0:
-        return v
-    vp = v + r * math.cos(alpha) * (1.0 - e) * omega_minus
-    if vp * v <= 0.0:
-        return 0.0
-    return vp
-
-
-@njit(cache=True)
-def landing_omega(theta: float, omega: float, v: float, w: float, alpha: float, r: float, ig2: float) -> float:
-    """θ' after a plastic, sticking landing on the corner s = sign θ (angular momentum about it)."""
-    s = 1.0 if theta > 0.0 else -1.0
-    psi = alpha - abs(theta)
-    dx = -s * r * math.sin(psi)
-    dz = r * math.cos(psi)
-    wz = (ig2 * (-omega) + dx * w - dz * v) / (ig2 + r * r)
-    return -wz
-
-
-@njit(cache=True)
-def flight_entry(theta: float, omega: float, v_pivot: float, s: float, alpha: float, r: float
-                 ) -> tuple[float, float, float]:
-    """(z, v, w) of the centre of mass when the pivot ``s`` leaves the plate."""
-    psi = alpha - s * theta
-    return r * math.cos(psi), v_pivot + omega * r * math.cos(psi), s * omega * r * math.sin(psi)
-
-
-@njit(cache=True)
-def rock_margin(theta: float, omega: float, s: float, gx: float, gz: float, alpha: float, r: float,
-                k: float, mu: float) -> tuple[float, float, float]:
-    """(|R_t| − μ R_n, R_t, R_n) of a pivot that does not slip."""
-    add = rocking_acceleration(theta, s, gx, gz, alpha, k)
-    rt, rn = pivot_reactions(theta, omega, add, s, gx, gz, alpha, r)
-    return abs(rt) - mu * rn, rt, rn
-
-
-@njit(cache=True)
-def rockslide_entry(theta: float, omega: float, v: float, s: float, slip: float, gx: float, gz: float,
-                    alpha: float, r: float, ig2: float, mu: float) -> int:
-    """Can the pivot ``s`` slide with sign ``slip`` from this state? 0 yes, 1 it lifts off (R_n ≤ 0),
-    2 it cannot (Painlevé: the denominator of Eq. 9 is not positive).
-
-    From v = 0 the direction is the one the no-slip reaction demands (slip = −sign R_t where
-    |R_t| > μ R_n); with a positive denominator that slide is the consistent one (at the onset
-    |R_t| = μ R_n the pivot's acceleration is 0 and grows with sign ``slip``), so it is not rechecked.
-    """
-    if rs_denominator(theta, s, slip, alpha, r, ig2, mu) <= DEN_MIN * (ig2 + r * r):
-        return 2
-    _, _, rn = rocking_sliding_acceleration(theta, omega, s, slip, gx, gz, alpha, r, ig2, mu)
-    if rn <= 0.0:
-        return 1
-    return 0
-
-
-ROCK_STAY = 0
-ROCK_TO_ROCKSLIDE = 1
-ROCK_TO_FLIGHT = 2
-ROCK_JAM = 3
-ROCK_HOLD = 4
-
-
-@njit(cache=True)
-def rock_exit(theta: float, omega: float, s: float, gx: float, gz: float, alpha: float, r: float, ig2: float,
-              k: float, mu: float, jam: bool) -> tuple[int, float]:
-    """What a pivot that does not slip does now: (ROCK_*, slip direction).
-
-    It stays while |R_t| ≤ μ R_n (only R_n ≥ 0 is checked when ``jam``). Otherwise it slides with
-    slip = −sign R_t, unless that slide lifts off: with a positive denominator of Eq. 9 the sliding
-    pivot's R_n = −X i_g²/den, where X = r cos ψ ω² − g_z is the normal acceleration the corner would
-    have in free flight, so lift-off (R_n ≤ 0) is exactly when a flight is consistent (X ≥ 0). The
-    no-slip R_n alone is not that test (it carries the moment of the sticking friction): a no-slip
-    R_n < 0 with X < 0 would fly into the plate. A Painlevé pivot (denominator ≤ 0) flies if X > 0,
-    else it sticks (ROCK_JAM), or, when even its no-slip R_n < 0, is held for a step (ROCK_HOLD).
-    """
-    f, rt, rn = rock_margin(theta, omega, s, gx, gz, alpha, r, k, mu)
-    x_free = r * math.cos(alpha - s * theta) * omega * omega - gz
-    sl = -1.0 if rt > 0.0 else 1.0
-    if jam:
-        if rn >= 0.0:
-            return ROCK_STAY, sl
-        return (ROCK_TO_FLIGHT, sl) if x_free > 0.0 else (ROCK_HOLD, sl)
-    if f <= 0.0:
-        return ROCK_STAY, sl
-    code = rockslide_entry(theta, omega, 0.0, s, sl, gx, gz, alpha, r, ig2, mu)
-    if code == 0:
-        return ROCK_TO_ROCKSLIDE, sl
-    if code == 1 or x_free > 0.0:
-        return ROCK_TO_FLIGHT, sl
-    return (ROCK_JAM, sl) if rn >= 0.0 else (ROCK_HOLD, sl)
-
-
-# --------------------------------------------------------------------------------------------------
 # REST
-
-
-@njit(cache=True, inline="always")
-def _margins(ax_: float, ay_: float, cb: float, sb: float, ca: float, sa: float, mu: float
-             ) -> tuple[float, float, float, float, float]:
-    """The five REST margins (> 0: that exit is reached): uplift +/− (Eq. 1 times cos α, written as
-    the rocking equation's θ'' at θ = 0 over k, so that a positive margin always starts a rotation —
-    the tan α form can be positive by rounding while θ'' is 0), slide +/−, lift-off (−gz)."""
-    gx, gz = plate_gravity(ax_, ay_, cb, sb)
-    return gx * ca - gz * sa, -gx * ca - gz * sa, gx - mu * gz, -gx - mu * gz, -gz
-
-
-@njit(cache=True, inline="always")
-def _pick(m1: float, m2: float, m3: float, m4: float, m5: float, slide_first: bool) -> int:
-    """The exit among the positive margins (priority: lift-off, then rock or slide)."""
-    if m5 > 0.0:
-        return EXIT_FLIGHT
-    rock = EXIT_ROCK_PLUS if m1 > 0.0 else (EXIT_ROCK_MINUS if m2 > 0.0 else EXIT_NONE)
-    slide = EXIT_SLIDE_PLUS if m3 > 0.0 else (EXIT_SLIDE_MINUS if m4 > 0.0 else EXIT_NONE)
-    if rock != EXIT_NONE and (slide == EXIT_NONE or not slide_first):
-        return rock
-    return slide
 
 
 @njit(cache=True)
@@ -232,19 +98,19 @@ def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, s
     slide_first = mu < math.tan(alpha)
     i = int(t / dt)
     if i >= n - 1:
-        m1, m2, m3, m4, m5 = _margins(0.0, 0.0, cb, sb, ca, sa, mu)
-        kind = _pick(m1, m2, m3, m4, m5, slide_first)
+        m1, m2, m3, m4, m5 = rest_margins(0.0, 0.0, cb, sb, ca, sa, mu)
+        kind = rest_exit(m1, m2, m3, m4, m5, slide_first)
         return (t, kind) if kind != EXIT_NONE else (math.inf, EXIT_NONE)
     frac = t / dt - i
     ax_a = ax[i] + (ax[i + 1] - ax[i]) * frac
     ay_a = ay[i] + (ay[i + 1] - ay[i]) * frac if has_vertical else 0.0
-    a1, a2, a3, a4, a5 = _margins(ax_a, ay_a, cb, sb, ca, sa, mu)
-    kind = _pick(a1, a2, a3, a4, a5, slide_first)
+    a1, a2, a3, a4, a5 = rest_margins(ax_a, ay_a, cb, sb, ca, sa, mu)
+    kind = rest_exit(a1, a2, a3, a4, a5, slide_first)
     if kind != EXIT_NONE:
         return t, kind
     t_a = t
     while i < n - 1:
-        b1, b2, b3, b4, b5 = _margins(ax[i + 1], ay[i + 1] if has_vertical else 0.0, cb, sb, ca, sa, mu)
+        b1, b2, b3, b4, b5 = rest_margins(ax[i + 1], ay[i + 1] if has_vertical else 0.0, cb, sb, ca, sa, mu)
         if b1 > 0.0 or b2 > 0.0 or b3 > 0.0 or b4 > 0.0 or b5 > 0.0:
             t_b = (i + 1) * dt
             best_t = math.inf
@@ -541,12 +407,7 @@ def simulate_general(
             t = t_x
             theta = omega = v = w = 0.0
             jam = False
-            if kind == EXIT_FLIGHT:
-                stage, z = ST_FLIGHT, r * ca
-            elif kind in (EXIT_ROCK_PLUS, EXIT_ROCK_MINUS):
-                stage, s = ST_ROCK, (1.0 if kind == EXIT_ROCK_PLUS else -1.0)
-            else:
-                stage, slip = ST_SLIDE, (1.0 if kind == EXIT_SLIDE_PLUS else -1.0)
+            stage, s, slip, z = leave_rest(kind, s, slip, z, r, ca)
             fresh = True
             if t == t_last:
                 instant += 1
@@ -563,54 +424,19 @@ def simulate_general(
         # ---- a chain of transitions that take no time: hold the pivot for one step
         if fresh and instant > MAX_INSTANT:
             instant = 0
-            if stage == ST_FLIGHT:
-                if theta != 0.0:
-                    s = 1.0 if theta > 0.0 else -1.0
-                elif omega != 0.0:
-                    s = 1.0 if omega > 0.0 else -1.0
-            if stage != ST_SLIDE and (theta != 0.0 or omega != 0.0):
-                stage, hold, fresh, v = ST_ROCK, True, False, 0.0
-            elif stage != ST_SLIDE:
-                stage, v = ST_REST, 0.0
+            stage, s = break_instant_chain(stage, theta, omega, s)
+            if stage == ST_ROCK:
+                hold, fresh, v = True, False, 0.0
+            elif stage == ST_REST:
+                v = 0.0
                 t_rest = t
                 continue
 
         # ---- entry conditions (instant transitions)
         if fresh:
             fresh = False
-            new = stage
-            if stage == ST_SLIDE:
-                if gz0 <= 0.0:
-                    new = ST_FLIGHT
-                    theta = omega = w = 0.0
-                    z = r * ca
-                elif mu > ta:  # friction tips the sliding block over its leading corner at once
-                    code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, alpha, r, ig2, mu)
-                    if code == 0:
-                        new, s, theta, omega = ST_ROCKSLIDE, slip, 0.0, 0.0
-                    elif code == 2:  # Painlevé: the slide jams
-                        new, v = ST_REST, 0.0
-            elif stage == ST_ROCK and not hold:
-                code, sl = rock_exit(theta, omega, s, gx0, gz0, alpha, r, ig2, k, mu, jam)
-                if code == ROCK_TO_ROCKSLIDE:
-                    new, slip, v = ST_ROCKSLIDE, sl, 0.0
-                elif code == ROCK_TO_FLIGHT:
-                    new = ST_FLIGHT
-                    z, v, w = flight_entry(theta, omega, 0.0, s, alpha, r)
-                elif code == ROCK_JAM:
-                    jam = True
-                elif code == ROCK_HOLD:
-                    hold = True
-            elif stage == ST_ROCKSLIDE:
-                code = rockslide_entry(theta, omega, v, s, slip, gx0, gz0, alpha, r, ig2, mu)
-                if code == 1:
-                    new = ST_FLIGHT
-                    z, v, w = flight_entry(theta, omega, v, s, alpha, r)
-                elif code == 2:
-                    new, v, jam = ST_ROCK, 0.0, True
-            elif stage == ST_FLIGHT:  # from here on z is ζ, measured from the lift-off height
-                psi_ref = alpha - abs(theta)
-                z -= r * math.cos(psi_ref)
+            new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref = enter_stage(
+                stage, hold, jam, theta, omega, v, w, z, s, slip, psi_ref, gx0, gz0, alpha, r, ig2, k, mu, ta, ca)
             if new != stage:
                 stage = new
                 fresh = True
@@ -850,24 +676,8 @@ def simulate_general(
                 z, v, w = flight_entry(theta, omega, v_r, s, alpha, r)
                 stage = ST_FLIGHT
             else:  # ROCK's reactions, or the slide stops: stick, slide (the other way) or fly
-                if kind_r == 0:
-                    jam = False
-                code, sl = rock_exit(theta, omega, s, gxr, gzr, alpha, r, ig2, k, mu, jam)
-                stage = ST_ROCK
-                if code == ROCK_TO_ROCKSLIDE:
-                    if kind_r == 0 and sl == slip:  # would slide on against its own friction
-                        jam = True
-                    else:
-                        slip, stage = sl, ST_ROCKSLIDE
-                elif code == ROCK_TO_FLIGHT:
-                    z, v, w = flight_entry(theta, omega, v_r, s, alpha, r)
-                    stage = ST_FLIGHT
-                elif code == ROCK_JAM:
-                    jam = True
-                elif code == ROCK_HOLD:
-                    hold = True
-                if stage != ST_FLIGHT:
-                    v = 0.0
+                stage, v, w, z, slip, jam, hold = after_reaction(theta, omega, v_r, w, z, s, slip, jam, kind_r == 0,
+                                                                 gxr, gzr, alpha, r, ig2, k, mu)
             fresh = not hold
             if t == t_last:
                 instant += 1

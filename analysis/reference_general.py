@@ -29,32 +29,27 @@ from analysis.equations import (
     rocking_sliding_acceleration,
     sliding_acceleration,
 )
-from analysis.fast_general import (
+from analysis.general_stages import (
     DEN_MIN,
     EXIT_FLIGHT,
     EXIT_NONE,
-    EXIT_ROCK_MINUS,
-    EXIT_ROCK_PLUS,
-    EXIT_SLIDE_PLUS,
     FLAT,
     MAX_INSTANT,
-    ROCK_HOLD,
-    ROCK_JAM,
-    ROCK_TO_FLIGHT,
-    ROCK_TO_ROCKSLIDE,
     ST_FLIGHT,
     ST_REST,
     ST_ROCK,
     ST_ROCKSLIDE,
     ST_SLIDE,
-    _margins,
-    _pick,
+    after_reaction,
+    break_instant_chain,
     corner_impact_velocity,
+    enter_stage,
     flight_entry,
     landing_omega,
-    rock_exit,
+    leave_rest,
+    rest_exit,
+    rest_margins,
     rock_margin,
-    rockslide_entry,
     rs_denominator,
 )
 from analysis.reference import ATOL, RTOL, ReferenceOutcome, Trace, _Input
@@ -180,16 +175,16 @@ class _Scene:
             if stage == ST_REST:
                 slide_first = mu < ta
                 if t_b == math.inf:
-                    kind = _pick(*_margins(0.0, 0.0, cb, sb, ca, sa, mu), slide_first)
+                    kind = rest_exit(*rest_margins(0.0, 0.0, cb, sb, ca, sa, mu), slide_first)
                     if kind == EXIT_NONE:
                         return done(0, None, "rest", trace.t_rest)
                     t_x = now
                 else:
-                    ma = _margins(*_input_at(a0x, sx, a0y, sy, t_a, now), cb, sb, ca, sa, mu)
-                    kind = _pick(*ma, slide_first)
+                    ma = rest_margins(*_input_at(a0x, sx, a0y, sy, t_a, now), cb, sb, ca, sa, mu)
+                    kind = rest_exit(*ma, slide_first)
                     t_x = now
                     if kind == EXIT_NONE:
-                        mb = _margins(*_input_at(a0x, sx, a0y, sy, t_a, t_b), cb, sb, ca, sa, mu)
+                        mb = rest_margins(*_input_at(a0x, sx, a0y, sy, t_a, t_b), cb, sb, ca, sa, mu)
                         order = ((4, EXIT_FLIGHT), (2, 3), (3, 4), (0, 1), (1, 2)) if slide_first else \
                             ((4, EXIT_FLIGHT), (0, 1), (1, 2), (2, 3), (3, 4))
                         best = math.inf
@@ -206,12 +201,7 @@ class _Scene:
                 now = t_x
                 theta = omega = v = w = 0.0
                 jam = False
-                if kind == EXIT_FLIGHT:
-                    stage, z = ST_FLIGHT, r * ca
-                elif kind in (EXIT_ROCK_PLUS, EXIT_ROCK_MINUS):
-                    stage, s = ST_ROCK, (1.0 if kind == EXIT_ROCK_PLUS else -1.0)
-                else:
-                    stage, slip = ST_SLIDE, (1.0 if kind == EXIT_SLIDE_PLUS else -1.0)
+                stage, s, slip, z = leave_rest(kind, s, slip, z, r, ca)
                 fresh = True
                 instant = instant + 1 if now == t_last else 0
                 t_last = now
@@ -225,51 +215,19 @@ class _Scene:
             # ---- a chain of transitions that take no time: hold the pivot briefly
             if fresh and instant > MAX_INSTANT:
                 instant = 0
-                if stage == ST_FLIGHT:
-                    if theta != 0.0:
-                        s = 1.0 if theta > 0.0 else -1.0
-                    elif omega != 0.0:
-                        s = 1.0 if omega > 0.0 else -1.0
-                if stage != ST_SLIDE and (theta != 0.0 or omega != 0.0):
-                    stage, hold, fresh, v = ST_ROCK, True, False, 0.0
-                elif stage != ST_SLIDE:
-                    stage, v, trace.t_rest = ST_REST, 0.0, now
+                stage, s = break_instant_chain(stage, theta, omega, s)
+                if stage == ST_ROCK:
+                    hold, fresh, v = True, False, 0.0
+                elif stage == ST_REST:
+                    v, trace.t_rest = 0.0, now
                     continue
 
             # ---- entry conditions (instant transitions)
             if fresh:
                 fresh = False
-                new = stage
-                if stage == ST_SLIDE:
-                    if gz0 <= 0.0:
-                        new, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
-                    elif mu > ta:
-                        code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, alpha, r, ig2, mu)
-                        if code == 0:
-                            new, s, theta, omega = ST_ROCKSLIDE, slip, 0.0, 0.0
-                        elif code == 2:
-                            new, v = ST_REST, 0.0
-                elif stage == ST_ROCK and not hold:
-                    code, sl = rock_exit(theta, omega, s, gx0, gz0, alpha, r, ig2, k, mu, jam)
-                    if code == ROCK_TO_ROCKSLIDE:
-                        new, slip, v = ST_ROCKSLIDE, sl, 0.0
-                    elif code == ROCK_TO_FLIGHT:
-                        new = ST_FLIGHT
-                        z, v, w = flight_entry(theta, omega, 0.0, s, alpha, r)
-                    elif code == ROCK_JAM:
-                        jam = True
-                    elif code == ROCK_HOLD:
-                        hold = True
-                elif stage == ST_ROCKSLIDE:
-                    code = rockslide_entry(theta, omega, v, s, slip, gx0, gz0, alpha, r, ig2, mu)
-                    if code == 1:
-                        new = ST_FLIGHT
-                        z, v, w = flight_entry(theta, omega, v, s, alpha, r)
-                    elif code == 2:
-                        new, v, jam = ST_ROCK, 0.0, True
-                elif stage == ST_FLIGHT:  # from here on z is ζ, measured from the lift-off height
-                    psi_ref = alpha - abs(theta)
-                    z -= r * math.cos(psi_ref)
+                new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref = enter_stage(
+                    stage, hold, jam, theta, omega, v, w, z, s, slip, psi_ref, gx0, gz0, alpha, r, ig2, k, mu, ta,
+                    ca)
                 if new != stage:
                     stage = new
                     fresh = True
@@ -490,24 +448,8 @@ class _Scene:
             elif rs and j == 5:  # Painlevé ahead: the pivot sticks
                 stage, v, jam = ST_ROCK, 0.0, True
             else:  # ROCK's reactions, or the slide stops: stick, slide (the other way) or fly
-                if rs:
-                    jam = False
-                code, sl_new = rock_exit(theta, omega, side, gx, gz, alpha, r, ig2, k, mu, jam)
-                stage = ST_ROCK
-                if code == ROCK_TO_ROCKSLIDE:
-                    if rs and sl_new == sl:  # would slide on against its own friction
-                        jam = True
-                    else:
-                        slip, stage = sl_new, ST_ROCKSLIDE
-                elif code == ROCK_TO_FLIGHT:
-                    z, v, w = flight_entry(theta, omega, v, side, alpha, r)
-                    stage = ST_FLIGHT
-                elif code == ROCK_JAM:
-                    jam = True
-                elif code == ROCK_HOLD:
-                    hold = True
-                if stage != ST_FLIGHT:
-                    v = 0.0
+                stage, v, w, z, slip, jam, hold = after_reaction(theta, omega, v, w, z, side, sl, jam, rs, gx, gz,
+                                                                 alpha, r, ig2, k, mu)
             transition(now)
             if hold:
                 fresh = False
