@@ -4,6 +4,7 @@ a run that cannot be played is refused and logged, resume from the first run tha
 
 from __future__ import annotations
 
+import itertools
 import secrets
 import threading
 import time
@@ -14,7 +15,7 @@ import numpy as np
 import pytest
 
 from rig.emulator import EmulatorProcess, specimen_flags
-from rig.orchestrator import Orchestrator, OrchestratorState
+from rig.orchestrator import FINAL_STATES, TRANSITIONS, Orchestrator, OrchestratorState, Progress
 from rig.sequence import Sequence, load_sequence
 from rig.session import SessionLog, read_session
 
@@ -64,8 +65,14 @@ def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None
     """Run the orchestrator in a thread against a fresh emulator; ``during(orchestrator)`` from this thread."""
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), key_file=key_file)
     try:
+        states = [OrchestratorState.IDLE]
+
+        def seen(progress: Progress) -> None:
+            if progress.state is not states[-1]:
+                states.append(progress.state)
+
         orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
-                                    operator=operator)
+                                    operator=operator, on_update=seen)
         result: list[OrchestratorState] = []
         worker = threading.Thread(target=lambda: result.append(orchestrator.run()))
         worker.start()
@@ -75,6 +82,9 @@ def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None
         assert not worker.is_alive()
     finally:
         counters = emulator.stop()
+    # every state change was one the table of transitions allows (the orchestrator checks it; this shows it)
+    assert all(new in TRANSITIONS[old] for old, new in itertools.pairwise(states)), states
+    assert states[-1] is result[0] and result[0] in FINAL_STATES
     return result[0], counters
 
 

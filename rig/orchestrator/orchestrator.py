@@ -33,7 +33,15 @@ import numpy as np
 
 from drivers.controller import StreamAbortedError, TableController, TableError, open_table
 from rig.orchestrator.recorder import RunRecorder
-from rig.orchestrator.states import Operator, OperatorDeclinedError, OrchestratorState, Progress, Unattended
+from rig.orchestrator.sinks import RunSink, SessionSink
+from rig.orchestrator.states import (
+    Operator,
+    OperatorDeclinedError,
+    OrchestratorState,
+    Progress,
+    Unattended,
+    check_transition,
+)
 from rig.sequence import PlannedRun, Sequence, SequenceError
 
 LEAD = 0.075
@@ -61,16 +69,17 @@ class SessionStoppedError(Exception):
 class Orchestrator:
     """Plays ``sequence`` on the table at ``table_url`` into the session ``log`` (module docstring).
 
-    ``log`` is an open :class:`rig.session.SessionLog` (new or resumed); ``table_options`` go to
+    ``log`` is an open :class:`rig.session.SessionLog` (new or resumed: a
+    :class:`~rig.orchestrator.sinks.SessionSink`); ``table_options`` go to
     :func:`drivers.controller.open_table` (e.g. ``key_file``); ``sensors`` the accelerometer ids the table reports
     (logged as ``accel/<id>``); ``operator`` answers the operator's steps (default: unattended);
     ``on_update(progress)`` is called from the orchestrator's threads whenever the state or the progress changes
     (at most about ten times a second while streaming).
     """
 
-    def __init__(self, sequence: Sequence, table_url: str, log: Any, *, table_options: dict[str, Any] | None = None,
-                 sensors: tuple[int, ...] = (0,), operator: Operator | None = None,
-                 on_update: Callable[[Progress], None] | None = None) -> None:
+    def __init__(self, sequence: Sequence, table_url: str, log: SessionSink, *,
+                 table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] = (0,),
+                 operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None) -> None:
         self.sequence = sequence
         self.table_url = table_url
         self.log = log
@@ -221,7 +230,7 @@ class Orchestrator:
         run_log.end("completed", underruns=report.underruns, t_start_controller_ns=report.t_start_ns)
         self._finish(run, "completed", f"run {run.plan_index + 1} completed: {len(recorder.detections)} overturns")
 
-    def _end_aborted(self, table: TableController, run: PlannedRun, recorder: RunRecorder, run_log: Any,
+    def _end_aborted(self, table: TableController, run: PlannedRun, recorder: RunRecorder, run_log: RunSink,
                      reason: str) -> NoReturn:
         """The stream ended early: log the run ``aborted`` and stop the session (SessionStoppedError)."""
         recorder.finish(LINGER)
@@ -295,6 +304,9 @@ class Orchestrator:
         self._note(message)
 
     def _set(self, state: OrchestratorState, message: str) -> None:
+        """Change the state (:data:`~rig.orchestrator.states.TRANSITIONS` must allow it: else
+        :class:`~rig.orchestrator.states.IllegalTransitionError`) and report ``message``."""
+        check_transition(self.progress.state, state)
         self.progress.state = state
         self._note(message)
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -25,6 +26,38 @@ class OrchestratorState(enum.StrEnum):
 
 
 FINAL_STATES = frozenset({OrchestratorState.DONE, OrchestratorState.FAULTED})
+
+_S = OrchestratorState
+_ENDS = frozenset({_S.DONE, _S.FAULTED})
+
+TRANSITIONS: Mapping[OrchestratorState, frozenset[OrchestratorState]] = {
+    _S.IDLE: frozenset({_S.CONNECTING}),
+    # an empty plan (every run done earlier) goes straight to stopping; an abort before the first move ends it
+    _S.CONNECTING: frozenset({_S.TILTING, _S.STOPPING}) | _ENDS,
+    _S.TILTING: frozenset({_S.WAITING}) | _ENDS,
+    # waiting → waiting: the bodies placed, then the first run confirmed; → tilting/stopping: the runs refused
+    _S.WAITING: frozenset({_S.WAITING, _S.RUNNING, _S.PAUSED, _S.TILTING, _S.STOPPING}) | _ENDS,
+    _S.RUNNING: frozenset({_S.RUNNING, _S.WAITING, _S.PAUSED, _S.TILTING, _S.STOPPING}) | _ENDS,
+    _S.PAUSED: frozenset({_S.RUNNING, _S.WAITING, _S.TILTING, _S.STOPPING}) | _ENDS,
+    _S.STOPPING: _ENDS,
+    _S.DONE: frozenset(),
+    _S.FAULTED: frozenset(),
+}
+"""The states each state may leave to (``docs/orchestrator.md``, States); checked by
+:func:`check_transition` on every change. ``done`` and ``faulted`` are reachable from every state after
+``idle`` (an abort, an operator's "no", a table fault) and final."""
+
+
+class IllegalTransitionError(RuntimeError):
+    """The orchestrator tried a state change that :data:`TRANSITIONS` does not allow (a bug, not bad input)."""
+
+
+def check_transition(old: OrchestratorState, new: OrchestratorState) -> None:
+    """Raise :class:`IllegalTransitionError` unless ``old`` may leave to ``new``."""
+    if new not in TRANSITIONS[old]:
+        allowed = ", ".join(sorted(s.value for s in TRANSITIONS[old])) or "nothing (final)"
+        raise IllegalTransitionError(f"orchestrator state {old.value!r} cannot change to {new.value!r}; "
+                                     f"it may change to: {allowed}")
 
 
 @dataclass

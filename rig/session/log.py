@@ -230,7 +230,7 @@ class SessionLog:
         return {run.plan_index for run in self._runs if run.status in schema.DONE_STATUSES}
 
     # -- runs ---------------------------------------------------------------------------------------------
-    def _checked_attrs(self, attrs: Mapping[str, Any] | None) -> dict[str, Any]:
+    def checked_run_attrs(self, attrs: Mapping[str, Any] | None) -> dict[str, Any]:
         """Extra run attributes as stored; ``None`` values are left out (an attribute cannot hold "none")."""
         out = {}
         for key, value in (attrs or {}).items():
@@ -278,7 +278,7 @@ class SessionLog:
             plan = int(plan_index)
         except (ValueError, TypeError, KeyError) as exc:
             raise SessionError(f"{self.path}: begin_run: {exc}") from None
-        extra = self._checked_attrs(attrs)
+        extra = self.checked_run_attrs(attrs)
         number = 1 + max((int(run.name) for run in self._runs if run.name.isdigit()), default=0)
         info = RunInfo(name=schema.run_name(number), plan_index=plan,
                        attempt=1 + sum(run.plan_index == plan for run in self._runs), status=schema.RUNNING,
@@ -301,7 +301,7 @@ class SessionLog:
                 h5.close()
                 raise
         except Exception as exc:  # the group exists but recording could not start: it was not run
-            self._finish(info, "interrupted", {"begin_error": str(exc)[:500]})
+            self.finish_run(info, "interrupted", {"begin_error": str(exc)[:500]})
             raise
         writer.start()
         self._active = RunLog(self, info, sensors, h5, writer)
@@ -316,7 +316,7 @@ class SessionLog:
             rows.append((int(body["body_id"]), *values, name))
         return np.array(rows, dtype=schema.BODY)
 
-    def _finish(self, info: RunInfo, status: str, attrs: Mapping[str, Any]) -> RunInfo:
+    def finish_run(self, info: RunInfo, status: str, attrs: Mapping[str, Any]) -> RunInfo:
         """Final attributes of the active run (called by `RunLog.end` after its SWMR file is closed)."""
         ended = schema.iso_now()
         try:

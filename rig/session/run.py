@@ -116,7 +116,7 @@ class RunLog:
         ``attrs`` may also replace extra attributes given to `SessionLog.begin_run`)."""
         if status not in schema.FINAL_STATUSES:
             raise SessionError(f"run status {status!r}; expected one of {list(schema.FINAL_STATUSES)}")
-        extra = self._session._checked_attrs(attrs)
+        extra = self._session.checked_run_attrs(attrs)
         with self._lock:
             if self._ended:
                 raise SessionError(f"{self._session.path}: run {self.name} has already ended ({self.info.status})")
@@ -130,7 +130,7 @@ class RunLog:
         failpoints.hit("end:swmr-closed")
         if error is not None:
             extra["writer_error"] = repr(error)[:500]
-        info = self._session._finish(self.info, status, extra)
+        info = self._session.finish_run(self.info, status, extra)
         self.info = info
         if error is not None:
             raise SessionError(f"{self._session.path}: run {self.name}: samples may be missing, the writer failed "
