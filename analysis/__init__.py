@@ -1,7 +1,7 @@
 """Physics and statistics on arrays: bodies, the paper's models, solvers, studies, design equations.
 
 Imports nothing else of this project. Units: SI inside; the public API takes accelerations in g
-and angles in radians (ARCHITECTURE §2, §7).
+and angles in radians (docs/architecture.md §2, §7).
 """
 
 from analysis.compiled_cache import configure as _configure_compiled_cache

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from analysis.errors import AnalysisInputError
 
 G = 9.81
-"""Standard gravity used throughout the analysis [m/s²] (VALIDATION.md uses 9.81)."""
+"""Standard gravity used throughout the analysis [m/s²] (as docs/validation.md)."""
 
 
 @dataclass(frozen=True)

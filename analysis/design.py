@@ -1,6 +1,6 @@
 """The paper's design equations for controlled overturning, their fits to any study, and the inverse.
 
-Units in this API (ARCHITECTURE §2): the inclination β is in **radians** (degrees only at the CLI),
+Units in this API (docs/architecture.md §2): the inclination β is in **radians** (degrees only at the CLI),
 controlled-overturning rates (COR) are **fractions** in [0, 1], lengths are metres.
 
 - Eq. 11 (GCOR, the average over all bodies): ``COR(β) = c2·tanh(β / c1) + 0.5`` with the paper's

@@ -3,7 +3,7 @@
 Everything here is a compiled scalar function shared by the reference solver and the fast engine,
 so that the two differ only in how they integrate and locate events.
 
-Conventions (ARCHITECTURE §2). Plate frame: x along the fall line, **+x downhill**, z normal to the
+Conventions (docs/architecture.md §2). Plate frame: x along the fall line, **+x downhill**, z normal to the
 plate, up; β > 0 is the inclination. Ground (table) accelerations ``ax`` (horizontal, positive
 towards the downhill side) and ``ay`` (vertical, positive up) are in m/s². θ is the rotation of the
 block relative to the plate: **θ > 0 tips the block towards +x** (rocking on its downhill corner),

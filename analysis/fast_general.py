@@ -2,7 +2,7 @@
 
 The specification is ``docs/general-model.md``; the stage equations are those of
 :mod:`analysis.equations`. Structure, conventions and returns mirror :mod:`analysis.fast_rocking`.
-What a scene does not need is skipped (ARCHITECTURE §3):
+What a scene does not need is skipped (docs/architecture.md §3):
 
 * REST costs only the scan for the earliest of its exits — uplift ± (Eq. 1), slide (|gx| > μ gz)
   and lift-off (gz < 0) — all linear inside a sample interval (the input is piecewise linear), so

@@ -1,7 +1,7 @@
 """Fast engine, rocking model (Eq. 2): compiled fixed-step RK4 with located events.
 
 One scene = one body, one record (one sign), one angle. What a scene does not need is skipped
-(ARCHITECTURE §3):
+(docs/architecture.md §3):
 
 * rest phases cost one scan of Eq. 1's margins, which are linear inside each sample interval
   (the input is piecewise linear), so the next uplift is found exactly — a record that never

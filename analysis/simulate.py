@@ -1,6 +1,6 @@
 """``simulate``: one body, one record, one angle — like scipy's ``solve_ivp``, methods by name.
 
-Units at this interface (ARCHITECTURE §7): accelerations in **g** (horizontal positive towards the
+Units at this interface (docs/architecture.md §7): accelerations in **g** (horizontal positive towards the
 downhill side +x, vertical positive up), ``dt`` in s, ``beta`` in rad (> 0: plate descends towards
 +x). ``direction`` is +1 for an overturn towards the low side (the controlled, desired side), −1
 towards the high side, 0 for none.

@@ -43,7 +43,7 @@ STATUS = ("rest", "overturned", "undecided")
 
 
 def cor_counts(direction: np.ndarray) -> dict:
-    """COR of a set of outcomes (ARCHITECTURE §2): overturned, desired (+1) and their ratio (None
+    """COR of a set of outcomes (docs/architecture.md §2): overturned, desired (+1) and their ratio (None
     when nothing overturned)."""
     over = int(np.count_nonzero(direction != 0))
     desired = int(np.count_nonzero(direction == 1))
@@ -143,7 +143,7 @@ class StudyResult:
         return design.fit_scor(rows)
 
     def summary(self) -> dict:
-        """JSON-ready summary as ``rig study --json`` prints it (ARCHITECTURE §7)."""
+        """JSON-ready summary as ``rig study --json`` prints it (docs/architecture.md §7)."""
         out: dict = {
             "model": self.model, "scenes": self.scenes, "seconds": round(self.seconds, 3),
             "prescreened": int(np.count_nonzero(self.prescreened)),

@@ -1,9 +1,9 @@
 """The shake table: Table IV's motion limits, the hexapod's geometry and its kinematics.
 
 This is the one table model of the project: the drive preparation (``rig``), the controller adapters
-(``drivers``) and the emulator (``sim_table``) all import it (ARCHITECTURE §1).
+(``drivers``) and the emulator (``sim_table``) all import it (docs/architecture.md §1).
 
-Frames and units (ARCHITECTURE §2). SI inside: m, s, rad, m/s². The base (world) frame has x = surge,
+Frames and units (docs/architecture.md §2). SI inside: m, s, rad, m/s². The base (world) frame has x = surge,
 y = sway (lateral, to the left of +x), z = heave, **z up**, right-handed. A pose is a float array
 ``(..., 6)``: ``surge, sway, heave`` [m], the displacement of the platform frame from its home pose, and
 ``roll, pitch, yaw`` [rad], its orientation ``R = Rz(yaw) @ Ry(pitch) @ Rx(roll)`` (intrinsic Z-Y'-X'');

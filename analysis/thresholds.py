@@ -1,6 +1,6 @@
 """Eq. 1: the plate acceleration that starts rocking, towards either side of an inclined plate.
 
-Conventions (ARCHITECTURE §2): +x points downhill, β > 0 is the inclination, accelerations are
+Conventions (docs/architecture.md §2): +x points downhill, β > 0 is the inclination, accelerations are
 horizontal/vertical ground accelerations in m/s² (or any unit, consistently with ``g``).
 A body resting on the plate starts to rock **towards +x (downhill)** when the ground accelerates
 *uphill* by more than ``a_plus`` (a_x < −a_plus), and **towards −x (uphill)** when it accelerates

@@ -1,6 +1,6 @@
 """MAVLink 2 message signing for the table link: the rig's key, signing on a link, and which messages need it.
 
-Motion commands are signed (ARCHITECTURE §5): the host signs everything it sends; the controller refuses a
+Motion commands are signed (docs/architecture.md §5): the host signs everything it sends; the controller refuses a
 message that :func:`requires_signature` unless :func:`signed_with_key` holds for it.
 
 **Key.** One 32-byte secret shared by the host and the controller, from :envvar:`SHAKETABLE_MAVLINK_KEY`
