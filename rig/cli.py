@@ -30,6 +30,7 @@ from rig import (
     cli_serve,
     cli_sessions,
 )
+from rig.cli_errors import plain_warnings, print_error, stderr_console
 from rig.json_numpy import json_default
 from rig.records import RecordError, load_record, load_records
 from rig.study_file import StudyFileError, write_study
@@ -38,12 +39,13 @@ from rig.study_summary import coefficient_table, estimator_table, study_summary
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
                   no_args_is_help=True, add_completion=False)
 console = Console(width=None if sys.stdout.isatty() else 160)
-err_console = Console(stderr=True)
+err_console = stderr_console()
+plain_warnings()
 
 
 def fail(message: str) -> NoReturn:
-    """Print the error on stderr and exit 2."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False)
+    """Print the error on stderr (one line when stderr is not a terminal) and exit 2."""
+    print_error(err_console, "error", message)
     raise typer.Exit(code=2)
 
 
@@ -95,11 +97,12 @@ def simulate_cmd(
     dt: Annotated[float | None, typer.Option(help="time step [s] of a text record that does not state it")] = None,
     units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
                      ] = None,
+    accept_vertical: Annotated[bool, typer.Option(help="let a lone vertical component drive surge")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """One body, one record, one angle."""
     try:
-        rec = load_record(record, dt=dt, units=units)
+        rec = load_record(record, dt=dt, units=units, accept_vertical=accept_vertical)
         b = Body.parse(body)
         if sign not in (1, -1):
             fail("--sign must be 1 or -1")

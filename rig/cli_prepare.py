@@ -19,6 +19,7 @@ from rich.console import Console
 from rich.table import Table
 
 from analysis.table_model import AXES, TableModel, TableModelError
+from rig.cli_errors import print_error, stderr_console
 from rig.drive import Drive, DriveError, DriveRefusedError, prepare_drive
 from rig.records import G, RecordError, load_record
 
@@ -26,7 +27,7 @@ EXIT_BAD_INPUT = 2
 EXIT_REFUSED = 3
 
 _console = Console(width=None if sys.stdout.isatty() else 160)
-_err = Console(stderr=True)
+_err = stderr_console()
 
 
 def register(app: typer.Typer) -> None:
@@ -50,20 +51,21 @@ def prepare_cmd(
     units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
                      ] = None,
     plot: Annotated[Path | None, typer.Option(help="write a figure of the drive (PNG)")] = None,
+    accept_vertical: Annotated[bool, typer.Option(help="let a lone vertical component drive surge")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
     try:
         table = load_table(rig_config)
-        motion = load_record(record, dt=dt, units=units)
+        motion = load_record(record, dt=dt, units=units, accept_vertical=accept_vertical)
         drive = prepare_drive(motion, angle=math.radians(angle), table=table, scale=scale, corner=corner, rate=rate)
     except DriveRefusedError as exc:
         if as_json:
             _emit({"refused": {"record": record, **vars(exc.violation), "message": exc.violation.message()}})
-        _err.print(f"[bold red]refused:[/] {exc}", highlight=False)
+        print_error(_err, "refused", str(exc))
         raise typer.Exit(EXIT_REFUSED) from None
     except (RecordError, DriveError, TableModelError) as exc:
-        _err.print(f"[bold red]error:[/] {exc}", highlight=False)
+        print_error(_err, "error", str(exc))
         raise typer.Exit(EXIT_BAD_INPUT) from None
     out = drive.to_json()
     if plot is not None:

@@ -58,6 +58,13 @@ LibraryOption = Annotated[
     ),
 ]
 DtOption = Annotated[float | None, typer.Option("--dt", help="Time step in seconds of a file that does not give one.")]
+AcceptVerticalOption = Annotated[
+    bool,
+    typer.Option(
+        "--accept-vertical",
+        help="Let a file that holds only a vertical component drive surge alone (refused otherwise).",
+    ),
+]
 UnitsOption = Annotated[
     str | None, typer.Option("--units", help="Acceleration unit of a file that does not give one: g, cm/s/s, m/s/s.")
 ]
@@ -157,7 +164,7 @@ def _print_listing(data: dict[str, Any]) -> None:
         table.add_column(Text(header), justify="right")
     for c in data["components"]:
         cells = (f"{c['dt']:g}", str(c["npts"]), f"{c['duration']:.2f}")
-        pgas = ("" if c[key] is None else f"{c[key]:.3f}" for key, _ in pga_columns)
+        pgas = ("" if c[key] is None else peak(c[key]) for key, _ in pga_columns)
         table.add_row(Text(c["name"]), *cells, *pgas)
     Console().print(table)
 
@@ -170,16 +177,21 @@ def _print_record(data: dict[str, Any]) -> None:
         ("dt [s]", f"{data['dt']:g}"),
         ("npts", str(data["npts"])),
         ("duration [s]", f"{data['duration']:.3f}"),
-        ("PGA [g]", f"{data['pga']:.4f}"),
+        ("PGA [g]", peak(data["pga"])),
     ]
     if data["pga_h2"] is not None:
-        rows.append(("PGA horizontal 2 [g]", f"{data['pga_h2']:.4f}"))
+        rows.append(("PGA horizontal 2 [g]", peak(data["pga_h2"])))
     if data["pga_v"] is not None:
-        rows.append(("PGA vertical [g]", f"{data['pga_v']:.4f}"))
+        rows.append(("PGA vertical [g]", peak(data["pga_v"])))
     rows += [(key, _fmt(value)) for key, value in data["provenance"].items()]
     for key, value in rows:
         table.add_row(Text(key), Text(value))
     Console().print(table)
+
+
+def peak(value: float) -> str:
+    """A peak acceleration [g] with 4 significant digits: ``0.3481``, ``1.25``, ``2.7e-06`` (never ``0.0000``)."""
+    return f"{value:.4g}"
 
 
 def _fmt(value: Any) -> str:
@@ -203,7 +215,7 @@ def _print_imported(data: dict[str, Any]) -> None:
         table.add_column(Text(header), justify="right" if numeric else "left", overflow="fold")
     for r in data["imported"]:
         name = r["name"] + (" (replaced)" if r["replaced"] else "")
-        table.add_row(Text(name), Text(Path(r["path"]).name), str(r["npts"]), f"{r['dt']:g}", f"{r['pga']:.4f}",
+        table.add_row(Text(name), Text(Path(r["path"]).name), str(r["npts"]), f"{r['dt']:g}", peak(r["pga"]),
                       Text(r["source"]))
     Console().print(table)
 
@@ -244,11 +256,12 @@ def show_command(
     dt: DtOption = None,
     units: UnitsOption = None,
     library: LibraryOption = None,
+    accept_vertical: AcceptVerticalOption = False,
     as_json: JsonOption = False,
 ) -> None:
     """Show one record: name, dt, npts, duration, PGA and provenance."""
     try:
-        motion = load_record(spec, dt=dt, units=units, library=library)
+        motion = load_record(spec, dt=dt, units=units, library=library, accept_vertical=accept_vertical)
     except RecordError as exc:
         raise _fail(exc) from None
     data = {**_summary(motion), "provenance": motion.provenance}
