@@ -11,17 +11,18 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from analysis.table_model import AXES, TableModel, TableModelError
 from rig.cli_errors import print_error, stderr_console
-from rig.drive import Drive, DriveError, DriveRefusedError, prepare_drive
-from rig.records import G, RecordError, load_record
+
+if TYPE_CHECKING:
+    from analysis.table_model import TableModel
+    from rig.drive import Drive
 
 EXIT_BAD_INPUT = 2
 EXIT_REFUSED = 3
@@ -37,6 +38,8 @@ def register(app: typer.Typer) -> None:
 
 def load_table(rig_config: Path | None) -> TableModel:
     """The table model from a rig configuration TOML file, or Table IV with the default hexapod."""
+    from analysis.table_model import TableModel
+
     return TableModel() if rig_config is None else TableModel.from_toml(rig_config)
 
 
@@ -55,6 +58,10 @@ def prepare_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
+    from analysis.table_model import TableModelError
+    from rig.drive import DriveError, DriveRefusedError, prepare_drive
+    from rig.records import RecordError, load_record
+
     try:
         table = load_table(rig_config)
         motion = load_record(record, dt=dt, units=units, accept_vertical=accept_vertical)
@@ -84,6 +91,9 @@ def _emit(obj: dict[str, Any]) -> None:
 
 def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
     """A table of the peaks against the limits and a line on scale, corner and timing."""
+    from analysis.table_model import AXES
+    from rig.records import G
+
     gov = out["governing"]
     limits = drive.table.limits
     table = Table(box=box.SIMPLE_HEAD, title=f"{drive.record} at β = {out['angle_deg']:g}°: "

@@ -18,27 +18,15 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from rig.records import (
-    LIBRARY,
-    SUITE_ALIASES,
-    SUITES,
-    GroundMotion,
-    Imported,
-    RecordError,
-    import_records,
-    library_dir,
-    library_names,
-    load_library,
-    load_record,
-    load_records,
-)
+if TYPE_CHECKING:
+    from rig.records import GroundMotion, Imported
 
 #: Exit code for a record that cannot be found or read (same as a usage error).
 EXIT_RECORD_ERROR = 2
@@ -109,6 +97,8 @@ def _summary(motion: GroundMotion) -> dict[str, Any]:
 
 def _suites_overview(library: Path | None) -> dict[str, Any]:
     """Every suite (the library last) with its component count, the aliases and the total."""
+    from rig.records import LIBRARY, SUITE_ALIASES, SUITES, library_dir, library_names, load_records
+
     suites: list[dict[str, Any]] = [{"name": s, "components": len(load_records(s))} for s in SUITES]
     suites.append({"name": LIBRARY, "components": len(library_names(library)), "path": str(library_dir(library))})
     return {
@@ -120,6 +110,8 @@ def _suites_overview(library: Path | None) -> dict[str, Any]:
 
 def _suite_listing(suite: str, library: Path | None) -> dict[str, Any]:
     """The components of one suite (or alias, or the library) with their summaries."""
+    from rig.records import LIBRARY, SUITE_ALIASES, SUITES, RecordError, library_dir, load_library, load_records
+
     if suite == LIBRARY:
         components = [_summary(m) for m in load_library(library)]
         return {"suite": suite, "path": str(library_dir(library)), "count": len(components), "components": components}
@@ -141,7 +133,7 @@ def _print_overview(data: dict[str, Any]) -> None:
     console.print(table)
     for alias, members in data["aliases"].items():
         console.print(Text(f"alias: {alias} = {' + '.join(members)}"))
-    library = next(row for row in data["suites"] if row["name"] == LIBRARY)
+    library = next(row for row in data["suites"] if "path" in row)  # the library row has a path
     console.print(Text(f"library: {library['path']}"))
     console.print(Text("components of a suite: rig records list SUITE"))
 
@@ -232,6 +224,8 @@ def list_command(
     as_json: JsonOption = False,
 ) -> None:
     """List the record suites, or the components of SUITE with dt, npts, duration and PGA."""
+    from rig.records import RecordError
+
     try:
         data = _suites_overview(library) if suite is None else _suite_listing(suite, library)
     except RecordError as exc:
@@ -260,6 +254,8 @@ def show_command(
     as_json: JsonOption = False,
 ) -> None:
     """Show one record: name, dt, npts, duration, PGA and provenance."""
+    from rig.records import RecordError, load_record
+
     try:
         motion = load_record(spec, dt=dt, units=units, library=library, accept_vertical=accept_vertical)
     except RecordError as exc:
@@ -290,6 +286,8 @@ def import_command(
     as_json: JsonOption = False,
 ) -> None:
     """Store records in the library (as record .h5 files; the source files are not changed)."""
+    from rig.records import RecordError, import_records, library_dir
+
     try:
         entries = import_records(sources, name=name, dt=dt, units=units, directory=library, replace=replace)
     except RecordError as exc:
