@@ -5,10 +5,12 @@ code 2; ``--library DIR`` overrides the library directory, see `rig.records.libr
 
 * ``rig records list [--json]`` — the suites (FEMA P695 and ``library``) and their component counts;
 * ``rig records list SUITE [--json]`` — name, dt [s], npts, duration [s], PGA [g] per component;
-* ``rig records show SPEC [--dt S] [--units U] [--json]`` — one record (``SUITE:NAME``, ``library:NAME``,
-  a record file or ``H1+H2[+UP]``, see `rig.records`) with its provenance;
-* ``rig records import FILE_OR_PAIR... [--name NAME] [--dt S] [--units U] [--replace] [--json]`` — store
-  records in the library; reports each name, file, npts, dt and PGA.
+* ``rig records show SPEC [--dt S] [--units U] [--accept-vertical] [--json]`` — one record (``SUITE:NAME``,
+  ``library:NAME``, a record file or ``H1+H2[+UP]``, see `rig.records`) with its provenance;
+* ``rig records import FILE_OR_PAIR... [--name NAME] [--dt S] [--units U] [--replace] [--accept-vertical]
+  [--json]`` — store records in the library; reports each name, file, npts, dt and PGA.
+
+``--accept-vertical``: a file that holds only a vertical component may drive surge alone (refused otherwise).
 
 The lead's ``rig/cli.py`` calls `register` to mount the group on the main application.
 """
@@ -283,13 +285,15 @@ def import_command(
     units: UnitsOption = None,
     library: LibraryOption = None,
     replace: Annotated[bool, typer.Option("--replace", help="Replace a library record of the same name.")] = False,
+    accept_vertical: AcceptVerticalOption = False,
     as_json: JsonOption = False,
 ) -> None:
     """Store records in the library (as record .h5 files; the source files are not changed)."""
     from rig.records import RecordError, import_records, library_dir
 
     try:
-        entries = import_records(sources, name=name, dt=dt, units=units, directory=library, replace=replace)
+        entries = import_records(sources, name=name, dt=dt, units=units, directory=library, replace=replace,
+                                 accept_vertical=accept_vertical)
     except RecordError as exc:
         raise _fail(exc) from None
     data = {

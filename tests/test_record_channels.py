@@ -215,3 +215,13 @@ def test_errors_and_warnings_are_one_line_each_when_stderr_is_not_a_terminal(tmp
     assert result.stderr.splitlines() == [f"warning: {other}:20: chan 1 has orientation Other (see comments) "
                                           "(integer-header value 54); its direction is unknown, check it before "
                                           "playing it"]
+
+
+def test_the_library_imports_a_lone_vertical_only_when_accepted(tmp_path: Path) -> None:
+    from rig.records import import_records, load_library_record
+
+    library = tmp_path / "library"
+    assert "holds a vertical component" in error_of(import_records, [str(UP)], directory=library)
+    assert not library.exists() or not list(library.iterdir())  # nothing stored
+    (entry,) = import_records([str(UP)], directory=library, accept_vertical=True)
+    assert load_library_record(entry.name, library).provenance["component"]["kind"] == "vertical"
