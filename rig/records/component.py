@@ -99,11 +99,16 @@ def kind_of(motion: GroundMotion) -> str:
     return str(entry.get("kind", UNKNOWN)) if isinstance(entry, dict) else UNKNOWN
 
 
-def _holds(motion: GroundMotion) -> str:
-    """E.g. ``a vertical component (COSMOS orientation code 400 Up, line 27)``."""
+def _where(path: str | Path, motion: GroundMotion) -> str:
+    """``FILE:LINE`` of the line that says which component the file holds (``FILE`` if no line does)."""
     entry = motion.provenance.get("component") or {}
-    where = f", line {entry['line']}" if entry.get("line") else ""
-    return f"a {entry.get('kind', UNKNOWN)} component ({entry.get('said_by', '?')}{where})"
+    return f"{path}:{entry['line']}" if entry.get("line") else f"{path}"
+
+
+def _holds(motion: GroundMotion) -> str:
+    """E.g. ``a vertical component (COSMOS orientation code 400: Up, chan 1)``."""
+    entry = motion.provenance.get("component") or {}
+    return f"a {entry.get('kind', UNKNOWN)} component ({entry.get('said_by', '?')})"
 
 
 def check_place(path: str | Path, motion: GroundMotion, place: str, *, accept_vertical: bool = False) -> None:
@@ -116,20 +121,20 @@ def check_place(path: str | Path, motion: GroundMotion, place: str, *, accept_ve
             ``H1+H2+UP``) or ``"alone"`` (the whole record, driving surge).
         accept_vertical: the user says a lone vertical component may drive the record (``place="alone"``).
     """
-    kind = kind_of(motion)
+    kind, where, holds = kind_of(motion), _where(path, motion), _holds(motion)
     if place in ("h", "h2") and kind == VERTICAL:
         which = "first" if place == "h" else "second"
         raise RecordError(
-            f"{path}: holds {_holds(motion)}, given as the {which} horizontal of H1+H2[+UP]; expected a horizontal "
+            f"{where}: holds {holds}, given as the {which} horizontal of H1+H2[+UP]; expected a horizontal "
             "component there (put the vertical last: H1+H2+UP)"
         )
     if place == "v" and kind == HORIZONTAL:
         raise RecordError(
-            f"{path}: holds {_holds(motion)}, given as the vertical of H1+H2+UP; expected a vertical component "
+            f"{where}: holds {holds}, given as the vertical of H1+H2+UP; expected a vertical component "
             "there (UP, DWN, V, …Z)"
         )
     if place == "alone" and kind == VERTICAL and not accept_vertical:
         raise RecordError(
-            f"{path}: holds {_holds(motion)}; expected a horizontal record to drive surge. Give it as the vertical "
+            f"{where}: holds {holds}; expected a horizontal record to drive surge. Give it as the vertical "
             "of H1+H2+UP, or play it alone on purpose with --accept-vertical (load_record(..., accept_vertical=True))"
         )
