@@ -146,13 +146,18 @@ def test_csmip_style_end_of_data_lines_are_read(tmp_path: Path) -> None:
     assert "truncated data: 'End-of-data' after 20 values; expected 22 values" in error_of(read_cosmos, early)
 
 
-def test_a_csmip_dmg_file_is_named_and_the_cosmos_files_pointed_to(tmp_path: Path) -> None:
-    path = tmp_path / "CE24278.V2"
-    path.write_text("CORRECTED ACCELEROGRAM DATA           (PROCESSED: 94/02/10)\n"
-                    "Northridge Earthquake                 January 17, 1994 04:31 PST\n"
-                    "  0.7 ..........\n")
-    message = error_of(read_cosmos, path)
-    assert message.startswith(f"{path}:1: this is a CSMIP/DMG-format file ('CORRECTED ACCELEROGRAM DATA")
+@pytest.mark.parametrize(("suffix", "first"), [
+    (".V1", "Uncorrected Accelerogram Data             Processed: 02/13/12, CGS  146be002"),
+    (".V2", "CORRECTED ACCELEROGRAM DATA           (PROCESSED: 94/02/10)"),
+    (".V3", "RESPONSE AND FOURIER AMPLITUDE SPECTRA"),
+])
+def test_a_csmip_dmg_file_is_named_and_the_cosmos_files_pointed_to(tmp_path: Path, suffix: str, first: str) -> None:
+    path = tmp_path / f"CE24278{suffix}"
+    path.write_text(f"{first}\nNorthridge Earthquake                 January 17, 1994 04:31 PST\n  0.7 ..........\n")
+    if suffix == ".V3":
+        path = path.rename(tmp_path / "CE24278.V2")  # a spectra file saved under a record suffix
+    message = error_of(load_record, str(path))
+    assert message.startswith(f"{path}:1: this is a CSMIP/DMG-format file ({first.strip()[:67]!r}"[:-1])
     assert "COSMOS files (.V1C/.V2C) from CESMD" in message
 
 

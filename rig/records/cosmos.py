@@ -21,9 +21,9 @@ are a sequence of blocks, one per channel and quantity; each repeats the full he
 CSMIP-processed files end each block with ``/&  ----------  End of data for channel  1  ----------``
 instead; both are end lines (the data ends where the data header said it would).
 
-Files in the older CSMIP/DMG format (first line ``CORRECTED ACCELEROGRAM`` or ``UNCORRECTED ACCELEROGRAM
-DATA``, no ``(Format v…)``) are refused with an error naming that format and pointing to the COSMOS
-``.V1C``/``.V2C`` files CESMD distributes for the same record.
+Files in the older CSMIP/DMG format (first line ``CORRECTED ACCELEROGRAM``, ``UNCORRECTED ACCELEROGRAM
+DATA`` or, V3, ``RESPONSE AND FOURIER AMPLITUDE SPECTRA``; no ``(Format v…)``) are refused with an error
+naming that format and pointing to the COSMOS ``.V1C``/``.V2C`` files CESMD distributes for the same record.
 
 Header numbers are 1-based, as in the COSMOS tables. The reader walks the blocks by their announced
 counts (text lines, header values and lines, comment lines, data values) and needs an ``End-of-data``
@@ -116,7 +116,7 @@ _FORMAT_RE = re.compile(
     r"\bFormat\s*=\s*\(\s*(?P<count>\d*)\s*(?P<kind>ES|EN|[IFEDG])\s*(?P<width>\d+)(?:\.\d+)?\s*\)", re.I
 )
 _END_RE = re.compile(r"^\s*(?:/&)?[\s-]*End[- ]of[- ]data\b", re.I)
-_DMG_RE = re.compile(r"^\s*(?:UN)?CORRECTED\s+ACCELEROGRAM\b", re.I)
+_DMG_RE = re.compile(r"^\s*(?:(?:UN)?CORRECTED\s+ACCELEROGRAM|RESPONSE\s+AND\s+FOURIER)\b", re.I)
 _INTEGER_RE = re.compile(r"[-+]?\d+")
 
 _INT_EXAMPLE = "' 100 Integer-header values follow on  10 lines, Format= (10I8)'"
