@@ -4,6 +4,10 @@ numba's own cache invalidation looks only at the file that defines a kernel, not
 it inlines from other modules (``equations``, ``hermite``), so an edit there could leave a stale
 kernel in use. Keying the cache directory by a hash of every module of this package makes any edit
 start from a fresh cache. ``NUMBA_CACHE_DIR`` set by the user wins.
+
+numba itself is not imported here (it takes half a second): if it is not loaded yet, the directory goes into
+``NUMBA_CACHE_DIR``, which numba reads when it is first imported (and child processes inherit, with the same
+sources); if it is, into ``numba.config.CACHE_DIR``.
 """
 
 from __future__ import annotations
@@ -11,10 +15,9 @@ from __future__ import annotations
 import hashlib
 import os
 import shutil
+import sys
 import time
 from pathlib import Path
-
-import numba
 
 KEEP_DAYS = 30
 
@@ -39,5 +42,9 @@ def configure() -> Path | None:
                 shutil.rmtree(other, ignore_errors=True)
     except OSError:
         return None  # read-only home: numba falls back to its own locations
-    numba.config.CACHE_DIR = str(target)
+    numba = sys.modules.get("numba")
+    if numba is not None:
+        numba.config.CACHE_DIR = str(target)
+    else:
+        os.environ["NUMBA_CACHE_DIR"] = str(target)
     return target

@@ -10,14 +10,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike
 
 from analysis.body import Body, G
 from analysis.errors import AnalysisInputError
-from analysis.reference import Trace
+
+if TYPE_CHECKING:  # the reference solvers (and scipy) are imported only when solver="reference" runs
+    from analysis.reference import Trace
 
 Model = Literal["rocking", "general"]
 Solver = Literal["fast", "reference"]

@@ -10,15 +10,11 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated, NoReturn
 
 import typer
-from rich import box
 from rich.console import Console
-from rich.table import Table
 
-from analysis import TABLE_I, AnalysisInputError, Body, simulate
-from analysis.study import StudyResult, study
 from rig import (
     cli_analyze,
     cli_design,
@@ -30,25 +26,33 @@ from rig import (
     cli_serve,
     cli_sessions,
 )
-from rig.json_numpy import json_default
-from rig.records import RecordError, load_record, load_records
-from rig.study_file import StudyFileError, write_study
-from rig.study_summary import coefficient_table, estimator_table, study_summary
+from rig.cli_errors import plain_warnings, print_error, stderr_console
+
+if TYPE_CHECKING:
+    from analysis import Body
+    from analysis.study import StudyResult
+
+# Imports are lazy (ISSUE 16): this module and every rig/cli_*.py import only typer, rich and the standard library
+# at module level, so that `rig --help` and each command's --help answer at once; each command imports what it uses
+# inside its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/test_cli_startup.py checks it.
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
                   no_args_is_help=True, add_completion=False)
 console = Console(width=None if sys.stdout.isatty() else 160)
-err_console = Console(stderr=True)
+err_console = stderr_console()
+plain_warnings()
 
 
 def fail(message: str) -> NoReturn:
-    """Print the error on stderr and exit 2."""
-    err_console.print(f"[bold red]error:[/] {message}", highlight=False)
+    """Print the error on stderr (one line when stderr is not a terminal) and exit 2."""
+    print_error(err_console, "error", message)
     raise typer.Exit(code=2)
 
 
 def emit_json(obj: dict) -> None:
     """One JSON object on stdout."""
+    from rig.json_numpy import json_default
+
     sys.stdout.write(json.dumps(obj, default=json_default) + "\n")
 
 
@@ -70,6 +74,8 @@ def parse_angles(text: str) -> list[float]:
 
 def parse_bodies(text: str) -> list[Body]:
     """``table1``, ``table1:1,4,12`` (1-based), or ``0.10x0.50,0.2x1.0``."""
+    from analysis.body import TABLE_I, Body
+
     try:
         if text.lower().startswith("table1"):
             _, _, sel = text.partition(":")
@@ -95,11 +101,17 @@ def simulate_cmd(
     dt: Annotated[float | None, typer.Option(help="time step [s] of a text record that does not state it")] = None,
     units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
                      ] = None,
+    accept_vertical: Annotated[bool, typer.Option(help="let a lone vertical component drive surge")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """One body, one record, one angle."""
+    from rich.table import Table
+
+    from analysis import AnalysisInputError, Body, simulate
+    from rig.records import RecordError, load_record
+
     try:
-        rec = load_record(record, dt=dt, units=units)
+        rec = load_record(record, dt=dt, units=units, accept_vertical=accept_vertical)
         b = Body.parse(body)
         if sign not in (1, -1):
             fail("--sign must be 1 or -1")
@@ -133,6 +145,12 @@ def study_cmd(
 ) -> None:
     """The paper's analytical study: bodies × records × both signs × angles; COR per body and angle, Eqs. 11
     and 13 fitted beside the paper's, Eq. 12 errors and Table III's estimators."""
+    from analysis.errors import AnalysisInputError
+    from analysis.study import study
+    from rig.records import RecordError, load_records
+    from rig.study_file import StudyFileError, write_study
+    from rig.study_summary import study_summary
+
     try:
         recs = load_records(records)
         scenes = (parse_bodies(bodies), recs, parse_angles(angles))
@@ -158,7 +176,12 @@ def print_cor_table(res: StudyResult, summary: dict | None = None) -> None:
     """COR (%) per angle (rows) and body (columns), the body average, the overturn count and Eq. 11
     with the paper's and the fitted coefficients; with the ``summary`` (`rig.study_summary`), the fitted
     coefficients beside the paper's and Table III's estimators too."""
+    from rich import box
+    from rich.table import Table
+
     from analysis.design import gcor
+    from analysis.errors import AnalysisInputError
+    from rig.study_summary import coefficient_table, estimator_table
 
     rows = res.cor()
     avg = res.average_cor()

@@ -10,15 +10,14 @@ import math
 import sys
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
 from rich.table import Table
 
-from analysis import AnalysisInputError
-from rig.analyze import SessionAnalysis, analyze_session
-from rig.session import SessionError
+if TYPE_CHECKING:
+    from rig.analyze import SessionAnalysis
 
 MODEL_CHOICES = {"rocking": ("rocking",), "general": ("general",), "both": ("rocking", "general")}
 
@@ -124,6 +123,10 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             impact: float | str = restitution if restitution.lower() == "housner" else float(restitution)
         except ValueError:
             fail(f"--restitution {restitution!r}: expected 0, 'housner' or a number in [0, 1]")
+        from analysis.errors import AnalysisInputError
+        from rig.analyze import analyze_session
+        from rig.session import SessionError
+
         try:
             result = analyze_session(path, MODEL_CHOICES[model], solver, sensor=sensor, restitution=impact,
                                      write=write)

@@ -12,15 +12,17 @@ import json
 import math
 from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, cast
+from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
 from rich.console import Console
 from rich.table import Table
 
 from analysis.body import Body
-from analysis.design import PAPER_GCOR, PAPER_SCOR, Equation, design_angle, design_coefficients
 from analysis.errors import AnalysisInputError
+
+if TYPE_CHECKING:
+    from analysis.design import Equation
 
 EXIT_USAGE = 2
 
@@ -60,6 +62,8 @@ def design_result(body: Body, confidence: float, equation: Equation = "SCOR",
                   fitted: tuple[float, ...] | None = None) -> dict[str, object]:
     """The ``rig design --json`` object for ``body`` and ``confidence`` (fraction), with the paper's
     coefficients or ``fitted`` ones ((k1, k2, k3, c2) for SCOR, (c1, c2) for GCOR)."""
+    from analysis.design import PAPER_GCOR, PAPER_SCOR, design_angle, design_coefficients
+
     beta = design_angle(body, confidence, equation, fitted)
     c1, c2 = design_coefficients(body, equation, fitted)
     coeffs = fitted or ((*PAPER_SCOR, c2) if equation == "SCOR" else PAPER_GCOR)
@@ -113,7 +117,7 @@ def design(
     """The smallest plate inclination whose controlled-overturning rate reaches CONFIDENCE."""
     try:
         parsed = Body.parse(body)
-        eq = cast(Equation, equation.value)
+        eq = cast("Equation", equation.value)
         fitted = study_coefficients(study, eq) if study is not None else None
         result = design_result(parsed, confidence, eq, fitted)
     except AnalysisInputError as exc:

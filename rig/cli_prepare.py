@@ -11,22 +11,24 @@ import json
 import math
 import sys
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
 from rich.console import Console
 from rich.table import Table
 
-from analysis.table_model import AXES, TableModel, TableModelError
-from rig.drive import Drive, DriveError, DriveRefusedError, prepare_drive
-from rig.records import G, RecordError, load_record
+from rig.cli_errors import print_error, stderr_console
+
+if TYPE_CHECKING:
+    from analysis.table_model import TableModel
+    from rig.drive import Drive
 
 EXIT_BAD_INPUT = 2
 EXIT_REFUSED = 3
 
 _console = Console(width=None if sys.stdout.isatty() else 160)
-_err = Console(stderr=True)
+_err = stderr_console()
 
 
 def register(app: typer.Typer) -> None:
@@ -36,6 +38,8 @@ def register(app: typer.Typer) -> None:
 
 def load_table(rig_config: Path | None) -> TableModel:
     """The table model from a rig configuration TOML file, or Table IV with the default hexapod."""
+    from analysis.table_model import TableModel
+
     return TableModel() if rig_config is None else TableModel.from_toml(rig_config)
 
 
@@ -50,20 +54,25 @@ def prepare_cmd(
     units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
                      ] = None,
     plot: Annotated[Path | None, typer.Option(help="write a figure of the drive (PNG)")] = None,
+    accept_vertical: Annotated[bool, typer.Option(help="let a lone vertical component drive surge")] = False,
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
+    from analysis.table_model import TableModelError
+    from rig.drive import DriveError, DriveRefusedError, prepare_drive
+    from rig.records import RecordError, load_record
+
     try:
         table = load_table(rig_config)
-        motion = load_record(record, dt=dt, units=units)
+        motion = load_record(record, dt=dt, units=units, accept_vertical=accept_vertical)
         drive = prepare_drive(motion, angle=math.radians(angle), table=table, scale=scale, corner=corner, rate=rate)
     except DriveRefusedError as exc:
         if as_json:
             _emit({"refused": {"record": record, **vars(exc.violation), "message": exc.violation.message()}})
-        _err.print(f"[bold red]refused:[/] {exc}", highlight=False)
+        print_error(_err, "refused", str(exc))
         raise typer.Exit(EXIT_REFUSED) from None
     except (RecordError, DriveError, TableModelError) as exc:
-        _err.print(f"[bold red]error:[/] {exc}", highlight=False)
+        print_error(_err, "error", str(exc))
         raise typer.Exit(EXIT_BAD_INPUT) from None
     out = drive.to_json()
     if plot is not None:
@@ -82,6 +91,9 @@ def _emit(obj: dict[str, Any]) -> None:
 
 def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
     """A table of the peaks against the limits and a line on scale, corner and timing."""
+    from analysis.table_model import AXES
+    from rig.records import G
+
     gov = out["governing"]
     limits = drive.table.limits
     table = Table(box=box.SIMPLE_HEAD, title=f"{drive.record} at β = {out['angle_deg']:g}°: "

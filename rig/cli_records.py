@@ -5,10 +5,12 @@ code 2; ``--library DIR`` overrides the library directory, see `rig.records.libr
 
 * ``rig records list [--json]`` — the suites (FEMA P695 and ``library``) and their component counts;
 * ``rig records list SUITE [--json]`` — name, dt [s], npts, duration [s], PGA [g] per component;
-* ``rig records show SPEC [--dt S] [--units U] [--json]`` — one record (``SUITE:NAME``, ``library:NAME``,
-  a record file or ``H1+H2[+UP]``, see `rig.records`) with its provenance;
-* ``rig records import FILE_OR_PAIR... [--name NAME] [--dt S] [--units U] [--replace] [--json]`` — store
-  records in the library; reports each name, file, npts, dt and PGA.
+* ``rig records show SPEC [--dt S] [--units U] [--accept-vertical] [--json]`` — one record (``SUITE:NAME``,
+  ``library:NAME``, a record file or ``H1+H2[+UP]``, see `rig.records`) with its provenance;
+* ``rig records import FILE_OR_PAIR... [--name NAME] [--dt S] [--units U] [--replace] [--accept-vertical]
+  [--json]`` — store records in the library; reports each name, file, npts, dt and PGA.
+
+``--accept-vertical``: a file that holds only a vertical component may drive surge alone (refused otherwise).
 
 The lead's ``rig/cli.py`` calls `register` to mount the group on the main application.
 """
@@ -18,27 +20,15 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
-from rig.records import (
-    LIBRARY,
-    SUITE_ALIASES,
-    SUITES,
-    GroundMotion,
-    Imported,
-    RecordError,
-    import_records,
-    library_dir,
-    library_names,
-    load_library,
-    load_record,
-    load_records,
-)
+if TYPE_CHECKING:
+    from rig.records import GroundMotion, Imported
 
 #: Exit code for a record that cannot be found or read (same as a usage error).
 EXIT_RECORD_ERROR = 2
@@ -58,6 +48,13 @@ LibraryOption = Annotated[
     ),
 ]
 DtOption = Annotated[float | None, typer.Option("--dt", help="Time step in seconds of a file that does not give one.")]
+AcceptVerticalOption = Annotated[
+    bool,
+    typer.Option(
+        "--accept-vertical",
+        help="Let a file that holds only a vertical component drive surge alone (refused otherwise).",
+    ),
+]
 UnitsOption = Annotated[
     str | None, typer.Option("--units", help="Acceleration unit of a file that does not give one: g, cm/s/s, m/s/s.")
 ]
@@ -102,6 +99,8 @@ def _summary(motion: GroundMotion) -> dict[str, Any]:
 
 def _suites_overview(library: Path | None) -> dict[str, Any]:
     """Every suite (the library last) with its component count, the aliases and the total."""
+    from rig.records import LIBRARY, SUITE_ALIASES, SUITES, library_dir, library_names, load_records
+
     suites: list[dict[str, Any]] = [{"name": s, "components": len(load_records(s))} for s in SUITES]
     suites.append({"name": LIBRARY, "components": len(library_names(library)), "path": str(library_dir(library))})
     return {
@@ -113,6 +112,8 @@ def _suites_overview(library: Path | None) -> dict[str, Any]:
 
 def _suite_listing(suite: str, library: Path | None) -> dict[str, Any]:
     """The components of one suite (or alias, or the library) with their summaries."""
+    from rig.records import LIBRARY, SUITE_ALIASES, SUITES, RecordError, library_dir, load_library, load_records
+
     if suite == LIBRARY:
         components = [_summary(m) for m in load_library(library)]
         return {"suite": suite, "path": str(library_dir(library)), "count": len(components), "components": components}
@@ -134,7 +135,7 @@ def _print_overview(data: dict[str, Any]) -> None:
     console.print(table)
     for alias, members in data["aliases"].items():
         console.print(Text(f"alias: {alias} = {' + '.join(members)}"))
-    library = next(row for row in data["suites"] if row["name"] == LIBRARY)
+    library = next(row for row in data["suites"] if "path" in row)  # the library row has a path
     console.print(Text(f"library: {library['path']}"))
     console.print(Text("components of a suite: rig records list SUITE"))
 
@@ -157,7 +158,7 @@ def _print_listing(data: dict[str, Any]) -> None:
         table.add_column(Text(header), justify="right")
     for c in data["components"]:
         cells = (f"{c['dt']:g}", str(c["npts"]), f"{c['duration']:.2f}")
-        pgas = ("" if c[key] is None else f"{c[key]:.3f}" for key, _ in pga_columns)
+        pgas = ("" if c[key] is None else peak(c[key]) for key, _ in pga_columns)
         table.add_row(Text(c["name"]), *cells, *pgas)
     Console().print(table)
 
@@ -170,16 +171,21 @@ def _print_record(data: dict[str, Any]) -> None:
         ("dt [s]", f"{data['dt']:g}"),
         ("npts", str(data["npts"])),
         ("duration [s]", f"{data['duration']:.3f}"),
-        ("PGA [g]", f"{data['pga']:.4f}"),
+        ("PGA [g]", peak(data["pga"])),
     ]
     if data["pga_h2"] is not None:
-        rows.append(("PGA horizontal 2 [g]", f"{data['pga_h2']:.4f}"))
+        rows.append(("PGA horizontal 2 [g]", peak(data["pga_h2"])))
     if data["pga_v"] is not None:
-        rows.append(("PGA vertical [g]", f"{data['pga_v']:.4f}"))
+        rows.append(("PGA vertical [g]", peak(data["pga_v"])))
     rows += [(key, _fmt(value)) for key, value in data["provenance"].items()]
     for key, value in rows:
         table.add_row(Text(key), Text(value))
     Console().print(table)
+
+
+def peak(value: float) -> str:
+    """A peak acceleration [g] with 4 significant digits: ``0.3481``, ``1.25``, ``2.7e-06`` (never ``0.0000``)."""
+    return f"{value:.4g}"
 
 
 def _fmt(value: Any) -> str:
@@ -203,7 +209,7 @@ def _print_imported(data: dict[str, Any]) -> None:
         table.add_column(Text(header), justify="right" if numeric else "left", overflow="fold")
     for r in data["imported"]:
         name = r["name"] + (" (replaced)" if r["replaced"] else "")
-        table.add_row(Text(name), Text(Path(r["path"]).name), str(r["npts"]), f"{r['dt']:g}", f"{r['pga']:.4f}",
+        table.add_row(Text(name), Text(Path(r["path"]).name), str(r["npts"]), f"{r['dt']:g}", peak(r["pga"]),
                       Text(r["source"]))
     Console().print(table)
 
@@ -220,6 +226,8 @@ def list_command(
     as_json: JsonOption = False,
 ) -> None:
     """List the record suites, or the components of SUITE with dt, npts, duration and PGA."""
+    from rig.records import RecordError
+
     try:
         data = _suites_overview(library) if suite is None else _suite_listing(suite, library)
     except RecordError as exc:
@@ -244,11 +252,14 @@ def show_command(
     dt: DtOption = None,
     units: UnitsOption = None,
     library: LibraryOption = None,
+    accept_vertical: AcceptVerticalOption = False,
     as_json: JsonOption = False,
 ) -> None:
     """Show one record: name, dt, npts, duration, PGA and provenance."""
+    from rig.records import RecordError, load_record
+
     try:
-        motion = load_record(spec, dt=dt, units=units, library=library)
+        motion = load_record(spec, dt=dt, units=units, library=library, accept_vertical=accept_vertical)
     except RecordError as exc:
         raise _fail(exc) from None
     data = {**_summary(motion), "provenance": motion.provenance}
@@ -274,11 +285,15 @@ def import_command(
     units: UnitsOption = None,
     library: LibraryOption = None,
     replace: Annotated[bool, typer.Option("--replace", help="Replace a library record of the same name.")] = False,
+    accept_vertical: AcceptVerticalOption = False,
     as_json: JsonOption = False,
 ) -> None:
     """Store records in the library (as record .h5 files; the source files are not changed)."""
+    from rig.records import RecordError, import_records, library_dir
+
     try:
-        entries = import_records(sources, name=name, dt=dt, units=units, directory=library, replace=replace)
+        entries = import_records(sources, name=name, dt=dt, units=units, directory=library, replace=replace,
+                                 accept_vertical=accept_vertical)
     except RecordError as exc:
         raise _fail(exc) from None
     data = {

@@ -12,9 +12,6 @@ from typing import Annotated, Any
 
 import typer
 
-from rig.report import ReportError, write_report
-from rig.session import SessionError
-
 
 def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
     """Add ``rig report``."""
@@ -29,7 +26,14 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         """An HTML report (figures embedded, A4 width) of a session (rig, sequence, runs, spectra, detections,
         Fig. 13) or of a study (COR curves, fitted equations, Tables II–III, Fig. 2)."""
         target = output if output is not None else path.with_suffix(".html")
+        from rig.cli_sessions import crashed_warning
+        from rig.report import ReportError, write_report
+        from rig.session import SessionError
+
         try:
+            warning = crashed_warning(path)
+            if warning:  # the report is written from what is on disk; the file still needs recovering
+                sys.stderr.write(warning + "\n")
             if as_json:
                 result = write_report(path, target)
             else:

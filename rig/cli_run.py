@@ -20,7 +20,7 @@ import time
 from collections.abc import Callable, Iterator
 from datetime import datetime
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.console import Group
@@ -29,12 +29,11 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
-from rig.emulator import EmulatorError, EmulatorProcess, specimen_flags
-from rig.orchestrator import Orchestrator, OrchestratorState
-from rig.orchestrator import Progress as RunProgress
-from rig.orchestrator.states import OperatorDeclinedError
-from rig.sequence import PlacedBody, PlannedRun, Sequence, SequenceError, load_sequence
-from rig.session import SessionError, SessionLog, read_session
+if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
+    from rig.orchestrator import Orchestrator, OrchestratorState
+    from rig.orchestrator import Progress as RunProgress
+    from rig.sequence import PlacedBody, PlannedRun, Sequence
+    from rig.session import SessionLog
 
 EMULATOR_LISTEN = "mavlink://127.0.0.1:0"
 """Where ``--emulate`` starts the emulated table (MAVLink on loopback, any free port)."""
@@ -78,6 +77,8 @@ class TerminalOperator:
         return result
 
     def place_bodies(self, prompt: str) -> None:
+        from rig.orchestrator.states import OperatorDeclinedError
+
         def ask() -> None:
             if not Confirm.ask(f"[bold]{prompt}[/]\nBodies placed?", default=True):
                 raise OperatorDeclinedError("bodies not placed")
@@ -85,6 +86,8 @@ class TerminalOperator:
         self._ask(ask)
 
     def confirm_run(self, run: PlannedRun, description: str) -> None:
+        from rig.orchestrator.states import OperatorDeclinedError
+
         def ask() -> None:
             if not Confirm.ask(f"Run {run.plan_index + 1}: {description}. Start?", default=True):
                 raise OperatorDeclinedError(f"run {run.plan_index + 1} not started")
@@ -135,6 +138,8 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
               speed: float) -> Iterator[tuple[str, dict[str, Any], Callable[[], dict[str, Any]] | None]]:
     """The table URL and driver options; with ``emulate``, an emulator process started (and stopped after) with
     the sequence's bodies on its plate and a one-session signing key unless ``key_file`` is given."""
+    from rig.emulator import EmulatorProcess, specimen_flags
+
     if not emulate:
         url = table or sequence.table_url
         if url is None:
@@ -158,6 +163,8 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
                 console: Any) -> bool:
     """Play the session with the screen, the prompts and Ctrl-C handling (module docstring); whether every run of
     the plan is done."""
+    from rig.orchestrator import Orchestrator, OrchestratorState
+
     operator = None if yes else TerminalOperator()
     orchestrator = Orchestrator(sequence, url, log, table_options=options, operator=operator)
     screen = Screen(orchestrator.progress)
@@ -225,6 +232,8 @@ def _next_question(operator: TerminalOperator | None) -> tuple[Callable[[], Any]
 
 
 def _answer(question: Callable[[], Any], answer: queue.Queue[Any]) -> None:
+    from rig.orchestrator.states import OperatorDeclinedError
+
     try:
         answer.put(question())
     except (OperatorDeclinedError, EOFError, KeyboardInterrupt) as exc:
@@ -271,6 +280,10 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
                                                              "endpoint run it, e.g. tcp/127.0.0.1:7447")] = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
+        from rig.emulator import EmulatorError
+        from rig.sequence import Sequence, SequenceError, load_sequence
+        from rig.session import SessionError, SessionLog, read_session
+
         if service is not None:
             from rig.cli_serve import drive_service
 
@@ -316,6 +329,9 @@ def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console:
     ``output_dir``; the session and what the emulator itself saw are summarised, the models re-run on the
     measured motion (`rig analyze`), the HTML report written (`rig report`), and the files named."""
     from rig.cli_sessions import print_session
+    from rig.emulator import EmulatorError
+    from rig.sequence import SequenceError, load_sequence
+    from rig.session import SessionError, SessionLog
 
     try:
         sequence = load_sequence(QUICK_SEQUENCE)

@@ -16,15 +16,15 @@ import sys
 import threading
 from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich.live import Live
 from rich.prompt import Confirm
 from rich.text import Text
 
-from rig.service import OrchestratorService, ServiceClient, ServiceError, ServiceUnavailableError
-from rig.service.client import SILENCE, TelemetryFeed
+if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
+    from rig.service import ServiceClient, TelemetryFeed
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 """Where ``rig serve`` listens and the clients connect by default."""
@@ -49,6 +49,8 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
     Without ``yes`` the operator confirms the start first (the service runs sequences unattended). Returns the exit
     code: 0 all runs done, 1 the session stopped early (or was not started), 2 the service refused or is absent.
     """
+    from rig.service import ServiceClient, ServiceError
+
     try:
         client = ServiceClient(connect, key_file)
     except ServiceError as exc:
@@ -132,6 +134,9 @@ def _follow(client: ServiceClient, feed: TelemetryFeed, session: str, seq: int, 
             console: Any) -> dict[str, Any] | None:
     """Show the session's telemetry until its final state (returned; None if the service went away);
     ``interrupts[0]`` counts the Ctrl-C (the caller's SIGINT handler)."""
+    from rig.service import ServiceUnavailableError
+    from rig.service.client import SILENCE
+
     sent = 0
     ours_paused = False
     silent = 0.0
@@ -166,6 +171,8 @@ def _follow(client: ServiceClient, feed: TelemetryFeed, session: str, seq: int, 
 
 def _interrupt(client: ServiceClient, count: int, display: _Display) -> bool:
     """Ctrl-C number ``count``: pause (True), then abort."""
+    from rig.service import ServiceError
+
     try:
         if count == 1:
             client.pause()
@@ -181,6 +188,8 @@ def _interrupt(client: ServiceClient, count: int, display: _Display) -> bool:
 
 def _after_pause(client: ServiceClient, yes: bool, console: Any) -> bool:
     """Paused at the end of a record on our Ctrl-C: resume (True), or end the session there (resumable)."""
+    from rig.service import ServiceError
+
     go_on = not yes and _confirm("Paused at the end of the record. Resume?", console)
     try:
         if go_on:
@@ -226,6 +235,8 @@ def status_line(status: dict[str, Any]) -> Text:
 
 def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool, fail: Callable[[str], Any]) -> None:
     """Run the service until SIGINT/SIGTERM (module docstring)."""
+    from rig.service import OrchestratorService, ServiceError
+
 
     def say(message: str) -> None:
         print(f"rig serve: {message}", file=sys.stderr, flush=True)
@@ -279,6 +290,8 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         def run_command(connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
                         as_json: Annotated[bool, typer.Option("--json", help="print the reply as JSON")] = False,
                         ) -> None:
+            from rig.service import ServiceClient, ServiceError
+
             try:
                 with ServiceClient(connect, key_file) as client:
                     reply = getattr(client, method)()

@@ -1,17 +1,19 @@
-"""``rig sessions list|show``: the session files of a directory, and one session's runs (also while it is written)."""
+"""``rig sessions list|show|recover``: the session files of a directory, one session's runs (also while it is
+written), and recovery of a session whose writer was killed (`rig.session.recover`)."""
 
 from __future__ import annotations
 
+import json
 import math
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
-from rich import box
-from rich.table import Table
 
-from rig.session import SessionError, list_sessions, read_session
+#: What ``rig sessions list`` shows in its "writer" column for each `rig.session.writer_state`.
+_STATE_SHOWN = {"writing": "writing", "crashed": "CRASHED: rig sessions recover", "closed": ""}
 
 
 def run_rows(session: dict[str, Any]) -> list[dict[str, Any]]:
@@ -30,9 +32,29 @@ def run_rows(session: dict[str, Any]) -> list[dict[str, Any]]:
     return rows
 
 
+def crashed_warning(path: Path) -> str | None:
+    """``warning: …`` naming `rig sessions recover` if ``path`` is a session file whose writer was killed, else None
+    (also for a file that is no session file: its reader says what is wrong with it)."""
+    from rig.session import CRASHED, SessionError, crashed_message, writer_state
+
+    try:
+        crashed = writer_state(path) == CRASHED
+    except (SessionError, OSError):
+        return None
+    return f"warning: {crashed_message(path)}" if crashed else None
+
+
 def print_session(path: Path, console: Any) -> None:
-    """The session's header and a table of its runs."""
+    """The session's header and a table of its runs (and, if its writer was killed, a warning on stderr)."""
+    from rich import box
+    from rich.table import Table
+
+    from rig.session import read_session
+
     session = read_session(path)
+    warning = crashed_warning(path)
+    if warning:
+        sys.stderr.write(warning + "\n")
     sequence = session.get("sequence") or {}
     console.print(f"[bold]{path}[/]  sequence {sequence.get('name', '?')!r}, created {session['created']}, "
                   f"software {session['software_version']}")
@@ -50,31 +72,63 @@ def print_session(path: Path, console: Any) -> None:
 
 
 def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
-    """Add ``rig sessions list|show``."""
-    sessions = typer.Typer(help="Session files: list a directory's, show one's runs.", no_args_is_help=True)
+    """Add ``rig sessions list|show|recover``."""
+    sessions = typer.Typer(help="Session files: list a directory's, show one's runs, recover a crashed one.",
+                           no_args_is_help=True)
     app.add_typer(sessions, name="sessions")
 
     @sessions.command("list")
     def list_cmd(directory: Annotated[Path, typer.Argument(help="where the session files are")] = Path(".")) -> None:
-        """The session files in DIRECTORY: created, runs and their statuses, whether one is being written."""
+        """The session files in DIRECTORY: created, runs and their statuses, and the writer: "writing" (a live
+        rig run holds it) or "CRASHED" (its writer was killed: recover it with rig sessions recover FILE)."""
+        from rich import box
+        from rich.table import Table
+
+        from rig.session import SessionError, list_sessions
+
         try:
             found = list_sessions(directory)
         except (SessionError, OSError) as exc:
             fail(str(exc))
         table = Table(box=box.SIMPLE_HEAD)
-        for name in ("file", "created", "runs", "statuses", "writing"):
+        for name in ("file", "created", "runs", "statuses", "writer"):
             table.add_column(name)
         for s in found:
             statuses = ", ".join(f"{k} {v}" for k, v in sorted(s["statuses"].items())) if isinstance(
                 s["statuses"], dict) else str(s["statuses"])
-            table.add_row(Path(s["path"]).name, s["created"], str(s["runs"]), statuses,
-                          "yes" if s["open_for_write"] else "")
+            table.add_row(Path(s["path"]).name, s["created"], str(s["runs"]), statuses, _STATE_SHOWN[s["state"]])
         console.print(table)
 
     @sessions.command("show")
     def show_cmd(path: Annotated[Path, typer.Argument(metavar="SESSION.h5")]) -> None:
         """One session's runs: record, angle, scale factor, status, samples, overturns."""
+        from rig.session import SessionError
+
         try:
             print_session(path, console)
         except (SessionError, OSError) as exc:
             fail(str(exc))
+
+    @sessions.command("recover")
+    def recover_cmd(
+        path: Annotated[Path, typer.Argument(metavar="SESSION.h5")],
+        as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+    ) -> None:
+        """After a crash (rig run killed): clear the file's writer flags so that any HDF5 program opens it, and mark
+        the cut run interrupted, as rig run --resume would; no table needed, every recorded sample kept as it is.
+        Refused (nothing changed) while a live writer holds the file."""
+        from rig.session import SessionError, recover
+
+        try:
+            done = recover(path)
+        except (SessionError, OSError) as exc:
+            fail(str(exc))
+        if as_json:
+            sys.stdout.write(json.dumps(done.as_dict()) + "\n")
+            return
+        if not done.changed:
+            console.print(f"{path}: nothing to recover (no writer flags set, no run left running)", highlight=False)
+            return
+        cut = ", ".join(done.interrupted) or "none"
+        console.print(f"{path}: recovered — writer flags cleared (were 0x{done.flags:02x}), runs marked interrupted: "
+                      f"{cut}; continue the session with rig run --resume {path}", highlight=False)

@@ -1,6 +1,7 @@
 """Fuzz the record readers: real-layout files, mutated; only `RecordError` may escape.
 
-Each case takes a file in one of the real layouts (tests/data/records, and an own .h5 record written here),
+Each case takes a file in one of the real layouts (tests/data/records, an own .h5 record written here, and
+variants with CSMIP end lines, CR CR LF line ends and a vertical PEER component named on line 2),
 applies a few mutations (delete, duplicate or replace a line, flip a bit, insert a token, truncate) and
 reads the result. Either the reader raises `RecordError` naming the file, or the mutated file was still
 valid and gives a valid `GroundMotion`: dt finite and > 0, every channel finite with the same length as
@@ -40,6 +41,8 @@ FORMATS: dict[str, tuple[str, dict[str, str]]] = {
     "cosmos-1-channel": ("cosmos_sine.V2", {}),
     "cosmos-3-channels": ("cosmos_3chan.V2C", {}),
     "cosmos-touching-fields": ("cosmos_touching.v1", {}),
+    "cosmos-csmip-end-cr-cr-lf": ("csmip_end_crcrlf.V2", {}),
+    "at2-cr-cr-lf-vertical-on-line-2": ("RSN6_crcrlf_HNZ.AT2", {}),
 }
 
 TOKENS = [
@@ -51,6 +54,8 @@ TOKENS = [
     b"End-of-data for Chan  1 acceleration", b"     401", b"     400", b"    -999", b"-999.000000", b"(04)", b"(02)",
     b"units=g(02)", b"Format=(8F10.5)", b"(1E15.6)", b" 100 Integer-header values follow on  10 lines",
     b"with 14 text lines", b"velocity", b"|", b"-123.456-234.567",
+    b"/&  ----------  End of data for channel  1  ----------", b"\r\r\n", b"\r\r", b"     0", b"    2000",
+    b"CORRECTED ACCELEROGRAM DATA", b"UNCORRECTED ACCELEROGRAM DATA", b", UP", b", HNZ", b", 090", b"-UP",
 ]
 
 _offset = st.floats(min_value=0.0, max_value=1.0, allow_nan=False, exclude_max=True)
@@ -112,6 +117,11 @@ def workdir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     for path in DATA.iterdir():
         shutil.copy(path, root / path.name)
     write_record(read_record_file(DATA / "three_components.csv"), root / "record.h5")
+    csmip_end = (DATA / "cosmos_sine.V2").read_bytes().replace(
+        b"End-of-data for Chan  1 acceleration", b"/&  ----------  End of data for channel  1  ----------")
+    (root / "csmip_end_crcrlf.V2").write_bytes(csmip_end.replace(b"\n", b"\r\r\n"))
+    vertical = (DATA / "RSN6_IMPVALL.I_I-ELC-UP.AT2").read_bytes().replace(b"Array #9, UP", b"Array #9, HNZ")
+    (root / "RSN6_crcrlf_HNZ.AT2").write_bytes(vertical.replace(b"\n", b"\r\r\n"))
     return root
 
 

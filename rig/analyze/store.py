@@ -32,7 +32,7 @@ import h5py
 import numpy as np
 
 from rig import __version__
-from rig.session import SessionError
+from rig.session import SessionError, crashed_message
 from rig.session.atomic import SessionFile
 from rig.session.locks import open_locked
 from rig.session.schema import iso_now
@@ -65,9 +65,8 @@ def locked(path: Path) -> Iterator[SessionFile]:
                                f"open for writing); analyse it once the session has ended ({exc})") from None
     file = SessionFile(path, fd)
     try:
-        if file.superblock().flags:
-            raise SessionBusyError(f"{path}: the file is marked open for writing: a run is being recorded, or its "
-                                   "writer died — end the session, or `rig run --resume` it, before analysing")
+        if file.superblock().flags:  # we hold the writer's lock, so no live writer: it was killed
+            raise SessionBusyError(crashed_message(path))
         yield file
     finally:
         file.close()

@@ -16,6 +16,11 @@ A record spec is one of:
 * for `load_records` only, a bare suite name: ``fema-farfield`` (44), ``fema-nearfield`` (56), ``fema``
   (both, 100 horizontal components) or ``library`` (every library record).
 
+A record file's component must fit its place (`component`): a file that holds a vertical component is
+refused as a horizontal one (alone or in ``H1+H2``) unless ``accept_vertical`` (``--accept-vertical``) says
+that it is meant to drive surge alone; a horizontal one is refused in the ``UP`` place. An unknown
+orientation (COSMOS "Other") is read with a `RecordWarning`.
+
 ``dt`` [s] and ``units`` (``--dt``, ``--units`` on the CLI) are for record files that do not say them;
 where a file does, they must agree with it; suites and library records refuse them. Every record comes
 back as a `GroundMotion` (dt in s, acceleration in g).
@@ -26,6 +31,7 @@ from __future__ import annotations
 import difflib
 from pathlib import Path
 
+from .component import RecordWarning
 from .cosmos import read_cosmos
 from .csvfile import read_csv
 from .fema import SUITES, load_suite, load_suite_record, suite_names
@@ -63,6 +69,7 @@ __all__ = [
     "GroundMotion",
     "Imported",
     "RecordError",
+    "RecordWarning",
     "default_library_dir",
     "expand_suite",
     "import_records",
@@ -130,15 +137,20 @@ def _refuse_file_options(spec: str, dt: float | None, units: str | None) -> None
         raise RecordError(f"{spec!r} has its own dt and units; expected dt/units only with a record file")
 
 
-def _load_file(spec: str, dt: float | None, units: str | None) -> GroundMotion:
+def _load_file(spec: str, dt: float | None, units: str | None, accept_vertical: bool) -> GroundMotion:
     """A record file by path or an ``H1+H2[+UP]`` component set."""
     if split_components(spec) is None and not Path(spec).expanduser().exists():
         raise RecordError(f"{spec!r} is neither a record nor an existing file (no such file); {_spec_help()}")
-    return read_file_spec(spec, dt=dt, units=units)
+    return read_file_spec(spec, dt=dt, units=units, accept_vertical=accept_vertical)
 
 
 def load_record(
-    spec: str, *, dt: float | None = None, units: str | None = None, library: str | Path | None = None
+    spec: str,
+    *,
+    dt: float | None = None,
+    units: str | None = None,
+    library: str | Path | None = None,
+    accept_vertical: bool = False,
 ) -> GroundMotion:
     """One record from a spec (see the module docstring).
 
@@ -147,6 +159,8 @@ def load_record(
         dt: time step [s] of a record file that does not give one.
         units: acceleration unit of a record file that does not give one (``g``, ``cm/s/s``, ``m/s/s``, …).
         library: the record library directory (default: `library_dir`).
+        accept_vertical: a record file that holds only a vertical component may drive surge alone (refused
+            otherwise, see `component.check_place`).
     """
     spec = spec.strip()
     if not spec:
@@ -178,11 +192,16 @@ def load_record(
     if sep and _looks_like_suite(prefix) and not Path(spec).exists():
         valid = ", ".join((*SUITES, *SUITE_ALIASES, LIBRARY))
         raise RecordError(f"unknown record suite {prefix!r} in {spec!r}; valid suites: {valid}")
-    return _load_file(spec, dt, units)
+    return _load_file(spec, dt, units, accept_vertical)
 
 
 def load_records(
-    spec: str, *, dt: float | None = None, units: str | None = None, library: str | Path | None = None
+    spec: str,
+    *,
+    dt: float | None = None,
+    units: str | None = None,
+    library: str | Path | None = None,
+    accept_vertical: bool = False,
 ) -> list[GroundMotion]:
     """All records a spec names: a whole suite (``fema-farfield``, ``fema-nearfield``, ``fema``), the whole
     ``library``, or one record (`load_record`)."""
@@ -194,4 +213,4 @@ def load_records(
     if suites is not None:
         _refuse_file_options(name, dt, units)
         return [motion for suite in suites for motion in load_suite(suite)]
-    return [load_record(spec, dt=dt, units=units, library=library)]
+    return [load_record(spec, dt=dt, units=units, library=library, accept_vertical=accept_vertical)]

@@ -18,6 +18,13 @@ are a sequence of blocks, one per channel and quantity; each repeats the full he
        ...
     End-of-data for Chan  1 acceleration
 
+CSMIP-processed files end each block with ``/&  ----------  End of data for channel  1  ----------``
+instead; both are end lines (the data ends where the data header said it would).
+
+Files in the older CSMIP/DMG format (first line ``CORRECTED ACCELEROGRAM``, ``UNCORRECTED ACCELEROGRAM
+DATA`` or, V3, ``RESPONSE AND FOURIER AMPLITUDE SPECTRA``; no ``(Format v…)``) are refused with an error
+naming that format and pointing to the COSMOS ``.V1C``/``.V2C`` files CESMD distributes for the same record.
+
 Header numbers are 1-based, as in the COSMOS tables. The reader walks the blocks by their announced
 counts (text lines, header values and lines, comment lines, data values) and needs an ``End-of-data``
 line after each block's values, so any count that disagrees with the lines is an error, never a silently
@@ -31,11 +38,14 @@ skipped. The unit comes from the code in parentheses in the data header (integer
 agree): 02 = g, 04 = cm/s², 10 = gal; other codes (in/s², counts, …) are refused. dt is real-header
 value 62 in milliseconds; unknown (the file's ``-999`` marker) or <= 0 is an error.
 
-Channels (integer-header value 54: azimuth 0-360° for a horizontal sensor, or a COSMOS code: 400 Up,
-401 Down, 402 vertical of unstated sense, 500/501 radial/transverse, 600/601 longitudinal/tangential,
-700/701 horizontal of unknown azimuth, 2000 other):
+Channels (integer-header value 54: azimuth 1-360° for a horizontal sensor, north = 360, or a COSMOS code:
+400 Up, 401 Down, 402 vertical of unstated sense, 500/501 radial/transverse, 600/601
+longitudinal/tangential, 700/701 horizontal of unknown azimuth, 2000 other; 0, other numbers and the
+unknown marker are "unknown orientation"):
 
-* one acceleration channel → ``acc_h`` (whatever its orientation);
+* one acceleration channel → ``acc_h``; ``provenance["component"]`` says whether it is horizontal, vertical
+  or unknown (`component`): a lone vertical is refused by `load_record` unless accepted, an unknown one is
+  read with a `RecordWarning`;
 * two horizontal, or two horizontal and one vertical (CESMD free-field files) → one bidirectional record:
   the first horizontal in file order → ``acc_h``, the second → ``acc_h2``, the vertical → ``acc_v``. They
   must share dt and the number of samples;
@@ -57,6 +67,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from .component import HORIZONTAL, UNKNOWN, VERTICAL, component, warn
 from .motion import GroundMotion, array_sha256
 from .source import DT_RTOL, TextSource, given_dt, located, matching_dt, matching_unit, read_source
 from .units import TO_G, given_unit, parse_unit
@@ -104,7 +115,8 @@ _UNITS_RE = re.compile(r"\bunits\s*=\s*(?P<name>[^(,]*?)\s*(?:\(\s*(?P<code>\d+)
 _FORMAT_RE = re.compile(
     r"\bFormat\s*=\s*\(\s*(?P<count>\d*)\s*(?P<kind>ES|EN|[IFEDG])\s*(?P<width>\d+)(?:\.\d+)?\s*\)", re.I
 )
-_END_RE = re.compile(r"^\s*End[- ]of[- ]data\b", re.I)
+_END_RE = re.compile(r"^\s*(?:/&)?[\s-]*End[- ]of[- ]data\b", re.I)
+_DMG_RE = re.compile(r"^\s*(?:(?:UN)?CORRECTED\s+ACCELEROGRAM|RESPONSE\s+AND\s+FOURIER)\b", re.I)
 _INTEGER_RE = re.compile(r"[-+]?\d+")
 
 _INT_EXAMPLE = "' 100 Integer-header values follow on  10 lines, Format= (10I8)'"
@@ -304,6 +316,13 @@ def _text_header(src: TextSource, start: int) -> tuple[int, int, float]:
     """Number of text-header lines (from line 1) and the file's unknown-value markers (int, real)."""
     first = src.lines[start - 1]
     match = _TEXT_COUNT_RE.search(first)
+    if match is None and _DMG_RE.match(first):
+        raise src.error(
+            start,
+            f"this is a CSMIP/DMG-format file ({_shown(first)}), not COSMOS v01.20; expected a COSMOS file: download "
+            "the same record's COSMOS files (.V1C/.V2C) from CESMD (strongmotioncenter.org), which hold the same "
+            "channels",
+        )
     if match is None or int(match["count"]) == 0:
         raise src.error(
             start,
@@ -527,7 +546,9 @@ def _orientation(code: int, unknown: int) -> tuple[str, str]:
     """Kind ("horizontal", "vertical" or "other") and description of an orientation (integer value 54)."""
     if code == unknown:
         return "other", "unknown"
-    if 0 <= code <= 360:
+    if code == 0:
+        return "other", "0 (not a COSMOS azimuth, which runs 1-360 with north = 360)"
+    if 1 <= code <= 360:
         return "horizontal", f"{code} deg"
     if code in _VERTICAL_CODES:
         return "vertical", _ORIENTATIONS[code]
@@ -610,6 +631,14 @@ def _roles(src: TextSource, channels: list[_Channel]) -> dict[str, _Channel]:
     return roles
 
 
+def _component(channel: _Channel) -> dict[str, Any]:
+    """The provenance entry ``component`` (`component`) of a one-channel file."""
+    kind = {"horizontal": HORIZONTAL, "vertical": VERTICAL}.get(channel.kind, UNKNOWN)
+    code = channel.block.ints.values[INT_ORIENTATION - 1]
+    said_by = f"COSMOS orientation code {code}: {channel.orientation}, chan {channel.number}"
+    return component(kind, said_by, channel.block.ints.line_of(INT_ORIENTATION))
+
+
 def _check_same_grid(src: TextSource, first: _Channel, others: list[_Channel]) -> None:
     """The channels of one record share dt (`DT_RTOL`) and the number of samples."""
     for other in others:
@@ -651,6 +680,13 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
         raise src.error(blocks[0].line, f"no acceleration block (found {found}); expected at least one "
                                         "acceleration block (a V1 or V2 acceleration file)")
     channels = [_channel(src, b, given, units) for b in accelerations]
+    for channel in channels:
+        if channel.kind == "other":
+            warn(
+                f"{path}:{channel.block.ints.line_of(INT_ORIENTATION)}: chan {channel.number} has orientation "
+                f"{channel.orientation} (integer-header value {INT_ORIENTATION}); its direction is unknown, check it "
+                "before playing it"
+            )
     roles = _roles(src, channels)
     first = roles["h"]
     provenance = {
@@ -665,6 +701,7 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
             for b in blocks
         ],
         "channels": {role: channel.provenance() for role, channel in roles.items()},
+        **({"component": _component(first)} if len(roles) == 1 else {}),
         "npts": first.block.npts,
         "dt": first.dt,
         "sha256": array_sha256(first.acc),

@@ -147,19 +147,21 @@ def import_records(
     units: str | None = None,
     directory: str | Path | None = None,
     replace: bool = False,
+    accept_vertical: bool = False,
 ) -> list[Imported]:
     """Read each source (a record file or ``H1+H2[+UP]``) and store it in the library.
 
     Every source is read and every name checked before anything is written, so a bad file or a taken
     name stores nothing. Each record is named ``name`` (one source only) or after its source (file stem,
-    or the stems joined by ``+``); its provenance gains ``imported`` (UTC, ISO 8601).
+    or the stems joined by ``+``); its provenance gains ``imported`` (UTC, ISO 8601). A file that holds only a
+    vertical component is refused unless ``accept_vertical`` (`rig.records.component.check_place`).
     """
     if not sources:
         raise RecordError("nothing to import; expected a record file or H1+H2[+UP]")
     if name is not None and len(sources) != 1:
         raise RecordError(f"a name was given for {len(sources)} records; expected one record with a name")
     root = library_dir(directory)
-    motions = [read_file_spec(spec, dt=dt, units=units) for spec in sources]
+    motions = [read_file_spec(spec, dt=dt, units=units, accept_vertical=accept_vertical) for spec in sources]
     names = [check_name(name if name is not None else m.name) for m in motions]
     paths = [record_path(n, root) for n in names]
     for i, path in enumerate(paths):

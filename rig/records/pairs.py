@@ -6,10 +6,12 @@ Example (PEER NGA-West2 names)::
 
 The files, in this order, are the first horizontal (``acc_h``, drives surge), the second horizontal
 (``acc_h2``, drives sway) and, optionally, the vertical component (``acc_v``, positive up as in PEER's
-``-UP`` files). Each is read by its format's reader (`files`) and must hold one component; a file whose
-name ends like a vertical one (``-UP``, ``UP``, ``-V``, ``DWN``, ``-DN``) is refused in a horizontal
-place. All components must have the same dt (relative tolerance 1e-6) and the same number of samples:
-otherwise the error names both files and both values. The record's name joins the file stems with ``+``.
+``-UP`` files). Each is read by its format's reader (`files`) and must hold one component, in its place
+(`component.check_place`): a file that says it holds a vertical component (COSMOS orientation code, PEER line
+2, a name ending in ``-UP``, ``UP``, ``-V``, ``DWN``, ``-DN``, ``.HNZ``) is refused in a horizontal place, one
+that says it holds a horizontal component is refused in the vertical place. All components must have the
+same dt (relative tolerance 1e-6) and the same number of samples: otherwise the error names both files and
+both values. The record's name joins the file stems with ``+``.
 
 A spec is a component set when it contains ``+`` and is not itself the path of an existing file.
 """
@@ -17,17 +19,16 @@ A spec is a component set when it contains ``+`` and is not itself the path of a
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from pathlib import Path
 
+from .component import check_place, stem_says_vertical
 from .files import read_record_file
 from .motion import GroundMotion, RecordError, array_sha256
 from .source import DT_RTOL
 
 SEPARATOR = "+"
 _ROLES = ("h", "h2", "v")
-_VERTICAL_NAME_RE = re.compile(r"(?:[-_.](?:UP|V|DWN|DN)|UP|DWN)$", re.I)
 
 
 def split_components(spec: str) -> list[str] | None:
@@ -47,7 +48,7 @@ def read_components(
     if len(paths) not in (2, 3):
         raise RecordError(f"expected 2 or 3 component files (H1+H2[+UP]), got {len(paths)}")
     for place, path in enumerate(paths[:2], start=1):
-        if _VERTICAL_NAME_RE.search(Path(path).stem):
+        if stem_says_vertical(path):
             raise RecordError(
                 f"{path}: horizontal component {place} is named like a vertical one; "
                 "expected H1+H2+UP with the vertical component last"
@@ -56,6 +57,8 @@ def read_components(
     for path, motion in zip(paths, motions, strict=True):
         if motion.acc_h2 is not None or motion.acc_v is not None:
             raise RecordError(f"{path}: holds several components; expected one component per file in H1+H2[+UP]")
+    for path, motion, role in zip(paths, motions, _ROLES, strict=False):
+        check_place(path, motion, role)
     first, path1 = motions[0], paths[0]
     for path, motion in zip(paths[1:], motions[1:], strict=True):
         if not math.isclose(motion.dt, first.dt, rel_tol=DT_RTOL):
@@ -88,9 +91,18 @@ def read_components(
     )
 
 
-def read_file_spec(spec: str, *, dt: float | None = None, units: str | None = None) -> GroundMotion:
-    """A record file, or the component set of an ``H1+H2[+UP]`` spec."""
+def read_file_spec(
+    spec: str, *, dt: float | None = None, units: str | None = None, accept_vertical: bool = False
+) -> GroundMotion:
+    """A record file, or the component set of an ``H1+H2[+UP]`` spec.
+
+    A file that holds only a vertical component is refused unless ``accept_vertical`` (the user's explicit
+    wish to drive surge with it, ``--accept-vertical``); see `component.check_place`.
+    """
     parts = split_components(spec)
     if parts is not None:
         return read_components(parts, dt=dt, units=units)
-    return read_record_file(spec, dt=dt, units=units)
+    motion = read_record_file(spec, dt=dt, units=units)
+    if motion.acc_h2 is None and motion.acc_v is None:
+        check_place(spec, motion, "alone", accept_vertical=accept_vertical)
+    return motion

@@ -15,6 +15,9 @@ CRLF or CR. Any deviation (garbled header, non-numeric token, NaN, overflow, an 
 acceleration above 100 g, dt <= 0, a sample count different from NPTS, bytes that are not UTF-8 text)
 raises `RecordError` naming the file, the line and what was expected: a record is never silently
 truncated or padded.
+
+The component (horizontal or vertical) comes from the word after the last comma of line 2 and from the file
+name (`component.peer_component`), in ``provenance["component"]``.
 """
 
 from __future__ import annotations
@@ -24,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .component import peer_component
 from .motion import GroundMotion, array_sha256
 from .source import TextSource, given_dt, matching_dt, matching_unit, read_source
 from .units import TO_G, UNIT_HELP, given_unit, parse_unit
@@ -126,6 +130,7 @@ def read_at2(path: str | Path, *, dt: float | None = None, units: str | None = N
         "file": path.name,
         "format": style,
         "title": src.lines[1].strip(),
+        "component": peer_component(src.lines[1], path),
         "lines": len(src.lines),
         "units_in_file": unit_text,
         "to_g": TO_G[unit],

@@ -2,8 +2,8 @@
 
 Every text reader (``.AT2``, plain text, CSV) starts here, so that all of them agree on what a readable
 file is: UTF-8 (an initial byte-order mark is dropped; ASCII is UTF-8), no NUL bytes, lines ended by LF,
-CRLF or CR. Each problem becomes a `RecordError` whose message starts with ``file:line:`` and says what
-was expected.
+CRLF, CR or CR CR LF (one line break, as a text editor shows it). Each problem becomes a `RecordError` whose
+message starts with ``file:line:`` and says what was expected.
 """
 
 from __future__ import annotations
@@ -24,7 +24,9 @@ DT_RTOL = 1e-6
 
 _NUMBER_RE = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eEdD][-+]?\d+)?")
 _NONFINITE_RE = re.compile(r"[-+]?(?:nan|inf|infinity)", re.I)
-_LINE_BREAK_RE = re.compile(r"\r\n|\r|\n")
+#: A line break: LF, CR LF, CR, or CR CR LF (written by some archives' double conversion), counted as one
+#: line as a text editor shows it.
+_LINE_BREAK_RE = re.compile(r"\r*\n|\r")
 _BOM = b"\xef\xbb\xbf"
 
 
@@ -36,7 +38,7 @@ def located(path: Path, line: int | None, message: str) -> RecordError:
 
 def _line_and_column(raw: bytes, offset: int) -> tuple[int, int]:
     """1-based line and column of a byte offset (lines as `TextSource.lines` counts them)."""
-    head = raw[:offset].replace(b"\r\n", b"\n").replace(b"\r", b"\n")
+    head = re.sub(rb"\r*\n|\r", b"\n", raw[:offset])
     return head.count(b"\n") + 1, len(head) - (head.rfind(b"\n") + 1) + 1
 
 

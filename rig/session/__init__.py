@@ -9,7 +9,9 @@ Writing::
     run.end("completed")
     log.close()
 
-Reading (any process, any time, also during a run or after a crash): `read_session`, `list_sessions`, or
+After a crash (writer killed): `writer_state` says ``"crashed"``, `recover` (``rig sessions recover``) clears the
+writer flags and marks the cut run interrupted without a table. Reading (any process, any time, also during a run
+or after a crash): `read_session`, `list_sessions`, or
 ``h5py.File(path, "r", swmr=True)`` — see `rig.session.reader`. Layout and units: `rig.session.schema`.
 Crash safety: `rig.session.atomic` (structure changes) and `rig.session.writer` (samples).
 """
@@ -17,26 +19,35 @@ Crash safety: `rig.session.atomic` (structure changes) and `rig.session.writer` 
 from .errors import SessionError, SessionExistsError
 from .log import FLUSH_INTERVAL, MAX_FLUSH_INTERVAL, SessionLog
 from .reader import list_sessions, open_session, read_session, writer_flags
+from .recover import CLOSED, CRASHED, WRITING, Recovery, crashed_message, recover, recover_command, writer_state
 from .run import RunLog
 from .runinfo import RunInfo
 from .schema import DONE_STATUSES, FINAL_STATUSES, RUNNING, SCHEMA
 from .writer import WriterStats
 
 __all__ = [
+    "CLOSED",
+    "CRASHED",
     "DONE_STATUSES",
     "FINAL_STATUSES",
     "FLUSH_INTERVAL",
     "MAX_FLUSH_INTERVAL",
     "RUNNING",
     "SCHEMA",
+    "WRITING",
+    "Recovery",
     "RunInfo",
     "RunLog",
     "SessionError",
     "SessionExistsError",
     "SessionLog",
     "WriterStats",
+    "crashed_message",
     "list_sessions",
     "open_session",
     "read_session",
+    "recover",
+    "recover_command",
     "writer_flags",
+    "writer_state",
 ]

@@ -63,3 +63,21 @@ def open_locked(path: Path) -> int:
         os.close(fd)
         raise
     return fd
+
+
+def writer_holds(path: Path) -> bool:
+    """True if a session log (in any process, this one included) holds the writer's lock on ``path`` now.
+
+    Asks the kernel which lock a writer's request would meet (``F_OFD_GETLK``) without taking one, on a
+    read-only descriptor; a killed writer's lock is gone with its process, so a crashed file answers False."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except FileNotFoundError:
+        raise SessionError(f"{path}: no such session file") from None
+    except OSError as exc:
+        raise SessionError(f"{path}: cannot open the session file ({exc.strerror})") from None
+    try:
+        answer = fcntl.fcntl(fd, fcntl.F_OFD_GETLK, _FLOCK.pack(fcntl.F_WRLCK, os.SEEK_SET, 0, 0, 0))
+    finally:
+        os.close(fd)
+    return _FLOCK.unpack(answer)[0] != fcntl.F_UNLCK

@@ -25,10 +25,14 @@ import numpy as np
 
 from . import schema, superblock
 from .errors import SessionError
+from .locks import writer_holds
 
 #: How long `read_session` keeps retrying a file caught mid-update [s].
 RETRY_SECONDS = 5.0
 _RETRYABLE = (OSError, RuntimeError, KeyError, ValueError)
+
+#: `writer_state` values.
+CLOSED, WRITING, CRASHED = "closed", "writing", "crashed"
 
 
 def open_session(path: str | os.PathLike[str], *, timeout: float = RETRY_SECONDS) -> h5py.File:
@@ -155,16 +159,27 @@ def writer_flags(path: str | os.PathLike[str]) -> int:
         return superblock.parse(f.read(superblock.SIZE), path).flags
 
 
+def writer_state(path: str | os.PathLike[str]) -> str:
+    """``"writing"`` if a live session log holds the file (`rig.session.locks`), ``"crashed"`` if its writer flags
+    are set but no writer holds it (the writer was killed: `rig.session.recover`), else ``"closed"``."""
+    path = Path(path)
+    if writer_holds(path):
+        return WRITING
+    return CRASHED if writer_flags(path) else CLOSED
+
+
 def list_sessions(directory: str | os.PathLike[str]) -> list[dict[str, Any]]:
     """Session files (``*.h5``/``*.hdf5`` with the session schema) in ``directory``, oldest first: ``path``,
     ``created``, ``software_version``, ``runs`` (count), ``statuses`` ({status: count}), ``open_for_write``
-    (a run is being recorded, or its writer died and the session was not resumed). Other files are skipped."""
+    (a run is being recorded, or its writer died and the session was not resumed), ``state`` (`writer_state`:
+    ``"writing"``, ``"crashed"`` or ``"closed"``). Other files are skipped."""
     found = []
     for path in sorted(Path(directory).iterdir()):
         if path.name.startswith(".") or path.suffix.lower() not in (".h5", ".hdf5") or not path.is_file():
             continue
         try:
             flags = writer_flags(path)
+            state = writer_state(path)
             session = read_session(path, data=False, timeout=1.0)
         except (SessionError, OSError, ValueError):
             continue
@@ -173,6 +188,7 @@ def list_sessions(directory: str | os.PathLike[str]) -> list[dict[str, Any]]:
             statuses[str(run["status"])] = statuses.get(str(run["status"]), 0) + 1
         found.append({"path": str(path), "created": session["created"],
                       "software_version": session["software_version"], "runs": len(session["runs"]),
-                      "statuses": statuses, "open_for_write": bool(flags)})
+                      "statuses": statuses, "open_for_write": bool(flags),
+                      "state": state})
     found.sort(key=lambda s: (str(s["created"]), s["path"]))
     return found
