@@ -29,7 +29,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
-from rig.emulator import EmulatorError, EmulatorProcess, specimen_flags
+from rig.emulator import EmulatorError, EmulatorProcess, parse_speed, specimen_flags, speed_flags
 from rig.orchestrator import Orchestrator, OrchestratorState
 from rig.orchestrator import Progress as RunProgress
 from rig.orchestrator.states import OperatorDeclinedError
@@ -145,7 +145,7 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
         if key_file is None:
             key_file = Path(scratch) / "session.key"
             key_file.write_text(secrets.token_hex(32) + "\n")
-        flags = [*specimen_flags(sequence.bodies), "--speed", f"{speed:g}"]
+        flags = [*specimen_flags(sequence.bodies), *speed_flags(speed)]
         emulator = EmulatorProcess.start(EMULATOR_LISTEN, *flags, key_file=key_file)
         counters: dict[str, Any] = {}
         try:
@@ -266,7 +266,9 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             yes: Annotated[bool, typer.Option("--yes", "-y", help="unattended: no operator prompts")] = False,
             key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                                "$SHAKETABLE_MAVLINK_KEY)")] = None,
-            speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+            speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
+                                                 help="with --emulate: controller time per real time, or max "
+                                                      "(virtual time: as fast as the emulator computes)")] = 1.0,
             service: Annotated[str | None, typer.Option(help="have a rig service (rig serve) at this zenoh "
                                                              "endpoint run it, e.g. tcp/127.0.0.1:7447")] = None,
             ) -> None:

@@ -9,6 +9,7 @@ JSON object on stdout when it stops (SIGINT).
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -35,6 +36,25 @@ def specimen_flags(bodies: Iterable[PlacedBody]) -> list[str]:
             options.append(f"mass={body.mass!r}")
         flags += ["--body", f"{body.b!r}x{body.h!r}@{placed.x!r},{placed.y!r};" + ";".join(options)]
     return flags
+
+
+def parse_speed(text: str) -> float:
+    """A ``--speed`` option: controller time per real time (a factor > 0), or ``max``: virtual time (math.inf),
+    the emulator as fast as it computes (``docs/table-controller.md``). ValueError names what is wrong."""
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = math.nan
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"--speed: expected a factor > 0 or max, got {text!r}")
+    return speed
+
+
+def speed_flags(speed: float) -> list[str]:
+    """The emulator's ``--speed`` flag for ``speed`` (math.inf: ``max``)."""
+    return ["--speed", "max" if math.isinf(speed) else f"{speed:g}"]
 
 
 class EmulatorError(RuntimeError):

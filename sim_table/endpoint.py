@@ -81,6 +81,15 @@ class LegFeedback(Protocol):
     def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray, commanded: np.ndarray) -> None: ...
 
 
+@runtime_checkable
+class HeldAnswers(Protocol):
+    """An endpoint whose command answers carry no controller time (MAVLink's COMMAND_ACK): it holds the answers
+    given during a batch and sends them when the loop says, after the batch's statuses, so that the host receives
+    the status showing what a command did before its answer, and a status taken after it next."""
+
+    def send_answers(self) -> bool: ...
+
+
 def listen_scheme(url: str) -> str:
     """The scheme of a listen URL, checked against the known endpoints (ValueError names the choices)."""
     scheme = urlsplit(url).scheme

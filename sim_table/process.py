@@ -14,8 +14,19 @@ what the batch produced:
    answers, heartbeats.
 
 Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep 100 ms of **real** time at any
-``--speed`` (they guard the link, whose heartbeats keep real time). Specimens are placed afresh (upright, at
-rest, where ``--body`` puts them) at every START_STREAM: the emulator is also the operator.
+``--speed`` (they guard the link, whose heartbeats keep real time).
+
+``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
+as fast as it computes them, :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a move, a
+stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose end has
+not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a status
+tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time. Host
+messages are stamped with the controller time they were taken at and applied before the next tick; the link
+watchdogs count host-monotonic time while the messages are applied (a busy emulator does not trip them). With
+``--delay`` a message is held that long in real time. See ``docs/table-controller.md``.
+
+Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the emulator is
+also the operator.
 
 Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
 drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S`` seizes leg LEG's actuator (it
@@ -50,7 +61,7 @@ from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
-from sim_table.endpoint import EndpointOptions, LegFeedback, listen_scheme, open_endpoint
+from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.scene import Specimen
 from sim_table.specimens import SpecimenScene
 
@@ -60,6 +71,15 @@ the vectorised kinematics; one tick a wake would double the emulator's load)."""
 
 MAX_BATCH = 200
 """Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
+
+VIRTUAL_BATCH = 10
+"""Ticks an iteration in virtual time: statuses (every 20 ticks) reach the host while the batch after runs."""
+
+HOLD_POLL_S = 0.0005
+"""How long virtual time sleeps [s, real time] between looks at the network while it holds for setpoints."""
+
+_AT_REST = frozenset({State.IDLE, State.ARMED, State.FAULTED, State.EMERGENCY_STOPPED})
+"""States in which virtual time ticks at real time (nothing to hurry)."""
 
 STATUS_PERIOD_NS = 20_000_000
 """Status period [ns, controller time] (50 Hz)."""
@@ -99,8 +119,8 @@ class EmulatorConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.speed) and self.speed > 0):
-            raise ValueError(f"speed must be > 0, got {self.speed!r}")
+        if not (self.speed > 0):  # math.inf: virtual time (--speed max)
+            raise ValueError(f"speed must be > 0 or max, got {self.speed!r}")
         for name in ("drive_fault_at", "stall_at"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value >= 0):
@@ -123,8 +143,14 @@ class Emulator:
         table = config.table
         self.tick_ns = round(1e9 / table.controller_rate)
         dt = self.tick_ns * 1e-9
-        self.core = ControllerCore(table, tick_ns=self.tick_ns,
-                                   watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
+        self.virtual = math.isinf(config.speed)
+        """Virtual time (``--speed max``, module docstring)."""
+        if self.virtual:
+            self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(WATCHDOG_SECONDS * 1e9),
+                                       link_clock=time.monotonic_ns)
+        else:
+            self.core = ControllerCore(table, tick_ns=self.tick_ns,
+                                       watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
         self.actuators = Actuators(table, dt, config.actuators, seed=config.seed)
         self.track = PlateTrack(dt)
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
@@ -146,16 +172,28 @@ class Emulator:
         self._cpu_ns = 0
         self._lag_max_ns = 0
         self._overturns: list[dict[str, float]] = []
+        self._clock = 0  # virtual time: the last tick run [ns]
+        self._rest_credit = 0  # virtual time at rest: real time not yet ticked [ns]
+        self._held_at: int | None = None  # virtual time: the time a hold's status was sent at
+        self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
+        self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
 
     def controller_time(self, host_ns: int) -> int:
-        """Controller time [ns] at host monotonic time ``host_ns``."""
+        """Controller time [ns] at host monotonic time ``host_ns`` (virtual time: the last tick's, whatever
+        ``host_ns``)."""
+        if self.virtual:
+            return self._clock
         return int((host_ns - self._start) * self.config.speed)
 
     def run(self, stop: threading.Event) -> None:
-        """Start the clock and the endpoint, tick in real time (× speed) until ``stop`` is set; then send the last
-        accelerometer samples."""
+        """Start the clock and the endpoint, tick in real time (× speed) or virtual time until ``stop`` is set;
+        then send the last accelerometer samples."""
         self._start = deadline = time.monotonic_ns()
         self.endpoint.start()
+        if self.virtual:
+            self._run_virtual(stop)
+            self.endpoint.flush_accel()
+            return
         while not stop.is_set():
             deadline += WAKE_PERIOD_NS
             now = time.monotonic_ns()
@@ -184,6 +222,74 @@ class Emulator:
             oldest = (self.controller_time(now) - int(times[0])) / self.config.speed  # how late its first tick ran
             self._lag_max_ns = max(self._lag_max_ns, round(oldest))
         self.endpoint.service(time.monotonic_ns(), self.core.state)
+
+    def _run_virtual(self, stop: threading.Event) -> None:
+        """Virtual time (module docstring): tick while there is something to do, hold for setpoints, rest at real
+        time."""
+        last = time.monotonic_ns()
+        while not stop.is_set():
+            now = time.monotonic_ns()
+            self._rest_credit += now - last
+            last = now
+            count = self.step_virtual(now)
+            if count == VIRTUAL_BATCH:
+                time.sleep(0)  # let the endpoint's threads take the host's messages
+            elif self.core.state in _AT_REST:
+                time.sleep(WAKE_PERIOD_NS * 1e-9)
+            else:
+                time.sleep(HOLD_POLL_S)
+
+    def step_virtual(self, now: int) -> int:
+        """One iteration of virtual time at host time ``now`` [ns]: the ticks it may run (module docstring), or
+        the watchdogs, answers and a status while it holds; then send. How many ticks ran."""
+        cpu = time.thread_time_ns()
+        core = self.core
+        taken = self.endpoint.take(now)
+        for _, action in taken:  # stamped with the clock: due before the next tick
+            action(core)
+        self._pending.clear()
+        if core.state in _AT_REST:
+            count = min(self._rest_credit // self.tick_ns, MAX_BATCH)
+            self._rest_credit -= count * self.tick_ns
+        else:
+            self._rest_credit = 0
+            count = VIRTUAL_BATCH
+            until = core.buffered_until
+            if until is not None:
+                count = max(0, min(count, (until - self._next_tick) // self.tick_ns + 1))
+        if count:
+            times = self._next_tick + self.tick_ns * np.arange(count, dtype=np.int64)
+            self._next_tick = int(times[-1]) + self.tick_ns
+            self._batch(times)
+            self._clock = int(times[-1])
+            busy = time.monotonic_ns() - now
+            self._batches.append((count, busy))
+            self._ticks += count
+            self._busy_ns += busy
+            self._cpu_ns += time.thread_time_ns() - cpu
+        else:
+            self._hold()
+        self.endpoint.service(time.monotonic_ns(), core.state)
+        return int(count)
+
+    def _hold(self) -> None:
+        """Virtual time holds for setpoints: run the watchdogs, answer, and report the state and where the clock
+        holds (once a hold, and at every change)."""
+        core, endpoint = self.core, self.endpoint
+        core.watch()
+        changed = False
+        for event in core.take_events():
+            if isinstance(event, Done):
+                endpoint.command_done(event)
+            else:
+                changed = True
+                if event.new is State.STREAMING and self.scene is not None:
+                    self.scene.place(self._last_centre)
+        if changed or self._held_at != self._clock:
+            self._held_at = self._clock
+            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
+        if isinstance(endpoint, HeldAnswers) and endpoint.send_answers():
+            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
 
     def _batch(self, times: np.ndarray) -> None:
         core, endpoint = self.core, self.endpoint
@@ -218,7 +324,12 @@ class Emulator:
         for i, snap in statuses:
             pose = self.actuators.measure(step.lengths[i], step.poses[i])
             endpoint.send_status(replace(snap, pose=pose))
+        self._last_legs = step.lengths[-1], step.poses[-1]
+        if isinstance(endpoint, HeldAnswers) and endpoint.send_answers():  # then a status taken after the answers
+            pose = self.actuators.measure(step.lengths[-1], step.poses[-1])
+            endpoint.send_status(core.snapshot(int(times[-1]), pose))
         centre, rates, window = self.track.advance(step.poses)
+        self._last_centre = centre[-1]
         force = self.accelerometers.measure(window)
         for sensor in range(force.shape[1]):
             endpoint.add_accel(sensor, int(times[0]) - self.tick_ns, self.tick_ns, force[:, sensor])
@@ -274,7 +385,7 @@ class Emulator:
             "lag_max_ms": self._lag_max_ns * 1e-6,
             "controller_time_s": self.controller_time(time.monotonic_ns()) * 1e-9,
         }
-        return {"url": self.url, "speed": self.config.speed, "state": self.core.state.value,
+        return {"url": self.url, "speed": "max" if self.virtual else self.config.speed, "state": self.core.state.value,
                 "faults": [f.name for f in Fault if self.core.faults & f], **self.core.counters.as_dict(),
                 "link": self.endpoint.counters_dict(), "timing": timing, "overturns": self._overturns}
 
@@ -305,6 +416,19 @@ def parse_body(text: str) -> Specimen:
     return Specimen(body, x=x, y=y, **({"friction": extra["mu"]} if "mu" in extra else {}))
 
 
+def _speed(text: str) -> float:
+    """``--speed``: a factor > 0, or ``max`` (virtual time: math.inf)."""
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = math.nan
+    if not (math.isfinite(speed) and speed > 0):
+        raise argparse.ArgumentTypeError(f"expected a factor > 0 or max, got {text!r}")
+    return speed
+
+
 def _point(text: str) -> tuple[float, float, float]:
     try:
         x, y, z = (float(v) for v in text.split(","))
@@ -331,7 +455,9 @@ def _argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--listen", required=True,
                    help="the transport and address to listen on: mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE "
                         "(port 0: any free port) or canopen://CHANNEL?interface=…")
-    p.add_argument("--speed", type=float, default=1.0, help="controller time per real time")
+    p.add_argument("--speed", type=_speed, default=1.0,
+                   help="controller time per real time, or max: virtual time, as fast as the emulator computes "
+                        "while the host's setpoints allow (docs/table-controller.md)")
     p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F]",
                    help="a specimen b x h [m] at plate (x, y) [m], optionally its depth [m], mass [kg] and "
                         "friction coefficient; repeat for more (body ids 0, 1, … in this order)")
@@ -388,7 +514,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # bodies that overlap or do not fit the scene
         print(f"sim_table: {exc}", file=sys.stderr)
         return 2
-    print(f"sim_table: listening on {emulator.url} (speed {config.speed:g}, {len(config.specimens)} bodies, "
+    speed = "max" if emulator.virtual else f"{config.speed:g}"
+    print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
           f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
     try:
         emulator.run(stop)

@@ -252,3 +252,21 @@ def injected_drive_fault_under_delay(listen: str, key_file: Path, monkeypatch: p
 def connect_without_a_controller_times_out(url: str, key_file: Path) -> None:
     with pytest.raises(TableTimeoutError, match="no answer from the table controller"):
         open_table(url, key_file=str(key_file), connect_timeout=0.3).connect()
+
+
+def moves_are_shown_by_the_status(emulator: EmulatorProcess, key_file: Path) -> None:
+    """Right after SET_TILT and HOME return, ``status()`` shows the table armed where the move ended, again and
+    again (the emulator given a link delay and a fast clock, so that answers and statuses race)."""
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            for angle in (1.0, -0.5, 2.0, 0.0):
+                table.set_tilt(math.radians(angle))
+                status = table.status()
+                assert status.state == "armed" and status.pose[4] == pytest.approx(math.radians(angle), abs=1e-4)
+                table.home()
+                status = table.status()
+                assert status.state == "armed"
+                np.testing.assert_allclose(status.pose, np.zeros(6), atol=1e-4)
+    finally:
+        emulator.stop()

@@ -393,3 +393,8 @@ def test_another_table_name_at_the_same_address_hears_nothing(key_file: Path, pl
     wrong = plain.url.rsplit("/", 1)[0] + "/other"
     with pytest.raises(TableTimeoutError):
         open_table(wrong, key_file=str(key_file), connect_timeout=0.5).connect()
+
+
+def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+                                                              key_file=key_file), key_file)
