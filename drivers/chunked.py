@@ -13,7 +13,9 @@ estimated), and never before a status shows the controller within :data:`AHEAD_N
 clock that holds for setpoints: an emulator in virtual time, ``--speed max``, runs as fast as it computes but
 never past the setpoints it has; the host keeps it supplied and at most that far ahead). At real time the clock
 estimate rules and the bound never bites (statuses come every 20 ms). The first sample is due ``lead`` after the
-later of the clock estimate and the latest status (a controller holding its clock has reported where).
+later of the clock estimate and the latest status (a controller holding its clock has reported where), but no
+later than ``lead`` + :data:`AHEAD_NS` after that status (a clock that ran fast and now holds makes the estimate
+overshoot).
 
 Every chunk is **sent twice**: again right after the next chunk, one chunk period later and still
 ``lead`` minus a chunk period ahead (the last one just after itself). The controller drops the copy it already
@@ -105,7 +107,8 @@ class ChunkedStreamController(TableController):
         self._start_stream(first_seq)
         count = math.ceil(len(poses) / per_chunk)
         self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
-        t_start = max(self.clock.to_controller(time.monotonic_ns()), self.status().t_ns) + lead_ns
+        reported = self.status().t_ns  # the START_STREAM's status (virtual time: where the clock holds)
+        t_start = min(max(self.clock.to_controller(time.monotonic_ns()), reported), reported + AHEAD_NS) + lead_ns
         t_end = t_start + (len(poses) - 1) * spacing_ns
         lateness = np.zeros(count, dtype=np.int64)
         if on_start is not None:

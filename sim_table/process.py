@@ -22,7 +22,8 @@ stop, a stream whose setpoints are buffered — but never past the last buffered
 not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a status
 tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time. Host
 messages are stamped with the controller time they were taken at and applied before the next tick; the link
-watchdogs count host-monotonic time while the messages are applied (a busy emulator does not trip them). With
+watchdogs count :data:`VIRTUAL_WATCHDOG_SECONDS` of host-monotonic time between the moments the messages are
+applied (a busy emulator does not trip them). With
 ``--delay`` a message is held that long in real time. See ``docs/table-controller.md``.
 
 Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the emulator is
@@ -87,6 +88,11 @@ STATUS_PERIOD_NS = 20_000_000
 WATCHDOG_SECONDS = 0.1
 """Stream and heartbeat watchdogs [s, real time]."""
 
+VIRTUAL_WATCHDOG_SECONDS = 1.0
+"""Stream and heartbeat watchdogs in virtual time [s, host time]: the table waits, still, for setpoints it has not
+got, so host silence endangers nothing until the stream is over; a host busy logging a stream played several
+times faster than real time may pause its sender longer than 100 ms, and a silent host is still stopped."""
+
 TIMING_WINDOW = 100_000
 """Batches kept for the tick-time percentiles in the counters."""
 
@@ -130,6 +136,9 @@ class EmulatorConfig:
             if not (isinstance(leg, int) and 1 <= leg <= 6 and math.isfinite(at) and at >= 0):
                 raise ValueError(f"leg_stall must be (leg 1..6, >= 0 s), got {self.leg_stall!r}")
         scheme = listen_scheme(self.listen)
+        if math.isinf(self.speed) and scheme == "canopen":
+            raise ValueError("--speed max: CANopen has no virtual time (its master, the host, is the controller and "
+                             "paces the SYNC in real time)")
         if scheme in SIGNING_SCHEMES and self.key is None:
             raise ValueError(f"--listen {self.listen}: {scheme} signs motion commands and setpoints and needs the "
                              f"rig's signing key: give --key-file FILE or set {KEY_ENV} (64 hexadecimal digits)")
@@ -146,8 +155,8 @@ class Emulator:
         self.virtual = math.isinf(config.speed)
         """Virtual time (``--speed max``, module docstring)."""
         if self.virtual:
-            self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(WATCHDOG_SECONDS * 1e9),
-                                       link_clock=time.monotonic_ns)
+            self.core = ControllerCore(table, tick_ns=self.tick_ns,
+                                       watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9), link_clock=time.monotonic_ns)
         else:
             self.core = ControllerCore(table, tick_ns=self.tick_ns,
                                        watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
