@@ -149,7 +149,7 @@ class Done:
 
 @dataclass(frozen=True, eq=False)
 class Snapshot:
-    """What one status carries: controller time [ns], state, setpoint samples buffered, the last chunk accepted,
+    """What one status carries: controller time [ns], state, setpoint samples buffered, the newest chunk accepted,
     underruns, latched faults, refused commands and the measured pose (6,)."""
 
     t_ns: int
@@ -298,9 +298,10 @@ class ControllerCore:
             self._expected = (seq + 1) % SEQ_MODULUS
         else:
             self.counters.chunks_reordered += 1
+        if ahead < SEQ_MODULUS // 2:  # the newest chunk (a reordered older one arriving after it does not count)
+            self.last_chunk_seq = seq
         self._remember(seq)
         self.counters.chunks_accepted += 1
-        self.last_chunk_seq = seq
         self._last_chunk = self._link_time(t_ns)
         self._received_any = True
         margin = t_start_ns - t_ns

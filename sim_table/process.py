@@ -183,7 +183,7 @@ class Emulator:
         self._overturns: list[dict[str, float]] = []
         self._clock = 0  # virtual time: the last tick run [ns]
         self._rest_credit = 0  # virtual time at rest: real time not yet ticked [ns]
-        self._held_at: int | None = None  # virtual time: the time a hold's status was sent at
+        self._held_status: tuple[int, int] | None = None  # virtual time: (clock, host ns) of the last hold status
         self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
         self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
 
@@ -277,13 +277,14 @@ class Emulator:
             self._busy_ns += busy
             self._cpu_ns += time.thread_time_ns() - cpu
         else:
-            self._hold()
+            self._hold(now)
         self.endpoint.service(time.monotonic_ns(), core.state)
         return int(count)
 
-    def _hold(self) -> None:
+    def _hold(self, now: int) -> None:
         """Virtual time holds for setpoints: run the watchdogs, answer, and report the state and where the clock
-        holds (once a hold, and at every change)."""
+        holds (at once, then every :data:`STATUS_PERIOD_NS` of host time ``now`` [ns] — a lost status must not
+        leave the host waiting —, and at every change)."""
         core, endpoint = self.core, self.endpoint
         core.watch()
         changed = False
@@ -294,8 +295,9 @@ class Emulator:
                 changed = True
                 if event.new is State.STREAMING and self.scene is not None:
                     self.scene.place(self._last_centre)
-        if changed or self._held_at != self._clock:
-            self._held_at = self._clock
+        held = self._held_status
+        if changed or held is None or held[0] != self._clock or now - held[1] >= STATUS_PERIOD_NS:
+            self._held_status = (self._clock, now)
             endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
         if isinstance(endpoint, HeldAnswers) and endpoint.send_answers():
             endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))

@@ -27,7 +27,7 @@ from drivers.controller import StreamAbortedError, TableError, TableStatus, open
 from drivers.mavlink import MavlinkTable
 from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks
 from protocols.mavlink.signing import signing_timestamp
-from rig.drive import Drive, prepare_drive
+from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
 
@@ -151,18 +151,16 @@ class RawHost(table_checks.Host):
 # ----- streaming a prepared drive -------------------------------------------------------------------------------
 
 
-def check_stream(drive: Drive, key_file: Path) -> None:
-    stream_and_check(drive, LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
-
-
 def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
-    check_stream(drive_excerpt(), key_file)
+    """16.4 s of drive in virtual time (--speed max)."""
+    stream_and_check(drive_excerpt(), LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
 
 
 @pytest.mark.slow
 def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
     """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
-    check_stream(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), key_file)
+    stream_and_check(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), LISTEN, key_file,
+                     SETPOINTS_PER_CHUNK, MavlinkTable, speed="1")
 
 
 # ----- signatures ---------------------------------------------------------------------------------------------
