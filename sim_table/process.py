@@ -42,6 +42,7 @@ zenoh; not on canopen, which has no authentication (the bus is a private cable).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import os
@@ -73,7 +74,7 @@ the vectorised kinematics; one tick a wake would double the emulator's load)."""
 MAX_BATCH = 200
 """Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
 
-VIRTUAL_BATCH = 10
+VIRTUAL_BATCH = 40
 """Ticks an iteration in virtual time: statuses (every 20 ticks) reach the host while the batch after runs."""
 
 HOLD_POLL_S = 0.0005
@@ -348,14 +349,18 @@ class Emulator:
             self._specimens(times - self.tick_ns, centre, rates, placements)
 
     def _specimens(self, times: np.ndarray, poses: np.ndarray, rates: np.ndarray, placements: list[int]) -> None:
+        """The specimens through the batch's ticks (``times`` [ns], the plate's ``poses`` and ``rates``), stepped in
+        C between the ticks where they are placed afresh (``placements``)."""
         assert self.scene is not None
-        for i, t in enumerate(times.tolist()):
-            if i in placements:
-                self.scene.place(poses[i])
-            seconds = t * 1e-9
-            if seconds <= self.scene.time:
+        seconds = times * 1e-9
+        for start, end in itertools.pairwise(sorted({0, *placements, len(times)})):
+            if start in placements:
+                self.scene.place(poses[start])
+            part = np.arange(start, end)[seconds[start:end] > self.scene.time]
+            if len(part) == 0:
                 continue
-            for overturn in self.scene.advance(seconds, poses[i], rates[i]):
+            for overturn in self.scene.advance_many(seconds[part], poses[part], rates[part]):
+                i = part[min(int(np.searchsorted(seconds[part], overturn.t)), len(part) - 1)]  # its tick
                 self._events += 1
                 t_ns = round(overturn.t * 1e9)
                 tilt = float(poses[i][4])
