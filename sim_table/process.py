@@ -17,7 +17,7 @@ Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs k
 ``--speed`` (they guard the link, whose heartbeats keep real time).
 
 ``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
-as fast as it computes them, :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a move, a
+as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a move, a
 stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose end has
 not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a status
 tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time. Host
@@ -74,8 +74,10 @@ the vectorised kinematics; one tick a wake would double the emulator's load)."""
 MAX_BATCH = 200
 """Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
 
-VIRTUAL_BATCH = 40
-"""Ticks an iteration in virtual time: statuses (every 20 ticks) reach the host while the batch after runs."""
+VIRTUAL_BATCH = 80
+"""Ticks an iteration in virtual time (the batch's kinematics and MuJoCo steps in one call each): its statuses
+(every 20 ticks) go out at its end, well within the 250 ms the host's setpoints may run ahead of the last status
+(``drivers/chunked.py``), so the host keeps the buffer supplied while the next batch runs."""
 
 HOLD_POLL_S = 0.0005
 """How long virtual time sleeps [s, real time] between looks at the network while it holds for setpoints."""
