@@ -17,14 +17,14 @@ Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs k
 ``--speed`` (they guard the link, whose heartbeats keep real time).
 
 ``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
-as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a move, a
-stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose end has
-not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a status
-tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time. Host
-messages are stamped with the controller time they were taken at and applied before the next tick; the link
+as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a
+move, a stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose
+end has not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a
+status tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time.
+Host messages are stamped with the controller time they were taken at and applied before the next tick; the link
 watchdogs count :data:`VIRTUAL_WATCHDOG_SECONDS` of host-monotonic time between the moments the messages are
-applied (a busy emulator does not trip them). With
-``--delay`` a message is held that long in real time. See ``docs/table-controller.md``.
+applied (a busy emulator does not trip them). With ``--delay`` a message is held that long in real time. See
+``docs/table-controller.md``.
 
 Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the emulator is
 also the operator.
@@ -259,7 +259,6 @@ class Emulator:
         taken = self.endpoint.take(now)
         for _, action in taken:  # stamped with the clock: due before the next tick
             action(core)
-        self._pending.clear()
         if core.state in _AT_REST:
             count = min(self._rest_credit // self.tick_ns, MAX_BATCH)
             self._rest_credit -= count * self.tick_ns
