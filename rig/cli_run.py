@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import queue
 import secrets
 import signal
@@ -275,6 +276,10 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         """Run a test sequence on the table, logging every run to a session file."""
         if service is not None:
             from rig.cli_serve import drive_service
+
+            if math.isinf(speed):
+                raise typer.BadParameter("--speed max runs a local emulator (--emulate without --service): the "
+                                         "service's start request carries a finite speed", param_hint="--speed")
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
