@@ -38,10 +38,11 @@ def specimen_flags(bodies: Iterable[PlacedBody]) -> list[str]:
     return flags
 
 
-def parse_speed(text: str) -> float:
+def parse_speed(text: str | float) -> float:
     """A ``--speed`` option: controller time per real time (a factor > 0), or ``max``: virtual time (math.inf),
-    the emulator as fast as it computes (``docs/table-controller.md``). ValueError names what is wrong."""
-    if text.strip().lower() == "max":
+    the emulator as fast as it computes (``docs/table-controller.md``); a number passes as it is (the option's
+    default). ValueError names what is wrong."""
+    if isinstance(text, str) and text.strip().lower() == "max":
         return math.inf
     try:
         speed = float(text)
