@@ -173,6 +173,7 @@ class Emulator:
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
             seed=config.seed + 2))
         self.url = self.endpoint.url
+        self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
         self._next_tick = self.tick_ns
         self._pending: deque[tuple[int, Any]] = deque()
         self._events = 0
@@ -301,7 +302,7 @@ class Emulator:
         if changed or held is None or held[0] != self._clock or now - held[1] >= STATUS_PERIOD_NS:
             self._held_status = (self._clock, now)
             endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
-        if isinstance(endpoint, HeldAnswers) and endpoint.send_answers():
+        if self._answers is not None and self._answers.send_answers():
             endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
 
     def _batch(self, times: np.ndarray) -> None:
@@ -338,7 +339,7 @@ class Emulator:
             pose = self.actuators.measure(step.lengths[i], step.poses[i])
             endpoint.send_status(replace(snap, pose=pose))
         self._last_legs = step.lengths[-1], step.poses[-1]
-        if isinstance(endpoint, HeldAnswers) and endpoint.send_answers():  # then a status taken after the answers
+        if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
             pose = self.actuators.measure(step.lengths[-1], step.poses[-1])
             endpoint.send_status(core.snapshot(int(times[-1]), pose))
         centre, rates, window = self.track.advance(step.poses)
