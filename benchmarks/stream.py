@@ -245,7 +245,7 @@ def run(transport: str, record: str, angle_deg: float, lead: float, speed: float
             "rate_hz": sample_rate,
             ("samples_lost" if canopen else "batches_lost"): lost,
             "samples_in_stream": inside,
-            "expected_in_stream": round(report.duration * sample_rate) + 1,
+            "expected_in_stream": round(report.duration * (stats["rate_hz"] if canopen else drive.rate)) + 1,
         },
         "messages_lost": {("accel_samples_lost" if canopen else "accel_batches_lost"): lost,
                           "chunks_missing": counters.get("chunks_missing"),

@@ -42,7 +42,8 @@ class EndpointOptions:
 
     ``key`` the 32-byte secret that authenticates motion commands and setpoints; ``clock`` maps host monotonic
     ns to controller ns; ``table`` the table model (leg scaling on CANopen); ``loss`` (probability) and
-    ``delay`` [s] inject faults on every message both ways with ``seed``.
+    ``delay`` [s] inject faults on every message both ways with ``seed``; ``virtual_time``: the controller's clock
+    is virtual (``--speed max``), so it may wait for the link rather than drop telemetry.
     """
 
     key: bytes = field(repr=False)
@@ -51,6 +52,7 @@ class EndpointOptions:
     loss: float = 0.0
     delay: float = 0.0
     seed: int = 0
+    virtual_time: bool = False
 
 
 class Endpoint(Protocol):

@@ -171,7 +171,7 @@ class Emulator:
         self._start = time.monotonic_ns()
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
-            seed=config.seed + 2))
+            seed=config.seed + 2, virtual_time=self.virtual))
         self.url = self.endpoint.url
         self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
         self._next_tick = self.tick_ns
