@@ -91,6 +91,7 @@ import numpy as np
 from analysis.moves import Move, axis_limits
 from analysis.table_model import TableModel
 from drivers.controller import (
+    STATUS_TIMEOUT,
     STOPPED_STATES,
     TILT_AXES,
     AccelBatch,
@@ -350,6 +351,7 @@ class CanopenTable(TableController):
         self._homing_after_stop = False
         self._cycle_index = 0
         self._next_deadline = 0
+        self._arrived_ns = 0  # time stamp [ns, controller time] of the status that showed the last move in position
         self._underruns = 0
         self._dry = False
         self._lateness: list[int] | None = None  # per cycle during a stream [ns]
@@ -681,6 +683,9 @@ class CanopenTable(TableController):
             return False
         complete = [index for index, frame in self._frames.items() if len(frame) == len(self._drives)]
         if complete and move.in_position(self._frame_pose(self._frames[max(complete)])):
+            deadline_in_position = self._deadline(max(complete))
+            if deadline_in_position is not None:
+                self._arrived_ns = deadline_in_position - self.feedback_delay_ns
             return True
         if move.settle_overdue(deadline):
             self._fault("DRIVE")  # a following error: the legs did not reach their targets
@@ -874,7 +879,8 @@ class CanopenTable(TableController):
         self._wait_state(name, lambda: self._state != state, timeout)
         if self._state != "armed":
             raise CommandFailedError(name, "FAILED", self._state, "the motion was stopped before its target")
-        self._status_after(time.monotonic_ns())
+        shown = self._arrived_ns  # the status of the SYNC found in position (published in the same cycle)
+        self.wait_for_status(lambda s: s.t_ns >= shown, STATUS_TIMEOUT)
 
     def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
         self._motion("HOME", lambda pose: np.zeros(6), "homing", wait, timeout)

@@ -7,6 +7,16 @@ sample is ``lead`` s away (``time.sleep`` to the absolute host deadline from the
 waiting), the last flagged end of stream; then wait until the controller reports the stream played. A backend
 says how to start a stream, encode a chunk and send it.
 
+Pacing follows the controller's clock: a chunk goes out when the clock estimate says its first sample is
+``lead`` away, or earlier when a status already shows the controller there (a clock running faster than
+estimated), and never before a status shows the controller within :data:`AHEAD_NS` + ``lead`` of the chunk (a
+clock that holds for setpoints: an emulator in virtual time, ``--speed max``, runs as fast as it computes but
+never past the setpoints it has; the host keeps it supplied and at most that far ahead). At real time the clock
+estimate rules and the bound never bites (statuses come every 20 ms). The first sample is due ``lead`` after the
+later of the clock estimate and the latest status (a controller holding its clock has reported where), but no
+later than ``lead`` + :data:`AHEAD_NS` after that status (a clock that ran fast and now holds makes the estimate
+overshoot).
+
 Every chunk is **sent twice**: again right after the next chunk, one chunk period later and still
 ``lead`` minus a chunk period ahead (the last one just after itself). The controller drops the copy it already
 has by its chunk number (``chunks_duplicate``), so a chunk is missing only when both copies are lost: with 5 %
@@ -34,11 +44,18 @@ from drivers.controller import (
     TableStatus,
     finite_poses,
     sample_spacing,
-    sleep_until,
 )
 
 FIRST_SEQ_LIMIT = 2**24
 """Chunk numbers stay below this (exact in START_STREAM's float parameter)."""
+
+AHEAD_NS = 250_000_000
+"""A chunk waits until a status shows the controller within ``lead`` + this [ns, controller time] of its first
+sample (module docstring): statuses may be this late before the bound delays a real-time stream."""
+
+SILENCE_NS = 1_000_000_000
+"""With no status for this long [ns, host time] past a chunk's deadline, it is sent by the clock estimate alone
+(a lost link: the controller's watchdog decides)."""
 
 
 class ChunkedStreamController(TableController):
@@ -90,7 +107,8 @@ class ChunkedStreamController(TableController):
         self._start_stream(first_seq)
         count = math.ceil(len(poses) / per_chunk)
         self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
-        t_start = self.clock.to_controller(time.monotonic_ns()) + lead_ns
+        reported = self.status().t_ns  # the START_STREAM's status (virtual time: where the clock holds)
+        t_start = min(max(self.clock.to_controller(time.monotonic_ns()), reported), reported + AHEAD_NS) + lead_ns
         t_end = t_start + (len(poses) - 1) * spacing_ns
         lateness = np.zeros(count, dtype=np.int64)
         if on_start is not None:
@@ -108,7 +126,7 @@ class ChunkedStreamController(TableController):
             chunk_start = t_start + first * spacing_ns
             message = self._encode_chunk((first_seq + k) % FIRST_SEQ_LIMIT, chunk_start, spacing_ns,
                                          poses[first:first + per_chunk], k == count - 1)
-            lateness[k] = sleep_until(self.clock.to_host(chunk_start - lead_ns))
+            lateness[k] = self._wait_to_send(chunk_start - lead_ns, chunk_start - lead_ns - AHEAD_NS)
             latest = self.feedback.latest
             if latest is not None and (latest.state in STOPPED_STATES or _left_stream(latest, t_start)):
                 raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
@@ -133,6 +151,30 @@ class ChunkedStreamController(TableController):
                                      f"{', '.join(final.faults) or 'none'}, last chunk taken "
                                      f"{final.last_chunk_seq} of {first_seq}…{last_seq})", report(count, final))
         return report(count, final)
+
+    def _wait_to_send(self, due: int, seen_after: int) -> int:
+        """Wait until controller time ``due`` [ns] (module docstring: by the clock estimate or a status showing
+        it, once a status shows ``seen_after`` [ns] or later); how late [ns, host time, ≥ 0] against the clock
+        estimate's deadline."""
+        deadline = self.clock.to_host(due)
+        silent_until = deadline + SILENCE_NS
+        feedback = self.feedback
+
+        def ready() -> bool:
+            now = time.monotonic_ns()
+            if not _shown(feedback.latest, seen_after) and now < silent_until:
+                return False
+            return _shown(feedback.latest, due) or now >= deadline
+
+        while not ready():
+            now = time.monotonic_ns()
+            feedback.wait_for(ready, max(deadline - now if now < deadline else silent_until - now, 0) * 1e-9)
+        return max(time.monotonic_ns() - deadline, 0)
+
+
+def _shown(status: TableStatus | None, t_ns: int) -> bool:
+    """Whether ``status`` was taken at controller time ``t_ns`` [ns] or later."""
+    return status is not None and status.t_ns >= t_ns
 
 
 def _left_stream(status: TableStatus, t_start: int) -> bool:

@@ -35,6 +35,11 @@ T = TypeVar("T")
 STOPPED_STATES = frozenset({"stopping", "faulted", "emergency_stopped", "idle"})
 """States that end a stream or a motion command before its end."""
 
+STATUS_TIMEOUT = 5.0
+"""Longest wait [s] for the status that shows what a command did (a controller reports a state change at once
+and a status at least every 50 ms of its time): only a lost link takes this long, and then
+:class:`TableTimeoutError` says so instead of leaving :meth:`TableController.status` behind the command."""
+
 TILT_AXES = ("pitch", "roll")
 """Axes of :meth:`TableController.set_tilt`: pitch (fall line +x, the study's) or roll (fall line −y)."""
 

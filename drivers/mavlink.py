@@ -43,6 +43,7 @@ import numpy as np
 
 from drivers.chunked import ChunkedStreamController
 from drivers.controller import (
+    STATUS_TIMEOUT,
     AccelBatch,
     CommandDeniedError,
     CommandFailedError,
@@ -73,10 +74,6 @@ lost in a row (at 20 Hz one lost heartbeat left a 100 ms gap, and 5 % loss tripp
 
 TIMESYNC_EVERY = 25
 """A TIMESYNC request every this many heartbeats (2 Hz)."""
-
-STATUS_WAIT = 0.1
-"""After an accepted command, wait up to this long [s] for a status sent after it (so that ``status()`` shows
-its effect); the controller reports every state change at once and a status at least every 20 ms."""
 
 _MOTION_STATES = frozenset({"homing", "tilting"})
 _STATUS_GRACE_NS = 40_000_000  # a status this long after a motion's ACK (controller time) reflects it
@@ -269,10 +266,11 @@ class MavlinkTable(ChunkedStreamController):
                 raise
 
     def _status_after(self, host_ns: int) -> None:
-        """Wait (at most :data:`STATUS_WAIT`) for a status received after ``host_ns``: the controller reports a
-        state change at once, after the ACK, so ``status()`` then shows what the command did."""
-        self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.host_ns > host_ns,
-                               STATUS_WAIT)
+        """Wait for a status received after ``host_ns`` (a command's answer): the controller sends a command's
+        answer after the status of the tick it took effect in, and a status taken after it next, so ``status()``
+        then shows what the command did (:class:`TableTimeoutError` after :data:`STATUS_TIMEOUT`: the link is
+        lost)."""
+        self.wait_for_status(lambda s: s.host_ns > host_ns, STATUS_TIMEOUT)
 
     def _check(self, name: str, result: int) -> None:
         d = self.d
@@ -310,8 +308,9 @@ class MavlinkTable(ChunkedStreamController):
 
             if not self.feedback.wait_for(over, timeout):
                 raise TableTimeoutError(f"{name}: still moving after {timeout} s")
-            if final():
-                self._status_after(slot.acks[-1][2])
+            if final():  # a status received after the final answer, out of the motion, shows where it ended
+                self.wait_for_status(lambda s: s.host_ns > slot.acks[-1][2] and s.state not in _MOTION_STATES,
+                                     STATUS_TIMEOUT)
             latest = self.status()
             if (final()[0] if final() else latest.state) not in (self.d.MAV_RESULT_ACCEPTED, "armed"):
                 raise CommandFailedError(name, "FAILED", latest.state, "the motion was stopped before its target")

@@ -48,6 +48,7 @@ import zenoh
 
 from drivers.chunked import ChunkedStreamController
 from drivers.controller import (
+    STATUS_TIMEOUT,
     AccelBatch,
     CommandDeniedError,
     CommandFailedError,
@@ -94,10 +95,6 @@ CLOCK_TIMEOUT = 0.5
 
 RETRY_SPACING = 0.01
 """Least time between two attempts of a command [s] (a query without a route ends at once)."""
-
-STATUS_WAIT = 0.1
-"""After an accepted command, wait up to this long [s] for a status taken after it (so that ``status()`` shows its
-effect); the controller reports every state change at once and a status at least every 20 ms."""
 
 _MOTION_STATES = frozenset({"homing", "tilting"})
 
@@ -325,10 +322,10 @@ class ZenohTable(ChunkedStreamController):
             return self._next_cmd
 
     def _status_after(self, t_ns: int) -> None:
-        """Wait (at most :data:`STATUS_WAIT`) for a status taken at or after controller time ``t_ns``: the
-        controller reports a state change at once, so ``status()`` then shows what the command did."""
-        self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.t_ns >= t_ns,
-                               STATUS_WAIT)
+        """Wait for a status taken at or after controller time ``t_ns`` (an answer's): the controller reports a
+        state change at once, so ``status()`` then shows what the command did (:class:`TableTimeoutError` after
+        :data:`STATUS_TIMEOUT`: the link is lost)."""
+        self.wait_for_status(lambda s: s.t_ns >= t_ns, STATUS_TIMEOUT)
 
     def _check(self, name: str, result: str) -> None:
         if result in ("accepted", "in_progress"):

@@ -27,6 +27,7 @@ from rig import (
     cli_sessions,
 )
 from rig.cli_errors import plain_warnings, print_error, stderr_console
+from rig.emulator import parse_speed
 
 if TYPE_CHECKING:
     from analysis import Body
@@ -219,7 +220,9 @@ def print_cor_table(res: StudyResult, summary: dict | None = None) -> None:
 @app.command("demo")
 def demo_cmd(
     output_dir: Annotated[Path, typer.Option("--output-dir", help="where the session file goes")] = Path("demo-output"),
-    speed: Annotated[float, typer.Option(help="the emulator's controller time per real time")] = 1.0,
+    speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
+                                         help="the emulator's controller time per real time, or max (virtual "
+                                              "time: as fast as it computes)")] = 1.0,
 ) -> None:
     """The demo: the emulated table (its own process, MAVLink on loopback, two Table V bodies on the plate) runs
     examples/quick.toml unattended; the session file is written, analysed and reported (HTML)."""

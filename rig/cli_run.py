@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import json
+import math
 import queue
 import secrets
 import signal
@@ -28,6 +29,8 @@ from rich.live import Live
 from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, TimeRemainingColumn
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
+
+from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
     from rig.orchestrator import Orchestrator, OrchestratorState
@@ -138,7 +141,7 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
               speed: float) -> Iterator[tuple[str, dict[str, Any], Callable[[], dict[str, Any]] | None]]:
     """The table URL and driver options; with ``emulate``, an emulator process started (and stopped after) with
     the sequence's bodies on its plate and a one-session signing key unless ``key_file`` is given."""
-    from rig.emulator import EmulatorProcess, specimen_flags
+    from rig.emulator import EmulatorProcess, specimen_flags, speed_flags
 
     if not emulate:
         url = table or sequence.table_url
@@ -150,7 +153,7 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
         if key_file is None:
             key_file = Path(scratch) / "session.key"
             key_file.write_text(secrets.token_hex(32) + "\n")
-        flags = [*specimen_flags(sequence.bodies), "--speed", f"{speed:g}"]
+        flags = [*specimen_flags(sequence.bodies), *speed_flags(speed)]
         emulator = EmulatorProcess.start(EMULATOR_LISTEN, *flags, key_file=key_file)
         counters: dict[str, Any] = {}
         try:
@@ -275,7 +278,9 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             yes: Annotated[bool, typer.Option("--yes", "-y", help="unattended: no operator prompts")] = False,
             key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                                "$SHAKETABLE_MAVLINK_KEY)")] = None,
-            speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+            speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
+                                                 help="with --emulate: controller time per real time, or max "
+                                                      "(virtual time: as fast as the emulator computes)")] = 1.0,
             service: Annotated[str | None, typer.Option(help="have a rig service (rig serve) at this zenoh "
                                                              "endpoint run it, e.g. tcp/127.0.0.1:7447")] = None,
             ) -> None:
@@ -286,6 +291,10 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
 
         if service is not None:
             from rig.cli_serve import drive_service
+
+            if math.isinf(speed):
+                raise typer.BadParameter("--speed max runs a local emulator (--emulate without --service): the "
+                                         "service's start request carries a finite speed", param_hint="--speed")
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))

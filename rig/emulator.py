@@ -9,6 +9,7 @@ JSON object on stdout when it stops (SIGINT).
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import signal
@@ -17,9 +18,10 @@ import sys
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from rig.sequence import PlacedBody
+if TYPE_CHECKING:
+    from rig.sequence import PlacedBody
 
 _LISTENING = re.compile(r"listening on (\S+)")
 
@@ -35,6 +37,26 @@ def specimen_flags(bodies: Iterable[PlacedBody]) -> list[str]:
             options.append(f"mass={body.mass!r}")
         flags += ["--body", f"{body.b!r}x{body.h!r}@{placed.x!r},{placed.y!r};" + ";".join(options)]
     return flags
+
+
+def parse_speed(text: str | float) -> float:
+    """A ``--speed`` option: controller time per real time (a factor > 0), or ``max``: virtual time (math.inf),
+    the emulator as fast as it computes (``docs/table-controller.md``); a number passes as it is (the option's
+    default). ValueError names what is wrong."""
+    if isinstance(text, str) and text.strip().lower() == "max":
+        return math.inf
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = math.nan
+    if not (math.isfinite(speed) and speed > 0):
+        raise ValueError(f"--speed: expected a factor > 0 or max, got {text!r}")
+    return speed
+
+
+def speed_flags(speed: float) -> list[str]:
+    """The emulator's ``--speed`` flag for ``speed`` (math.inf: ``max``)."""
+    return ["--speed", "max" if math.isinf(speed) else f"{speed:g}"]
 
 
 class EmulatorError(RuntimeError):

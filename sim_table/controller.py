@@ -27,7 +27,9 @@ Reference generation:
 
 Watchdogs: while streaming (before END_OF_STREAM arrived), no chunk for more than ``watchdog_ns`` →
 STREAM_SILENT; while armed, homing, tilting or streaming, no host heartbeat for more than ``watchdog_ns``
-(ARM counts as one) → HEARTBEAT_LOST. Both stop the table (stopping → faulted).
+(ARM counts as one) → HEARTBEAT_LOST. Both stop the table (stopping → faulted). They count controller time, or
+with a ``link_clock`` (virtual time, where controller time runs at no fixed rate) that clock's time [ns] when the
+message was applied and when the watchdog looks (:meth:`ControllerCore.watch` looks without a tick).
 
 Chunk sequence numbers: a repeated one is ignored; one beyond the expected is a gap (CHUNK_GAP, the stream
 continues); an older one not seen before (reordered) is played by its times.
@@ -39,6 +41,7 @@ import bisect
 import enum
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -146,7 +149,7 @@ class Done:
 
 @dataclass(frozen=True, eq=False)
 class Snapshot:
-    """What one status carries: controller time [ns], state, setpoint samples buffered, the last chunk accepted,
+    """What one status carries: controller time [ns], state, setpoint samples buffered, the newest chunk accepted,
     underruns, latched faults, refused commands and the measured pose (6,)."""
 
     t_ns: int
@@ -194,14 +197,16 @@ class ControllerCore:
     """The controller's state machine and reference generator (module docstring).
 
     ``table`` gives the limits; ``tick_ns`` is the tick period [ns, controller time]; ``watchdog_ns`` the silence
-    that stops the table [ns, controller time]; ``pose`` (6,) where the plate rests at power-up (default home).
+    that stops the table [ns, controller time, or of ``link_clock`` when given: a host-monotonic clock [ns] for
+    the watchdogs in virtual time]; ``pose`` (6,) where the plate rests at power-up (default home).
     """
 
     def __init__(self, table: TableModel, *, tick_ns: int = 1_000_000, watchdog_ns: int = 100_000_000,
-                 pose: np.ndarray | None = None) -> None:
+                 pose: np.ndarray | None = None, link_clock: Callable[[], int] | None = None) -> None:
         self.table = table
         self.tick_ns = int(tick_ns)
         self.watchdog_ns = int(watchdog_ns)
+        self._link_clock = link_clock
         self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
         self.state = State.IDLE
         self.faults = Fault(0)
@@ -224,7 +229,27 @@ class ControllerCore:
 
     def heartbeat(self, t_ns: int) -> None:
         """The host's heartbeat arrived at ``t_ns``."""
-        self._last_heartbeat = t_ns
+        self._last_heartbeat = self._link_time(t_ns)
+
+    def _link_time(self, t_ns: int) -> int:
+        """The watchdogs' time of a message that arrived at controller time ``t_ns`` (module docstring)."""
+        return t_ns if self._link_clock is None else self._link_clock()
+
+    @property
+    def buffered_until(self) -> int | None:
+        """Controller time [ns] up to which the stream's setpoints are known: the end of the stream once its last
+        chunk arrived (None: no limit), else the last buffered sample's time (the held pose's when none is); None
+        when not streaming."""
+        if self.state is not State.STREAMING or self._end_ns is not None:
+            return None
+        if self._buffer:
+            return self._buffer[-1][0]
+        return self._t if self._t is not None else 0
+
+    def watch(self) -> None:
+        """Run the watchdogs between ticks (with a ``link_clock``: while virtual time waits for setpoints)."""
+        if self._t is not None:
+            self._watchdogs(self._t)
 
     def observe(self, achieved: np.ndarray) -> None:
         """The latest achieved pose (6,) (where ARM takes over a braked plate)."""
@@ -273,10 +298,11 @@ class ControllerCore:
             self._expected = (seq + 1) % SEQ_MODULUS
         else:
             self.counters.chunks_reordered += 1
+        if ahead < SEQ_MODULUS // 2:  # the newest chunk (a reordered older one arriving after it does not count)
+            self.last_chunk_seq = seq
         self._remember(seq)
         self.counters.chunks_accepted += 1
-        self.last_chunk_seq = seq
-        self._last_chunk = t_ns
+        self._last_chunk = self._link_time(t_ns)
         self._received_any = True
         margin = t_start_ns - t_ns
         self.counters.chunk_margin_total_ns += margin
@@ -341,7 +367,7 @@ class ControllerCore:
             self._p = self._achieved.copy()
             self._v[:] = 0.0
         self.faults = Fault(0)
-        self._last_heartbeat = t_ns
+        self._last_heartbeat = self._link_time(t_ns)
         self._set_state(State.ARMED, t_ns)
         return Result.ACCEPTED
 
@@ -372,7 +398,7 @@ class ControllerCore:
             return Result.REJECTED
         self._reset_stream()
         self._expected = int(first)
-        self._last_chunk = t_ns
+        self._last_chunk = self._link_time(t_ns)
         self._anchor = (t_ns, self._p.copy())
         self.counters.streams_started += 1
         if self.first_stream_ns is None:
@@ -514,11 +540,12 @@ class ControllerCore:
 
     def _watchdogs(self, t_ns: int) -> None:
         state = self.state
+        now = self._link_time(t_ns)
         if state in _HEARTBEAT_GUARDED and (self._last_heartbeat is None
-                                            or t_ns - self._last_heartbeat > self.watchdog_ns):
+                                            or now - self._last_heartbeat > self.watchdog_ns):
             self.raise_fault(Fault.HEARTBEAT_LOST, t_ns)
         elif (state is State.STREAMING and self._end_ns is None and self._last_chunk is not None
-              and t_ns - self._last_chunk > self.watchdog_ns):
+              and now - self._last_chunk > self.watchdog_ns):
             self.raise_fault(Fault.STREAM_SILENT, t_ns)
 
     def _finish_motion(self, t_ns: int, result: Result) -> None:

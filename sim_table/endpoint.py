@@ -42,7 +42,8 @@ class EndpointOptions:
 
     ``key`` the 32-byte secret that authenticates motion commands and setpoints; ``clock`` maps host monotonic
     ns to controller ns; ``table`` the table model (leg scaling on CANopen); ``loss`` (probability) and
-    ``delay`` [s] inject faults on every message both ways with ``seed``.
+    ``delay`` [s] inject faults on every message both ways with ``seed``; ``virtual_time``: the controller's clock
+    is virtual (``--speed max``), so it may wait for the link rather than drop telemetry.
     """
 
     key: bytes = field(repr=False)
@@ -51,6 +52,7 @@ class EndpointOptions:
     loss: float = 0.0
     delay: float = 0.0
     seed: int = 0
+    virtual_time: bool = False
 
 
 class Endpoint(Protocol):
@@ -79,6 +81,15 @@ class LegFeedback(Protocol):
     error: the loop gives it the legs' true and commanded lengths of every tick."""
 
     def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray, commanded: np.ndarray) -> None: ...
+
+
+@runtime_checkable
+class HeldAnswers(Protocol):
+    """An endpoint whose command answers carry no controller time (MAVLink's COMMAND_ACK): it holds the answers
+    given during a batch and sends them when the loop says, after the batch's statuses, so that the host receives
+    the status showing what a command did before its answer, and a status taken after it next."""
+
+    def send_answers(self) -> bool: ...
 
 
 def listen_scheme(url: str) -> str:

@@ -137,6 +137,7 @@ class MavlinkEndpoint:
         self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last heartbeat
         self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
         self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
+        self._answers: list[tuple[Any, tuple[str, int]]] = []  # COMMAND_ACKs held until the batch's statuses are out
         self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
         self._resends: list[tuple[int, int, int, Any]] = []  # (due host ns, copies left, event id, message)
         self._next_heartbeat = 0
@@ -297,7 +298,15 @@ class MavlinkEndpoint:
         self._ack(cmd_id, self._results[done.result], 100, source, (system, component))
 
     def _ack(self, command: int, result: int, progress: int, source: tuple[str, int], sender: tuple[int, int]) -> None:
-        self._send(self.d.MAVLink_command_ack_message(command, result, progress, 0, *sender), [source])
+        self._answers.append((self.d.MAVLink_command_ack_message(command, result, progress, 0, *sender), source))
+
+    def send_answers(self) -> bool:
+        """Send the COMMAND_ACKs of the batch just run (held until its statuses went out: a status showing what a
+        command did precedes its answer); whether there were any."""
+        answers, self._answers = self._answers, []
+        for message, source in answers:
+            self._send(message, [source])
+        return bool(answers)
 
     def send_status(self, snap: Snapshot) -> None:
         """One SHAKETABLE_STATUS to the peers."""

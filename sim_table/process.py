@@ -14,8 +14,20 @@ what the batch produced:
    answers, heartbeats.
 
 Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep 100 ms of **real** time at any
-``--speed`` (they guard the link, whose heartbeats keep real time). Specimens are placed afresh (upright, at
-rest, where ``--body`` puts them) at every START_STREAM: the emulator is also the operator.
+``--speed`` (they guard the link, whose heartbeats keep real time).
+
+``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
+as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a
+move, a stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose
+end has not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a
+status tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time.
+Host messages are stamped with the controller time they were taken at and applied before the next tick; the link
+watchdogs count :data:`VIRTUAL_WATCHDOG_SECONDS` of host-monotonic time between the moments the messages are
+applied (a busy emulator does not trip them). With ``--delay`` a message is held that long in real time. See
+``docs/table-controller.md``.
+
+Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the emulator is
+also the operator.
 
 Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
 drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S`` seizes leg LEG's actuator (it
@@ -30,6 +42,7 @@ zenoh; not on canopen, which has no authentication (the bus is a private cable).
 from __future__ import annotations
 
 import argparse
+import itertools
 import json
 import math
 import os
@@ -50,7 +63,7 @@ from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
-from sim_table.endpoint import EndpointOptions, LegFeedback, listen_scheme, open_endpoint
+from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.scene import Specimen
 from sim_table.specimens import SpecimenScene
 
@@ -61,11 +74,27 @@ the vectorised kinematics; one tick a wake would double the emulator's load)."""
 MAX_BATCH = 200
 """Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
 
+VIRTUAL_BATCH = 80
+"""Ticks an iteration in virtual time (the batch's kinematics and MuJoCo steps in one call each): its statuses
+(every 20 ticks) go out at its end, well within the 250 ms the host's setpoints may run ahead of the last status
+(``drivers/chunked.py``), so the host keeps the buffer supplied while the next batch runs."""
+
+HOLD_POLL_S = 0.0005
+"""How long virtual time sleeps [s, real time] between looks at the network while it holds for setpoints."""
+
+_AT_REST = frozenset({State.IDLE, State.ARMED, State.FAULTED, State.EMERGENCY_STOPPED})
+"""States in which virtual time ticks at real time (nothing to hurry)."""
+
 STATUS_PERIOD_NS = 20_000_000
 """Status period [ns, controller time] (50 Hz)."""
 
 WATCHDOG_SECONDS = 0.1
 """Stream and heartbeat watchdogs [s, real time]."""
+
+VIRTUAL_WATCHDOG_SECONDS = 1.0
+"""Stream and heartbeat watchdogs in virtual time [s, host time]: the table waits, still, for setpoints it has not
+got, so host silence endangers nothing until the stream is over; a host busy logging a stream played several
+times faster than real time may pause its sender longer than 100 ms, and a silent host is still stopped."""
 
 TIMING_WINDOW = 100_000
 """Batches kept for the tick-time percentiles in the counters."""
@@ -99,8 +128,8 @@ class EmulatorConfig:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(self.speed) and self.speed > 0):
-            raise ValueError(f"speed must be > 0, got {self.speed!r}")
+        if not (self.speed > 0):  # math.inf: virtual time (--speed max)
+            raise ValueError(f"speed must be > 0 or max, got {self.speed!r}")
         for name in ("drive_fault_at", "stall_at"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value >= 0):
@@ -110,6 +139,9 @@ class EmulatorConfig:
             if not (isinstance(leg, int) and 1 <= leg <= 6 and math.isfinite(at) and at >= 0):
                 raise ValueError(f"leg_stall must be (leg 1..6, >= 0 s), got {self.leg_stall!r}")
         scheme = listen_scheme(self.listen)
+        if math.isinf(self.speed) and scheme == "canopen":
+            raise ValueError("--speed max: CANopen has no virtual time (its master, the host, is the controller and "
+                             "paces the SYNC in real time)")
         if scheme in SIGNING_SCHEMES and self.key is None:
             raise ValueError(f"--listen {self.listen}: {scheme} signs motion commands and setpoints and needs the "
                              f"rig's signing key: give --key-file FILE or set {KEY_ENV} (64 hexadecimal digits)")
@@ -123,8 +155,14 @@ class Emulator:
         table = config.table
         self.tick_ns = round(1e9 / table.controller_rate)
         dt = self.tick_ns * 1e-9
-        self.core = ControllerCore(table, tick_ns=self.tick_ns,
-                                   watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
+        self.virtual = math.isinf(config.speed)
+        """Virtual time (``--speed max``, module docstring)."""
+        if self.virtual:
+            self.core = ControllerCore(table, tick_ns=self.tick_ns,
+                                       watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9), link_clock=time.monotonic_ns)
+        else:
+            self.core = ControllerCore(table, tick_ns=self.tick_ns,
+                                       watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
         self.actuators = Actuators(table, dt, config.actuators, seed=config.seed)
         self.track = PlateTrack(dt)
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
@@ -133,8 +171,9 @@ class Emulator:
         self._start = time.monotonic_ns()
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
-            seed=config.seed + 2))
+            seed=config.seed + 2, virtual_time=self.virtual))
         self.url = self.endpoint.url
+        self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
         self._next_tick = self.tick_ns
         self._pending: deque[tuple[int, Any]] = deque()
         self._events = 0
@@ -146,16 +185,28 @@ class Emulator:
         self._cpu_ns = 0
         self._lag_max_ns = 0
         self._overturns: list[dict[str, float]] = []
+        self._clock = 0  # virtual time: the last tick run [ns]
+        self._rest_credit = 0  # virtual time at rest: real time not yet ticked [ns]
+        self._held_status: tuple[int, int] | None = None  # virtual time: (clock, host ns) of the last hold status
+        self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
+        self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
 
     def controller_time(self, host_ns: int) -> int:
-        """Controller time [ns] at host monotonic time ``host_ns``."""
+        """Controller time [ns] at host monotonic time ``host_ns`` (virtual time: the last tick's, whatever
+        ``host_ns``)."""
+        if self.virtual:
+            return self._clock
         return int((host_ns - self._start) * self.config.speed)
 
     def run(self, stop: threading.Event) -> None:
-        """Start the clock and the endpoint, tick in real time (× speed) until ``stop`` is set; then send the last
-        accelerometer samples."""
+        """Start the clock and the endpoint, tick in real time (× speed) or virtual time until ``stop`` is set;
+        then send the last accelerometer samples."""
         self._start = deadline = time.monotonic_ns()
         self.endpoint.start()
+        if self.virtual:
+            self._run_virtual(stop)
+            self.endpoint.flush_accel()
+            return
         while not stop.is_set():
             deadline += WAKE_PERIOD_NS
             now = time.monotonic_ns()
@@ -184,6 +235,75 @@ class Emulator:
             oldest = (self.controller_time(now) - int(times[0])) / self.config.speed  # how late its first tick ran
             self._lag_max_ns = max(self._lag_max_ns, round(oldest))
         self.endpoint.service(time.monotonic_ns(), self.core.state)
+
+    def _run_virtual(self, stop: threading.Event) -> None:
+        """Virtual time (module docstring): tick while there is something to do, hold for setpoints, rest at real
+        time."""
+        last = time.monotonic_ns()
+        while not stop.is_set():
+            now = time.monotonic_ns()
+            self._rest_credit += now - last
+            last = now
+            count = self.step_virtual(now)
+            if count == VIRTUAL_BATCH:
+                time.sleep(0)  # let the endpoint's threads take the host's messages
+            elif self.core.state in _AT_REST:
+                time.sleep(WAKE_PERIOD_NS * 1e-9)
+            else:
+                time.sleep(HOLD_POLL_S)
+
+    def step_virtual(self, now: int) -> int:
+        """One iteration of virtual time at host time ``now`` [ns]: the ticks it may run (module docstring), or
+        the watchdogs, answers and a status while it holds; then send. How many ticks ran."""
+        cpu = time.thread_time_ns()
+        core = self.core
+        taken = self.endpoint.take(now)
+        for _, action in taken:  # stamped with the clock: due before the next tick
+            action(core)
+        if core.state in _AT_REST:
+            count = min(self._rest_credit // self.tick_ns, MAX_BATCH)
+            self._rest_credit -= count * self.tick_ns
+        else:
+            self._rest_credit = 0
+            count = VIRTUAL_BATCH
+            until = core.buffered_until
+            if until is not None:
+                count = max(0, min(count, (until - self._next_tick) // self.tick_ns + 1))
+        if count:
+            times = self._next_tick + self.tick_ns * np.arange(count, dtype=np.int64)
+            self._next_tick = int(times[-1]) + self.tick_ns
+            self._batch(times)
+            self._clock = int(times[-1])
+            busy = time.monotonic_ns() - now
+            self._batches.append((count, busy))
+            self._ticks += count
+            self._busy_ns += busy
+            self._cpu_ns += time.thread_time_ns() - cpu
+        else:
+            self._hold(now)
+        self.endpoint.service(time.monotonic_ns(), core.state)
+        return int(count)
+
+    def _hold(self, now: int) -> None:
+        """Virtual time holds for setpoints: run the watchdogs, answer, and report the state and where the clock
+        holds (at once, then every :data:`STATUS_PERIOD_NS` of host time ``now`` [ns] — a lost status must not
+        leave the host waiting —, and at every change)."""
+        core, endpoint = self.core, self.endpoint
+        core.watch()
+        changed = False
+        for event in core.take_events():
+            if isinstance(event, Done):
+                endpoint.command_done(event)
+            else:
+                changed = True
+                if event.new is State.STREAMING and self.scene is not None:
+                    self.scene.place(self._last_centre)
+        held = self._held_status
+        if changed or held is None or held[0] != self._clock or now - held[1] >= STATUS_PERIOD_NS:
+            self._held_status = (self._clock, now)
+            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
+        if self._answers is not None and self._answers.send_answers():
+            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
 
     def _batch(self, times: np.ndarray) -> None:
         core, endpoint = self.core, self.endpoint
@@ -218,7 +338,12 @@ class Emulator:
         for i, snap in statuses:
             pose = self.actuators.measure(step.lengths[i], step.poses[i])
             endpoint.send_status(replace(snap, pose=pose))
+        self._last_legs = step.lengths[-1], step.poses[-1]
+        if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
+            pose = self.actuators.measure(step.lengths[-1], step.poses[-1])
+            endpoint.send_status(core.snapshot(int(times[-1]), pose))
         centre, rates, window = self.track.advance(step.poses)
+        self._last_centre = centre[-1]
         force = self.accelerometers.measure(window)
         for sensor in range(force.shape[1]):
             endpoint.add_accel(sensor, int(times[0]) - self.tick_ns, self.tick_ns, force[:, sensor])
@@ -226,14 +351,18 @@ class Emulator:
             self._specimens(times - self.tick_ns, centre, rates, placements)
 
     def _specimens(self, times: np.ndarray, poses: np.ndarray, rates: np.ndarray, placements: list[int]) -> None:
+        """The specimens through the batch's ticks (``times`` [ns], the plate's ``poses`` and ``rates``), stepped in
+        C between the ticks where they are placed afresh (``placements``)."""
         assert self.scene is not None
-        for i, t in enumerate(times.tolist()):
-            if i in placements:
-                self.scene.place(poses[i])
-            seconds = t * 1e-9
-            if seconds <= self.scene.time:
+        seconds = times * 1e-9
+        for start, end in itertools.pairwise(sorted({0, *placements, len(times)})):
+            if start in placements:
+                self.scene.place(poses[start])
+            part = np.arange(start, end)[seconds[start:end] > self.scene.time]
+            if len(part) == 0:
                 continue
-            for overturn in self.scene.advance(seconds, poses[i], rates[i]):
+            for overturn in self.scene.advance_many(seconds[part], poses[part], rates[part]):
+                i = part[min(int(np.searchsorted(seconds[part], overturn.t)), len(part) - 1)]  # its tick
                 self._events += 1
                 t_ns = round(overturn.t * 1e9)
                 tilt = float(poses[i][4])
@@ -274,7 +403,7 @@ class Emulator:
             "lag_max_ms": self._lag_max_ns * 1e-6,
             "controller_time_s": self.controller_time(time.monotonic_ns()) * 1e-9,
         }
-        return {"url": self.url, "speed": self.config.speed, "state": self.core.state.value,
+        return {"url": self.url, "speed": "max" if self.virtual else self.config.speed, "state": self.core.state.value,
                 "faults": [f.name for f in Fault if self.core.faults & f], **self.core.counters.as_dict(),
                 "link": self.endpoint.counters_dict(), "timing": timing, "overturns": self._overturns}
 
@@ -305,6 +434,19 @@ def parse_body(text: str) -> Specimen:
     return Specimen(body, x=x, y=y, **({"friction": extra["mu"]} if "mu" in extra else {}))
 
 
+def _speed(text: str) -> float:
+    """``--speed``: a factor > 0, or ``max`` (virtual time: math.inf)."""
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = math.nan
+    if not (math.isfinite(speed) and speed > 0):
+        raise argparse.ArgumentTypeError(f"expected a factor > 0 or max, got {text!r}")
+    return speed
+
+
 def _point(text: str) -> tuple[float, float, float]:
     try:
         x, y, z = (float(v) for v in text.split(","))
@@ -331,7 +473,9 @@ def _argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--listen", required=True,
                    help="the transport and address to listen on: mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE "
                         "(port 0: any free port) or canopen://CHANNEL?interface=…")
-    p.add_argument("--speed", type=float, default=1.0, help="controller time per real time")
+    p.add_argument("--speed", type=_speed, default=1.0,
+                   help="controller time per real time, or max: virtual time, as fast as the emulator computes "
+                        "while the host's setpoints allow (docs/table-controller.md)")
     p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F]",
                    help="a specimen b x h [m] at plate (x, y) [m], optionally its depth [m], mass [kg] and "
                         "friction coefficient; repeat for more (body ids 0, 1, … in this order)")
@@ -388,7 +532,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # bodies that overlap or do not fit the scene
         print(f"sim_table: {exc}", file=sys.stderr)
         return 2
-    print(f"sim_table: listening on {emulator.url} (speed {config.speed:g}, {len(config.specimens)} bodies, "
+    speed = "max" if emulator.virtual else f"{config.speed:g}"
+    print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
           f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
     try:
         emulator.run(stop)

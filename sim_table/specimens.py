@@ -33,6 +33,7 @@ from typing import NamedTuple
 
 import mujoco
 import numpy as np
+from mujoco import rollout
 
 from analysis.table_model import rotation_matrices
 from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, Specimen, SpecimenError, build_model
@@ -149,6 +150,90 @@ class SpecimenScene:
         self._detections.extend(found)
         return found
 
+    def advance_many(self, times: np.ndarray, plate_poses: np.ndarray, plate_velocities: np.ndarray) -> list[Overturn]:
+        """:meth:`advance` through ``times`` (k,) [s, increasing] where the plate has ``plate_poses`` and
+        ``plate_velocities`` (k, 6), with the physics of the whole batch stepped in C (``mujoco.rollout``).
+
+        The plate follows the same Hermite curves through the samples, step by step: its joints are put on the
+        curve once, at the batch's start, and each step's generalised force armature × acceleration (what
+        :meth:`advance` applies after putting them back on the curve) keeps them there — the bodies' reactions
+        (impacts too) move a plate of :data:`~sim_table.scene.PLATE_ARMATURE` by < 1e-6 m over hundreds of
+        steps. The bodies' angles are read from each step's state, and overturns detected and timed as
+        :meth:`advance` does.
+        """
+        times = np.asarray(times, dtype=float)
+        poses, rates = np.asarray(plate_poses, dtype=float), np.asarray(plate_velocities, dtype=float)
+        k = len(times)
+        if times.shape != (k,) or poses.shape != (k, 6) or rates.shape != (k, 6) or not (
+                np.all(np.isfinite(times)) and np.all(np.isfinite(poses)) and np.all(np.isfinite(rates))):
+            raise SpecimenError(f"advance_many: need finite times (k,), poses and velocities (k, 6), got "
+                                f"{times.shape}, {poses.shape}, {rates.shape}")
+        t0, pose0, vel0 = self._sample
+        if k == 0:
+            return []
+        if not (times[0] > t0 and np.all(np.diff(times) > 0)):
+            raise SpecimenError(f"advance_many: times must increase, got {times[0]!r} s after {t0!r} s …")
+        m, d, dt = self.model, self.data, self.model.opt.timestep
+        order = self._order
+        starts = np.concatenate([[t0], times[:-1]])
+        spans = (times - starts)[:, None]
+        paths = _hermite(np.vstack([pose0[None, order], poses[:-1, order]]),
+                         spans * np.vstack([vel0[None, order], rates[:-1, order]]),
+                         poses[:, order], spans * rates[:, order])  # each (k, 6): one curve an interval
+        interval, u_here, u_there = [], [], []
+        clock = d.time
+        for j, (start, end, span) in enumerate(zip(starts.tolist(), times.tolist(), spans[:, 0].tolist(),
+                                                   strict=True)):
+            while clock + 0.5 * dt <= end:  # the physics steps of each interval, as advance() takes them
+                interval.append(j)
+                u_here.append((clock - start) / span)
+                u_there.append((clock + dt - start) / span)
+                clock += dt
+        found: list[Overturn] = []
+        if interval:
+            steps = [c[interval] for c in paths]
+            here_array = _evaluate(steps, np.array(u_here)[:, None])
+            there_array = _evaluate(steps, np.array(u_there)[:, None])
+            step_rates = (there_array - here_array) / dt
+            previous_rates = np.vstack([self._plate_rate[None, :], step_rates[:-1]])
+            force = np.zeros((len(interval), m.nv))
+            force[:, :6] = (PLATE_ARMATURE / dt) * (step_rates - previous_rates)
+            d.qpos[:6] = here_array[0]
+            d.qvel[:6] = self._plate_rate
+            spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+            state = np.empty(mujoco.mj_stateSize(m, spec))
+            mujoco.mj_getState(m, d, state, spec)
+            warmstart = d.qacc_warmstart.copy()
+            states, _ = rollout.rollout(m, d, state[None], force[None],
+                                        control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED,
+                                        initial_warmstart=warmstart[None])
+            mujoco.mj_kinematics(m, d)
+            self._plate_rate = step_rates[-1]
+            if self._standing.any():
+                found = self._detect_states(states[0], dt)
+        self._sample = (float(times[-1]), poses[-1].copy(), rates[-1].copy())
+        self._detections.extend(found)
+        return found
+
+    def _detect_states(self, states: np.ndarray, dt: float) -> list[Overturn]:
+        """Overturns in the steps whose FULLPHYSICS ``states`` (steps, nstate) were just taken, as :meth:`_detect`
+        finds them step by step."""
+        qpos = states[:, 1:1 + self.model.nq]
+        angles = _specimen_angles(qpos, len(self.specimens))
+        events = []
+        previous = np.vstack([self._theta[None, :], angles[:-1]])
+        for step in range(len(states)):
+            theta = angles[step]
+            for i in np.flatnonzero(self._standing & (np.abs(theta) >= self.thresholds)):
+                a0, a1 = abs(previous[step, i]), abs(theta[i])
+                fraction = min(1.0, max(0.0, (self.thresholds[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
+                events.append(Overturn(states[step, 0] - (1.0 - fraction) * dt, int(i), 1 if theta[i] > 0 else -1))
+                self._standing[i] = False
+            if not self._standing.any():
+                break
+        self._theta = self.specimen_angles()
+        return sorted(events)
+
     def _detect(self, dt: float) -> list[Overturn]:
         """Overturns that happened in the step just taken, timed by linear interpolation of |θ|."""
         previous, self._theta = self._theta, self.specimen_angles()
@@ -177,13 +262,26 @@ class SpecimenScene:
         return list(self._detections)
 
 
+def _specimen_angles(qpos: np.ndarray, count: int) -> np.ndarray:
+    """θ of ``count`` specimens (steps, count) [rad] from plate and free-joint positions ``qpos`` (steps, nq), as
+    :meth:`SpecimenScene.specimen_angles` reads them from the kinematics: each body's height axis (its
+    quaternion's rotation, third column) in the plate frame, ``atan2(ex, ez)``."""
+    plate = rotation_matrices(qpos[:, list(PLATE_QPOS_ORDER)])  # (steps, 3, 3): qpos order is its own inverse
+    quat = qpos[:, 6:6 + 7 * count].reshape(len(qpos), count, 7)[:, :, 3:]  # free joints: position, quaternion
+    quat = quat / np.linalg.norm(quat, axis=2, keepdims=True)
+    w, x, y, z = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
+    axis = np.stack([2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)], axis=2)
+    local = np.einsum("sji,snj->sni", plate, axis)  # Rᵀ e in the plate frame
+    return np.arctan2(local[..., 0], local[..., 2])
+
+
 def _hermite(p0: np.ndarray, m0: np.ndarray, p1: np.ndarray, m1: np.ndarray) -> tuple[np.ndarray, ...]:
     """Coefficients (c3, c2, c1, c0) of the cubic through values p0, p1 with slopes m0, m1 (per unit u)."""
     return 2.0 * (p0 - p1) + m0 + m1, 3.0 * (p1 - p0) - 2.0 * m0 - m1, m0, p0
 
 
-def _evaluate(coefficients: tuple[np.ndarray, ...], u: float) -> np.ndarray:
-    """The cubic of :func:`_hermite` at u (u = 0 at the interval's start, 1 at its end)."""
+def _evaluate(coefficients: Sequence[np.ndarray], u: float | np.ndarray) -> np.ndarray:
+    """The cubic of :func:`_hermite` at u (u = 0 at the interval's start, 1 at its end; arrays broadcast)."""
     c3, c2, c1, c0 = coefficients
     return ((c3 * u + c2) * u + c1) * u + c0
 

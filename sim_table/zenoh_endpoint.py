@@ -27,7 +27,8 @@ Protocol decisions:
 - **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
   per sensor), overturn events (sent at once and again 3 times 100 ms apart, real time, with the same event id),
   heartbeats every 50 ms. zenoh's default congestion control (drop when the link's queue stays full): the
-  controller never waits for its host.
+  controller never waits for its host — except in virtual time (``--speed max``), where the accelerometer batches
+  block instead (time waits, and no sample is dropped however fast the emulator runs).
 - **Fault injection**: ``loss`` drops each message in either direction with that probability (a dropped query
   ends without a reply); ``delay`` [s] holds each one that long in either direction (seeded).
 """
@@ -123,12 +124,13 @@ class ZenohEndpoint:
     """
 
     def __init__(self, address: TableUrl, key: bytes, clock: Callable[[int], int], *, loss: float = 0.0,
-                 delay: float = 0.0, seed: int = 0) -> None:
+                 delay: float = 0.0, seed: int = 0, virtual_time: bool = False) -> None:
         if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
         self.clock = clock
         self.loss = loss
         self.delay_ns = round(delay * 1e9)
+        self._accel_congestion = zenoh.CongestionControl.BLOCK if virtual_time else zenoh.CongestionControl.DROP
         self.counters = LinkCounters()
         self.stall_chunks = False
         """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
@@ -331,7 +333,7 @@ class ZenohEndpoint:
         publisher = self._accel_publishers.get(batch.sensor_id)
         if publisher is None:
             publisher = self._accel_publishers[batch.sensor_id] = self._session.declare_publisher(
-                table_key(self.address.table, "accel", str(batch.sensor_id)))
+                table_key(self.address.table, "accel", str(batch.sensor_id)), congestion_control=self._accel_congestion)
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
         self._publish(publisher, encode_accel(batch))
@@ -453,4 +455,4 @@ def _free_port(host: str) -> int:
 def open_endpoint(url: str, options: EndpointOptions) -> ZenohEndpoint:
     """The endpoint for ``zenoh://HOST:PORT/TABLE`` (port 0: any free port) — `sim_table.endpoint`'s factory."""
     return ZenohEndpoint(parse_table_url(url, any_port=True), options.key, options.clock, loss=options.loss,
-                         delay=options.delay, seed=options.seed)
+                         delay=options.delay, seed=options.seed, virtual_time=options.virtual_time)

@@ -328,13 +328,13 @@ def analyze_app() -> typer.Typer:
 def test_rig_run_on_the_emulator_then_rig_analyze(tmp_path: Path) -> None:
     (tmp_path / "e2e.toml").write_text(E2E)
     session = tmp_path / "e2e.h5"
-    args = ["run", "e2e.toml", "--emulate", "--yes", "-o", str(session)]
+    args = ["run", "e2e.toml", "--emulate", "--speed", "max", "--yes", "-o", str(session)]  # virtual time
     for _attempt in range(3):  # on a loaded machine the real-time emulator may fault a run: resume the session
         done = subprocess.run([sys.executable, "-m", "rig.cli", *args], cwd=tmp_path, capture_output=True,
                               text=True, timeout=300, env={**os.environ, "COLUMNS": "160"})
         if done.returncode != 1:
             break
-        args = ["run", "--resume", str(session), "--emulate", "--yes"]
+        args = ["run", "--resume", str(session), "--emulate", "--speed", "max", "--yes"]
     assert done.returncode == 0, done.stderr + done.stdout
     data = read_session(session)
     completed = [r["name"] for r in data["runs"] if r["status"] == "completed"]

@@ -23,7 +23,7 @@ from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import Command, ControllerCore, Done, Fault, Result, State, StateChange
-from sim_table.process import parse_body
+from sim_table.process import Emulator, EmulatorConfig, parse_args, parse_body
 
 MS = 1_000_000
 TABLE = TableModel()
@@ -398,3 +398,52 @@ def test_the_emulator_asks_for_a_signing_key_only_on_transports_that_sign(tmp_pa
                                  text=True, env=env, timeout=60)
         assert refused.returncode == 2 and "listening" not in refused.stderr
         assert "needs the rig's signing key: give --key-file FILE or set SHAKETABLE_MAVLINK_KEY" in refused.stderr
+
+
+# ----- virtual time ------------------------------------------------------------------------------------------
+
+
+def test_virtual_time_never_plays_a_tick_whose_setpoint_has_not_come() -> None:
+    """``--speed max``: the clock runs ahead only as far as the buffered setpoints reach, holds there without an
+    underrun (and reports where it holds), runs to the stream's end once END_OF_STREAM came, and plays the same
+    reference as the samples say; the accelerometers count every tick once."""
+    emulator = Emulator(EmulatorConfig(listen="mavlink://127.0.0.1:0", key=bytes(32), speed=math.inf))
+    try:
+        core = emulator.core
+        assert emulator.virtual and core.command(Command.ARM, (), True, 0) is Result.ACCEPTED
+        assert core.command(Command.START_STREAM, (0.0,), True, 0) is Result.ACCEPTED
+        samples = np.zeros((300, 6))
+        samples[:, 0] = 0.01 * np.sin(np.linspace(0.0, math.pi, 300))
+        start = 50_000_000  # the first sample due 50 ms on
+        for _ in range(20):  # nothing buffered: the clock holds at 0
+            core.heartbeat(0)
+            assert emulator.step_virtual(0) == 0
+        assert emulator.controller_time(0) == 0 and core.state is State.STREAMING
+        core.chunk(0, start, 1_000_000, samples[:100], False, True, 0)
+        ran = sum(emulator.step_virtual(0) for _ in range(20))
+        last = start + 99 * 1_000_000
+        assert emulator.controller_time(0) == last and ran == last // 1_000_000  # up to the last sample, no further
+        assert core.counters.underruns == 0 and core.state is State.STREAMING
+        core.heartbeat(0)
+        core.chunk(1, start + 100 * 1_000_000, 1_000_000, samples[100:], True, True, 0)
+        while core.state is State.STREAMING:
+            emulator.step_virtual(0)
+        end = start + 299 * 1_000_000
+        assert core.counters.streams_completed == 1 and core.counters.underruns == 0
+        assert emulator.controller_time(0) >= end and core.counters.samples_late == 0
+        np.testing.assert_allclose(emulator.actuators.pose[0], samples[-1, 0], atol=1e-4)  # followed the samples
+        sent = emulator.endpoint.counters_dict()
+        assert sent["status_sent"] >= emulator.controller_time(0) // 20_000_000  # 50 Hz of controller time
+    finally:
+        emulator.close()
+
+
+def test_speed_max_parses_and_canopen_refuses_it(tmp_path: Path) -> None:
+    key = tmp_path / "rig.key"
+    key.write_text("ab" * 32)
+    config, _ = parse_args(["--listen", "zenoh://127.0.0.1:0/t", "--speed", "max", "--key-file", str(key)])
+    assert math.isinf(config.speed)
+    with pytest.raises(SystemExit):
+        parse_args(["--listen", "mavlink://127.0.0.1:0", "--speed", "fast"])
+    with pytest.raises(ValueError, match="CANopen has no virtual time"):
+        EmulatorConfig(listen="canopen://x?interface=virtual", speed=math.inf)

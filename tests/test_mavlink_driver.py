@@ -27,7 +27,7 @@ from drivers.controller import StreamAbortedError, TableError, TableStatus, open
 from drivers.mavlink import MavlinkTable
 from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks
 from protocols.mavlink.signing import signing_timestamp
-from rig.drive import Drive, prepare_drive
+from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
 
@@ -73,18 +73,20 @@ def at_rest(table: MavlinkTable) -> TableStatus:
 
 class RawHost(table_checks.Host):
     """A host on its own socket with ids (system, 190): signs with ``key`` if given (starting at ``timestamp``),
-    sends heartbeats at 20 Hz while ``beating``, collects statuses and COMMAND_ACKs."""
+    sends heartbeats at ``heartbeat_rate`` [Hz] while ``beating``, collects statuses and COMMAND_ACKs."""
 
     per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, address: tuple[str, int], key: bytes | None = None, *, system: int = 250,
-                 timestamp: int | None = None) -> None:
+                 timestamp: int | None = None, heartbeat_rate: float = 20.0) -> None:
+        self.heartbeat_period = 1.0 / heartbeat_rate
         self.link = UdpLink.open(("127.0.0.1", 0), address, source_system=system, source_component=190)
         if key is not None:
             enable_signing(self.link.mav, key, link_id=0, timestamp=timestamp)
         self.beating = True
         self.statuses: list[Any] = []
         self.acks: list[Any] = []
+        self.arrivals: list[Any] = []  # statuses and COMMAND_ACKs in the order they arrived
         self._lock = threading.Lock()
         self._running = True
         self._threads = [threading.Thread(target=self._receive, daemon=True),
@@ -101,14 +103,16 @@ class RawHost(table_checks.Host):
             for msg in self.link.receive(0.05):
                 if msg.get_type() == "SHAKETABLE_STATUS":
                     self.statuses.append((time.monotonic_ns(), msg))
+                    self.arrivals.append(msg)
                 elif msg.get_type() == "COMMAND_ACK":
                     self.acks.append(msg)
+                    self.arrivals.append(msg)
 
     def _heartbeat(self) -> None:
         while self._running:
             if self.beating:
                 self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
-            time.sleep(0.05)
+            time.sleep(self.heartbeat_period)
 
     def command(self, name: str, *params: float) -> str:
         """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …)."""
@@ -147,18 +151,16 @@ class RawHost(table_checks.Host):
 # ----- streaming a prepared drive -------------------------------------------------------------------------------
 
 
-def check_stream(drive: Drive, key_file: Path) -> None:
-    stream_and_check(drive, LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
-
-
 def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
-    check_stream(drive_excerpt(), key_file)
+    """16.4 s of drive in virtual time (--speed max)."""
+    stream_and_check(drive_excerpt(), LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
 
 
 @pytest.mark.slow
 def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
     """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
-    check_stream(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), key_file)
+    stream_and_check(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), LISTEN, key_file,
+                     SETPOINTS_PER_CHUNK, MavlinkTable, speed="1")
 
 
 # ----- signatures ---------------------------------------------------------------------------------------------
@@ -210,6 +212,46 @@ def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.M
     """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
     controller's clock at twice real time."""
     table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch)
+
+
+def test_a_motions_final_answer_comes_after_the_status_that_shows_it(key_file: Path) -> None:
+    """The final COMMAND_ACK of SET_TILT and HOME arrives after a status that shows the move over (armed, at its
+    target) and before one taken after it. (Sent as they were made, an ACK went before the statuses of its batch of
+    ticks, the status of the tick the move ended in among them; at twice real time a batch has four ticks.)"""
+    emulator = start_emulator("--speed", "2", key_file=key_file)
+    host = RawHost(mavlink_address(emulator), bytes.fromhex(key_file.read_text()), heartbeat_rate=50.0)
+    try:
+        assert host.command("arm") == "accepted"
+        for name, params, pitch in (("set_tilt", (math.radians(1),), math.radians(1)), ("home", (), 0.0)):
+            command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
+            start = len(host.arrivals)
+            assert host.command(name, *params) == "in_progress"
+            deadline = time.monotonic() + 10
+            final = None
+            while final is None and time.monotonic() < deadline:
+                time.sleep(0.01)
+                arrived = host.arrivals[start:]
+                final = next((k for k, m in enumerate(arrived)
+                              if m.get_type() == "COMMAND_ACK" and m.command == command and m.progress == 100), None)
+            assert final is not None, f"no final answer to {name}"
+            while len(host.arrivals) < start + final + 2:
+                time.sleep(0.01)
+            arrived = host.arrivals[start:]
+            before, after = arrived[final - 1], arrived[final + 1]
+            assert arrived[final].result == D.MAV_RESULT_ACCEPTED, (name, [
+                (host.state(m), m.faults, m.t_ns) for m in arrived if m.get_type() == "SHAKETABLE_STATUS"][-3:])
+            for status in (before, after):
+                assert status.get_type() == "SHAKETABLE_STATUS" and host.state(status) == "armed"
+                assert status.pose[4] == pytest.approx(pitch, abs=1e-4)
+            assert after.t_ns >= before.t_ns
+    finally:
+        host.close()
+        emulator.stop()
+
+
+def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+                                                              key_file=key_file), key_file)
 
 
 def test_stalled_stream_underruns_then_the_watchdog_stops_the_table(key_file: Path) -> None:

@@ -283,19 +283,21 @@ class RawHost(table_checks.Host):
 # ----- streaming a prepared drive -------------------------------------------------------------------------------
 
 
-def check_stream(drive: Drive, key_file: Path) -> None:
-    counters = stream_and_check(drive, "zenoh://127.0.0.1:0/lab-a", key_file, SETPOINTS_PER_CHUNK, ZenohTable)
+def check_stream(drive: Drive, key_file: Path, speed: str) -> None:
+    counters = stream_and_check(drive, "zenoh://127.0.0.1:0/lab-a", key_file, SETPOINTS_PER_CHUNK, ZenohTable,
+                                speed)
     assert counters["refused_commands"] == 0 and counters["link"]["unsigned"] == 0
 
 
 def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
-    check_stream(drive_excerpt(), key_file)
+    """16.4 s of drive in virtual time (--speed max)."""
+    check_stream(drive_excerpt(), key_file, "max")
 
 
 @pytest.mark.slow
 def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
     """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
-    check_stream(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), key_file)
+    check_stream(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), key_file, "1")
 
 
 # ----- signatures ---------------------------------------------------------------------------------------------
@@ -393,3 +395,8 @@ def test_another_table_name_at_the_same_address_hears_nothing(key_file: Path, pl
     wrong = plain.url.rsplit("/", 1)[0] + "/other"
     with pytest.raises(TableTimeoutError):
         open_table(wrong, key_file=str(key_file), connect_timeout=0.5).connect()
+
+
+def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+                                                              key_file=key_file), key_file)
