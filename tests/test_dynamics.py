@@ -65,7 +65,7 @@ def test_simulated_legs_follow_the_closed_loop_transfer_function(hz):
     legs = ServoActuators(TABLE, DT)
     d, g = legs.dynamics, TABLE.geometry
     omega = 2 * math.pi * hz
-    n = int(round(6.0 / DT))
+    n = round(6.0 / DT)
     t = DT * np.arange(n)
     amplitude = 0.1 / omega  # 0.1 m/s peak speed, far from the valve's saturation
     command = 2.2 + amplitude * np.sin(omega * t)
