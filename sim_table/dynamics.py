@@ -189,10 +189,11 @@ class ServoActuators:
 
 
 def make_actuators(kind: str, table: TableModel, dt: float, settings: ActuatorSettings, *, payload: float = 0.0,
-                   seed: int = 0) -> Actuators | ServoActuators:
-    """The emulator's legs of model ``kind`` (:data:`DYNAMICS`); ``payload``: the specimens' mass [kg]."""
+                   pose: np.ndarray | None = None, seed: int = 0) -> Actuators | ServoActuators:
+    """The emulator's legs of model ``kind`` (:data:`DYNAMICS`) at rest at ``pose`` (default home); ``payload``: the
+    specimens' mass [kg]."""
     if kind == "lag":
-        return Actuators(table, dt, settings, seed=seed)
+        return Actuators(table, dt, settings, pose=pose, seed=seed)
     if kind == "servo":
-        return ServoActuators(table, dt, settings, payload=payload, seed=seed)
+        return ServoActuators(table, dt, settings, payload=payload, pose=pose, seed=seed)
     raise ValueError(f"unknown dynamics {kind!r}: expected one of {', '.join(DYNAMICS)}")
