@@ -89,8 +89,8 @@ def identification_drive(table: TableModel, angle: float, *, duration: float = 6
     if not 0 < level <= 1:
         raise ValueError(f"level {level!r}: expected a share of Table IV in (0, 1]")
     rate = table.controller_rate
-    n_motion = int(round(duration * rate))
-    n_settle = int(round(settle * rate))
+    n_motion = round(duration * rate)
+    n_settle = round(settle * rate)
     n_fft = next_fast_len(n_motion)
     freqs = rfftfreq(n_fft, 1.0 / rate)
     shape = _band_shape(freqs, band)

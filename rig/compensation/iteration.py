@@ -86,7 +86,7 @@ class Compensation:
 def motion_window(drive: Drive, taper: float = TAPER_SECONDS) -> tuple[slice, np.ndarray]:
     """The samples of the record's motion and a window (n,) that is 1 inside it with half-cosine ramps of ``taper``
     s at its ends, 0 outside."""
-    start, end = (int(round(x * drive.rate)) for x in drive.motion)
+    start, end = (round(x * drive.rate) for x in drive.motion)
     end = min(end, len(drive.t))
     window = np.zeros(len(drive.t))
     length = end - start
