@@ -139,7 +139,8 @@ def frequency_response(commanded: np.ndarray, measured: np.ndarray, rate: float,
     f, pxx = signal.welch(commanded, fs=rate, nperseg=nperseg, axis=0)
     _, pyy = signal.welch(measured, fs=rate, nperseg=nperseg, axis=0)
     _, pxy = signal.csd(commanded, measured, fs=rate, nperseg=nperseg, axis=0)
+    inside = ((f >= band[0]) & (f <= band[1]))[:, None] & (pxx > 0) & (pyy > 0)  # unexcited: no estimate
     with np.errstate(invalid="ignore", divide="ignore"):
-        h = np.where(pxx > 0, pxy / pxx, 0.0)
-        coherence = np.where((pxx > 0) & (pyy > 0), np.abs(pxy) ** 2 / (pxx * pyy), 0.0)
+        h = np.where(inside, pxy / pxx, 0.0)
+        coherence = np.where(inside, np.abs(pxy) ** 2 / (pxx * pyy), 0.0)
     return FrequencyResponse(f=f, h=h, coherence=np.clip(coherence, 0.0, 1.0), band=band)

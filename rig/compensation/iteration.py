@@ -12,11 +12,12 @@ correction is confined to the record's motion (a Tukey window) and to the band a
 high-pass corner and the identified band's lower edge, up to ``band_high``; its displacement is the exact double
 integral in the frequency domain (−ΔA/ω²), its velocity and acceleration the drive's plus the correction's
 derivatives. Each corrected drive is checked against the table's limits (Table IV and the legs' stroke and speed,
-``TableModel.check_trajectory``); when it leaves them the gain is halved (at most three times), else iteration
-stops there. Iteration stops when the fall-line RMS error (``rig.compensation.signals``) improves by less than
-``min_improvement`` (relative) on the best so far, reaches ``tolerance``, or after ``iterations`` corrections; the
-result is the best drive played. With an exact H and g = 1 one step removes the error inside the band; the
-offline tests check the convergence on the servo-hydraulic model (``sim_table.dynamics``).
+``TableModel.check_trajectory``); when it leaves them the correction is narrowed to :data:`NARROW_BAND_HZ`, then
+its gain halved twice, else iteration stops there. Iteration stops when the fall-line RMS error
+(``rig.compensation.signals``: over the record, in band) improves by less than ``min_improvement`` (relative) on
+the best so far, reaches ``tolerance``, or after ``iterations`` corrections; the result is the best drive played.
+With an exact H and g = 1 one step removes the error inside the band; the offline tests check the convergence on
+the servo-hydraulic model (``sim_table.dynamics``).
 """
 
 from __future__ import annotations
@@ -34,11 +35,15 @@ from analysis.table_model import AXES
 from rig.drive import Drive
 
 from .identify import FrequencyResponse
-from .signals import base_accelerations, errors_pct, fall_line
+from .signals import base_accelerations, errors_pct, fall_line, in_band
 
 Play = Callable[[Drive, int], np.ndarray]
 """Plays a drive (iteration index given) and returns the plate-frame specific force (n, 3) [m/s²] measured at the
 drive's samples."""
+
+NARROW_BAND_HZ = 20.0
+"""Upper edge of the correction [Hz] once a correction up to ``band_high`` left the table's limits: above it the
+table attenuates most and the inverse amplifies most, so that content is the first to be given up."""
 
 TAPER_SECONDS = 0.5
 """Half-cosine ramps of the correction's window at both ends of the record's motion [s]."""
@@ -67,7 +72,8 @@ class Compensation:
     """The outcome: every ``iterations``' errors, the ``best`` index and its ``drive``, whether iteration
     ``converged`` (the error stopped improving or reached the tolerance, as opposed to running out of iterations
     or of room in the limits) and why it ``stopped``; the fall-line ``target`` (n,) and each iteration's
-    ``achieved`` fall-line acceleration (n,) [m/s²], ``motion`` the samples the errors cover."""
+    ``achieved`` fall-line acceleration (n,) [m/s²] (both low-passed as compared), ``motion`` the samples the errors
+    cover (``error_window``)."""
 
     iterations: list[Iteration]
     best: int
@@ -93,6 +99,22 @@ def motion_window(drive: Drive, taper: float = TAPER_SECONDS) -> tuple[slice, np
     alpha = min(1.0, 2.0 * taper * drive.rate / max(length, 1))
     window[start:end] = windows.tukey(length, alpha=alpha)
     return slice(start, end), window
+
+
+def error_window(drive: Drive) -> slice:
+    """The samples the errors cover: from the record's first sample to the end of the drive's motion."""
+    return slice(round(drive.record_start * drive.rate), min(round(drive.motion[1] * drive.rate), len(drive.t)))
+
+
+def fall_line_errors(target: Drive, measured: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """The achieved fall-line acceleration (n,) [m/s²] (in band) of the base-frame ``measured`` (n, 3) and its RMS
+    and peak errors [%] against ``target``'s (``rig.compensation.signals``)."""
+    beta, rate = target.angle, target.rate
+    achieved = in_band(fall_line(measured, beta), rate)
+    wanted = in_band(fall_line(target_acceleration(target), beta), rate)
+    window = error_window(target)
+    rms, peak = errors_pct(achieved[window], wanted[window])
+    return achieved, rms, peak
 
 
 def target_acceleration(drive: Drive) -> np.ndarray:
@@ -135,8 +157,8 @@ def compensate(drive: Drive, response: FrequencyResponse, play: Play, *, iterati
     clock = clock or time.perf_counter
     beta = drive.angle
     target = target_acceleration(drive)
-    target_fl = fall_line(target, beta)
-    motion, _ = motion_window(drive)
+    target_fl = in_band(fall_line(target, beta), drive.rate)
+    motion = error_window(drive)
     played: list[tuple[Drive, np.ndarray]] = []
     history: list[Iteration] = []
     achieved_fl: list[np.ndarray] = []
@@ -144,8 +166,8 @@ def compensate(drive: Drive, response: FrequencyResponse, play: Play, *, iterati
     def run(candidate: Drive, used_gain: float, note: str) -> Iteration:
         started = clock()
         measured = base_accelerations(play(candidate, len(history)), beta)
-        achieved_fl.append(fall_line(measured, beta))
-        rms, peak = errors_pct(achieved_fl[-1][motion], target_fl[motion])
+        achieved, rms, peak = fall_line_errors(drive, measured)
+        achieved_fl.append(achieved)
         played.append((candidate, measured))
         item = Iteration(len(history), rms, peak, used_gain, note, clock() - started)
         history.append(item)
@@ -160,15 +182,16 @@ def compensate(drive: Drive, response: FrequencyResponse, play: Play, *, iterati
             break
         base, measured = played[best]
         error = target - measured
-        step, note, candidate = gain, "", None
-        for _attempt in range(4):
-            trial = corrected_drive(base, error, response, step, band_high=band_high, regularisation=regularisation)
+        narrow = min(band_high, NARROW_BAND_HZ)
+        notes, candidate, step = [], None, gain
+        for step, high in ((gain, band_high), (gain, narrow), (gain / 2, narrow), (gain / 4, narrow)):
+            trial = corrected_drive(base, error, response, step, band_high=high, regularisation=regularisation)
             violation = trial.table.check_trajectory(trial.t, trial.poses, trial.velocities, trial.accelerations)
             if violation is None:
                 candidate = trial
                 break
-            note = f"gain {step:g} left the limits ({violation.message()}); halved"
-            step /= 2.0
+            notes.append(f"gain {step:g} up to {high:g} Hz left the limits ({violation.message()})")
+        note = "; ".join(notes)
         if candidate is None:
             stopped = f"every correction left the table's limits: {note}"
             break

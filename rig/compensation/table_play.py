@@ -21,8 +21,8 @@ from rig.orchestrator.orchestrator import LEAD, LINGER
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.states import Progress
 
-from .iteration import motion_window, target_acceleration
-from .signals import base_accelerations, errors_pct, fall_line, on_grid
+from .iteration import fall_line_errors
+from .signals import base_accelerations, on_grid
 
 
 class _Capture:
@@ -89,10 +89,8 @@ class TablePlayer:
         force = on_grid(rows, drive.t)
         extra: dict[str, Any] = {"underruns": report.underruns, "t_start_controller_ns": report.t_start_ns}
         if self.target is not None:
-            motion, _ = motion_window(self.target)
-            target = fall_line(target_acceleration(self.target), drive.angle)
-            achieved = fall_line(base_accelerations(force, drive.angle), drive.angle)
-            extra["rms_error_pct"], extra["peak_error_pct"] = errors_pct(achieved[motion], target[motion])
+            _, extra["rms_error_pct"], extra["peak_error_pct"] = fall_line_errors(
+                self.target, base_accelerations(force, drive.angle))
         run_log.end("completed", **extra)
         return force
 
