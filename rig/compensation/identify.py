@@ -25,7 +25,7 @@ from scipy.fft import irfft, next_fast_len, rfftfreq
 from analysis.table_model import AXES, TableModel
 from rig.drive import Drive, Governing
 
-BAND = (0.5, 40.0)
+BAND = (0.5, 50.0)
 """Default band of the identification drive [Hz]."""
 
 LEVEL = 0.3

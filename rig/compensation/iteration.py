@@ -12,7 +12,7 @@ correction is confined to the record's motion (a Tukey window) and to the band a
 high-pass corner and the identified band's lower edge, up to ``band_high``; its displacement is the exact double
 integral in the frequency domain (−ΔA/ω²), its velocity and acceleration the drive's plus the correction's
 derivatives. Each corrected drive is checked against the table's limits (Table IV and the legs' stroke and speed,
-``TableModel.check_trajectory``); when it leaves them the correction is narrowed to :data:`NARROW_BAND_HZ`, then
+``TableModel.check_trajectory``); when it leaves them the correction is narrowed to :data:`NARROW_BANDS_HZ`, then
 its gain halved twice, else iteration stops there. Iteration stops when the fall-line RMS error
 (``rig.compensation.signals``: over the record, in band) improves by less than ``min_improvement`` (relative) on
 the best so far, reaches ``tolerance``, or after ``iterations`` corrections; the result is the best drive played.
@@ -41,9 +41,13 @@ Play = Callable[[Drive, int], np.ndarray]
 """Plays a drive (iteration index given) and returns the plate-frame specific force (n, 3) [m/s²] measured at the
 drive's samples."""
 
-NARROW_BAND_HZ = 20.0
-"""Upper edge of the correction [Hz] once a correction up to ``band_high`` left the table's limits: above it the
-table attenuates most and the inverse amplifies most, so that content is the first to be given up."""
+NARROW_BANDS_HZ = (30.0, 20.0)
+"""Upper edges of the correction [Hz] tried in turn once a correction up to ``band_high`` left the table's limits:
+the highest frequencies are where the table attenuates most and the inverse amplifies most, so their content is the
+first to be given up."""
+
+BAND_HIGH = 45.0
+"""Default upper edge of the correction [Hz]."""
 
 TAPER_SECONDS = 0.5
 """Half-cosine ramps of the correction's window at both ends of the record's motion [s]."""
@@ -147,7 +151,7 @@ def corrected_drive(drive: Drive, error: np.ndarray, response: FrequencyResponse
 
 
 def compensate(drive: Drive, response: FrequencyResponse, play: Play, *, iterations: int = 5, gain: float = 0.8,
-               tolerance: float = 0.0, min_improvement: float = 0.05, band_high: float = 30.0,
+               tolerance: float = 0.0, min_improvement: float = 0.05, band_high: float = BAND_HIGH,
                regularisation: float = 0.01, clock: Callable[[], float] | None = None) -> Compensation:
     """Iterate ``drive`` on the table that ``play`` plays (module docstring); ``iterations`` corrections at most."""
     if iterations < 0 or not 0 < gain <= 1.5:
@@ -182,9 +186,10 @@ def compensate(drive: Drive, response: FrequencyResponse, play: Play, *, iterati
             break
         base, measured = played[best]
         error = target - measured
-        narrow = min(band_high, NARROW_BAND_HZ)
+        bands = sorted({min(band_high, b) for b in (band_high, *NARROW_BANDS_HZ)}, reverse=True)
+        narrow = bands[-1]
         notes, candidate, step = [], None, gain
-        for step, high in ((gain, band_high), (gain, narrow), (gain / 2, narrow), (gain / 4, narrow)):
+        for step, high in (*((gain, b) for b in bands), (gain / 2, narrow), (gain / 4, narrow)):
             trial = corrected_drive(base, error, response, step, band_high=high, regularisation=regularisation)
             violation = trial.table.check_trajectory(trial.t, trial.poses, trial.velocities, trial.accelerations)
             if violation is None:

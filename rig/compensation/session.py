@@ -20,7 +20,7 @@ from rig.session import SessionLog
 
 from . import drivefile, store
 from .identify import BAND, FrequencyResponse, frequency_response, identification_drive
-from .iteration import Compensation, compensate
+from .iteration import BAND_HIGH, Compensation, compensate
 from .signals import base_accelerations
 from .table_play import TablePlayer
 
@@ -49,7 +49,7 @@ class Outcome:
 def iterate_on_table(drive: Drive, url: str, options: dict[str, Any], session: Path, drive_path: Path, *,
                      sequence: dict[str, Any], software_version: str, bodies: list[dict[str, Any]] | None = None,
                      iterations: int = 5, gain: float = 0.8, tolerance: float = 0.0,
-                     identify_seconds: float = 60.0, band: tuple[float, float] = BAND, band_high: float = 30.0,
+                     identify_seconds: float = 60.0, band: tuple[float, float] = BAND, band_high: float = BAND_HIGH,
                      note: Callable[[str], None] | None = None) -> Outcome:
     """Identify and iterate ``drive`` on the table at ``url`` (module docstring) into the new ``session`` file."""
     say = note or (lambda _text: None)
