@@ -141,3 +141,27 @@ def test_make_actuators_and_the_rig_toml_section(tmp_path):
     path.write_text("[dynamics]\nbore_mm = 40\n")
     with pytest.raises(TableModelError, match=r"rig.toml:2: dynamics.bore_mm: unknown key"):
         TableModel.from_toml(path)
+
+
+def test_the_emulator_chooses_its_legs_by_name():
+    """``--dynamics servo`` gives the emulator servo legs loaded by its specimens' mass; the default stays the lag."""
+    import uuid
+
+    from sim_table.actuators import Actuators
+    from sim_table.process import Emulator, parse_args
+
+    listen = f"canopen://issue12-{uuid.uuid4().hex[:8]}?interface=virtual"
+    config, _ = parse_args(["--listen", listen, "--dynamics", "servo", "--body", "0.1x0.5@0.3,0;mass=20"])
+    assert config.dynamics == "servo"
+    emulator = Emulator(config)
+    try:
+        assert isinstance(emulator.actuators, ServoActuators)
+        assert emulator.actuators.payload == pytest.approx(20.0)
+    finally:
+        emulator.close()
+    assert parse_args(["--listen", listen])[0].dynamics == "lag"
+    emulator = Emulator(parse_args(["--listen", listen])[0])
+    try:
+        assert isinstance(emulator.actuators, Actuators)
+    finally:
+        emulator.close()
