@@ -113,6 +113,7 @@ class ServoActuators:
         self._offset: np.ndarray | float = 0.0  # achieved − reference pose at the last tick: the next guess's offset
         self.stalled = np.zeros(6, dtype=bool)
         """Legs whose actuator seized (set by the owner): their valve command decays to zero at the brake rate."""
+        self._advance(np.zeros((0, 6)), np.zeros(0, dtype=bool))  # compile (or load) the numba loop now, not mid-stream
 
     # ----- the model ----------------------------------------------------------------------------------
 
@@ -171,16 +172,23 @@ class ServoActuators:
         wanted = self.table.leg_lengths(clipped)
         commanded = np.clip(wanted, g.leg_min, g.leg_max)
         stroke_limited = not np.array_equal(commanded, wanted)
-        out = np.empty_like(commanded)
-        saturated = _run(self._ad, self._bd, self._state, self._last_ref, self._last_w, commanded, braked,
-                         self.stalled, self.dynamics.loop_gain, self.dynamics.velocity_feedforward, self.dt,
-                         g.leg_speed, self.settings.brake_deceleration * self.dt, g.leg_min, g.leg_max, out)
+        out, saturated = self._advance(commanded, braked)
         guess = np.where(braked[:, None], self.pose, clipped + self._offset)
         poses = self.table.pose_from_leg_lengths(out, guess=guess)
         self.pose, self.lengths = poses[-1], out[-1].copy()
         self._offset = 0.0 if braked[-1] else self.pose - clipped[-1]
         demand = np.where(braked[:, None], out, commanded)
         return ActuatorStep(poses, out, demand, setpoint_limited or saturated, stroke_limited)
+
+    def _advance(self, commanded: np.ndarray, braked: np.ndarray) -> tuple[np.ndarray, bool]:
+        """The legs over the ticks of ``commanded`` (k, 6) leg lengths: their lengths (k, 6), whether a valve
+        saturated."""
+        g = self.table.geometry
+        out = np.empty_like(commanded)
+        saturated = _run(self._ad, self._bd, self._state, self._last_ref, self._last_w, commanded, braked,
+                         self.stalled, self.dynamics.loop_gain, self.dynamics.velocity_feedforward, self.dt,
+                         g.leg_speed, self.settings.brake_deceleration * self.dt, g.leg_min, g.leg_max, out)
+        return out, bool(saturated)
 
     def measure(self, lengths: np.ndarray, pose: np.ndarray) -> np.ndarray:
         """The measured pose (6,): forward kinematics of the leg ``lengths`` (6,) read with noise, from ``pose``."""
