@@ -63,6 +63,8 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             fail("give either --table URL or --emulate")
         if iterations < 0:
             fail(f"--iterations {iterations}: expected >= 0")
+        if dynamics not in ("lag", "servo"):
+            fail(f"--dynamics {dynamics!r}: expected servo or lag")
         try:
             model = TableModel.from_toml(rig_config) if rig_config else TableModel()
             span = None

@@ -6,5 +6,6 @@ acceleration reproduces the record (``docs/table-dynamics.md``, ``rig iterate``)
 - ``iteration``: the correction with the regularised inverse response, relaxation and the limits re-checked;
 - ``drivefile``: the compensated drive as a file a sequence can play (``drive = "FILE"``);
 - ``store``: the identification and the iterations in the session file (``/compensation``);
-- ``table_play``: playing a drive on a table (any transport) as a run of the session.
+- ``table_play``: playing a drive on a table (any transport) as a run of the session;
+- ``session``: one iteration session on a table (what ``rig iterate`` runs).
 """

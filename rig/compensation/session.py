@@ -58,20 +58,24 @@ def iterate_on_table(drive: Drive, url: str, options: dict[str, Any], session: P
     with SessionLog.create(session, rig_config=table_model.to_dict(), sequence=sequence,
                            software_version=software_version) as log, open_table(url, **options) as table:
         player = TablePlayer(table, log, url, bodies=bodies or [])
-        say(f"tilting to {math.degrees(drive.angle):g}°")
-        player.tilt(drive.angle)
-        say(f"identification: {ident.duration:.0f} s of band-limited random motion, {band[0]:g}–{band[1]:g} Hz")
-        measured = base_accelerations(player.play(ident, "identify", 0), drive.angle)
-        response = frequency_response(ident.accelerations[:, :3], measured, drive.rate, band=band)
-        identification_run = player.runs[-1]
-        player.target = drive
+        try:
+            say(f"tilting to {math.degrees(drive.angle):g}°")
+            player.tilt(drive.angle)
+            say(f"identification: {ident.duration:.0f} s of band-limited random motion, {band[0]:g}–{band[1]:g} Hz")
+            measured = base_accelerations(player.play(ident, "identify", 0), drive.angle)
+            response = frequency_response(ident.accelerations[:, :3], measured, drive.rate, band=band)
+            identification_run = player.runs[-1]
+            player.target = drive
 
-        def play(candidate: Drive, index: int) -> Any:
-            say(f"iteration {index}: playing {candidate.duration:.0f} s")
-            return player.play(candidate, "iterate", index)
+            def play(candidate: Drive, index: int) -> Any:
+                say(f"iteration {index}: playing {candidate.duration:.0f} s")
+                return player.play(candidate, "iterate", index)
 
-        result = compensate(drive, response, play, iterations=iterations, gain=gain, tolerance=tolerance,
-                            band_high=band_high)
+            result = compensate(drive, response, play, iterations=iterations, gain=gain, tolerance=tolerance,
+                                band_high=band_high)
+        except BaseException:
+            _stop_quietly(table)  # a controlled stop home: the iteration cannot go on
+            raise
         say("home")
         player.finish()
         runs = player.runs[1:]
@@ -81,3 +85,14 @@ def iterate_on_table(drive: Drive, url: str, options: dict[str, Any], session: P
                 identification_run=identification_run, iteration_runs=runs, response=response, result=result,
                 t=drive.t, drive_file=str(drive_path))
     return Outcome(session, drive_path, response, result, identification_run, runs)
+
+
+def _stop_quietly(table: Any) -> None:
+    """STOP (decelerate, home) unless the table has stopped already; its errors do not hide the first one."""
+    from drivers.controller import TableError
+
+    try:
+        if table.status().state in ("armed", "streaming", "tilting", "homing"):
+            table.stop()
+    except TableError:
+        pass
