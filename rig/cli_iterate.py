@@ -24,7 +24,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
     @app.command("iterate")
     def iterate_cmd(
         record: Annotated[str, typer.Argument(help="the record (SUITE:NAME, library:NAME, a file, H1+H2[+UP])")],
-        angle: Annotated[float, typer.Option(help="plate tilt β [deg]")] = 0.0,
+        angle: Annotated[float, typer.Option(help="plate tilt β in degrees")] = 0.0,
         table: Annotated[str | None, typer.Option(help="the table's URL (mavlink://, zenoh://, canopen://)")] = None,
         emulate: Annotated[bool, typer.Option(help="start the emulated table (MAVLink on loopback)")] = False,
         iterations: Annotated[int, typer.Option(help="corrections at most")] = 5,
@@ -32,13 +32,13 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
                                                     "iterate-DATE-RECORD.h5 here)")] = None,
         drive_out: Annotated[Path | None, typer.Option("--drive-out", help="the compensated drive file (default: "
                                                        "SESSION.drive.h5)")] = None,
-        gain: Annotated[float, typer.Option(help="relaxation gain of each correction, (0, 1.5]")] = 0.8,
-        tolerance: Annotated[float, typer.Option(help="stop once the fall-line RMS error is at most this [%]")] = 0.0,
-        identify_seconds: Annotated[float, typer.Option(help="length of the identification drive [s]")] = 60.0,
-        window: Annotated[str | None, typer.Option(help="play only T0,T1 [s] of the record")] = None,
-        corner: Annotated[float | None, typer.Option(help="a fixed high-pass corner [Hz] (default: automatic)")] = None,
+        gain: Annotated[float, typer.Option(help="relaxation gain of each correction, 0 to 1.5")] = 0.8,
+        tolerance: Annotated[float, typer.Option(help="stop at this fall-line RMS error, percent")] = 0.0,
+        identify_seconds: Annotated[float, typer.Option(help="length of the identification drive in seconds")] = 60.0,
+        window: Annotated[str | None, typer.Option(help="play only T0,T1 (seconds) of the record")] = None,
+        corner: Annotated[float | None, typer.Option(help="a fixed high-pass corner in Hz")] = None,
         rig_config: Annotated[Path | None, typer.Option(help="rig configuration TOML (limits, hexapod, "
-                                                        "[dynamics])")] = None,
+                                                        "dynamics section)")] = None,
         dynamics: Annotated[str, typer.Option(help="with --emulate: the legs' model, servo or lag")] = "servo",
         body: Annotated[list[str] | None, typer.Option(help="with --emulate: a specimen BxH@X,Y[;mass=M] on the "
                                                        "plate (repeat)")] = None,
