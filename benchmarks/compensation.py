@@ -58,8 +58,12 @@ def _emulator_runner(speed: float, iterations: int, identify: float, scratch: Pa
     key.write_text(secrets.token_hex(32) + "\n")
     flags = ["--dynamics", "servo", "--speed", f"{speed:g}"]
     bodies = []
+    gap = 0.05
+    width = sum(body.depth for body in TABLE_V) + gap * (len(TABLE_V) - 1)
+    edge = -width / 2  # side by side across the plate (along y), each centred on the fall line
     for k, body in enumerate(TABLE_V):
-        y = -0.9 + 0.3 * k
+        y = edge + body.depth / 2
+        edge += body.depth + gap
         flags += ["--body", f"{body.b!r}x{body.h!r}@0,{y!r};depth={body.depth!r};mass={body.mass!r}"]
         bodies.append({"body_id": k + 1, "name": body.name, "b": body.b, "h": body.h, "depth": body.depth,
                        "mass": body.mass, "x": 0.0, "y": y})

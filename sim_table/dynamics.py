@@ -110,7 +110,8 @@ class ServoActuators:
         self._state[:, 2] = self.lengths
         self._last_ref = self.lengths.copy()
         self._last_w = np.zeros(6)
-        self._offset: np.ndarray | float = 0.0  # achieved − reference pose at the last tick: the next guess's offset
+        self._offset: np.ndarray | float = 0.0  # achieved − reference pose at the last tick, and its change per
+        self._drift: np.ndarray | float = 0.0   # tick: the kinematics' guess extrapolates them (one Newton step)
         self.stalled = np.zeros(6, dtype=bool)
         """Legs whose actuator seized (set by the owner): their valve command decays to zero at the brake rate."""
         self._advance(np.zeros((0, 6)), np.zeros(0, dtype=bool))  # compile (or load) the numba loop now, not mid-stream
@@ -173,10 +174,15 @@ class ServoActuators:
         commanded = np.clip(wanted, g.leg_min, g.leg_max)
         stroke_limited = not np.array_equal(commanded, wanted)
         out, saturated = self._advance(commanded, braked)
-        guess = np.where(braked[:, None], self.pose, clipped + self._offset)
+        ahead = np.arange(1, len(clipped) + 1)[:, None]
+        guess = np.where(braked[:, None], self.pose, clipped + self._offset + self._drift * ahead)
         poses = self.table.pose_from_leg_lengths(out, guess=guess)
         self.pose, self.lengths = poses[-1], out[-1].copy()
-        self._offset = 0.0 if braked[-1] else self.pose - clipped[-1]
+        offsets = poses - clipped
+        if braked.any() or len(poses) < 2:
+            self._offset, self._drift = (0.0, 0.0) if braked[-1] else (offsets[-1], 0.0)
+        else:
+            self._offset, self._drift = offsets[-1], offsets[-1] - offsets[-2]
         demand = np.where(braked[:, None], out, commanded)
         return ActuatorStep(poses, out, demand, setpoint_limited or saturated, stroke_limited)
 
