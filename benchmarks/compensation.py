@@ -181,7 +181,7 @@ def _report(cases: list[dict], table: TableModel, payload: float, specs: list[st
             "target": f"<= {TARGET_PCT:g} % after <= 5 iterations where uncompensated >= {UNCOMPENSATED_PCT:g} %",
             "cases_uncompensated_at_least_20_pct": len(hard), "of_those_meeting_target": len(met),
             "seconds_per_iteration": {"mean": statistics.mean(per_iteration), "max": max(per_iteration),
-                                      "unit": "s (one play + correction, offline)"},
+                                      "unit": "s (one play + correction)"},
             "compared_with": {"drive_seconds_mean": statistics.mean(real_time),
                               "what": "one real-time play of the drive on the emulator or the table"},
         },
