@@ -50,6 +50,9 @@ left out, which keeps Table IV and the default geometry)::
     # platform_joints_m = [[x, y, z], ...]   6 rows, platform frame
     # with home_height_m, leg_min_m, leg_max_m, leg_speed_m_s
 
+    [dynamics]                         # the legs' servo-hydraulics (analysis/table_dynamics.py, docs/table-dynamics.md)
+    bore_m = 0.04
+
 Errors in a file raise :class:`TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
 :meth:`TableModel.to_dict` writes the same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit
 joints), so that ``from_dict(to_dict())`` gives back an equal model exactly.
@@ -70,6 +73,7 @@ from numba import njit
 
 from analysis.body import G
 from analysis.errors import AnalysisInputError
+from analysis.table_dynamics import TableDynamics
 from analysis.toml_lines import find_line, key_lines, syntax_message
 from analysis.toml_lines import suggest as _suggest
 
@@ -425,10 +429,14 @@ class TableModel:
     limits: TableLimits = TABLE_IV
     geometry: HexapodGeometry = field(default_factory=HexapodGeometry.default)
     controller_rate: float = 1000.0
+    dynamics: TableDynamics = field(default_factory=TableDynamics)
+    """The legs' servo-hydraulic parameters (``[dynamics]``; used by the emulator's ``--dynamics servo``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):
             raise TableModelError("TableModel: limits must be a TableLimits and geometry a HexapodGeometry")
+        if not isinstance(self.dynamics, TableDynamics):
+            raise TableModelError("TableModel: dynamics must be a TableDynamics")
         _check_fields(self, _positive, ("controller_rate",))
 
     # ----- kinematics -------------------------------------------------------------------------------
@@ -535,7 +543,10 @@ class TableModel:
         hexapod = {"base_joints_m": g.base_joints.tolist(), "platform_joints_m": g.platform_joints.tolist(),
                    "home_height_m": g.home_height, "leg_min_m": g.leg_min, "leg_max_m": g.leg_max,
                    "leg_speed_m_s": g.leg_speed}
-        return {"table": {"controller_rate_hz": self.controller_rate}, "limits": limits, "hexapod": hexapod}
+        out = {"table": {"controller_rate_hz": self.controller_rate}, "limits": limits, "hexapod": hexapod}
+        if self.dynamics != TableDynamics():
+            out["dynamics"] = self.dynamics.to_dict()
+        return out
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TableModel:
@@ -720,6 +731,7 @@ _LAYOUT_SPEC: _Spec = {
     "platform_joint_depth": ({"platform_joint_depth_m": 1.0}, _non_negative),
 }
 _JOINT_KEYS = ("base_joints_m", "platform_joints_m")
+DYNAMICS_KEYS = tuple(TableDynamics().to_dict())
 _OPTIONAL_LAYOUT = {"platform_joint_depth": 0.0}
 
 
@@ -744,7 +756,7 @@ class _Reader:
         return TableModelError(f"{where}: {'.'.join(path)}: {problem}" if path else f"{where}: {problem}")
 
     def model(self, data: Mapping[str, Any]) -> TableModel:
-        top = self.table(data, (), ("table", "limits", "hexapod"))
+        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -758,7 +770,17 @@ class _Reader:
                                ("limits", "tilt"), _TILT_SPEC, vars(TABLE_IV.tilt))
         geometry = self.geometry(top["hexapod"]) if "hexapod" in top else HexapodGeometry.default()
         return TableModel(limits=TableLimits(**axes, tilt=TiltLimits(**tilt)), geometry=geometry,
-                          controller_rate=table["controller_rate"])
+                          controller_rate=table["controller_rate"], dynamics=self.dynamics(top.get("dynamics", {})))
+
+    def dynamics(self, value: Any) -> TableDynamics:
+        """The ``[dynamics]`` section (``analysis.table_dynamics``); errors name its line and key."""
+        table = self.table(value, ("dynamics",), tuple(DYNAMICS_KEYS))
+        try:
+            return TableDynamics.from_dict(dict(table))
+        except ValueError as exc:
+            key = str(exc).partition(":")[0]
+            raise self.error(("dynamics", key) if key in table else ("dynamics",),
+                             str(exc).partition(": ")[2]) from None
 
     def table(self, value: Any, path: tuple[str, ...], allowed: Sequence[str]) -> Mapping[str, Any]:
         """``value`` checked to be a table with only ``allowed`` keys."""

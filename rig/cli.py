@@ -19,6 +19,7 @@ from rig import (
     cli_analyze,
     cli_design,
     cli_emulate,
+    cli_iterate,
     cli_prepare,
     cli_records,
     cli_report,
@@ -238,6 +239,7 @@ cli_sessions.register(app, fail, console)
 cli_serve.register(app, fail, console)
 cli_analyze.register(app, fail, console)
 cli_report.register(app, fail, console)
+cli_iterate.register(app, fail, console)
 
 
 def main() -> None:  # pragma: no cover - console entry

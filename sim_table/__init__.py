@@ -8,6 +8,8 @@ with ``mavlink://HOST:PORT``, ``zenoh://HOST:PORT/TABLE`` or ``canopen://CHANNEL
   their overturns.
 - ``controller``: the controller's states, commands, setpoint buffer, watchdogs and counters, transport-free.
 - ``actuators``: the six legs on the table model (lag, speed and stroke limits, measurement noise).
+- ``dynamics``: servo-hydraulic legs (valve, oil column, displacement loop; ``--dynamics servo``).
+- ``offline``: a drive played through the legs and accelerometers without transport or clock.
 - ``accelerometers``: the plate's motion differentiated; virtual accelerometers (specific force, plate frame).
 - ``endpoint``: the transport endpoints' interface, chosen by the listen URL's scheme.
 - ``mavlink_endpoint``, ``zenoh_endpoint``, ``canopen_endpoint``: the controller's side of each transport.

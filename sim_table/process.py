@@ -61,8 +61,9 @@ from analysis import Body
 from analysis.table_model import TableModel
 from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
-from sim_table.actuators import Actuators, ActuatorSettings
+from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
+from sim_table.dynamics import DYNAMICS, make_actuators
 from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.scene import Specimen
 from sim_table.specimens import SpecimenScene
@@ -119,6 +120,7 @@ class EmulatorConfig:
     sensors: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),)
     table: TableModel = field(default_factory=TableModel)
     actuators: ActuatorSettings = field(default_factory=ActuatorSettings)
+    dynamics: str = "lag"
     accel_noise: float = 0.02
     loss: float = 0.0
     delay: float = 0.0
@@ -163,7 +165,8 @@ class Emulator:
         else:
             self.core = ControllerCore(table, tick_ns=self.tick_ns,
                                        watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
-        self.actuators = Actuators(table, dt, config.actuators, seed=config.seed)
+        self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
+                                        payload=sum(specimen.mass for specimen in config.specimens))
         self.track = PlateTrack(dt)
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
                                              seed=config.seed + 1)
@@ -494,6 +497,9 @@ def _argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--rig-config", type=Path, help="rig configuration TOML (default: Table IV, default hexapod)")
     p.add_argument("--leg-noise", type=float, default=ActuatorSettings.noise, metavar="M",
                    help="σ of a leg-length reading [m]")
+    p.add_argument("--dynamics", choices=DYNAMICS, default="lag",
+                   help="the legs' model: lag (first-order lag) or servo (servo-valve, oil column and displacement "
+                        "loop from the rig configuration's [dynamics], docs/table-dynamics.md)")
     p.add_argument("--accel-noise", type=float, default=0.02, metavar="M/S2", help="σ of accelerometer noise")
     p.add_argument("--counters", type=Path, metavar="FILE", help="write the exit counters here, not to stdout")
     return p
@@ -510,7 +516,7 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
             listen=args.listen, key=key, speed=args.speed,
             specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
             table=TableModel.from_toml(args.rig_config) if args.rig_config else TableModel(),
-            actuators=ActuatorSettings(noise=args.leg_noise), accel_noise=args.accel_noise,
+            actuators=ActuatorSettings(noise=args.leg_noise), dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
             stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed)
     except ValueError as exc:

@@ -28,7 +28,7 @@ ALLOWED = {
 RIG_LAYERS = {
     "cli": 4, "console": 4,
     "service": 3,
-    "orchestrator": 2, "report": 2, "emulator": 2,
+    "orchestrator": 2, "report": 2, "emulator": 2, "compensation": 2,
     "sequence": 1, "analyze": 1, "study_file": 1, "study_summary": 1,
     "session": 0, "records": 0, "drive": 0, "json_numpy": 0,
 }

@@ -1,7 +1,8 @@
 """Drive preparation: earthquake records → table-ready 6-DOF trajectories inside the table's limits.
 
 `prepare_drive` is the entry point (see `rig.drive.prepare`); `rig.drive.processing` holds the signal
-chain and `rig.drive.tilt` the jerk-limited tilt ramp.
+chain, `rig.drive.tilt` the jerk-limited tilt ramp and `rig.drive.file` a prepared (e.g. compensated) drive as
+an HDF5 file a sequence plays.
 """
 
 from .prepare import Drive, DriveError, DriveRefusedError, Governing, prepare_drive

@@ -21,6 +21,7 @@ import numpy as np
 from analysis.body import G
 
 from . import figures
+from .compensation_report import compensation_section
 from .data import RunData, SessionData, iter_runs, read_header
 from .html import esc, figure, key_values, num, table
 from .spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum, uniform
@@ -369,7 +370,8 @@ def session_body(path: str, progress: Progress | None = None) -> tuple[str, str,
     rig_html = _rig_section(header)
     seq_html = _sequence_section(header, body_rows)
     fig13_html = _fig13_section(header, names)
-    n_figures += seq_html.count("<img ") + fig13_html.count("<img ")
+    compensation_html = compensation_section(path)
+    n_figures += seq_html.count("<img ") + fig13_html.count("<img ") + compensation_html.count("<img ")
     body = "\n".join([*head, rig_html, seq_html, "<h2>Runs</h2>", _runs_table(summaries), _scale_table(header),
-                      fig13_html, "<h2>Run by run</h2>", *sections])
+                      fig13_html, compensation_html, "<h2>Run by run</h2>", *sections])
     return title, body, n_figures

@@ -116,6 +116,8 @@ class RecordEntry:
     units: str | None = None
     key: str = "records"
     line: int | None = None
+    drive: str | None = None
+    """A drive file to play instead of preparing the record (``rig iterate``'s compensated drive), absolute path."""
 
     @property
     def scale_policy(self) -> str | float:
@@ -129,7 +131,7 @@ class RecordEntry:
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"record": self.resolved, "scale": self.scale_policy}
         for key, value in (("window_s", self.window), ("corner_hz", self.corner), ("dt_s", self.dt),
-                           ("units", self.units)):
+                           ("units", self.units), ("drive", self.drive)):
             if value is not None:
                 out[key] = list(value) if isinstance(value, tuple) else value
         return out

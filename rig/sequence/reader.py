@@ -40,7 +40,7 @@ TOP_KEYS = ("name", "description", "table_url", "repetitions", "angles_deg", "re
             "rig", "plate", "drive", "operator", "schema", "source")
 BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "x", "y", "friction")
 DIMENSIONS = ("b", "h", "depth", "mass")
-RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units")
+RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive")
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz")
 RIG_KEYS = ("config", "table", "limits", "hexapod")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
@@ -277,7 +277,7 @@ class _Reader:
                              "{ suite = \"fema\", strongest = 25 }")
         seen: dict[tuple[Any, ...], str] = {}
         for entry in entries:
-            key = (entry.resolved, entry.scale, entry.window, entry.corner)
+            key = (entry.resolved, entry.scale, entry.window, entry.corner, entry.drive)
             if key in seen:
                 raise SequenceError(self.source, entry.line, entry.key, f"{entry.label()} is already {seen[key]} "
                                     "with the same options; expected each record once (use repetitions)")
@@ -307,6 +307,10 @@ class _Reader:
             options["dt"] = self.positive(table["dt_s"], (*path, "dt_s"), "s")
         if "units" in table:
             options["units"] = self.string(table["units"], (*path, "units"))
+        if "drive" in table:
+            drive = self.string(table["drive"], (*path, "drive"))
+            if drive != "prepared":
+                options["drive"] = str((self.base_dir / drive).resolve())
         return RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **options, **where)
 
     def records_from(self, value: Any) -> list[RecordEntry]:

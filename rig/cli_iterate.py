@@ -1,0 +1,171 @@
+"""``rig iterate RECORD --angle DEG [--table URL | --emulate]``: identify the table's response, iterate the record's
+drive until the plate's achieved acceleration reproduces it, save the compensated drive (``docs/table-dynamics.md``).
+
+Exit codes: 0 done (converged or not: ``converged`` says), 1 the table stopped a run, 2 bad input, 3 the record's
+drive does not fit the table.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from collections.abc import Callable
+from datetime import datetime
+from pathlib import Path
+from typing import Annotated, Any
+
+import typer
+
+
+def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+    """Add ``rig iterate``."""
+
+    @app.command("iterate")
+    def iterate_cmd(
+        record: Annotated[str, typer.Argument(help="the record (SUITE:NAME, library:NAME, a file, H1+H2[+UP])")],
+        angle: Annotated[float, typer.Option(help="plate tilt β in degrees")] = 0.0,
+        table: Annotated[str | None, typer.Option(help="the table's URL (mavlink://, zenoh://, canopen://)")] = None,
+        emulate: Annotated[bool, typer.Option(help="start the emulated table (MAVLink on loopback)")] = False,
+        iterations: Annotated[int, typer.Option(help="corrections at most")] = 5,
+        output: Annotated[Path | None, typer.Option("-o", "--output", help="the new session file (default: "
+                                                    "iterate-DATE-RECORD.h5 here)")] = None,
+        drive_out: Annotated[Path | None, typer.Option("--drive-out", help="the compensated drive file (default: "
+                                                       "SESSION.drive.h5)")] = None,
+        gain: Annotated[float, typer.Option(help="relaxation gain of each correction, 0 to 1.5")] = 0.8,
+        tolerance: Annotated[float, typer.Option(help="stop at this fall-line RMS error, percent")] = 0.0,
+        identify_seconds: Annotated[float, typer.Option(help="length of the identification drive in seconds")] = 60.0,
+        window: Annotated[str | None, typer.Option(help="play only T0,T1 (seconds) of the record")] = None,
+        corner: Annotated[float | None, typer.Option(help="a fixed high-pass corner in Hz")] = None,
+        rig_config: Annotated[Path | None, typer.Option(help="rig configuration TOML (limits, hexapod, "
+                                                        "dynamics section)")] = None,
+        dynamics: Annotated[str, typer.Option(help="with --emulate: the legs' model, servo or lag")] = "servo",
+        body: Annotated[list[str] | None, typer.Option(help="with --emulate: a specimen BxH@X,Y[;mass=M] on the "
+                                                       "plate (repeat)")] = None,
+        speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+        key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
+                                                      "$SHAKETABLE_MAVLINK_KEY)")] = None,
+        as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+    ) -> None:
+        """Identify the table's frequency response, then play, measure and correct the record's drive until the
+        plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
+        from analysis.table_model import TableModel, TableModelError
+        from rig.cli_run import software_version
+        from rig.compensation.session import iterate_on_table
+        from rig.drive import DriveError, DriveRefusedError, prepare_drive
+        from rig.drive.file import DriveFileError
+        from rig.records import RecordError
+        from rig.sequence.model import RecordEntry
+        from rig.sequence.records import load_entry
+        from rig.session import SessionError
+
+        if emulate == (table is not None):
+            fail("give either --table URL or --emulate")
+        if iterations < 0:
+            fail(f"--iterations {iterations}: expected >= 0")
+        if dynamics not in ("lag", "servo"):
+            fail(f"--dynamics {dynamics!r}: expected servo or lag")
+        try:
+            model = TableModel.from_toml(rig_config) if rig_config else TableModel()
+            span = None
+            if window is not None:
+                try:
+                    t0, t1 = (float(v) for v in window.split(","))
+                except ValueError:
+                    fail(f"--window {window!r}: expected T0,T1 in seconds")
+                span = (t0, t1)
+            motion = load_entry(RecordEntry(spec=record, resolved=record, window=span))
+            drive = prepare_drive(motion, angle=math.radians(angle), table=model, corner=corner, ramps=False)
+        except DriveRefusedError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            raise typer.Exit(3) from None
+        except (RecordError, DriveError, TableModelError, ValueError) as exc:
+            fail(str(exc))
+        stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
+        safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in motion.name)[:60]
+        session = output or Path.cwd() / f"iterate-{stamp}-{safe}.h5"
+        drive_path = drive_out or session.with_name(session.name.removesuffix(".h5") + ".drive.h5")
+        if drive_path.exists():
+            fail(f"{drive_path}: already exists; a drive file is never overwritten (--drive-out)")
+        bodies = _bodies(body or [])
+        sequence = {"name": f"iterate {motion.name}", "kind": "drive iteration", "record": record,
+                    "angles_deg": [angle], "bodies": bodies,
+                    "iteration": {"iterations": iterations, "gain": gain, "tolerance_pct": tolerance,
+                                  "identify_seconds": identify_seconds}}
+        say = (lambda _t: None) if as_json else (lambda text: console.print(f"[dim]{text}[/]", highlight=False))
+        try:
+            with _Table(table, emulate, key_file, rig_config, dynamics, body or [], speed) as (url, options):
+                outcome = iterate_on_table(drive, url, options, session, drive_path, sequence=sequence,
+                                           software_version=software_version(), bodies=bodies,
+                                           iterations=iterations, gain=gain, tolerance=tolerance,
+                                           identify_seconds=identify_seconds, note=say)
+        except (SessionError, DriveFileError, OSError, ValueError) as exc:
+            fail(str(exc))
+        except RuntimeError as exc:
+            print(f"error: {exc}", file=sys.stderr)
+            raise typer.Exit(1) from None
+        if as_json:
+            sys.stdout.write(json.dumps(outcome.to_json()) + "\n")
+            return
+        for it, run in zip(outcome.result.iterations, outcome.runs, strict=True):
+            console.print(f"iteration {it.index} (run {run}): fall-line RMS error {it.rms_error_pct:.1f} %, peak "
+                          f"{it.peak_error_pct:.1f} %", highlight=False)
+        console.print(f"{'converged' if outcome.result.converged else 'not converged'}: {outcome.result.stopped}; "
+                      f"best iteration {outcome.result.best}\nsession file: {outcome.session}\n"
+                      f"compensated drive: {outcome.drive_file}", highlight=False)
+
+
+def _bodies(specs: list[str]) -> list[dict[str, Any]]:
+    """Session body rows of ``--body`` specs (the emulator's ``BxH@X,Y[;depth=D][;mass=M][;mu=F]``)."""
+    from analysis import Body
+
+    rows = []
+    for k, spec in enumerate(specs, start=1):
+        head, *options = spec.split(";")
+        size, _, place = head.partition("@")
+        body = Body.parse(size)
+        x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
+        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)}
+        rows.append({"body_id": k, "name": f"body {k}", "b": body.b, "h": body.h,
+                     "depth": extra.get("depth", 2 * body.b), "mass": extra.get("mass", math.nan), "x": x, "y": y})
+    return rows
+
+
+class _Table:
+    """The table URL and driver options; with ``emulate`` an emulator process (started here, stopped after)."""
+
+    def __init__(self, url: str | None, emulate: bool, key_file: Path | None, rig_config: Path | None,
+                 dynamics: str, bodies: list[str], speed: float) -> None:
+        self.url, self.emulate, self.key_file = url, emulate, key_file
+        self.flags = ["--dynamics", dynamics, "--speed", f"{speed:g}"]
+        if rig_config is not None:
+            self.flags += ["--rig-config", str(rig_config)]
+        for spec in bodies:
+            self.flags += ["--body", spec]
+        self._emulator: Any = None
+        self._scratch: Any = None
+
+    def __enter__(self) -> tuple[str, dict[str, Any]]:
+        if not self.emulate:
+            return str(self.url), ({"key_file": str(self.key_file)} if self.key_file else {})
+        import secrets
+        import tempfile
+
+        from rig.cli_run import EMULATOR_LISTEN
+        from rig.emulator import EmulatorProcess
+
+        key_file = self.key_file
+        if key_file is None:
+            self._scratch = tempfile.TemporaryDirectory(prefix="rig-iterate-")
+            key_file = Path(self._scratch.name) / "session.key"
+            key_file.write_text(secrets.token_hex(32) + "\n")
+        self._emulator = EmulatorProcess.start(EMULATOR_LISTEN, *self.flags, key_file=key_file)
+        return self._emulator.url, {"key_file": str(key_file)}
+
+    def __exit__(self, *exc: object) -> None:
+        try:
+            if self._emulator is not None:
+                self._emulator.stop()
+        finally:
+            if self._scratch is not None:
+                self._scratch.cleanup()

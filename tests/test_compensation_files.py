@@ -1,0 +1,88 @@
+"""The compensated drive file (rig.drive.file) and a sequence that plays it (``drive = "FILE"``); the
+session's /compensation group (rig.compensation.store) read back."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from analysis.table_model import TableModel
+from rig.compensation.identify import frequency_response, identification_drive
+from rig.compensation.iteration import compensate
+from rig.compensation.signals import base_accelerations
+from rig.compensation.store import response_from_rows, response_rows
+from rig.drive import prepare_drive
+from rig.drive.file import DriveFileError, load_drive, save_drive
+from rig.sequence import SequenceError, load_sequence
+from rig.sequence.model import RecordEntry
+from rig.sequence.records import load_entry
+from sim_table.offline import play_offline
+
+TABLE = TableModel()
+BETA = math.radians(4.0)
+
+
+@pytest.fixture(scope="module")
+def compensated():
+    ident = identification_drive(TABLE, BETA, duration=20.0)
+    frf = frequency_response(ident.accelerations[:, :3], base_accelerations(play_offline(TABLE, ident.poses), BETA),
+                             TABLE.controller_rate)
+    motion = load_entry(RecordEntry(spec="fema:KOBE/NIS000", resolved="fema:KOBE/NIS000", window=(5.0, 10.0)))
+    drive = prepare_drive(motion, angle=BETA, table=TABLE, corner=1.0, settle=0.5, ramps=False)
+    result = compensate(drive, frf, lambda d, k: play_offline(TABLE, d.poses, seed=k), iterations=2)
+    return drive, result, frf
+
+
+def test_drive_file_round_trip_and_never_overwritten(tmp_path, compensated):
+    _, result, _ = compensated
+    path = save_drive(tmp_path / "nis.drive.h5", result.drive, result.to_json())
+    back = load_drive(path, TABLE, angle=BETA)
+    for name in ("t", "poses", "velocities", "accelerations"):
+        assert np.array_equal(getattr(back, name), getattr(result.drive, name))
+    assert back.record == result.drive.record and back.motion == pytest.approx(result.drive.motion)
+    with pytest.raises(DriveFileError, match="already exists"):
+        save_drive(path, result.drive, {})
+    with pytest.raises(DriveFileError, match="iterated at β = 4°, not 5°"):
+        load_drive(path, TABLE, angle=math.radians(5.0))
+    (tmp_path / "other.h5").write_bytes(b"not hdf5")
+    with pytest.raises(DriveFileError, match=r"other\.h5: unreadable"):
+        load_drive(tmp_path / "other.h5")
+
+
+def test_a_sequence_plays_the_compensated_drive(tmp_path, compensated):
+    _, result, _ = compensated
+    save_drive(tmp_path / "nis.drive.h5", result.drive, result.to_json())
+    text = """name = "compensated"
+angles_deg = [{angles}]
+records = [
+    {{ record = "fema:KOBE/NIS000", window_s = [5.0, 10.0], drive = "nis.drive.h5" }},
+]
+
+[[bodies]]
+table5 = 4
+x = 0.0
+y = 0.0
+"""
+    (tmp_path / "seq.toml").write_text(text.format(angles="4"))
+    sequence = load_sequence(tmp_path / "seq.toml")
+    run = sequence.plan()[0]
+    assert np.array_equal(sequence.prepare(run).poses, result.drive.poses)
+    assert sequence.to_dict()["records"][0]["drive"] == str(tmp_path / "nis.drive.h5")
+    (tmp_path / "seq.toml").write_text(text.format(angles="4, 5"))
+    sequence = load_sequence(tmp_path / "seq.toml")
+    with pytest.raises(SequenceError, match=r"seq.toml:4: .*iterated at β = 4°, not 5°"):
+        sequence.check()
+
+
+def test_response_rows_round_trip(compensated):
+    _, _, frf = compensated
+    back = response_from_rows(response_rows(frf), frf.band)
+    assert np.array_equal(back.h, frf.h) and np.array_equal(back.coherence, frf.coherence)
+
+
+def test_uncompensated_error_of_a_record_against_its_iterations(compensated):
+    drive, result, _ = compensated
+    assert result.iterations[0].rms_error_pct > 2 * result.iterations[result.best].rms_error_pct
+    assert drive.record == result.drive.record
