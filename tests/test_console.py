@@ -177,10 +177,12 @@ def test_a_slow_browser_loses_frames_and_they_are_counted() -> None:
             quick.queue.get_nowait()  # the quick browser takes each message at once
     assert (slow.queued, slow.dropped) == (4, 6)
     assert (quick.queued, quick.dropped) == (10, 0)
-    assert [json.loads(slow.queue.get_nowait())["n"] for _ in range(4)] == [0, 1, 2, 3]
+    hub.publish(json.dumps({"status": "paused"}), droppable=False)  # a status is never the one dropped
+    assert slow.dropped == 7 and slow.queue.qsize() == 4
+    assert [json.loads(slow.queue.get_nowait()) for _ in range(4)][-1] == {"status": "paused"}
     hub.disconnect(slow)
     hub.publish("{}")
-    assert slow.dropped == 6 and hub.stats()["published"] == 11
+    assert slow.dropped == 7 and hub.stats()["published"] == 12
 
 
 def test_the_console_keeps_the_last_window_and_starts_afresh_on_a_new_run() -> None:

@@ -22,6 +22,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import json
+import re
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, Protocol
@@ -75,7 +76,9 @@ class Console:
         """A telemetry publication (in the event loop's thread): folded into the state and offered to every
         browser."""
         message = self.state.on_status(body) if kind == "status" else self.state.on_live(body)
-        self.hub.publish(json.dumps(message, separators=(",", ":")))
+        # a live frame may be dropped for a slow browser, unless it starts a run or carries a detection or fault
+        droppable = kind == "live" and "header" not in body and not body.get("detections") and not body.get("faults")
+        self.hub.publish(json.dumps(message, separators=(",", ":")), droppable)
 
     def deliver_from(self, loop: asyncio.AbstractEventLoop) -> Callable[[str, dict[str, Any]], None]:
         """``deliver`` for another thread (zenoh's): handed to ``loop`` without waiting."""
@@ -97,11 +100,19 @@ class Console:
         return None
 
 
+BROWSERS = ("Edg", "OPR", "HeadlessChrome", "Chrome", "Firefox", "Safari")
+"""User-agent products named in a control request's source, the first found in this order (Chrome's user agent
+also names Safari, Edge's also Chrome)."""
+
+
 def source_of(conn: HTTPConnection) -> str:
-    """Who sent a request: the console page at the browser's address, with its user agent (cut)."""
+    """Who sent a request: the console page, the browser's address and its name and version from the user agent
+    (e.g. ``console page, browser 127.0.0.1:50412 (HeadlessChrome/131.0.6778.85)``)."""
     client = f"{conn.client.host}:{conn.client.port}" if conn.client else "unknown address"
-    agent = conn.headers.get("user-agent", "no user agent")[:60]
-    return f"console page, browser {client} ({agent})"
+    agent = conn.headers.get("user-agent", "")
+    products = dict(re.findall(r"([A-Za-z]+)/([\w.]+)", agent))
+    name = next((f"{b}/{products[b]}" for b in BROWSERS if b in products), agent[:40] or "no user agent")
+    return f"console page, browser {client} ({name})"
 
 
 def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventLoop], None] | None = None,
@@ -172,6 +183,7 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         try:
             await websocket.send_text(json.dumps(console.state.hello(console.has_controls), separators=(",", ":")))
             receiver = asyncio.create_task(_until_closed(websocket))
+            reported = 0
             while not receiver.done():
                 getter = asyncio.create_task(browser.queue.get())
                 done, _ = await asyncio.wait({getter, receiver}, return_when=asyncio.FIRST_COMPLETED)
@@ -180,6 +192,9 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
                     break
                 await websocket.send_text(getter.result())
                 browser.sent += 1
+                if browser.dropped != reported:  # tell the page what it lost
+                    reported = browser.dropped
+                    await websocket.send_text(json.dumps({"type": "stats", "dropped": reported}))
             receiver.cancel()
         except (WebSocketDisconnect, RuntimeError, OSError):
             pass

@@ -24,13 +24,16 @@ class Browser:
     def __post_init__(self) -> None:
         self.queue = asyncio.Queue(self.capacity)
 
-    def offer(self, text: str) -> bool:
-        """Queue ``text`` unless the queue is full (then it is dropped and counted); never waits."""
-        try:
-            self.queue.put_nowait(text)
-        except asyncio.QueueFull:
+    def offer(self, text: str, droppable: bool = True) -> bool:
+        """Queue ``text``; never waits. When the queue is full a ``droppable`` message (a live frame) is dropped and
+        counted; any other (a status: the state must not go stale) takes the place of the oldest queued message,
+        which is counted as dropped instead. Whether ``text`` was queued."""
+        if self.queue.full():
             self.dropped += 1
-            return False
+            if droppable:
+                return False
+            self.queue.get_nowait()
+        self.queue.put_nowait(text)
         self.queued += 1
         return True
 
@@ -51,10 +54,11 @@ class Hub:
     def disconnect(self, browser: Browser) -> None:
         self.browsers.discard(browser)
 
-    def publish(self, text: str) -> None:
+    def publish(self, text: str, droppable: bool = True) -> None:
+        """Offer ``text`` to every browser (:meth:`Browser.offer`)."""
         self.published += 1
         for browser in list(self.browsers):
-            browser.offer(text)
+            browser.offer(text, droppable)
 
     def stats(self) -> dict[str, object]:
         """Messages published and, per browser, queued, sent and dropped."""

@@ -4,7 +4,7 @@
 (function () {
   const WINDOW_S = 15;            // seconds shown in the plots
   const $ = (id) => document.getElementById(id);
-  const stats = window.consoleStats = { frames: 0, draws: 0, statuses: 0, detections: 0, lastT: null, hello: 0 };
+  const stats = window.consoleStats = { frames: 0, draws: 0, statuses: 0, detections: 0, lastT: null, hello: 0, planIndex: null, dropped: 0 };
   const live = { header: null, session: null, at: [], aa: [], pt: [], pp: [], detections: [], faults: [] };
   let status = null, controls = false, token = sessionStorage.getItem("operatorToken") || "";
   let dirty = false, framesThisSecond = 0;
@@ -16,8 +16,8 @@
   const accelPlot = new uPlot({
     ...plotSize(accelEl), scales: { x: { time: false } }, legend: { live: false },
     series: [{ label: "t [s]" },
-             { label: "commanded", stroke: "#8a9bb0", width: 1.5, dash: [6, 3] },
-             { label: "measured", stroke: "#4aa8ff", width: 1.6 }],
+             { label: "measured", stroke: "#4aa8ff", width: 1.8 },
+             { label: "commanded", stroke: "#ffd76a", width: 1.4, dash: [5, 4] }],
     axes: [{ ...axis, label: "run time [s]" }, { ...axis, label: "m/s²" }],
   }, [[], [], []], accelEl);
   const posePlot = new uPlot({
@@ -29,7 +29,8 @@
              { label: "roll [°]", stroke: "#ffd76a", width: 1.2, scale: "deg" },
              { label: "pitch [°]", stroke: "#ff8a3d", width: 1.2, scale: "deg" }],
     axes: [{ ...axis, label: "run time [s]" }, { ...axis, scale: "mm", label: "mm" },
-           { ...axis, scale: "deg", side: 1, label: "degrees", grid: { show: false } }],
+           { ...axis, scale: "deg", side: 1, label: "degrees", grid: { show: false },
+             values: (u, ticks) => ticks.map((v) => v.toFixed(Math.max(0, Math.min(4, 1 - Math.floor(Math.log10(Math.abs(ticks[1] - ticks[0]) || 1)))))) }],
   }, [[], [], [], [], [], []], poseEl);
   window.addEventListener("resize", () => { accelPlot.setSize(plotSize(accelEl)); posePlot.setSize(plotSize(poseEl)); });
 
@@ -51,7 +52,7 @@
     if (!isFinite(now)) return;
     trim(live.at, live.aa, now); trim(live.pt, live.pp, now);
     const cmd = live.header ? live.header.commanded : { t: [], a: [] };
-    accelPlot.setData([live.at.slice(), live.at.map((t) => interp(cmd.t, cmd.a, t)), live.aa.slice()]);
+    accelPlot.setData([live.at.slice(), live.aa.slice(), live.at.map((t) => interp(cmd.t, cmd.a, t))]);
     const mm = (i) => live.pp.map((p) => p[i] * 1000), deg = (i) => live.pp.map((p) => p[i] * 180 / Math.PI);
     posePlot.setData([live.pt.slice(), mm(0), mm(1), mm(2), deg(3), deg(4)]);
     stats.draws++; stats.lastT = now;
@@ -144,7 +145,7 @@
   // ----- the feed ------------------------------------------------------------------------------------
   function newRun(header, session) {
     const changed = !live.header || session !== live.session || header.plan_index !== live.header.plan_index;
-    live.header = header; live.session = session;
+    live.header = header; live.session = session; stats.planIndex = header.plan_index;
     if (changed) { live.at = []; live.aa = []; live.pt = []; live.pp = []; live.detections = []; }
   }
 
@@ -176,6 +177,8 @@
         stats.statuses++; status = m; showStatus();
       } else if (m.type === "live") {
         onLive(m);
+      } else if (m.type === "stats") {
+        stats.dropped = m.dropped; $("dropped").textContent = m.dropped;
       }
     };
   }
