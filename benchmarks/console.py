@@ -13,7 +13,9 @@ A browser is a WebSocket client of the console (the page's own feed, ``/ws``) th
 uPlot plots; its frames per second are the live frames it received (or drew) between the first one and the end of
 the session. Per session: the runs' underruns (the driver's report, run attribute ``underruns``), accelerometer
 samples lost (gaps in each run's logged 1 kHz ``accel/0`` series: (t_last − t_first)·1000 + 1 − rows), the rows
-logged, the emulator's underruns and real-time factor (from the service's log), and the console's dropped frames.
+logged, the emulator's underruns and real-time factor (from the service's log), the console's dropped frames and
+the console process's CPU use over the session (percent of one core; the service's, emulator included, for the
+session without the console).
 
 Usage: ``python benchmarks/console.py [--seconds 12] [--chromium]``. Prints one JSON object.
 """
@@ -127,6 +129,12 @@ class WebSocketBrowser(threading.Thread):
         return self.times
 
 
+def cpu_seconds(pid: int) -> float:
+    """User + system CPU time of process ``pid`` and its waited-for children so far [s] (Linux /proc)."""
+    fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+    return sum(int(x) for x in fields[11:15]) / os.sysconf("SC_CLK_TCK")
+
+
 def fps(times: list[float], end: float) -> dict[str, Any]:
     """Live frames received: in all, and per second over the whole seconds from the first frame to the session's
     end — the median and the lowest of the seconds while the run streamed (frames come from the run's data; between
@@ -173,7 +181,10 @@ def main() -> None:
         try:
             wait_for(lambda: "listening on" in log.read_text(), 90, "rig serve did not start")
             with ServiceClient(endpoint, key_file) as client:
+                cpu0, t0 = cpu_seconds(serve.pid), time.monotonic()
                 _, _, out["without_console"] = play(client, sequence, log)
+                out["without_console"]["service_cpu_percent"] = round(100 * (cpu_seconds(serve.pid) - cpu0)
+                                                                      / (time.monotonic() - t0), 1)
                 url = f"http://127.0.0.1:{free_port()}/"
                 console_log = root / "console.log"
                 with console_log.open("w") as stderr:
@@ -182,8 +193,11 @@ def main() -> None:
                                                stdout=subprocess.DEVNULL, stderr=stderr, env=env)
                 wait_for(lambda: "console at" in console_log.read_text(), 60, "the console did not start")
                 for name, count in (("one_browser", 1), ("five_browsers", 5)):
+                    cpu0, t0 = cpu_seconds(console.pid), time.monotonic()
                     out[name] = (with_chromium if args.chromium else with_websockets)(client, sequence, log, url,
                                                                                      count)
+                    out[name]["console_cpu_percent"] = round(100 * (cpu_seconds(console.pid) - cpu0)
+                                                             / (time.monotonic() - t0), 1)
                     out[name]["console_dropped"] = sum(b["dropped"] for b in _stats(url)["browsers"])
         finally:
             if console is not None:

@@ -99,7 +99,7 @@ class RunRecorder:
         if baseline:
             fall_line = batch.samples[:, 0] - np.mean(baseline)
             self.progress.peak_accel = max(self.progress.peak_accel, float(np.abs(fall_line).max()))
-            if self.live is not None:
+            if self.live is not None and batch.sensor_id == next(iter(self.sensors)):  # the display's sensor
                 self.live.accel(batch.sensor_id, self._seconds(batch.times_ns()), fall_line)
 
     def _write_poses(self, statuses: list[TableStatus]) -> None:
