@@ -274,12 +274,12 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
                                                            "127.0.0.1:8080")] = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
-        if console_at is not None and service is None:
+        if console_at is not None:
             from rig.console.launch import run_with_console
 
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
-                                              speed=speed))
+                                              speed=speed, service=service))
         if service is not None:
             from rig.cli_serve import drive_service
 

@@ -6,7 +6,8 @@ service of its own on a free loopback zenoh port (in this process: the orchestra
 thread), the console as a child process subscribed to it, and follows the session as ``rig run --service`` does (the
 status line, Ctrl-C pauses then aborts). Like every service session it runs unattended: the bodies are taken as
 placed (confirmed once at the start unless ``--yes``). Without a key (``--key-file`` or ``$SHAKETABLE_MAVLINK_KEY``)
-a one-session key is made, and the operator token printed here.
+a one-session key is made, and the operator token printed here. With ``--service ENDPOINT`` too, only the console
+is started here, for that service.
 """
 
 from __future__ import annotations
@@ -31,13 +32,25 @@ def _free_endpoint() -> str:
 
 
 def run_with_console(http: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
-                     resume: Path | None, yes: bool, console: Any, key_file: Path | None, speed: float) -> int:
-    """Play the session through an in-process rig service with the console at ``http`` (module docstring); the exit
-    code of ``rig run --service`` (0 all runs done, 1 stopped early, 2 refused)."""
+                     resume: Path | None, yes: bool, console: Any, key_file: Path | None, speed: float,
+                     service: str | None = None) -> int:
+    """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``
+    (module docstring); the exit code of ``rig run --service`` (0 all runs done, 1 stopped early, 2 refused)."""
     from rig.cli_serve import drive_service
 
     def say(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
+
+    if service is not None:  # a rig serve elsewhere: only the console is started here
+        try:
+            page = ConsoleProcess(service, http, key_file=key_file, say=say)
+        except ConsoleError as exc:
+            console.print(f"[bold red]error:[/] {exc}", highlight=False)
+            return 2
+        with page:
+            console.print(f"operator console: {page.url}", highlight=False)
+            return drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
+                                 yes=yes, console=console, key_file=key_file, speed=speed)
 
     with tempfile.TemporaryDirectory(prefix="rig-console-") as scratch:
         if key_file is None and not os.environ.get(KEY_ENV):
