@@ -283,12 +283,21 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
                                                       "(virtual time: as fast as the emulator computes)")] = 1.0,
             service: Annotated[str | None, typer.Option(help="have a rig service (rig serve) at this zenoh "
                                                              "endpoint run it, e.g. tcp/127.0.0.1:7447")] = None,
+            console_at: Annotated[str | None, typer.Option("--console", help="serve the operator's console (live "
+                                                           "web page and controls) at HOST:PORT, e.g. "
+                                                           "127.0.0.1:8080")] = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
+        if console_at is not None:
+            from rig.console.launch import run_with_console
+
+            raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
+                                              resume=resume, yes=yes, console=console, key_file=key_file,
+                                              speed=speed, service=service))
+
         from rig.emulator import EmulatorError
         from rig.sequence import Sequence, SequenceError, load_sequence
         from rig.session import SessionError, SessionLog, read_session
-
         if service is not None:
             from rig.cli_serve import drive_service
 

@@ -233,10 +233,11 @@ def status_line(status: dict[str, Any]) -> Text:
 # ----- rig serve and rig service -----------------------------------------------------------------------------
 
 
-def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool, fail: Callable[[str], Any]) -> None:
-    """Run the service until SIGINT/SIGTERM (module docstring)."""
+def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool, fail: Callable[[str], Any],
+          http: str | None = None) -> None:
+    """Run the service until SIGINT/SIGTERM (module docstring); with ``http`` (``HOST:PORT``) the operator's
+    console (``rig.console``) too, as a child process subscribed to the service's telemetry."""
     from rig.service import OrchestratorService, ServiceError
-
 
     def say(message: str) -> None:
         print(f"rig serve: {message}", file=sys.stderr, flush=True)
@@ -256,12 +257,24 @@ def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool,
             threading.Thread(target=service.stop_session, args=("emergency stop",), daemon=True).start()
 
     previous = {s: signal.signal(s, on_signal) for s in (signal.SIGINT, signal.SIGTERM)}
+    console = None
     try:
+        if http is not None:
+            from rig.console import ConsoleError, ConsoleProcess
+
+            try:
+                console = ConsoleProcess(listen, http, key_file=key_file, say=lambda line: print(line, file=sys.stderr,
+                                                                                                 flush=True))
+            except ConsoleError as exc:
+                service.close()
+                fail(str(exc))
         auth = "start/resume must be signed" if service.authenticated else "start/resume NOT authenticated"
         say(f"listening on {listen} (sessions in {service.sessions_dir}; {auth})")
         while not stop.wait(0.5):
             pass
         say("stopping")
+        if console is not None:
+            console.stop()
         service.close()
     finally:
         for number, handler in previous.items():
@@ -279,9 +292,25 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         key_file: KeyOption = None,
         no_auth: Annotated[bool, typer.Option("--no-auth", help="accept unsigned start/resume (a bench without a "
                                                                 "table)")] = False,
+        http: Annotated[str | None, typer.Option(help="also serve the operator's console (a web page) at HOST:PORT, "
+                                                      "e.g. 127.0.0.1:8080")] = None,
     ) -> None:
         """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
-        serve(listen, sessions_dir, key_file, no_auth, fail)
+        serve(listen, sessions_dir, key_file, no_auth, fail, http)
+
+    @app.command("console")
+    def console_cmd(
+        http: Annotated[str, typer.Option(help="HOST:PORT to serve the page on")] = "127.0.0.1:8080",
+        connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
+    ) -> None:
+        """Serve the operator's console (live web page and controls) for a running `rig serve`."""
+        from rig.console import ConsoleError, serve_console
+
+        try:
+            serve_console(connect, http, key_file=key_file,
+                          say=lambda message: print(f"rig console: {message}", file=sys.stderr, flush=True))
+        except ConsoleError as exc:
+            fail(str(exc))
 
     service_app = typer.Typer(help="Commands to a running `rig serve`.", no_args_is_help=True)
 
@@ -310,6 +339,17 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
     command("abort", "abort", "Stop now: controlled stop, the run logged aborted.")
     command("estop", "emergency_stop", "Emergency stop: the table brakes.")
     command("state", "state", "The service's state, progress and session file.")
+
+    @service_app.command("token")
+    def token_cmd(key_file: KeyOption = None) -> None:
+        """Print the operator token the console's controls ask for: HMAC-SHA256(rig key, "operator-console")."""
+        from protocols.mavlink import SigningKeyError
+        from rig.console import token_from_key_file
+
+        try:
+            sys.stdout.write(token_from_key_file(key_file) + "\n")
+        except SigningKeyError as exc:
+            fail(str(exc))
     app.add_typer(service_app, name="service")
 
 

@@ -32,6 +32,7 @@ from typing import Any, NoReturn
 import numpy as np
 
 from drivers.controller import StreamAbortedError, TableController, TableError, open_table
+from rig.orchestrator.live import LiveTap, commanded_fall_line
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.sinks import RunSink, SessionSink
 from rig.orchestrator.states import (
@@ -43,6 +44,7 @@ from rig.orchestrator.states import (
     check_transition,
 )
 from rig.sequence import PlannedRun, Sequence, SequenceError
+from rig.session import SessionError
 
 LEAD = 0.075
 """How far ahead of its first sample each setpoint chunk is sent [s] (docs/table-controller.md: 50–100 ms)."""
@@ -93,6 +95,8 @@ class Orchestrator:
         self._stop_requested: str | None = None  # "abort" | "emergency stop"
         self._table: TableController | None = None
         self._run_log: Any = None
+        self.live = LiveTap()
+        self._pending_events: list[str] = []
 
     # ----- control from other threads -----------------------------------------------------------------
 
@@ -121,6 +125,25 @@ class Orchestrator:
     def emergency_stop(self) -> None:
         """Brake the table now (only ARM leaves it), the current run marked ``aborted``."""
         self._request_stop("emergency stop")
+
+    def log_event(self, text: str) -> None:
+        """A line in the session file's events (e.g. a control request and its source), from any thread: the
+        current run's (t NaN: the request has no time on the run's clock), else the next run's when it begins."""
+        run_log = getattr(self.log, "active_run", None)
+        if run_log is not None:
+            try:
+                run_log.add_event(float("nan"), text)
+                return
+            except SessionError:  # the run ended meanwhile: the next one takes it
+                pass
+        with self._lock:
+            self._pending_events.append(text)
+
+    def _write_pending_events(self, run_log: Any) -> None:
+        with self._lock:
+            pending, self._pending_events = self._pending_events, []
+        for text in pending:
+            run_log.add_event(float("nan"), text)
 
     def _request_stop(self, kind: str) -> None:
         with self._lock:
@@ -194,6 +217,7 @@ class Orchestrator:
                                          angle_deg=run.angle_deg, commanded=np.zeros((0, 7)),
                                          bodies=self._bodies(), sensors=list(self.sensors.values()),
                                          attrs={"reason": str(exc)})
+            self._write_pending_events(refused)
             refused.end("refused", reason=str(exc))
             self._finish(run, "refused", f"run {run.plan_index + 1} refused: {exc}")
             return
@@ -210,8 +234,10 @@ class Orchestrator:
             attrs={"repetition": run.repetition, "governing_axis": drive.governing.axis,
                    "governing_quantity": drive.governing.quantity, "corner_frequency": drive.corner_frequency,
                    "record_start": drive.record_start, "rate": drive.rate, "table_url": self.table_url})
+        self._write_pending_events(run_log)
+        self.live.begin_run(self._live_header(run, entry.label(), drive))
         recorder = RunRecorder(table, run_log, self.sensors, [b.body_id for b in self.sequence.bodies],
-                               self.progress)
+                               self.progress, live=self.live)
         self.progress.samples_sent, self.progress.samples_total = 0, len(drive.t)
         self.progress.peak_accel, self.progress.detections = 0.0, 0
         self._set(State.RUNNING, f"run {run.plan_index + 1}: {entry.label()} at {run.angle_deg:g}°")
@@ -289,6 +315,22 @@ class Orchestrator:
     def _streamed(self, sent: int, total: int) -> None:
         self.progress.samples_sent, self.progress.samples_total = sent, total
         self._update()
+
+    def _live_header(self, run: PlannedRun, record: str, drive: Any) -> dict[str, Any]:
+        """The live tap's header of ``run`` (``rig.orchestrator.live``)."""
+        durations = self.sequence._drive_durations()
+        plan = self.sequence.plan()
+        after = math.fsum(durations[(p.angle_index, p.record_index)] for p in plan if p.plan_index > run.plan_index
+                          and self.progress.outcomes.get(p.plan_index) not in ("completed", "refused"))
+        t, a = commanded_fall_line(drive)
+        return {"plan_index": run.plan_index, "record": record, "angle_deg": run.angle_deg,
+                "scale_factor": drive.scale_factor, "duration_s": drive.duration, "rate": drive.rate,
+                "table_seconds_after": after,
+                "plan": [{"plan_index": p.plan_index, "record": self.sequence.records[p.record_index].label(),
+                          "angle_deg": p.angle_deg} for p in plan],
+                "bodies": [{"body_id": b.body_id, "name": b.name, "b": b.body.b, "h": b.body.h, "depth": b.depth,
+                            "x": b.x, "y": b.y} for b in self.sequence.bodies],
+                "commanded": {"t": t, "a": a}}
 
     def _bodies(self) -> list[dict[str, Any]]:
         return [{"body_id": b.body_id, "name": b.name, "b": b.body.b, "h": b.body.h, "depth": b.depth,

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 
 from drivers.controller import AccelBatch, Detection, FaultEvent, TableController, TableStatus
+from rig.orchestrator.live import LiveTap
 from rig.orchestrator.states import Progress
 
 POLL_SECONDS = 0.02
@@ -32,8 +33,9 @@ class RunRecorder:
     """
 
     def __init__(self, table: TableController, run_log: Any, sensors: dict[int, str], body_ids: list[int],
-                 progress: Progress) -> None:
+                 progress: Progress, live: LiveTap | None = None) -> None:
         self.run_log = run_log
+        self.live = live
         self.sensors = sensors
         self.body_ids = body_ids
         self.progress = progress
@@ -95,12 +97,16 @@ class RunRecorder:
         if len(baseline) < BASELINE_SAMPLES:
             baseline.extend(batch.samples[:BASELINE_SAMPLES - len(baseline), 0].tolist())
         if baseline:
-            peak = float(np.abs(batch.samples[:, 0] - np.mean(baseline)).max())
-            self.progress.peak_accel = max(self.progress.peak_accel, peak)
+            fall_line = batch.samples[:, 0] - np.mean(baseline)
+            self.progress.peak_accel = max(self.progress.peak_accel, float(np.abs(fall_line).max()))
+            if self.live is not None and batch.sensor_id == next(iter(self.sensors)):  # the display's sensor
+                self.live.accel(batch.sensor_id, self._seconds(batch.times_ns()), fall_line)
 
     def _write_poses(self, statuses: list[TableStatus]) -> None:
         t = self._seconds(np.array([s.t_ns for s in statuses], dtype=np.int64))
         self.run_log.append_pose(t, np.array([s.pose for s in statuses]))
+        if self.live is not None:
+            self.live.put("pose", t.tolist(), [list(s.pose) for s in statuses])
         self.progress.table_state = statuses[-1].state
         self.progress.buffer_depth = statuses[-1].buffer_depth
 
@@ -113,9 +119,13 @@ class RunRecorder:
         body_id = self.body_ids[detection.body_id]
         self.run_log.add_detection(t, body_id, detection.direction, "sensor")
         self.detections.append((t, body_id, detection.direction))
+        if self.live is not None:
+            self.live.put("detection", t, body_id, detection.direction)
         self.progress.detections += 1
 
     def _write_fault(self, fault: FaultEvent) -> None:
         t = float(self._seconds(fault.t_ns))
         for name in fault.raised:
             self.run_log.add_fault(t, name, f"table {fault.state}; latched: {', '.join(fault.faults)}")
+            if self.live is not None:
+                self.live.put("fault", t, name, f"table {fault.state}")

@@ -8,6 +8,9 @@ telemetry (``rig run --service``, ``rig service …``, other programs).
                 ...
         client.pause(); client.resume(); client.abort(); client.emergency_stop(); client.state()
 
+``pause``/``resume``/``abort``/``emergency_stop`` take an optional ``source`` (who asked: the service logs every
+control request in the running session's events with it, else as "zenoh client").
+
 Every command returns the service's reply (:mod:`rig.service.wire`) or raises :class:`~rig.service.wire.ServiceError`
 with the service's reason; :class:`~rig.service.wire.ServiceUnavailableError` when no service answers.
 ``start`` and ``resume`` are signed with the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; unsigned when
@@ -154,21 +157,21 @@ class ServiceClient:
         reply = self._command("start", request.to_args(), timeout=timeout, retries=0)
         return reply["session"]
 
-    def pause(self) -> dict[str, Any]:
+    def pause(self, source: str | None = None) -> dict[str, Any]:
         """Pause at the end of the current record (the table holds its tilt)."""
-        return self._command("pause")
+        return self._command("pause", _source(source))
 
-    def resume(self) -> dict[str, Any]:
+    def resume(self, source: str | None = None) -> dict[str, Any]:
         """Continue after a pause (signed)."""
-        return self._command("resume")
+        return self._command("resume", _source(source))
 
-    def abort(self) -> dict[str, Any]:
+    def abort(self, source: str | None = None) -> dict[str, Any]:
         """Stop now: the table decelerates and returns home, the current run is logged ``aborted``."""
-        return self._command("abort")
+        return self._command("abort", _source(source))
 
-    def emergency_stop(self) -> dict[str, Any]:
+    def emergency_stop(self, source: str | None = None) -> dict[str, Any]:
         """Brake the table now; the current run is logged ``aborted``."""
-        return self._command("estop")
+        return self._command("estop", _source(source))
 
     def state(self) -> dict[str, Any]:
         """The service's status: ``state``, ``message``, ``session``, ``active``, ``progress``."""
@@ -217,6 +220,11 @@ class ServiceClient:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _source(source: str | None) -> dict[str, Any]:
+    """A control request's args: its ``source`` (who asked, logged in the session's events) when given."""
+    return {} if source is None else {"source": source}
 
 
 def _signer(key_file: Path | None) -> Signer | None:

@@ -54,11 +54,14 @@ from protocols.zenoh.payloads import PayloadError
 from rig.orchestrator import Progress
 from rig.service.keys import COMMANDS, DEFAULT_RIG, SIGNED_COMMANDS, ServiceKeys
 from rig.service.session import ServiceSession, StartRefusedError, StartRequest
-from rig.service.telemetry import TelemetryPublisher
+from rig.service.telemetry import LivePublisher, TelemetryPublisher
 from rig.service.wire import REFUSALS, ServiceError, decode_request, encode_reply, verify
 
 FINISH_WAIT = 30.0
 """How long ``start`` waits for a finished session to let go of its table or emulator [s]."""
+
+LOGGED_CONTROLS = frozenset({"pause", "resume", "abort", "estop"})
+"""Commands logged in the running session's events with their source."""
 
 SHUTDOWN_WAIT = 150.0
 """How long :meth:`OrchestratorService.close` waits for an aborted session to come to rest [s]."""
@@ -96,6 +99,7 @@ class OrchestratorService:
         except zenoh.ZError as exc:
             raise ServiceError(f"cannot listen on {listen}: {exc}") from None
         self._telemetry = TelemetryPublisher(self._zenoh, self.keys, self.snapshot)
+        self._live = LivePublisher(self._zenoh, self.keys, self._live_tap)
         self._queryables = [self._zenoh.declare_queryable(self.keys.commands[command],
                                                           lambda query, c=command: self._arrived(c, query))
                             for command in COMMANDS]
@@ -132,6 +136,14 @@ class OrchestratorService:
                 "session": None if session.path is None else str(session.path), "active": session.alive,
                 "progress": _plain(progress)}
 
+    def _live_tap(self) -> tuple[str | None, Any] | None:
+        """The current session's file and its orchestrator's live tap, or None."""
+        with self._lock:
+            session = self._current
+        if session is None or session.orchestrator is None:
+            return None
+        return (None if session.path is None else str(session.path)), session.orchestrator.live
+
     def _running(self) -> ServiceSession | None:
         """The session being played (not finished), else None."""
         with self._lock:
@@ -160,6 +172,8 @@ class OrchestratorService:
                 ok, message, extra = False, f"{command} refused: {refusal}", {}
             else:
                 ok, message, extra = getattr(self, f"_{command}")(args)
+            if command in LOGGED_CONTROLS and asked == command:
+                self._log_control(command, args, ok, message)
             if not ok:
                 self._say(f"{command}: {message}")
             status = {**self.snapshot(), "seq": self._telemetry.published, **extra}
@@ -173,6 +187,19 @@ class OrchestratorService:
                 query.reply_err(f"{command}: the service failed: {type(exc).__name__}: {exc}".encode())
         finally:
             query.drop()
+
+    def _log_control(self, command: str, args: dict[str, Any], ok: bool, message: str) -> None:
+        """A control request into the running session's events (``Orchestrator.log_event``) and to ``say``, with
+        its source (the request's ``source`` argument, e.g. the console's browser; else "zenoh client")."""
+        source = args.get("source") if isinstance(args.get("source"), str) else "zenoh client"
+        stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
+        text = f"{stamp} control {command} from {source}: {'accepted' if ok else 'refused: ' + message}"
+        self._say(text)
+        with self._lock:
+            session = self._starting or self._current
+        orchestrator = None if session is None or not session.alive else session.orchestrator
+        if orchestrator is not None:
+            orchestrator.log_event(text)
 
     def _refusal(self, command: str, payload: bytes, attachment: bytes | None) -> str | None:
         if command not in SIGNED_COMMANDS or self._verifier is None:
@@ -282,6 +309,8 @@ class OrchestratorService:
         self.wait_idle(timeout)
         self._closed = True
         self._telemetry.close()
+        with contextlib.suppress(zenoh.ZError):
+            self._live.close()
         with contextlib.suppress(zenoh.ZError):
             self._token.undeclare()
             for queryable in self._queryables:

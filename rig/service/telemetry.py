@@ -1,13 +1,24 @@
-"""The service's telemetry: its status (``telemetry/status``, STATUS payloads) and the runs' outcomes
-(``telemetry/run``, RUN payloads), published for any process on the zenoh network.
+"""The service's telemetry: its status (``telemetry/status``, STATUS payloads), the runs' outcomes
+(``telemetry/run``, RUN payloads) and the live display data (``telemetry/live``), published for any process on the
+zenoh network.
 
 A status is published at once when the state, the session or whether a session is active changes, otherwise at
 most :data:`MAX_RATE` times a second while the progress changes, and every :data:`IDLE_PERIOD` s when nothing
 does (so that a monitor that subscribed late, or a client waiting on a paused session, still hears the service).
+
+:class:`LivePublisher` publishes the running session's live tap (``rig.orchestrator.live``) on ``telemetry/live``
+at :data:`LIVE_RATE` frames a second: STATUS-kind JSON payloads with ``state`` ``"live"``, ``t_ns``, ``seq``,
+``session`` and what arrived since the last frame — ``accel`` (``t``, ``a``: measured fall-line acceleration
+[s, m/s²], 50 Hz block means), ``pose`` (``t``, ``p``: surge, sway, heave [m], roll, pitch, yaw [rad]),
+``detections`` (``t``, ``body_id``, ``direction``), ``faults`` (``t``, ``name``, ``detail``) — and ``header`` (the
+run's header: record, angle, scale factor, duration, plan, bodies, commanded fall-line acceleration) when a run
+begins and every :data:`HEADER_PERIOD` s during it, so that a console that subscribes late has it. A frame holds
+at most what the bounded tap holds; a frame that cannot be published is dropped (``LivePublisher.dropped``).
 """
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -23,6 +34,17 @@ MAX_RATE = 10.0
 
 IDLE_PERIOD = 1.0
 """Longest time between two status publications [s]."""
+
+LIVE_RATE = 20.0
+"""Live frames per second while a run feeds the tap [Hz]."""
+
+HEADER_PERIOD = 2.0
+"""How often the running run's header is repeated in the live frames [s]."""
+
+
+def live_key(keys: ServiceKeys) -> str:
+    """The live publication's key: ``shaketable/<rig>/telemetry/live``."""
+    return keys.status.rsplit("/", 1)[0] + "/live"
 
 
 class TelemetryPublisher:
@@ -107,3 +129,74 @@ class TelemetryPublisher:
                                                          "session": snapshot["session"]}))
         except (PayloadError, zenoh.ZError):  # a NaN in the progress, or the session closing: skip this one
             pass
+
+
+class LivePublisher:
+    """Publishes the live tap of ``tap_of()`` (the running session's ``(session path, LiveTap)``, or None) on
+    :func:`live_key` (module docstring), from its own thread."""
+
+    def __init__(self, session: zenoh.Session, keys: ServiceKeys,
+                 tap_of: Callable[[], tuple[str | None, Any] | None]) -> None:
+        self._publisher = session.declare_publisher(live_key(keys))
+        self._tap_of = tap_of
+        self._stop = threading.Event()
+        self.published = 0
+        self.dropped = 0
+        self._header_sent: tuple[int, Any] | None = None
+        self._header_time = 0.0
+        self._thread = threading.Thread(target=self._loop, name="service-live", daemon=True)
+        self._thread.start()
+
+    def close(self) -> None:
+        """Stop the thread and undeclare the publisher."""
+        self._stop.set()
+        self._thread.join(timeout=2.0)
+        self._publisher.undeclare()
+
+    def _loop(self) -> None:
+        while not self._stop.wait(1.0 / LIVE_RATE):
+            current = self._tap_of()
+            if current is not None:
+                self._frame(*current)
+
+    def _frame(self, session: str | None, tap: Any) -> None:
+        frame: dict[str, Any] = {"state": "live", "session": session, "accel": {"t": [], "a": []},
+                                 "pose": {"t": [], "p": []}, "detections": [], "faults": []}
+        for item in tap.drain():
+            kind = item[0]
+            if kind == "accel":
+                frame["accel"]["t"].extend(item[1])
+                frame["accel"]["a"].extend(item[2])
+            elif kind == "pose":
+                frame["pose"]["t"].extend(item[1])
+                frame["pose"]["p"].extend(item[2])
+            elif kind == "detection":
+                frame["detections"].append({"t": item[1], "body_id": item[2], "direction": item[3]})
+            elif kind == "fault":
+                frame["faults"].append({"t": item[1], "name": item[2], "detail": item[3]})
+        header = tap.header
+        now = time.monotonic()
+        if header is not None and (self._header_sent != (id(tap), id(header)) or now - self._header_time
+                                   > HEADER_PERIOD):
+            frame["header"] = header
+            self._header_sent, self._header_time = (id(tap), id(header)), now
+        if not (frame["accel"]["t"] or frame["pose"]["t"] or frame["detections"] or frame["faults"]
+                or "header" in frame):
+            return
+        self.published += 1
+        try:
+            self._publisher.put(encode_json(Kind.STATUS, {**_finite(frame), "t_ns": time.time_ns(),
+                                                          "seq": self.published}))
+        except (PayloadError, zenoh.ZError):
+            self.dropped += 1
+
+
+def _finite(value: Any) -> Any:
+    """``value`` with non-finite floats as None (JSON has no NaN: a detection logged by the operator has t NaN)."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value

@@ -1,0 +1,78 @@
+"""``rig run … --console HOST:PORT``: a run without a separate ``rig serve``, watched and controlled from the console.
+
+The console only ever talks to the rig service (its zenoh telemetry and control plane), so that the page sees and
+commands exactly what ``rig serve --http`` shows. For a plain ``rig run`` this process therefore starts a rig
+service of its own on a free loopback zenoh port (in this process: the orchestrator runs in the service's worker
+thread), the console as a child process subscribed to it, and follows the session as ``rig run --service`` does (the
+status line, Ctrl-C pauses then aborts). Like every service session it runs unattended: the bodies are taken as
+placed (confirmed once at the start unless ``--yes``). Without a key (``--key-file`` or ``$SHAKETABLE_MAVLINK_KEY``)
+a one-session key is made, and the operator token printed here. With ``--service ENDPOINT`` too, only the console
+is started here, for that service.
+"""
+
+from __future__ import annotations
+
+import os
+import secrets
+import socket
+import tempfile
+from pathlib import Path
+from typing import Any
+
+from protocols.mavlink import KEY_ENV
+from rig.console.server import ConsoleError, ConsoleProcess
+from rig.console.token import token_from_key_file
+from rig.service import OrchestratorService, ServiceError
+
+
+def _free_endpoint() -> str:
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{probe.getsockname()[1]}"
+
+
+def run_with_console(http: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
+                     resume: Path | None, yes: bool, console: Any, key_file: Path | None, speed: float,
+                     service: str | None = None) -> int:
+    """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``
+    (module docstring); the exit code of ``rig run --service`` (0 all runs done, 1 stopped early, 2 refused)."""
+    from rig.cli_serve import drive_service
+
+    def say(message: str) -> None:
+        console.print(f"[dim]{message}[/]", highlight=False)
+
+    if service is not None:  # a rig serve elsewhere: only the console is started here
+        try:
+            page = ConsoleProcess(service, http, key_file=key_file, say=say)
+        except ConsoleError as exc:
+            console.print(f"[bold red]error:[/] {exc}", highlight=False)
+            return 2
+        with page:
+            console.print(f"operator console: {page.url}", highlight=False)
+            return drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
+                                 yes=yes, console=console, key_file=key_file, speed=speed)
+
+    with tempfile.TemporaryDirectory(prefix="rig-console-") as scratch:
+        if key_file is None and not os.environ.get(KEY_ENV):
+            key_file = Path(scratch) / "session.key"
+            key_file.write_text(secrets.token_hex(32) + "\n")
+        endpoint = _free_endpoint()
+        try:
+            service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),
+                                          say=lambda m: say(f"rig service: {m}"))
+        except ServiceError as exc:
+            console.print(f"[bold red]error:[/] {exc}", highlight=False)
+            return 2
+        try:
+            try:
+                page = ConsoleProcess(endpoint, http, key_file=key_file, say=say)
+            except ConsoleError as exc:
+                console.print(f"[bold red]error:[/] {exc}", highlight=False)
+                return 2
+            with page:
+                console.print(f"operator console: {page.url} (operator token {token_from_key_file(key_file)})",
+                              highlight=False)
+                return drive_service(endpoint, sequence, table=table, emulate=emulate, output=output, resume=resume,
+                                     yes=yes, console=console, key_file=key_file, speed=speed)
+        finally:
+            service.close()

@@ -1,0 +1,171 @@
+"""Running the console: :func:`serve_console` (``rig console``) serves the page with uvicorn in this process,
+subscribed to the rig service's telemetry, its controls sent to the service as a zenoh client.
+
+The console is its own process (``rig serve --http`` and ``rig run --console`` start it with
+:class:`ConsoleProcess`): its interpreter, event loop and browsers never share a lock with the orchestrator or the
+session writer; what connects them is the service's zenoh telemetry and control plane on loopback.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from protocols.mavlink import SigningKeyError
+from rig.console.app import Console, create_app
+from rig.console.feed import TelemetrySubscription
+from rig.console.token import token_from_key_file
+from rig.service import DEFAULT_RIG, ServiceClient
+
+READY = "console at "
+"""What the console prints on stderr once it serves (followed by its URL)."""
+
+START_WAIT = 60.0
+"""How long :class:`ConsoleProcess` waits for the console to serve [s]."""
+
+
+class ConsoleError(Exception):
+    """The console could not start (bad address, no service, the port taken)."""
+
+
+def parse_http(address: str) -> tuple[str, int]:
+    """``HOST:PORT`` (``127.0.0.1:8080``, ``[::1]:8080``) as (host, port); :class:`ConsoleError` when malformed."""
+    host, sep, port = address.rpartition(":")
+    host = host.strip("[]")
+    if not sep or not host or not port.isdigit() or not 0 <= int(port) < 65536:
+        raise ConsoleError(f"--http {address!r}: expected HOST:PORT, e.g. 127.0.0.1:8080")
+    return host, int(port)
+
+
+def allowed_hosts(host: str, port: int) -> set[str]:
+    """The ``Host`` headers the console answers controls from: its address, and localhost's names when it
+    listens on loopback (a page reached through any other name — DNS rebinding — is refused)."""
+    names = {host, f"[{host}]" if ":" in host else host}
+    try:
+        if ipaddress.ip_address(host).is_loopback:
+            names |= {"localhost", "127.0.0.1", "[::1]"}
+    except ValueError:
+        pass
+    return {f"{name}:{port}" for name in names}
+
+
+class ServiceControls:
+    """The page's controls sent to the rig service (``ServiceClient``; resume signed with the rig's key); one
+    command at a time."""
+
+    def __init__(self, client: ServiceClient) -> None:
+        self.client = client
+        self._lock = threading.Lock()
+
+    def command(self, command: str, source: str) -> dict[str, Any]:
+        method = {"pause": self.client.pause, "resume": self.client.resume, "abort": self.client.abort,
+                  "estop": self.client.emergency_stop}[command]
+        with self._lock:
+            return method(source=source)
+
+
+def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
+                  say: Callable[[str], None] = lambda message: None) -> None:
+    """Serve the console at ``http`` (``HOST:PORT``) for the rig service at ``connect`` until SIGINT/SIGTERM.
+    Without the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) the page is read-only."""
+    import uvicorn
+
+    host, port = parse_http(http)
+    try:
+        token: str | None = token_from_key_file(key_file)
+    except SigningKeyError as exc:
+        token = None
+        say(f"read-only: no operator token ({exc})")
+    from rig.service import ServiceError
+
+    try:
+        client = ServiceClient(connect, key_file if token else None)
+    except ServiceError as exc:
+        raise ConsoleError(str(exc)) from None
+    console = Console(ServiceControls(client), token, allowed_hosts=allowed_hosts(host, port))
+    subscription: list[TelemetrySubscription] = []
+
+    def startup(loop: Any) -> None:
+        subscription.append(TelemetrySubscription(connect, console.deliver_from(loop), rig))
+
+    def shutdown() -> None:
+        for sub in subscription:
+            sub.close()
+
+    app = create_app(console, on_startup=startup, on_shutdown=shutdown)
+    server = uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on"))
+    announce = threading.Thread(target=_announce, args=(server, say), daemon=True)
+    announce.start()
+    try:
+        server.run()
+    finally:
+        client.close()
+    if not server.started:
+        raise ConsoleError(f"the console could not listen on {http} (port in use?)")
+
+
+def _announce(server: Any, say: Callable[[str], None]) -> None:
+    while not server.started and not server.should_exit:
+        time.sleep(0.05)
+    if server.started:
+        for sock in (s for srv in server.servers for s in srv.sockets):
+            host, port = sock.getsockname()[:2]
+            say(f"{READY}http://{f'[{host}]' if ':' in host else host}:{port}/")
+            return
+
+
+class ConsoleProcess:
+    """``python -m rig.console`` as a child process (``rig serve --http``, ``rig run --console``): started and
+    waited for until it serves; its stderr forwarded to ``say``; :meth:`stop` ends it (SIGTERM)."""
+
+    def __init__(self, connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
+                 say: Callable[[str], None] = lambda message: None) -> None:
+        parse_http(http)
+        command = [sys.executable, "-m", "rig.console", "--connect", connect, "--http", http, "--rig", rig]
+        if key_file is not None:
+            command += ["--key-file", str(key_file)]
+        self.url: str | None = None
+        self._say = say
+        self._ready = threading.Event()
+        self.proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                                     env=os.environ.copy())
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
+        deadline = time.monotonic() + START_WAIT
+        while not self._ready.wait(0.1):
+            if self.proc.poll() is not None or time.monotonic() > deadline:
+                self.stop()
+                raise ConsoleError(f"the console did not start (exit code {self.proc.returncode})")
+
+    def _read(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            line = line.rstrip("\n")
+            if line.startswith(f"rig console: {READY}"):
+                self.url = line.removeprefix(f"rig console: {READY}")
+                self._ready.set()
+            self._say(line)
+
+    def stop(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGTERM)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        self._reader.join(2)
+
+    def __enter__(self) -> ConsoleProcess:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()
