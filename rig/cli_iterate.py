@@ -50,7 +50,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         """Identify the table's frequency response, then play, measure and correct the record's drive until the
         plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
         from analysis.table_model import TableModel, TableModelError
-        from rig.cli_run import software_version
+        from rig import __version__
         from rig.compensation.session import iterate_on_table
         from rig.drive import DriveError, DriveRefusedError, prepare_drive
         from rig.drive.file import DriveFileError
@@ -96,7 +96,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         try:
             with _Table(table, emulate, key_file, rig_config, dynamics, body or [], speed) as (url, options):
                 outcome = iterate_on_table(drive, url, options, session, drive_path, sequence=sequence,
-                                           software_version=software_version(), bodies=bodies,
+                                           software_version=__version__, bodies=bodies,
                                            iterations=iterations, gain=gain, tolerance=tolerance,
                                            identify_seconds=identify_seconds, note=say)
         except (SessionError, DriveFileError, OSError, ValueError) as exc:
@@ -151,8 +151,8 @@ class _Table:
         import secrets
         import tempfile
 
-        from rig.cli_run import EMULATOR_LISTEN
         from rig.emulator import EmulatorProcess
+        from rig.orchestrator.setup import EMULATOR_LISTEN
 
         key_file = self.key_file
         if key_file is None:

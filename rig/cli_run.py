@@ -9,17 +9,13 @@ Exit codes: 0 all runs done, 1 the session stopped early (resumable with ``--res
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import queue
-import secrets
 import signal
-import tempfile
 import threading
 import time
-from collections.abc import Callable, Iterator
-from datetime import datetime
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
@@ -38,27 +34,8 @@ if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h
     from rig.sequence import PlacedBody, PlannedRun, Sequence
     from rig.session import SessionLog
 
-EMULATOR_LISTEN = "mavlink://127.0.0.1:0"
-"""Where ``--emulate`` starts the emulated table (MAVLink on loopback, any free port)."""
-
 REFRESH = 8.0
 """Screen refreshes per second."""
-
-
-def software_version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("shaketable-rig")
-    except PackageNotFoundError:
-        return "unknown"
-
-
-def default_session_path(sequence: Sequence, directory: Path | None = None) -> Path:
-    """``session-YYYYMMDD-HHMMSS-NAME.h5`` in ``directory`` (default: the current one)."""
-    stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
-    safe = "".join(c if c.isalnum() or c in "-_" else "-" for c in sequence.name)
-    return (directory or Path.cwd()) / f"session-{stamp}-{safe}.h5"
 
 
 # ----- the operator at this terminal ---------------------------------------------------------------------------
@@ -136,32 +113,6 @@ class Screen:
         return Group(self.bars, status)
 
 
-@contextlib.contextmanager
-def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Path | None,
-              speed: float) -> Iterator[tuple[str, dict[str, Any], Callable[[], dict[str, Any]] | None]]:
-    """The table URL and driver options; with ``emulate``, an emulator process started (and stopped after) with
-    the sequence's bodies on its plate and a one-session signing key unless ``key_file`` is given."""
-    from rig.emulator import EmulatorProcess, specimen_flags, speed_flags
-
-    if not emulate:
-        url = table or sequence.table_url
-        if url is None:
-            raise typer.BadParameter("give --table URL (or table_url in the sequence), or --emulate")
-        yield url, ({"key_file": str(key_file)} if key_file else {}), None
-        return
-    with tempfile.TemporaryDirectory(prefix="rig-run-") as scratch:
-        if key_file is None:
-            key_file = Path(scratch) / "session.key"
-            key_file.write_text(secrets.token_hex(32) + "\n")
-        flags = [*specimen_flags(sequence.bodies), *speed_flags(speed)]
-        emulator = EmulatorProcess.start(EMULATOR_LISTEN, *flags, key_file=key_file)
-        counters: dict[str, Any] = {}
-        try:
-            yield emulator.url, {"key_file": str(key_file)}, lambda: counters
-        finally:
-            counters.update(emulator.stop())
-
-
 def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str, Any], *, yes: bool,
                 console: Any) -> bool:
     """Play the session with the screen, the prompts and Ctrl-C handling (module docstring); whether every run of
@@ -215,14 +166,6 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
     progress = orchestrator.progress
     console.print(f"\n[bold]{outcome.value}[/]: {progress.message}")
     return outcome is OrchestratorState.DONE and progress.runs_done == progress.runs_total
-
-
-def write_emulator_counters(session: Path, counters: dict[str, Any]) -> Path:
-    """The emulator's counters (its overturns, underruns, stops, refused commands) beside the session file, as
-    ``SESSION.emulator.json``: what the emulated table itself saw, to compare with the session's log."""
-    path = session.with_name(session.name.removesuffix(".h5") + ".emulator.json")
-    path.write_text(json.dumps(counters, indent=1) + "\n")
-    return path
 
 
 def _next_question(operator: TerminalOperator | None) -> tuple[Callable[[], Any], queue.Queue[Any]] | None:
@@ -289,15 +232,25 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
         if console_at is not None:
-            from rig.console.launch import run_with_console
+            from rig.cli_console import run_with_console
 
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
                                               speed=speed, service=service))
 
         from rig.emulator import EmulatorError
-        from rig.sequence import Sequence, SequenceError, load_sequence
-        from rig.session import SessionError, SessionLog, read_session
+        from rig.orchestrator.setup import (
+            NoTableError,
+            create_log,
+            default_session_path,
+            load_checked,
+            resumed,
+            table_for,
+            write_emulator_counters,
+        )
+        from rig.sequence import SequenceError
+        from rig.session import SessionError
+
         if service is not None:
             from rig.cli_serve import drive_service
 
@@ -309,21 +262,17 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
         try:
             if resume is not None:
-                sequence = Sequence.from_dict(read_session(resume, data=False)["sequence"], source=str(resume))
-                sequence.check()
-                log = SessionLog.resume(resume)
+                sequence, log = resumed(resume)
                 path = resume
             else:
                 if sequence_file is None:
                     fail("give a SEQUENCE.toml (or --resume SESSION.h5)")
-                sequence = load_sequence(sequence_file)
-                sequence.check()
+                sequence = load_checked(sequence_file)
                 path = output or default_session_path(sequence)
                 log = None
             with table_for(sequence, table, emulate, key_file, speed) as (url, options, counters):
                 if log is None:
-                    log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
-                                            software_version=software_version())
+                    log = create_log(sequence, path)
                 console.print(f"session file: {path}")
                 try:
                     complete = run_session(sequence, log, url, options, yes=yes, console=console)
@@ -331,7 +280,9 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
                     log.close()
             if counters is not None:
                 write_emulator_counters(path, counters())
-        except (SequenceError, SessionError, EmulatorError, typer.BadParameter) as exc:
+        except NoTableError:
+            fail("give --table URL (or table_url in the sequence), or --emulate")
+        except (SequenceError, SessionError, EmulatorError) as exc:
             fail(str(exc))
         if not complete:
             console.print(f"the session stopped early: continue it with rig run --resume {path}")
@@ -348,12 +299,18 @@ def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console:
     measured motion (`rig analyze`), the HTML report written (`rig report`), and the files named."""
     from rig.cli_sessions import print_session
     from rig.emulator import EmulatorError
-    from rig.sequence import SequenceError, load_sequence
-    from rig.session import SessionError, SessionLog
+    from rig.orchestrator.setup import (
+        create_log,
+        default_session_path,
+        load_checked,
+        table_for,
+        write_emulator_counters,
+    )
+    from rig.sequence import SequenceError
+    from rig.session import SessionError
 
     try:
-        sequence = load_sequence(QUICK_SEQUENCE)
-        sequence.check()
+        sequence = load_checked(QUICK_SEQUENCE)
         output_dir.mkdir(parents=True, exist_ok=True)
         path = default_session_path(sequence, output_dir)
         console.print(f"[bold]shaketable-rig demo[/]: {sequence.name!r} ({len(sequence.plan())} runs, "
@@ -361,8 +318,7 @@ def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console:
                       f"(loopback), bodies {', '.join(b.name for b in sequence.bodies)} on the plate")
         with table_for(sequence, None, True, None, speed) as (url, options, counters):
             assert counters is not None
-            log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
-                                    software_version=software_version())
+            log = create_log(sequence, path)
             try:
                 complete = run_session(sequence, log, url, options, yes=True, console=console)
             finally:

@@ -130,8 +130,6 @@ def test_every_rig_unit_has_a_layer() -> None:
     assert units - set(RIG_LAYERS) == set(), "a new unit of rig: give it a layer here and in docs/architecture.md"
 
 
-@pytest.mark.xfail(strict=True, reason="rig.service.session imports rig.cli_run (table_for, default_session_path, "
-                                       "software_version): the service imports the CLI (issue 15, item 1)")
 def test_inside_rig_a_unit_imports_only_its_layer_and_below() -> None:
     breaches = sorted(f"{module} ({_rig_unit(module)}) imports {target} ({_rig_unit(target)})"
                       for module, targets in _graph().items() if module.startswith("rig.")
@@ -140,7 +138,5 @@ def test_inside_rig_a_unit_imports_only_its_layer_and_below() -> None:
     assert breaches == []
 
 
-@pytest.mark.xfail(strict=True, reason="rig.cli_run imports rig.cli_serve, which imports rig.service, whose "
-                                       "session module imports rig.cli_run: a circle (issue 15, item 1)")
 def test_no_import_circles() -> None:
     assert _import_circles() == []

@@ -1,9 +1,9 @@
 """One session of the rig service: the ``start`` request's arguments, and the worker thread that prepares the
 session (sequence read and checked, table or emulator, session file) and plays it with the orchestrator.
 
-The worker does what ``rig run --yes`` does (``rig.cli_run``: ``load_sequence`` + ``Sequence.check``, ``table_for``,
-``SessionLog.create``/``resume``), unattended: the service has no operator at a terminal, so bodies are taken as
-placed and runs start at once (a client confirms before it sends ``start``).
+The worker does what ``rig run --yes`` does (the steps of ``rig.orchestrator.setup``: the sequence read and
+checked, the table or emulator, the session file created or resumed), unattended: the service has no operator at a
+terminal, so bodies are taken as placed and runs start at once (a client confirms before it sends ``start``).
 """
 
 from __future__ import annotations
@@ -18,12 +18,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import typer
-
-from rig.cli_run import default_session_path, software_version, table_for
 from rig.emulator import EmulatorError
 from rig.orchestrator import Orchestrator, OrchestratorState, Progress
-from rig.sequence import Sequence, SequenceError, load_sequence
+from rig.orchestrator.setup import NoTableError, create_log, default_session_path, load_checked, table_for
+from rig.sequence import Sequence, SequenceError
 from rig.session import SessionError, SessionLog
 
 _SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
@@ -216,6 +214,7 @@ class ServiceSession:
                 log = SessionLog.resume(request.resume)
                 stack.callback(log.close)
                 sequence = Sequence.from_dict(log.sequence, source=str(request.resume))
+                sequence.check()
                 self.path = request.resume
             else:
                 sequence = self._load(stack)
@@ -223,33 +222,30 @@ class ServiceSession:
                 if self.path.exists():
                     raise StartRefusedError(f"{self.path}: already exists; a session file is never overwritten, "
                                             "choose a new file name (or resume that session)")
-            sequence.check()
             self._note("preparing the session: starting the emulated table" if request.emulate
                        else "preparing the session")
             self._url, self._options, self._counters = stack.enter_context(
                 table_for(sequence, request.table, request.emulate, self.key_file, request.speed))
             if log is None:
-                log = SessionLog.create(self.path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
-                                        software_version=software_version())
+                log = create_log(sequence, self.path)
                 stack.callback(log.close)
         except (SequenceError, SessionError, EmulatorError, OSError) as exc:
             message = str(exc)
             if self._scratch is not None:  # the text's file is named as the client named it
                 message = message.replace(f"{self._scratch}{os.sep}", "")
             raise StartRefusedError(message) from None
-        except typer.BadParameter as exc:
-            raise StartRefusedError(exc.message.replace("--table URL", "a table URL")
-                                    .replace("--emulate", "emulate: true")) from None
+        except NoTableError:
+            raise StartRefusedError("give a table URL (or table_url in the sequence), or emulate: true") from None
         return sequence, log
 
     def _load(self, stack: contextlib.ExitStack) -> Sequence:
         request = self.request
         if request.sequence is not None:
-            return load_sequence(request.sequence)
+            return load_checked(request.sequence)
         self._scratch = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="rig-serve-")))
         path = self._scratch / f"{request.sequence_name.removesuffix('.toml')}.toml"
         path.write_text(request.sequence_toml or "", encoding="utf-8")
-        return load_sequence(path)
+        return load_checked(path)
 
     def _note(self, message: str) -> None:
         self.progress.message = message

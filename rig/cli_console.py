@@ -19,11 +19,6 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
-from protocols.mavlink import KEY_ENV
-from rig.console.server import ConsoleError, ConsoleProcess
-from rig.console.token import token_from_key_file
-from rig.service import OrchestratorService, ServiceError
-
 
 def _free_endpoint() -> str:
     with socket.socket() as probe:
@@ -36,7 +31,11 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
                      service: str | None = None) -> int:
     """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``
     (module docstring); the exit code of ``rig run --service`` (0 all runs done, 1 stopped early, 2 refused)."""
+    from protocols.mavlink import KEY_ENV
     from rig.cli_serve import drive_service
+    from rig.console.server import ConsoleError, ConsoleProcess
+    from rig.console.token import token_from_key_file
+    from rig.service import OrchestratorService, ServiceError
 
     def say(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
