@@ -29,9 +29,6 @@ if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load z
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 """Where ``rig serve`` listens and the clients connect by default."""
 
-FINAL = ("done", "faulted")
-"""Orchestrator states that end a session's invocation."""
-
 ConnectOption = Annotated[str, typer.Option("--connect", help="the rig service's zenoh endpoint")]
 KeyOption = Annotated[Path | None, typer.Option(help="the rig's key file (default: $SHAKETABLE_MAVLINK_KEY)")]
 
@@ -134,9 +131,11 @@ def _follow(client: ServiceClient, feed: TelemetryFeed, session: str, seq: int, 
             console: Any) -> dict[str, Any] | None:
     """Show the session's telemetry until its final state (returned; None if the service went away);
     ``interrupts[0]`` counts the Ctrl-C (the caller's SIGINT handler)."""
+    from rig.orchestrator import FINAL_STATES
     from rig.service import ServiceUnavailableError
     from rig.service.client import SILENCE
 
+    final_states = {state.value for state in FINAL_STATES}  # the states that end a session's invocation
     sent = 0
     ours_paused = False
     silent = 0.0
@@ -156,7 +155,7 @@ def _follow(client: ServiceClient, feed: TelemetryFeed, session: str, seq: int, 
                 if status["session"] != session or status["seq"] < seq:
                     continue
                 display.update(status)
-                if status["state"] in FINAL:
+                if status["state"] in final_states:
                     return status
                 if status["state"] == "paused" and ours_paused:
                     ours_paused = False

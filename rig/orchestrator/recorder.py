@@ -16,6 +16,7 @@ import numpy as np
 
 from drivers.controller import AccelBatch, Detection, FaultEvent, TableController, TableStatus
 from rig.orchestrator.live import LiveTap
+from rig.orchestrator.sinks import RunSink
 from rig.orchestrator.states import Progress
 
 POLL_SECONDS = 0.02
@@ -26,13 +27,14 @@ BASELINE_SAMPLES = 200
 
 
 class RunRecorder:
-    """Feeds ``run_log`` (a :class:`rig.session.RunLog`) from ``table``'s feedback (module docstring).
+    """Feeds ``run_log`` (a :class:`~rig.orchestrator.sinks.RunSink`: :class:`rig.session.RunLog`) from
+    ``table``'s feedback (module docstring).
 
     ``sensors`` maps accelerometer ids to the log's sensor names; ``body_ids`` maps the table's body index to
     the sequence's body id; ``progress`` gets the peak horizontal acceleration and the detection count.
     """
 
-    def __init__(self, table: TableController, run_log: Any, sensors: dict[int, str], body_ids: list[int],
+    def __init__(self, table: TableController, run_log: RunSink, sensors: dict[int, str], body_ids: list[int],
                  progress: Progress, live: LiveTap | None = None) -> None:
         self.run_log = run_log
         self.live = live
