@@ -20,7 +20,7 @@ lint: $(STAMP)
 
 # the README's test command: lint and every test not marked slow (minutes)
 test: $(STAMP) lint
-	$(BIN)/pytest -q -m "not slow"
+	$(BIN)/pytest -q -m "not slow" --durations=25
 
 # the long tests: full-suite agreement with the reference, stress, published pulse thresholds
 test-slow: $(STAMP)
