@@ -10,7 +10,6 @@ Exit codes: 0 all runs done, 1 the session stopped early (resumable with ``--res
 from __future__ import annotations
 
 import json
-import math
 import queue
 import signal
 import threading
@@ -253,10 +252,6 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
 
         if service is not None:
             from rig.cli_serve import drive_service
-
-            if math.isinf(speed):
-                raise typer.BadParameter("--speed max runs a local emulator (--emulate without --service): the "
-                                         "service's start request carries a finite speed", param_hint="--speed")
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))

@@ -134,6 +134,7 @@ def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
 # ----- streaming a prepared drive at 500 Hz -----------------------------------------------------------------------
 
 
+@pytest.mark.slow  # 17 s of table time at 1x (CANopen has no virtual time: the host is the SYNC master)
 def test_stream_a_prepared_fema_drive_excerpt_at_500_hz() -> None:
     drive = drive_excerpt()
     with emulated(specimens=(parse_body(SLENDER), parse_body(STOCKY))) as emulator:

@@ -72,6 +72,7 @@ def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -
     assert sum(len(r["detections"]) for r in runs) == len(emulator["overturns"]) > 0
 
 
+@pytest.mark.slow  # 22 s; kill -9 of a writer is in the quick suite by test_session_recover and test_session_log
 def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp_path: Path) -> None:
     proc, session, seen = start_tiny(tmp_path)
     try:

@@ -95,6 +95,7 @@ def browser(tmp_path: Path) -> Iterator[Any]:
             context.close()
 
 
+@pytest.mark.slow  # a real browser over a whole session at 1x; tests/test_console.py checks the page's server quickly
 def test_the_console_follows_a_session_and_controls_it(service: ServiceWithConsole, browser: Any,
                                                        tmp_path: Path) -> None:
     page = browser.new_page()

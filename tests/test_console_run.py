@@ -14,6 +14,7 @@ import urllib.request
 from pathlib import Path
 from typing import Any
 
+import pytest
 from test_orchestrator import TINY
 from test_service import free_port
 
@@ -26,6 +27,7 @@ def state(url: str) -> dict[str, Any] | None:
         return None
 
 
+@pytest.mark.slow  # a whole session at 1x through an in-process service and the console
 def test_rig_run_with_a_console(tmp_path: Path) -> None:
     sequence = tmp_path / "tiny.toml"
     sequence.write_text(TINY)

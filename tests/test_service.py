@@ -243,12 +243,33 @@ def test_the_service_needs_the_rig_key_unless_told_otherwise(tmp_path: Path, mon
 
 def test_rig_run_service_drives_the_service_to_the_end(service: Service, client: ServiceClient, tiny: Path,
                                                       tmp_path: Path) -> None:
-    """``rig run --service``: the sequence runs on the service (which starts its own emulator), the command line
-    follows its telemetry and exits 0 when every run is done."""
+    """``rig run --service``: the sequence runs on the service (which starts its own emulator, here in virtual
+    time: ``--speed max`` travels in the start request), the command line follows its telemetry and exits 0 when
+    every run is done."""
     output = tmp_path / "via-service.h5"
     done = subprocess.run([str(Path(sys.executable).with_name("rig")), "run", str(tiny), "--service",
-                           service.endpoint, "--emulate", "--yes", "--key-file", str(service.key_file), "-o",
-                           str(output)], capture_output=True, text=True, timeout=120)
+                           service.endpoint, "--emulate", "--speed", "max", "--yes", "--key-file",
+                           str(service.key_file), "-o", str(output)], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
     runs = read_session(output, data=False)["runs"]
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "completed"), (1, "completed")]
+
+
+@pytest.mark.parametrize(("speed", "refused"), [(2.5, None), ("max", None), (0, "speed must be a number > 0"),
+                                                (float("nan"), "speed must be"), ("fast", "speed must be"),
+                                                (True, "speed must be")])
+def test_the_start_request_carries_a_speed_or_max(tmp_path: Path, speed: object, refused: str | None) -> None:
+    """A start request's ``speed``: controller time per real time, or ``"max"`` (virtual time, math.inf inside),
+    which round-trips through the request's args; anything else is refused naming the field."""
+    import math
+
+    from rig.service.session import StartRefusedError, StartRequest
+
+    args = {"sequence": "tiny.toml", "emulate": True, "speed": speed}
+    if refused is not None:
+        with pytest.raises(StartRefusedError, match=refused):
+            StartRequest.from_args(args, tmp_path)
+        return
+    request = StartRequest.from_args(args, tmp_path)
+    assert request.speed == (math.inf if speed == "max" else speed)
+    assert StartRequest.from_args(request.to_args(), tmp_path) == request

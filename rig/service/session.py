@@ -9,6 +9,7 @@ terminal, so bodies are taken as placed and runs start at once (a client confirm
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import re
 import tempfile
@@ -38,7 +39,8 @@ class StartRequest:
     ``sequence``: a sequence file on the service's host, or ``sequence_toml``: its text (read as the file
     ``<sequence_name>.toml``; record paths in it are then relative to nowhere: use named records or absolute paths);
     ``table``: the table's URL (default: the sequence's ``table_url``), or ``emulate``: start the emulated table
-    (``speed``: its controller time per real time); ``output``: the new session file (default
+    (``speed``: its controller time per real time, math.inf for virtual time: ``"max"`` in the request's
+    ``args``); ``output``: the new session file (default
     ``session-DATE-TIME-NAME.h5`` in the service's sessions directory); ``resume``: continue that session file
     instead (no sequence then). Relative paths are taken from the sessions directory.
     """
@@ -56,7 +58,7 @@ class StartRequest:
         """The request's ``args`` (paths as given: make them absolute on the client)."""
         return {"sequence": None if self.sequence is None else str(self.sequence),
                 "sequence_toml": self.sequence_toml, "sequence_name": self.sequence_name, "table": self.table,
-                "emulate": self.emulate, "speed": self.speed,
+                "emulate": self.emulate, "speed": "max" if math.isinf(self.speed) else self.speed,
                 "output": None if self.output is None else str(self.output),
                 "resume": None if self.resume is None else str(self.resume)}
 
@@ -85,8 +87,10 @@ class StartRequest:
         emulate, speed = args.get("emulate", False), args.get("speed", 1.0)
         if not isinstance(emulate, bool):
             raise StartRefusedError(f"start: emulate must be true or false, got {emulate!r}")
-        if isinstance(speed, bool) or not isinstance(speed, int | float) or not speed > 0:
-            raise StartRefusedError(f"start: speed must be a number > 0, got {speed!r}")
+        if speed == "max":
+            speed = math.inf
+        elif isinstance(speed, bool) or not isinstance(speed, int | float) or not (math.isfinite(speed) and speed > 0):
+            raise StartRefusedError(f"start: speed must be a number > 0 or \"max\", got {speed!r}")
         name = text("sequence_name", "sequence") or "sequence"
         if not _SAFE_NAME.fullmatch(name):
             raise StartRefusedError(f"start: sequence_name {name!r} must be 1..64 letters, digits, '.', '-', '_'")
