@@ -160,11 +160,17 @@ class LivePublisher:
                 self._frame(*current)
 
     def _frame(self, session: str | None, tap: Any) -> None:
-        frame: dict[str, Any] = {"state": "live", "session": session, "accel": {"t": [], "a": []},
-                                 "pose": {"t": [], "p": []}, "detections": [], "faults": []}
+        """Publish what the tap holds: one frame, or one per run when a run began since the last frame (a run's
+        tail and the next run's beginning never share a frame: a display clears its plots at a new header)."""
+        frame = _empty_frame(session)
         for item in tap.drain():
             kind = item[0]
-            if kind == "accel":
+            if kind == "run":
+                self._publish(frame)
+                frame = _empty_frame(session)
+                frame["header"] = item[1]
+                self._header_sent, self._header_time = (id(tap), id(item[1])), time.monotonic()
+            elif kind == "accel":
                 frame["accel"]["t"].extend(item[1])
                 frame["accel"]["a"].extend(item[2])
             elif kind == "pose":
@@ -176,10 +182,13 @@ class LivePublisher:
                 frame["faults"].append({"t": item[1], "name": item[2], "detail": item[3]})
         header = tap.header
         now = time.monotonic()
-        if header is not None and (self._header_sent != (id(tap), id(header)) or now - self._header_time
-                                   > HEADER_PERIOD):
+        if "header" not in frame and header is not None and (
+                self._header_sent != (id(tap), id(header)) or now - self._header_time > HEADER_PERIOD):
             frame["header"] = header
             self._header_sent, self._header_time = (id(tap), id(header)), now
+        self._publish(frame)
+
+    def _publish(self, frame: dict[str, Any]) -> None:
         if not (frame["accel"]["t"] or frame["pose"]["t"] or frame["detections"] or frame["faults"]
                 or "header" in frame):
             return
@@ -189,6 +198,11 @@ class LivePublisher:
                                                           "seq": self.published}))
         except (PayloadError, zenoh.ZError):
             self.dropped += 1
+
+
+def _empty_frame(session: str | None) -> dict[str, Any]:
+    return {"state": "live", "session": session, "accel": {"t": [], "a": []}, "pose": {"t": [], "p": []},
+            "detections": [], "faults": []}
 
 
 def _finite(value: Any) -> Any:
