@@ -146,7 +146,7 @@
   function newRun(header, session) {
     const changed = !live.header || session !== live.session || header.plan_index !== live.header.plan_index;
     live.header = header; live.session = session; stats.planIndex = header.plan_index;
-    if (changed) { live.at = []; live.aa = []; live.pt = []; live.pp = []; live.detections = []; }
+    if (changed) { live.at = []; live.aa = []; live.pt = []; live.pp = []; live.detections = []; stats.lastT = null; }
   }
 
   function onLive(m) {
