@@ -242,7 +242,11 @@ cli_report.register(app, fail, console)
 cli_iterate.register(app, fail, console)
 
 
-def main() -> None:  # pragma: no cover - console entry
+def main() -> None:
+    """The ``rig`` command. When stderr is not a terminal, a usage error is click's plain text (``Error: …`` on one
+    line, greppable) instead of typer's rich panel, which wraps at 80 columns."""
+    if not sys.stderr.isatty():
+        app.rich_markup_mode = None  # read when the command is built (typer.main.get_group)
     app()
 
 

@@ -149,8 +149,8 @@ def test_the_console_follows_a_session_and_controls_it(service: ServiceWithConso
         page.wait_for_function("document.getElementById('state').dataset.state === 'running'", timeout=60_000)
         page.wait_for_function("window.consoleStats.planIndex === 1 && window.consoleStats.lastT > 4.5",
                                timeout=60_000)  # most of the second record
-        shown = page.evaluate("[document.getElementById('table-state').textContent, JSON.stringify(window.consoleStats), "
-                              "document.getElementById('message').textContent]")
+        shown = page.evaluate("[document.getElementById('table-state').textContent, "
+                              "JSON.stringify(window.consoleStats), document.getElementById('message').textContent]")
         assert shown[0] == "streaming", shown  # the status is current: the statuses are never the frames dropped
         screenshot = tmp_path / "console.png"
         page.screenshot(path=str(screenshot))

@@ -222,6 +222,13 @@ def test_errors_and_warnings_are_one_line_each_when_stderr_is_not_a_terminal(tmp
                                           "playing it"]
 
 
+def test_usage_errors_are_one_plain_line_when_stderr_is_not_a_terminal() -> None:
+    result = _rig("prepare", "--no-such-option", "x.AT2")
+    assert result.returncode == 2
+    assert "Error: No such option: --no-such-option" in result.stderr.splitlines(), result.stderr
+    assert "╭" not in result.stderr and "│" not in result.stderr
+
+
 def test_the_library_imports_a_lone_vertical_only_when_accepted(tmp_path: Path) -> None:
     from rig.records import import_records, load_library_record
 
