@@ -34,7 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from analysis.body import TABLE_V
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate
 from rig.compensation.signals import base_accelerations

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from rig.drive import Drive, Governing, prepare_drive
 from rig.records import GroundMotion, load_records
 

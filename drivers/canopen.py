@@ -44,7 +44,7 @@ DISARM            disable operation on all six (only armed or faulted) → ``idl
 HOME, SET_TILT    moves the master plays: quintic ``10τ³ − 15τ⁴ + 6τ⁵`` as in ``rig.drive.tilt``, as short as the axis
                   velocity, acceleration and (rotations) tilt jerk limits allow. A move (also a stop's return
                   home) ends when its reference has arrived and the newest measured pose is within
-                  ``analysis.moves.IN_POSITION`` of its end; not in position ``SETTLE_TIME_NS`` later → DRIVE.
+                  ``analysis.table.moves.IN_POSITION`` of its end; not in position ``SETTLE_TIME_NS`` later → DRIVE.
 START_STREAM      :meth:`CanopenTable.stream`: the master interpolates the trajectory at each ``t_n + D`` (from the
                   pose held when it was called, blending into the first sample ``lead`` s later; ``lead`` must
                   exceed D + T).
@@ -88,8 +88,8 @@ import can
 import canopen
 import numpy as np
 
-from analysis.moves import Move, axis_limits
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
+from analysis.table.moves import Move, axis_limits
 from drivers.controller import (
     STATUS_TIMEOUT,
     STOPPED_STATES,

@@ -5,7 +5,7 @@ the backend registered for that scheme (``mavlink://HOST:PORT`` → :mod:`driver
 register with :func:`register_scheme`). The behaviour every backend carries is ``docs/table-controller.md``.
 
 Units and conventions (ARCHITECTURE §2): SI; a pose is ``(surge, sway, heave [m], roll, pitch, yaw [rad])``
-as in ``analysis.table_model``; tilt β > 0 is pitch = +β (+x downhill); time stamps are integer nanoseconds of
+as in ``analysis.table.model``; tilt β > 0 is pitch = +β (+x downhill); time stamps are integer nanoseconds of
 **controller time** (the controller's own monotonic clock) unless a name says ``host``. Overturn direction +1 is
 towards the low side, −1 towards the high side.
 

@@ -49,7 +49,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
     ) -> None:
         """Identify the table's frequency response, then play, measure and correct the record's drive until the
         plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
-        from analysis.table_model import TableModel, TableModelError
+        from analysis.table.model import TableModel, TableModelError
         from rig import __version__
         from rig.compensation.session import iterate_on_table
         from rig.drive import DriveError, DriveRefusedError, prepare_drive

@@ -21,7 +21,7 @@ from rich.table import Table
 from rig.cli_errors import print_error, stderr_console
 
 if TYPE_CHECKING:
-    from analysis.table_model import TableModel
+    from analysis.table.model import TableModel
     from rig.drive import Drive
 
 EXIT_BAD_INPUT = 2
@@ -38,7 +38,7 @@ def register(app: typer.Typer) -> None:
 
 def load_table(rig_config: Path | None) -> TableModel:
     """The table model from a rig configuration TOML file, or Table IV with the default hexapod."""
-    from analysis.table_model import TableModel
+    from analysis.table.model import TableModel
 
     return TableModel() if rig_config is None else TableModel.from_toml(rig_config)
 
@@ -58,7 +58,7 @@ def prepare_cmd(
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
-    from analysis.table_model import TableModelError
+    from analysis.table.model import TableModelError
     from rig.drive import DriveError, DriveRefusedError, prepare_drive
     from rig.records import RecordError, load_record
 
@@ -91,7 +91,7 @@ def _emit(obj: dict[str, Any]) -> None:
 
 def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
     """A table of the peaks against the limits and a line on scale, corner and timing."""
-    from analysis.table_model import AXES
+    from analysis.table.model import AXES
     from rig.records import G
 
     gov = out["governing"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from analysis.body import G
-from analysis.table_model import rotation_matrices
+from analysis.table.model import rotation_matrices
 
 GRAVITY = np.array([0.0, 0.0, -G])
 """Gravity in the base frame [m/s²]."""

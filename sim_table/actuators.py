@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.signal import lfilter
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 
 
 @dataclass(frozen=True)

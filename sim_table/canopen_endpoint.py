@@ -92,7 +92,7 @@ import can
 import canopen
 import numpy as np
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from protocols.canopen import (
     LEG_NODE_IDS,
     MASTER_NODE_ID,

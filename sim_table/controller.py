@@ -22,7 +22,7 @@ Reference generation:
 - **Stopping** (STOP, a watchdog, a drive fault): decelerate to rest as in an underrun, then move home; then
   ``armed`` (STOP) or ``faulted``.
 - A move has ended when its reference has arrived and the achieved pose (:meth:`observe`) is in position
-  (``analysis.moves.IN_POSITION``); not in position ``SETTLE_TIME_NS`` after its reference arrived → DRIVE fault
+  (``analysis.table.moves.IN_POSITION``); not in position ``SETTLE_TIME_NS`` after its reference arrived → DRIVE fault
   (following error; a stop's return home then ends ``faulted`` where the plate is).
 
 Watchdogs: while streaming (before END_OF_STREAM arrived), no chunk for more than ``watchdog_ns`` →
@@ -46,8 +46,8 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from analysis.moves import Move, axis_limits, shortest_duration
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
+from analysis.table.moves import Move, axis_limits, shortest_duration
 
 SEQ_MODULUS = 2**32
 """Chunk sequence numbers are uint32 and wrap."""

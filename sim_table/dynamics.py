@@ -1,7 +1,7 @@
 """Servo-hydraulic legs: the table's dynamics behind ``rig emulate --dynamics servo`` (``docs/table-dynamics.md``).
 
 Each leg is a servo-valve feeding a double-acting cylinder whose oil column is a spring under the moving mass
-(``analysis.table_dynamics.TableDynamics``: k_h = 4βA²/V_t, ω_h = sqrt(k_h/m)), closed by the controller's digital
+(``analysis.table.dynamics.TableDynamics``: k_h = 4βA²/V_t, ω_h = sqrt(k_h/m)), closed by the controller's digital
 displacement loop at the controller rate. Per leg, with the valve's flow written as a piston speed w [m/s]:
 
     valve        ẇ_a = ω_v (w − w_a)                   first-order, ω_v = 2π·valve_bandwidth
@@ -36,8 +36,8 @@ import numpy as np
 from numba import njit
 from scipy.signal import TransferFunction, cont2discrete, dlti
 
-from analysis.table_dynamics import TableDynamics
-from analysis.table_model import TableModel
+from analysis.table.dynamics import TableDynamics
+from analysis.table.model import TableModel
 from sim_table.actuators import Actuators, ActuatorSettings, ActuatorStep
 
 DYNAMICS = ("lag", "servo")

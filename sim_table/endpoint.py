@@ -22,7 +22,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from sim_table.controller import ControllerCore, Done, Snapshot, State
 
 Action = Callable[[ControllerCore], None]

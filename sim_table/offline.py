@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.dynamics import make_actuators

@@ -58,7 +58,7 @@ from typing import Any
 import numpy as np
 
 from analysis import Body
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings

@@ -2,7 +2,7 @@
 
 :class:`SpecimenScene` runs the MuJoCo model of :mod:`sim_table.scene` with the plate following the
 achieved plate pose. Poses are ``(surge, sway, heave, roll, pitch, yaw)`` [m, rad] with
-``R = Rz(yaw) Ry(pitch) Rx(roll)`` (``analysis.table_model``); plate velocities are the pose rates
+``R = Rz(yaw) Ry(pitch) Rx(roll)`` (``analysis.table.model``); plate velocities are the pose rates
 [m/s, rad/s] in the same column order. Between two samples the plate follows the cubic Hermite curve
 through their poses and rates (exact for a constant acceleration). Each physics step puts the plate's
 joints on the curve at the step's start with the previous step's mean rate, and prescribes the acceleration
@@ -35,7 +35,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout
 
-from analysis.table_model import rotation_matrices
+from analysis.table.model import rotation_matrices
 from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, Specimen, SpecimenError, build_model
 
 OVERTURN_MARGIN = 0.8

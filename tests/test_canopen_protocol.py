@@ -24,7 +24,7 @@ from canopen.objectdictionary import datatypes
 from hypothesis import given
 from hypothesis import strategies as st
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from protocols.canopen import (
     DEFAULT_LIMIT,
     DEFAULT_RATE_HZ,

@@ -16,7 +16,7 @@ REPO = Path(__file__).resolve().parents[1]
 HEAVY = ("numpy", "scipy", "numba", "matplotlib", "h5py", "mujoco", "dask", "distributed", "zenoh", "pymavlink",
          "canopen", "can", "hypothesis", "rig.records", "rig.session", "rig.orchestrator", "rig.report",
          "rig.analyze", "rig.drive", "rig.service", "analysis.simulate", "analysis.study", "analysis.design",
-         "analysis.table_model")
+         "analysis.table.model")
 
 _PROBE = r"""
 import json, sys

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from analysis.body import TABLE_V
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate, motion_window
 from rig.compensation.signals import base_accelerations, errors_pct, fall_line

@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate
 from rig.compensation.signals import base_accelerations

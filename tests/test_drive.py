@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy import signal
 from typer.testing import CliRunner
 
-from analysis.table_model import TABLE_IV, AxisLimits, HexapodGeometry, TableLimits, TableModel
+from analysis.table.model import TABLE_IV, AxisLimits, HexapodGeometry, TableLimits, TableModel
 from rig.cli import app
 from rig.drive import Drive, DriveError, DriveRefusedError, prepare_drive, processing, tilt
 from rig.drive.prepare import FC_MIN

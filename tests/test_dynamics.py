@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from analysis.table_dynamics import TableDynamics
-from analysis.table_model import TableModel, TableModelError
+from analysis.table.dynamics import TableDynamics
+from analysis.table.model import TableModel, TableModelError
 from sim_table.actuators import ActuatorSettings
 from sim_table.dynamics import ServoActuators, _run, make_actuators
 

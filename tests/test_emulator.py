@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 from analysis.body import G
-from analysis.moves import IN_POSITION, SETTLE_TIME_NS
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
+from analysis.table.moves import IN_POSITION, SETTLE_TIME_NS
 from protocols.mavlink import KEY_ENV
 from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack

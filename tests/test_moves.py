@@ -1,4 +1,4 @@
-"""The quintic move shared by the drive's tilt ramps, the emulator and the CANopen master (analysis.moves)."""
+"""The quintic move shared by the drive's tilt ramps, the emulator and the CANopen master (analysis.table.moves)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from analysis.moves import ACCELERATION_PEAK, JERK_PEAK, RATE_PEAK, Move, axis_limits, quintic, shortest_duration
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
+from analysis.table.moves import ACCELERATION_PEAK, JERK_PEAK, RATE_PEAK, Move, axis_limits, quintic, shortest_duration
 
 
 def test_quintic_peaks_match_the_closed_forms() -> None:

@@ -31,17 +31,17 @@ from typer.testing import CliRunner
 from analysis import TABLE_I
 from analysis.body import G
 from analysis.design import table3_estimators
-from analysis.study import study
-from rig import cli_report
-from rig.records import load_records
-from rig.report import ReportError, file_kind, write_report
-from rig.report.spectrum import (
+from analysis.spectrum import (
     filter_coefficients,
     nigam_jennings,
     pseudo_acceleration_spectrum,
     relative_displacement,
     uniform,
 )
+from analysis.study import study
+from rig import cli_report
+from rig.records import load_records
+from rig.report import ReportError, file_kind, write_report
 from rig.sequence import load_sequence
 from rig.session import SessionLog
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from analysis.body import TABLE_V
-from analysis.toml_lines import dotted_path, key_lines
+from analysis.table.toml_lines import dotted_path, key_lines
 from rig.sequence import PlannedRun, Sequence, SequenceError, load_sequence
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples"

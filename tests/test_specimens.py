@@ -15,7 +15,7 @@ import pytest
 
 from analysis import TABLE_V, Body
 from analysis.body import G
-from analysis.table_model import rotation_matrices
+from analysis.table.model import rotation_matrices
 from sim_table.scene import ContactSettings, Specimen, SpecimenError
 from sim_table.specimens import Overturn, SpecimenScene
 

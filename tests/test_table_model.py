@@ -17,7 +17,7 @@ from scipy.optimize import brentq
 
 from analysis.body import G
 from analysis.errors import AnalysisInputError
-from analysis.table_model import (
+from analysis.table.model import (
     AXES,
     TABLE_IV,
     AxisLimits,

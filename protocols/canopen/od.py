@@ -1,7 +1,7 @@
 """The leg drive's object dictionary: the packaged EDS, object indices and the values that go in them.
 
 Each of the hexapod's six leg actuators is a CiA 402 drive described by ``leg_drive.eds`` (next to this
-module). Leg k (1..6, the numbering of ``analysis.table_model``) is CANopen node ``k``; the master (the rig's
+module). Leg k (1..6, the numbering of ``analysis.table.model``) is CANopen node ``k``; the master (the rig's
 driver) produces its own heartbeat as node :data:`MASTER_NODE_ID`.
 
 Units of the objects (CiA 402 "user units", declared in 0x60A8/0x60A9): position 1 increment = 1 µm of

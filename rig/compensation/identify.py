@@ -22,7 +22,7 @@ import numpy as np
 from scipy import signal
 from scipy.fft import irfft, next_fast_len, rfftfreq
 
-from analysis.table_model import AXES, TableModel
+from analysis.table.model import AXES, TableModel
 from rig.drive import Drive, Governing
 
 BAND = (0.5, 50.0)

@@ -31,7 +31,7 @@ import numpy as np
 from scipy.fft import irfft, next_fast_len, rfft, rfftfreq
 from scipy.signal import windows
 
-from analysis.table_model import AXES
+from analysis.table.model import AXES
 from rig.drive import Drive
 
 from .identify import FrequencyResponse

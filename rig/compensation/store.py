@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from analysis.table_model import AXES
+from analysis.table.model import AXES
 
 from .identify import FrequencyResponse
 from .iteration import Compensation

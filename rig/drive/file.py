@@ -21,7 +21,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 from rig.drive import Drive, DriveRefusedError, Governing
 
 SCHEMA = "shaketable-rig/drive/1"

@@ -30,7 +30,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.table_model import AXES, TableLimits, TableModel, Violation
+from analysis.table.model import AXES, TableLimits, TableModel, Violation
 from rig.records import G, GroundMotion
 
 from . import processing, tilt

@@ -1,6 +1,6 @@
 """The static tilt β as a smooth, jerk-limited ramp (ARCHITECTURE §2: tilt = pitch = +β, +x downhill).
 
-The ramp is the table's quintic move (`analysis.moves`) ``θ(τ) = θ0 + (θ1 - θ0)(10τ³ - 15τ⁴ + 6τ⁵)``,
+The ramp is the table's quintic move (`analysis.table.moves`) ``θ(τ) = θ0 + (θ1 - θ0)(10τ³ - 15τ⁴ + 6τ⁵)``,
 ``τ = t / T``: angle, rate and angular acceleration are continuous (zero at both ends), and the jerk is bounded;
 `ramp_duration` picks the shortest T that keeps its peaks inside the table's tilt limits.
 """
@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 
-from analysis.moves import quintic, shortest_duration
-from analysis.table_model import TiltLimits
+from analysis.table.model import TiltLimits
+from analysis.table.moves import quintic, shortest_duration
 
 
 def ramp_duration(change: float, limits: TiltLimits, rate: float) -> float:

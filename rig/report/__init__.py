@@ -4,7 +4,7 @@
     result = write_report("campaign.h5", "campaign.html")   # kind by the file's schema attribute
 
 The page has no external reference (inline CSS, figures as base64 PNG, no script) and is laid out for A4
-(`rig.report.html`). Figures: `rig.report.figures`; the response spectrum: `rig.report.spectrum`; what is read:
+(`rig.report.html`). Figures: `rig.report.figures`; the response spectrum is `analysis.spectrum`; what is read:
 `rig.report.data`; the sections: `rig.report.session_report` and `rig.report.study_report`.
 
 The report is written atomically (a temporary file beside it, then renamed) and never over an input file.

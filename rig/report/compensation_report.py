@@ -10,10 +10,11 @@ from typing import Any
 
 import numpy as np
 
+from analysis.spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum
+
 from . import figures
 from .data import open_h5
 from .html import esc, figure, key_values, num, table
-from .spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum
 
 AXES = ("surge", "lateral", "heave")
 

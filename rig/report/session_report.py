@@ -19,12 +19,12 @@ from typing import Any
 import numpy as np
 
 from analysis.body import G
+from analysis.spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum, uniform
 
 from . import figures
 from .compensation_report import compensation_section
 from .data import RunData, SessionData, iter_runs, read_header
 from .html import esc, figure, key_values, num, table
-from .spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum, uniform
 
 Progress = Callable[[int, int], None]
 

@@ -18,8 +18,8 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from analysis.body import TABLE_V, Body
-from analysis.table_model import TableModel, TableModelError
-from analysis.toml_lines import KeyPath, dotted_path, find_line, key_lines, suggest, syntax_message
+from analysis.table.model import TableModel, TableModelError
+from analysis.table.toml_lines import KeyPath, dotted_path, find_line, key_lines, suggest, syntax_message
 
 from .model import (
     DEFAULT_FRICTION,

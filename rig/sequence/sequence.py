@@ -9,8 +9,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from analysis.table_model import TableModel
-from analysis.toml_lines import KeyPath, dotted_path, find_line
+from analysis.table.model import TableModel
+from analysis.table.toml_lines import KeyPath, dotted_path, find_line
 from rig.drive import Drive, DriveError, DriveRefusedError, prepare_drive
 from rig.drive.tilt import ramp_duration
 from rig.records import GroundMotion, RecordError

@@ -50,7 +50,7 @@ left out, which keeps Table IV and the default geometry)::
     # platform_joints_m = [[x, y, z], ...]   6 rows, platform frame
     # with home_height_m, leg_min_m, leg_max_m, leg_speed_m_s
 
-    [dynamics]                         # the legs' servo-hydraulics (analysis/table_dynamics.py, docs/table-dynamics.md)
+    [dynamics]                         # the legs' servo-hydraulics (analysis/table/dynamics.py, docs/table-dynamics.md)
     bore_m = 0.04
 
 Errors in a file raise :class:`TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
@@ -73,9 +73,9 @@ from numba import njit
 
 from analysis.body import G
 from analysis.errors import AnalysisInputError
-from analysis.table_dynamics import TableDynamics
-from analysis.toml_lines import find_line, key_lines, syntax_message
-from analysis.toml_lines import suggest as _suggest
+from analysis.table.dynamics import TableDynamics
+from analysis.table.toml_lines import find_line, key_lines, syntax_message
+from analysis.table.toml_lines import suggest as _suggest
 
 _DEG = math.pi / 180.0
 """One degree [rad]; every degree value of this module (defaults and files) is converted with it."""
@@ -773,7 +773,7 @@ class _Reader:
                           controller_rate=table["controller_rate"], dynamics=self.dynamics(top.get("dynamics", {})))
 
     def dynamics(self, value: Any) -> TableDynamics:
-        """The ``[dynamics]`` section (``analysis.table_dynamics``); errors name its line and key."""
+        """The ``[dynamics]`` section (``analysis.table.dynamics``); errors name its line and key."""
         table = self.table(value, ("dynamics",), tuple(DYNAMICS_KEYS))
         try:
             return TableDynamics.from_dict(dict(table))

@@ -10,7 +10,7 @@ ends) and the jerk is bounded. For a change Δ of one axis the peaks are
 
 so :func:`shortest_duration` is the shortest T that keeps all three inside an axis's limits. The tilt ramps of a
 prepared drive (``rig.drive.tilt``), the emulator's HOME/SET_TILT/return home (``sim_table.controller``) and a
-CANopen master's own moves (``drivers.canopen``) are all this profile. Poses as in ``analysis.table_model``.
+CANopen master's own moves (``drivers.canopen``) are all this profile. Poses as in ``analysis.table.model``.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.table_model import TableModel
+from analysis.table.model import TableModel
 
 RATE_PEAK = 15.0 / 8.0
 ACCELERATION_PEAK = 10.0 / math.sqrt(3.0)

@@ -7,7 +7,7 @@ is a tuple of keys (str) and array indices (int, from 0): ``("limits", "surge", 
 ``scale`` of the third element of ``records = [...]``. :func:`dotted_path` writes such a path for people,
 counting list items from 1: ``bodies[2].h``.
 
-Used by the rig configuration (``analysis.table_model``) and the sequence files (``rig.sequence``). The
+Used by the rig configuration (``analysis.table.model``) and the sequence files (``rig.sequence``). The
 scanner expects text that ``tomllib`` has already accepted (call it after ``tomllib.loads``); on anything
 it does not understand it stops and returns what it has found so far, so a message may then name a
 parent's line instead.
