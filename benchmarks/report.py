@@ -140,7 +140,8 @@ def make_study(path: Path) -> None:
                          "records": json.dumps([f"fema:RECORD{k:03d}" for k in range(314)]),
                          "bodies": json.dumps([{"b": b.b, "h": b.h, "name": str(j + 1)} for j, b in enumerate(bodies)]),
                          "angles_deg": np.degrees(angles), "seconds": 100.0, "scenes": 12 * 314 * 2 * 15,
-                         "where": "synthetic"})
+                         "where": "synthetic", "summary": json.dumps({"where": "synthetic"}),
+                         "signs": np.array([1, -1], np.int8)})
         h5.create_dataset("direction", data=rng.choice(np.array([-1, 0, 1], np.int8), (12, 314, 2, angles.size)))
         h5.create_dataset("cor", data=np.array(cor_rows, cor_dt))
         h5.create_dataset("estimators", data=np.array(est, est_dt))

@@ -2,9 +2,9 @@
 against closed forms, and the page in headless Chromium (skipped when Debian's chromium is not installed).
 
 The session file is written by the real `SessionLog` with the quick sequence's real prepared drives (the
-"measurement" is the command seen by a plate-frame accelerometer, with noise); the ``analysis`` datasets and the
-study file are written here in the layouts agreed with ``rig analyze`` and ``rig study`` (`rig.report.data`), the
-study from a real small `analysis.study.study` run.
+"measurement" is the command seen by a plate-frame accelerometer, with noise); the ``analysis`` datasets are written
+here in the layout agreed with ``rig analyze`` (`rig.report.data`); the study file by ``rig study``'s own writer
+from a real small `analysis.study.study` run.
 """
 
 from __future__ import annotations
@@ -30,7 +30,6 @@ from typer.testing import CliRunner
 
 from analysis import TABLE_I
 from analysis.body import G
-from analysis.design import table3_estimators
 from analysis.spectrum import (
     filter_coefficients,
     nigam_jennings,
@@ -44,6 +43,8 @@ from rig.records import load_records
 from rig.report import ReportError, file_kind, write_report
 from rig.sequence import load_sequence
 from rig.session import SessionLog
+from rig.study_file import write_study
+from rig.study_summary import study_summary
 
 ROOT = Path(__file__).resolve().parents[1]
 CHROMIUM = Path("/usr/bin/chromium")
@@ -194,59 +195,12 @@ def make_session(path: Path, runs: int = 3, analysed: bool = True) -> Path:
     return path
 
 
-COR = np.dtype([("body_index", "<i4"), ("angle_deg", "<f8"), ("overturned", "<i4"), ("desired", "<i4"),
-                ("cor", "<f8")])
-ESTIMATORS = np.dtype([("body_index", "<i4"), ("equation", "S8"), ("max_difference", "<f8"),
-                       ("absolute_area", "<f8"), ("error", "<f8")])
-
-
 def make_study(path: Path) -> Path:
-    """A real small study (5 Table I bodies, 12 FEMA far-field records, both signs, 0–7°) saved in the agreed
-    layout."""
-    picked = (0, 3, 5, 8, 11)
-    bodies = [TABLE_I[i] for i in picked]
-    recs = load_records("fema-farfield")[:12]
-    names = [r.name for r in recs]
-    angles = np.radians([0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 7.0])
-    res = study(bodies, recs, angles)
-    cor_rows = [(j, r["angle_deg"], r["overturned"], r["desired"], np.nan if r["cor"] is None else r["cor"])
-                for j, b in enumerate(bodies) for r in res.cor() if r["b"] == b.b and r["h"] == b.h]
-    cor_rows += [(-1, r["angle_deg"], r["overturned"], r["desired"], np.nan if r["cor"] is None else r["cor"])
-                 for r in res.average_cor()]
-    gcor, scor = res.fit_gcor(), res.fit_scor()
-    est = []
-    for j, b in enumerate(bodies):
-        obs = np.array([row[4] for row in cor_rows if row[0] == j])
-        gfit = gcor.c2 * np.tanh(angles / gcor.c1) + 0.5
-        c1 = max(scor.k1 * b.b / b.h + scor.k2 * b.r + scor.k3, 1e-9)  # as analysis.design.fit_scor
-        sfit = scor.c2 * np.tanh(angles / c1) + 0.5
-        for eq, fitted in ((b"GCOR", gfit), (b"SCOR", sfit)):
-            e = table3_estimators(angles, obs, fitted)
-            est.append((j, eq, e["max_difference"], e["absolute_area"], e["error"]))
-    nb, nr, na = len(bodies), len(recs), angles.size
-    direction = np.zeros((nb, nr, 2, na), dtype=np.int8)
-    for i in range(res.scenes):
-        direction[res.body[i], res.record[i], 0 if res.sign[i] == 1 else 1,
-                  int(np.argmin(np.abs(angles - res.angle[i])))] = res.direction[i]
-    with h5py.File(path, "w") as h5:
-        h5.attrs.update({"schema": "shaketable-rig/study/1", "software_version": "test", "created": "2026-11-21",
-                         "model": "rocking", "restitution": "0", "friction": 1.0, "records": json.dumps(names),
-                         "bodies": json.dumps([{"b": b.b, "h": b.h, "name": str(i + 1)} for i, b in
-                                               zip(picked, bodies, strict=True)]),
-                         "angles_deg": np.degrees(angles), "seconds": res.seconds, "scenes": res.scenes,
-                         "where": "local"})
-        h5.create_dataset("direction", data=direction)
-        h5.create_dataset("cor", data=np.array(cor_rows, COR))
-        h5.create_dataset("estimators", data=np.array(est, ESTIMATORS))
-        g = h5.create_group("fits/gcor")
-        g.attrs.update({"c1": gcor.c1, "c2": gcor.c2, "c1_ci_low": gcor.c1_ci[0], "c1_ci_high": gcor.c1_ci[1]})
-        if gcor.c2_ci is not None:
-            g.attrs.update({"c2_ci_low": gcor.c2_ci[0], "c2_ci_high": gcor.c2_ci[1]})
-        s = h5.create_group("fits/scor")
-        s.attrs.update({"k1": scor.k1, "k2": scor.k2, "k3": scor.k3, "c2": scor.c2})
-        for key, (lo, hi) in scor.ci.items():
-            s.attrs.update({f"{key}_ci_low": lo, f"{key}_ci_high": hi})
-    return path
+    """A real small study (5 Table I bodies, 12 FEMA far-field records, both signs, 0–7°) saved by ``rig study``'s
+    writer (``rig.study_file.write_study``)."""
+    bodies = [TABLE_I[i] for i in (0, 3, 5, 8, 11)]
+    res = study(bodies, load_records("fema-farfield")[:12], np.radians([0.0, 0.5, 1.0, 1.5, 2.0, 3.0, 4.0, 5.0, 7.0]))
+    return write_study(res, study_summary(res), path)
 
 
 @pytest.fixture(scope="module")

@@ -1,5 +1,5 @@
 """Reading what a report shows: a session file's runs one at a time (a campaign holds hundreds of MB of
-samples), the ``analysis`` results ``rig analyze`` adds to it, and a study file. Every file is opened read-only
+samples), the ``analysis`` results ``rig analyze`` adds to it, and which kind a file is. Every file is opened read-only
 the way session readers must (``swmr=True``, no HDF5 file lock); nothing is ever written to an input.
 
 Analysis results in a session file (written by ``rig analyze``):
@@ -10,17 +10,11 @@ Analysis results in a session file (written by ``rig analyze``):
   overturned_analysis i4, towards_low_analysis i4, cor_analysis f8, overturned_experiment i4,
   towards_low_experiment i4, cor_experiment f8, difference f8), attributes ``max_difference_<model>``.
 
-Study file (schema ``shaketable-rig/study/1``): root attributes ``schema``, ``software_version``, ``created``,
-``model``, ``restitution``, ``friction``, ``records`` (JSON list of names), ``bodies`` (JSON list of
-{b, h, name}), ``angles_deg``, ``seconds``, ``scenes``, ``where``; datasets ``direction`` int8 (bodies, records,
-signs, angles), ``cor`` compound (body_index i4 — −1 the average, angle_deg, overturned, desired, cor),
-``estimators`` compound (body_index, equation S8, max_difference, absolute_area, error); groups ``fits/gcor``
-(attributes c1, c2, c1_ci_low, c1_ci_high, c2_ci_low, c2_ci_high) and ``fits/scor`` (its coefficients).
+A study file is read by its writer's module, ``rig.study_file`` (``read_study``); here only its kind is told.
 """
 
 from __future__ import annotations
 
-import json
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -33,8 +27,7 @@ import numpy as np
 from rig.session import SCHEMA as SESSION_SCHEMA
 from rig.session import open_session, read_session
 from rig.session.reader import plain
-
-STUDY_SCHEMA = "shaketable-rig/study/1"
+from rig.study_file import SCHEMA as STUDY_SCHEMA
 
 
 class ReportError(ValueError):
@@ -158,61 +151,3 @@ def iter_runs(path: str | os.PathLike[str]) -> Iterator[RunData]:
         runs = h5.get("runs")
         for name in sorted(runs) if runs is not None else []:
             yield _run(runs[name], name)
-
-
-# -- studies --------------------------------------------------------------------------------------------------
-
-
-@dataclass
-class StudyData:
-    """A study file's content (module docstring)."""
-
-    path: Path
-    attrs: dict[str, Any]
-    bodies: list[dict[str, Any]]
-    """{b, h, name} [m]."""
-    records: list[str]
-    angles_deg: np.ndarray
-    direction: np.ndarray | None
-    """int8 (bodies, records, signs, angles): +1 towards the low side, −1 the high side, 0 none."""
-    cor: list[dict[str, Any]]
-    gcor: dict[str, Any] | None
-    scor: dict[str, Any] | None
-    estimators: list[dict[str, Any]]
-
-
-def _json_list(value: Any, what: str, path: Path) -> list[Any]:
-    if isinstance(value, list):
-        return value
-    try:
-        out = json.loads(value) if isinstance(value, str) else None
-    except ValueError:
-        out = None
-    if not isinstance(out, list):
-        raise ReportError(f"{path}: root attribute {what!r} is {value!r}; expected a JSON list")
-    return out
-
-
-def read_study(path: str | os.PathLike[str]) -> StudyData:
-    """Everything a study report shows (`ReportError` if the file is not a study file or lacks ``cor``)."""
-    path = Path(path)
-    with open_h5(path) as h5:
-        a = attrs(h5)
-        if a.get("schema") != STUDY_SCHEMA:
-            raise ReportError(f"{path}: schema attribute is {a.get('schema')!r}; expected {STUDY_SCHEMA!r}")
-        if not isinstance(h5.get("cor"), h5py.Dataset):
-            raise ReportError(f"{path}: no 'cor' dataset; expected a complete {STUDY_SCHEMA} file")
-        fits = h5.get("fits")
-
-        def fit(name: str) -> dict[str, Any] | None:
-            group = fits.get(name) if isinstance(fits, h5py.Group) else None
-            return attrs(group) if isinstance(group, h5py.Group) else None
-
-        return StudyData(
-            path=path, attrs=a, bodies=_json_list(a.get("bodies", "[]"), "bodies", path),
-            records=[str(r) for r in _json_list(a.get("records", "[]"), "records", path)],
-            angles_deg=np.atleast_1d(np.asarray(a.get("angles_deg", []), dtype=float)),
-            direction=h5["direction"][()] if isinstance(h5.get("direction"), h5py.Dataset) else None,
-            cor=records(h5["cor"]), gcor=fit("gcor"), scor=fit("scor"),
-            estimators=records(h5["estimators"]) if isinstance(h5.get("estimators"), h5py.Dataset) else [],
-        )

@@ -9,10 +9,12 @@ from typing import Any
 
 import numpy as np
 
+from analysis import design
 from analysis.design import PAPER_C2, PAPER_GCOR, PAPER_SCOR
+from rig.study_file import SavedStudy, StudyFileError, read_study
 
 from . import figures
-from .data import StudyData, read_study
+from .data import ReportError
 from .html import esc, figure, key_values, num, table
 
 TABLE2_ANGLES = np.arange(0.0, 7.01, 0.5)
@@ -20,8 +22,33 @@ TABLE2_ANGLES = np.arange(0.0, 7.01, 0.5)
 
 
 def _curve(beta_deg: np.ndarray, c1: float, c2: float) -> np.ndarray:
-    """Eqs. 11/13: ``c2 tanh(β/c1) + 0.5`` [fraction] at ``beta_deg`` [deg]."""
-    return c2 * np.tanh(np.radians(beta_deg) / c1) + 0.5
+    """Eqs. 11/13 (``analysis.design.gcor``: c2·tanh(β/c1) + 0.5) [fraction] at ``beta_deg`` [deg]."""
+    return np.asarray(design.gcor(np.radians(beta_deg), c1, c2))
+
+
+class StudyView:
+    """What the study report draws, from the study file's own reader (``rig.study_file.read_study``): the bodies
+    ({b, h, name} [m]), records, angles [deg], the ``cor`` and ``estimators`` tables as rows of plain values, the
+    fits' attributes and the direction array."""
+
+    def __init__(self, saved: SavedStudy) -> None:
+        self.path = saved.path
+        self.attrs = saved.attrs
+        self.bodies: list[dict[str, Any]] = list(saved.attrs["bodies"])
+        self.records = saved.records
+        self.angles_deg = np.atleast_1d(np.asarray(saved.attrs.get("angles_deg", []), dtype=float))
+        self.direction: np.ndarray | None = saved.direction
+        self.cor = _plain_rows(saved.cor)
+        self.estimators = _plain_rows(saved.estimators)
+        self.gcor: dict[str, Any] | None = saved.fits.get("gcor") or None
+        self.scor: dict[str, Any] | None = saved.fits.get("scor") or None
+
+
+def _plain_rows(table: np.ndarray) -> list[dict[str, Any]]:
+    """A structured array's rows as dicts of Python values (byte strings decoded)."""
+    names = table.dtype.names or ()
+    return [{name: value.decode() if isinstance(value, bytes) else value
+             for name, value in zip(names, row.tolist(), strict=True)} for row in np.atleast_1d(table)]
 
 
 def _f(fit: dict[str, Any] | None, key: str) -> float | None:
@@ -34,13 +61,13 @@ def _f(fit: dict[str, Any] | None, key: str) -> float | None:
     return value if math.isfinite(value) else None
 
 
-def gcor_coefficients(study: StudyData) -> tuple[float, float] | None:
+def gcor_coefficients(study: StudyView) -> tuple[float, float] | None:
     """The fitted Eq. 11 (c1 [rad], c2), None if the study has none."""
     c1, c2 = _f(study.gcor, "c1"), _f(study.gcor, "c2")
     return (c1, c2) if c1 is not None and c2 is not None and c1 > 0 else None
 
 
-def scor_coefficients(study: StudyData) -> tuple[float, float, float, float] | None:
+def scor_coefficients(study: StudyView) -> tuple[float, float, float, float] | None:
     """The fitted Eq. 13 (k1, k2, k3, c2), None if the study has none (c2 defaults to the paper's 0.48)."""
     ks = [_f(study.scor, k) for k in ("k1", "k2", "k3")]
     if any(k is None for k in ks):
@@ -49,24 +76,19 @@ def scor_coefficients(study: StudyData) -> tuple[float, float, float, float] | N
     return (ks[0], ks[1], ks[2], PAPER_C2 if c2 is None else c2)  # type: ignore[return-value]
 
 
-def scor_c1(b: float, h: float, k: tuple[float, float, float, float] | tuple[float, float, float]) -> float:
-    """Eq. 13's c1 = k1·b/h + k2·r + k3 [rad], r = half the diagonal [m]."""
-    return k[0] * b / h + k[1] * 0.5 * math.hypot(b, h) + k[2]
-
-
-def _rows(study: StudyData, body_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _rows(study: StudyView, body_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     rows = sorted((r for r in study.cor if int(r["body_index"]) == body_index), key=lambda r: r["angle_deg"])
     return (np.array([float(r["angle_deg"]) for r in rows]), np.array([float(r["cor"]) for r in rows]),
             np.array([int(r["overturned"]) for r in rows]))
 
 
-def _label(study: StudyData, j: int) -> str:
+def _label(study: StudyView, j: int) -> str:
     body = study.bodies[j]
     name = body.get("name") or f"{j + 1}"
     return f"{name}: {float(body['b']):g}×{float(body['h']):g} m"
 
 
-def _settings(study: StudyData) -> str:
+def _settings(study: StudyView) -> str:
     a = study.attrs
     recs = study.records
     shown = ", ".join(recs[:40]) + (f", … ({len(recs) - 40} more)" if len(recs) > 40 else "")
@@ -80,7 +102,7 @@ def _settings(study: StudyData) -> str:
     ])
 
 
-def _thresholds(study: StudyData) -> str:
+def _thresholds(study: StudyView) -> str:
     aspects: dict[float, list[str]] = {}
     for j, b in enumerate(study.bodies):
         aspects.setdefault(round(float(b["b"]) / float(b["h"]), 4), []).append(str(b.get("name") or j + 1))
@@ -94,7 +116,7 @@ def _thresholds(study: StudyData) -> str:
         "brackets)."), alt="Eq. 1 thresholds against angle")
 
 
-def _cor_figures(study: StudyData, gcor: tuple[float, float] | None,
+def _cor_figures(study: StudyView, gcor: tuple[float, float] | None,
                  scor: tuple[float, float, float, float] | None) -> str:
     fine = np.linspace(0.0, max(7.0, float(study.angles_deg.max()) if study.angles_deg.size else 7.0), 141)
     parts = []
@@ -116,7 +138,7 @@ def _cor_figures(study: StudyData, gcor: tuple[float, float] | None,
         if gcor:
             pc.append(figures.Curve(fine, _curve(fine, *gcor), "Eq. 11 (GCOR) fitted", "-", "C0"))
         if scor:
-            c1 = scor_c1(float(body["b"]), float(body["h"]), scor)
+            c1 = float(design.scor_c1((float(body["b"]), float(body["h"])), scor[:3]))
             if c1 > 0:
                 pc.append(figures.Curve(fine, _curve(fine, c1, scor[3]), "Eq. 13 (SCOR) fitted", "-", "C3"))
         panels.append((_label(study, j), pc))
@@ -128,7 +150,7 @@ def _cor_figures(study: StudyData, gcor: tuple[float, float] | None,
     return "\n".join(parts)
 
 
-def _fits(study: StudyData, gcor: tuple[float, float] | None, scor: tuple[float, ...] | None) -> str:
+def _fits(study: StudyView, gcor: tuple[float, float] | None, scor: tuple[float, ...] | None) -> str:
     def ci(fit: dict[str, Any] | None, key: str) -> str:
         lo, hi = _f(fit, f"{key}_ci_low"), _f(fit, f"{key}_ci_high")
         if lo is None or hi is None:
@@ -156,7 +178,7 @@ def _fits(study: StudyData, gcor: tuple[float, float] | None, scor: tuple[float,
                  caption="Fitted coefficients", left=2) + "\n".join(notes)
 
 
-def _table2(study: StudyData, gcor: tuple[float, float] | None) -> str:
+def _table2(study: StudyView, gcor: tuple[float, float] | None) -> str:
     angles, cor, _ = _rows(study, -1)
     observed = {round(float(a), 6): c for a, c in zip(angles, cor, strict=True)}
     head = ["β [°]", *[f"{a:g}" for a in TABLE2_ANGLES]]
@@ -170,7 +192,7 @@ def _table2(study: StudyData, gcor: tuple[float, float] | None) -> str:
         "coefficients and the analysis' body average where the study has that angle"))
 
 
-def _cor_table(study: StudyData) -> str:
+def _cor_table(study: StudyView) -> str:
     angles = sorted({float(r["angle_deg"]) for r in study.cor})
     by = {(int(r["body_index"]), float(r["angle_deg"])): r for r in study.cor}
     head = ["β [°]", *[esc(b.get("name") or j + 1) for j, b in enumerate(study.bodies)], "average", "overturned"]
@@ -185,7 +207,7 @@ def _cor_table(study: StudyData) -> str:
         "angle, all bodies"))
 
 
-def _table3(study: StudyData) -> str:
+def _table3(study: StudyView) -> str:
     est: dict[tuple[int, str], dict[str, Any]] = {(int(e["body_index"]), str(e["equation"]).upper()): e
                                                     for e in study.estimators}
     if not est:
@@ -212,7 +234,7 @@ def _table3(study: StudyData) -> str:
         "the equation under-predicts]; absolute area: ∫|difference| dβ [% · degrees]; error: Eq. 12 [%]"))
 
 
-def _outcomes(study: StudyData) -> str:
+def _outcomes(study: StudyView) -> str:
     d = study.direction
     if d is None or d.ndim != 4 or d.shape[0] != len(study.bodies):
         return ""
@@ -227,7 +249,10 @@ def _outcomes(study: StudyData) -> str:
 
 def study_body(path: str) -> tuple[str, str, int]:
     """(title, body HTML, number of figures) of the study report of ``path``."""
-    study = read_study(path)
+    try:
+        study = StudyView(read_study(path))
+    except StudyFileError as exc:
+        raise ReportError(str(exc)) from None
     gcor, scor = gcor_coefficients(study), scor_coefficients(study)
     title = f"Analytical study report — {study.attrs.get('model', '?')} model, {len(study.bodies)} bodies, " \
             f"{len(study.records)} records"
