@@ -61,17 +61,26 @@ def predictions_table(result: SessionAnalysis) -> Table:
 def fig13_table(result: SessionAnalysis) -> Table:
     """The Fig. 13 comparison: per model, angle and body (and the body average), counts and COR [%]."""
     table = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — controlled overturning rate, analysis vs experiment",
-                  caption="COR = overturns towards the low side / overturns (%); n = cases, ovt = overturned, "
-                          "low = towards the low side; diff = analysis − experiment (percentage points)")
-    for name in ("model", "β°", "body", "n", "ovt A", "low A", "COR A", "ovt E", "low E", "COR E", "diff"):
+                  caption="COR = overturns towards the low side / overturns (%), [95 % Wilson interval]; n = cases, "
+                          "ovt = overturned, low = towards the low side; diff = analysis − experiment (percentage "
+                          "points); p = Fisher's exact test of one rate for both (* below 0.05: beyond chance)")
+    for name in ("model", "β°", "body", "n", "ovt A", "low A", "COR A", "ovt E", "low E", "COR E", "diff", "p"):
         table.add_column(name, justify="left" if name in ("model", "body") else "right")
     for row in result.fig13:
         diff = "–" if math.isnan(row.difference) else f"{100 * row.difference:+.0f}"
+        p = "–" if math.isnan(row.p_value) else f"{row.p_value:.2f}{'*' if row.beyond_chance else ''}"
         table.add_row(row.model, f"{row.angle_deg:g}", "average" if row.body_id == 0 else str(row.body_id),
                       str(row.runs), str(row.overturned_analysis), str(row.towards_low_analysis),
-                      _pct(row.cor_analysis), str(row.overturned_experiment), str(row.towards_low_experiment),
-                      _pct(row.cor_experiment), diff, style="bold" if row.body_id == 0 else None)
+                      _rate(row.cor_analysis, row.cor_analysis_low, row.cor_analysis_high),
+                      str(row.overturned_experiment), str(row.towards_low_experiment),
+                      _rate(row.cor_experiment, row.cor_experiment_low, row.cor_experiment_high), diff, p,
+                      style="bold" if row.body_id == 0 else None)
     return table
+
+
+def _rate(value: float, low: float, high: float) -> str:
+    """A COR [%] with its interval, ``–`` when undefined."""
+    return "–" if math.isnan(value) else f"{_pct(value)} [{100 * low:.0f}–{100 * high:.0f}]"
 
 
 def print_analysis(result: SessionAnalysis, console: Any) -> None:
@@ -91,10 +100,12 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
     for model in result.models:
         a = result.agreement[model]
         diff = result.max_difference.get(model)
+        differ, tested = result.beyond_chance.get(model, (0, 0))
         console.print(
             f"{model}: max |COR difference| of a body at an angle "
-            f"{'undefined (no overturn on both sides)' if diff is None else f'{100 * diff:.1f} %'} "
-            f"(the paper: ≤ 5 %); case by case {a.agree}/{a.cases} agree — overturned in both {a.overturned_both} "
+            f"{'undefined (no overturn on both sides)' if diff is None else f'{100 * diff:.1f} points'} "
+            f"(the paper: ≤ 5); beyond chance (Fisher's exact p < 0.05) in {differ} of {tested} body-angle rates; "
+            f"case by case {a.agree}/{a.cases} agree — overturned in both {a.overturned_both} "
             f"(same side {a.same_direction}), analysis only {a.overturned_analysis_only}, experiment only "
             f"{a.overturned_experiment_only}, neither {a.overturned_neither}", highlight=False)
 

@@ -18,7 +18,13 @@ overturn is undefined (NaN here, ``null`` in JSON), and so is a difference invol
 the counts; ``difference = cor_analysis − cor_experiment`` (signed, fraction, not percent). Per model and angle
 an **average** row (``body_id = 0``, the paper's "average results for all the bodies"): counts and ``runs``
 summed over the bodies (body-runs), ``cor_analysis`` and ``cor_experiment`` the mean of the bodies' defined
-CORs, ``difference`` theirs. **max_difference** per model: the largest |difference| over the per-body rows
+CORs, ``difference`` theirs.
+
+**Statistics.** Beside every COR its 95 % Wilson interval (``*_low``, ``*_high``, from the counts: for the average
+row the pooled counts of its bodies), and per row ``p_value``: Fisher's exact test that analysis and experiment
+share one rate (``analysis.proportions``; NaN where a COR is undefined). A difference is **beyond chance** when
+p < 0.05: with three cases one overturn moves a rate by 33 points, which alone says nothing.
+**max_difference** per model: the largest |difference| over the per-body rows
 (the paper: "a maximum of 5 % difference … for a given angle and specific body"), None if none is defined.
 """
 
@@ -30,12 +36,15 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from analysis.proportions import SIGNIFICANCE, exact_two_proportions, wilson_interval
+
 #: Compound layout of the ``/analysis/fig13`` dataset.
 FIG13_DTYPE = np.dtype([
     ("angle_deg", "<f8"), ("body_id", "<i4"), ("model", "S16"), ("runs", "<i4"),
     ("overturned_analysis", "<i4"), ("towards_low_analysis", "<i4"), ("cor_analysis", "<f8"),
     ("overturned_experiment", "<i4"), ("towards_low_experiment", "<i4"), ("cor_experiment", "<f8"),
-    ("difference", "<f8"),
+    ("difference", "<f8"), ("cor_analysis_low", "<f8"), ("cor_analysis_high", "<f8"),
+    ("cor_experiment_low", "<f8"), ("cor_experiment_high", "<f8"), ("p_value", "<f8"),
 ])
 
 ANGLE_DIGITS = 6
@@ -68,6 +77,17 @@ class Fig13Row:
     towards_low_experiment: int
     cor_experiment: float
     difference: float
+    cor_analysis_low: float = math.nan
+    cor_analysis_high: float = math.nan
+    cor_experiment_low: float = math.nan
+    cor_experiment_high: float = math.nan
+    p_value: float = math.nan
+    """Fisher's exact test of equal rates (module docstring); NaN where a COR is undefined."""
+
+    @property
+    def beyond_chance(self) -> bool:
+        """Whether analysis and experiment differ beyond chance (p < :data:`analysis.proportions.SIGNIFICANCE`)."""
+        return not math.isnan(self.p_value) and self.p_value < SIGNIFICANCE
 
     def to_json(self) -> dict:
         """JSON-ready (NaN → None)."""
@@ -109,15 +129,23 @@ def _row(angle: float, body_id: int, model: str, cases: list[Case]) -> Fig13Row:
     over_e = sum(1 for c in cases if c.observed != 0)
     low_e = sum(1 for c in cases if c.observed == 1)
     cor_a, cor_e = cor(low_a, over_a), cor(low_e, over_e)
-    return Fig13Row(angle, body_id, model, len(cases), over_a, low_a, cor_a, over_e, low_e, cor_e, cor_a - cor_e)
+    return Fig13Row(angle, body_id, model, len(cases), over_a, low_a, cor_a, over_e, low_e, cor_e, cor_a - cor_e,
+                    *_statistics(low_a, over_a, low_e, over_e))
+
+
+def _statistics(low_a: int, over_a: int, low_e: int, over_e: int) -> tuple[float, float, float, float, float]:
+    """The Wilson intervals of both rates and the exact test's p-value (module docstring)."""
+    return (*wilson_interval(low_a, over_a), *wilson_interval(low_e, over_e),
+            exact_two_proportions(low_a, over_a, low_e, over_e))
 
 
 def _average(angle: float, model: str, rows: list[Fig13Row]) -> Fig13Row:
     cor_a = _nanmean([r.cor_analysis for r in rows])
     cor_e = _nanmean([r.cor_experiment for r in rows])
-    return Fig13Row(angle, 0, model, sum(r.runs for r in rows), sum(r.overturned_analysis for r in rows),
-                    sum(r.towards_low_analysis for r in rows), cor_a, sum(r.overturned_experiment for r in rows),
-                    sum(r.towards_low_experiment for r in rows), cor_e, cor_a - cor_e)
+    over_a, low_a = sum(r.overturned_analysis for r in rows), sum(r.towards_low_analysis for r in rows)
+    over_e, low_e = sum(r.overturned_experiment for r in rows), sum(r.towards_low_experiment for r in rows)
+    return Fig13Row(angle, 0, model, sum(r.runs for r in rows), over_a, low_a, cor_a, over_e, low_e, cor_e,
+                    cor_a - cor_e, *_statistics(low_a, over_a, low_e, over_e))
 
 
 def max_difference(rows: Iterable[Fig13Row]) -> dict[str, float | None]:
@@ -129,6 +157,17 @@ def max_difference(rows: Iterable[Fig13Row]) -> dict[str, float | None]:
             continue
         current = out[row.model]
         out[row.model] = abs(row.difference) if current is None else max(current, abs(row.difference))
+    return out
+
+
+def beyond_chance(rows: Iterable[Fig13Row]) -> dict[str, tuple[int, int]]:
+    """Per model, (per-body rows that differ beyond chance, per-body rows where both CORs are defined)."""
+    out: dict[str, tuple[int, int]] = {}
+    for row in rows:
+        differ, tested = out.get(row.model, (0, 0))
+        if row.body_id != 0 and not math.isnan(row.p_value):
+            differ, tested = differ + row.beyond_chance, tested + 1
+        out[row.model] = (differ, tested)
     return out
 
 

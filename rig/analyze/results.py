@@ -11,7 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from .fig13 import Fig13Row
+from .fig13 import Fig13Row, beyond_chance
 from .transform import ModelInput
 
 
@@ -148,6 +148,11 @@ class SessionAnalysis:
     written: bool
 
     @property
+    def beyond_chance(self) -> dict[str, tuple[int, int]]:
+        """Per model, (body-angle rows whose COR differs beyond chance, rows where both CORs are defined)."""
+        return beyond_chance(self.fig13)
+
+    @property
     def predictions(self) -> list[Prediction]:
         """Every prediction of every analysed run."""
         return [p for run in self.runs for p in run.predictions]
@@ -160,4 +165,5 @@ class SessionAnalysis:
             "runs": [r.to_json() for r in self.runs], "skipped": [s.to_json() for s in self.skipped],
             "fig13": [r.to_json() for r in self.fig13], "max_difference": self.max_difference,
             "agreement": {m: a.to_json() for m, a in self.agreement.items()},
+            "beyond_chance": {m: {"differ": d, "tested": t} for m, (d, t) in self.beyond_chance.items()},
         })

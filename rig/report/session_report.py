@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from analysis.body import G
+from analysis.proportions import SIGNIFICANCE
 from analysis.spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum, uniform
 
 from . import figures
@@ -325,15 +326,34 @@ def _fig13_section(header: SessionData, names: dict[int, str]) -> str:
     ordered = sorted(rows, key=lambda r: (str(r["model"]), float(r["angle_deg"]), int(r["body_id"])))
     parts.append(table(
         ["model", "β [°]", "body", "runs", "overturned (analysis)", "towards low (analysis)", "COR analysis [%]",
-         "overturned (exp.)", "towards low (exp.)", "COR exp. [%]", "difference [pp]"],
+         "overturned (exp.)", "towards low (exp.)", "COR exp. [%]", "difference [pp]", "p (Fisher's exact)"],
         [[r["model"], num(r["angle_deg"], "g"),
           "average" if int(r["body_id"]) == 0 else f"{r['body_id']} {names.get(int(r['body_id']), '')}".strip(),
-          r["runs"], r["overturned_analysis"], r["towards_low_analysis"], num(r["cor_analysis"], ".0f", 100),
-          r["overturned_experiment"], r["towards_low_experiment"], num(r["cor_experiment"], ".0f", 100),
-          num(r["difference"], "+.0f", 100)] for r in ordered],
-        caption="Fig. 13 data: per model, angle and body (average: over the bodies)", left=3,
-        row_classes=["avg" if int(r["body_id"]) == 0 else "" for r in ordered]))
+          r["runs"], r["overturned_analysis"], r["towards_low_analysis"],
+          _rate(r, "cor_analysis"), r["overturned_experiment"], r["towards_low_experiment"],
+          _rate(r, "cor_experiment"), num(r["difference"], "+.0f", 100), _p_value(r)] for r in ordered],
+        caption="Fig. 13 data: per model, angle and body (average: over the bodies; its interval from their pooled "
+                "counts); each COR with its 95 % Wilson interval; p: Fisher's exact test that analysis and "
+                "experiment share one rate, * below 0.05 (a difference beyond chance). With a few cases per body "
+                "one overturn moves a rate by tens of points: read a difference with its interval and p.",
+        left=3, row_classes=["avg" if int(r["body_id"]) == 0 else "" for r in ordered]))
     return "\n".join(parts)
+
+
+def _rate(row: dict[str, Any], name: str) -> str:
+    """A COR [%] with its Wilson interval when the file has it (analysed before the intervals: the rate alone)."""
+    rate = num(row[name], ".0f", 100)
+    low, high = row.get(f"{name}_low"), row.get(f"{name}_high")
+    if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
+        return rate
+    return f"{rate} [{100 * low:.0f}–{100 * high:.0f}]"
+
+
+def _p_value(row: dict[str, Any]) -> str:
+    p = row.get("p_value")
+    if p is None or not math.isfinite(p):
+        return "–"
+    return f"{p:.2f}{' *' if p < SIGNIFICANCE else ''}"
 
 
 def session_body(path: str, progress: Progress | None = None) -> tuple[str, str, int]:
