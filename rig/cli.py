@@ -26,6 +26,7 @@ from rig import (
     cli_run,
     cli_serve,
     cli_sessions,
+    cli_specimens,
 )
 from rig.cli_errors import plain_warnings, print_error, stderr_console
 from rig.emulator import parse_speed
@@ -236,6 +237,7 @@ cli_design.register(app)
 cli_emulate.register(app)
 cli_run.register(app, fail, console)
 cli_sessions.register(app, fail, console)
+cli_specimens.register(app)
 cli_serve.register(app, fail, console)
 cli_analyze.register(app, fail, console)
 cli_report.register(app, fail, console)
