@@ -219,9 +219,10 @@ def test_the_live_tap_decimates_across_batches_and_stays_bounded() -> None:
     assert len(bt) == 3 and ba[2] == pytest.approx(a[40:45].mean())
 
 
-def test_the_service_publishes_the_live_tap_on_zenoh() -> None:
-    keys = ServiceKeys.for_rig("consoletest")
-    tap = LiveTap()
+def published_frames(keys: ServiceKeys, tap: LiveTap, enough: int) -> list[dict[str, Any]]:
+    """The live frames a :class:`LivePublisher` of ``tap`` sends to a subscriber in another zenoh session on
+    loopback (the subscription made sure to reach the publisher first, by a probe), until ``enough`` arrived or 30 s
+    passed."""
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     publisher_session = zenoh.open(session_config(listen=[endpoint]))
     subscriber_session = zenoh.open(session_config(connect=[endpoint]))
@@ -229,43 +230,7 @@ def test_the_service_publishes_the_live_tap_on_zenoh() -> None:
     try:
         subscriber = subscriber_session.declare_subscriber(
             live_key(keys), lambda sample: frames.append(decode_json(sample.payload.to_bytes(), Kind.STATUS)))
-        publisher = LivePublisher(publisher_session, keys, lambda: ("s.h5", tap))
-        try:
-            tap.begin_run({"plan_index": 0, "record": "r", "commanded": {"t": [0.0], "a": [0.5]}})
-            tap.put("detection", float("nan"), 2, -1)  # an operator's detection has no time: null in JSON
-            deadline = time.monotonic() + 30
-            while not frames and time.monotonic() < deadline:
-                time.sleep(0.05)
-        finally:
-            publisher.close()
-            subscriber.undeclare()
-    finally:
-        publisher_session.close()
-        subscriber_session.close()
-    assert frames, "no live frame arrived"
-    first = frames[0]
-    assert first["session"] == "s.h5" and first["header"]["record"] == "r"
-    assert first["detections"] == [{"t": None, "body_id": 2, "direction": -1}]
-
-
-def test_a_run_s_tail_and_the_next_run_never_share_a_live_frame() -> None:
-    """The tap drained at once holds run 1's last poses, run 2's header and its first poses: they go out as two
-    frames, so that a page clearing its plots at run 2's header does not show run 1's tail as run 2's (the console
-    test saw run 1's 6 s in run 2's plot)."""
-    keys = ServiceKeys.for_rig("consoletest2")
-    tap = LiveTap()
-    tap.begin_run({"plan_index": 0, "record": "r1", "commanded": {"t": [0.0], "a": [0.0]}})
-    tap.put("pose", [6.0, 6.3], [[0.0] * 6, [0.0] * 6])
-    tap.begin_run({"plan_index": 1, "record": "r2", "commanded": {"t": [0.0], "a": [0.0]}})
-    tap.put("pose", [-0.05, 0.0], [[0.0] * 6, [0.0] * 6])
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
-    publisher_session = zenoh.open(session_config(listen=[endpoint]))
-    subscriber_session = zenoh.open(session_config(connect=[endpoint]))
-    frames: list[dict[str, Any]] = []
-    try:
-        subscriber = subscriber_session.declare_subscriber(
-            live_key(keys), lambda sample: frames.append(decode_json(sample.payload.to_bytes(), Kind.STATUS)))
-        probe = publisher_session.declare_publisher(live_key(keys))  # until the subscription has reached it
+        probe = publisher_session.declare_publisher(live_key(keys))
         deadline = time.monotonic() + 30
         while not frames and time.monotonic() < deadline:
             probe.put(encode_json(Kind.STATUS, {"state": "probe", "t_ns": 0, "seq": 0, "pose": {"t": []}}))
@@ -276,7 +241,7 @@ def test_a_run_s_tail_and_the_next_run_never_share_a_live_frame() -> None:
         publisher = LivePublisher(publisher_session, keys, lambda: ("s.h5", tap))
         try:
             deadline = time.monotonic() + 30
-            while len(frames) < 3 and time.monotonic() < deadline:
+            while len(frames) < enough and time.monotonic() < deadline:
                 time.sleep(0.05)
         finally:
             publisher.close()
@@ -284,6 +249,30 @@ def test_a_run_s_tail_and_the_next_run_never_share_a_live_frame() -> None:
     finally:
         publisher_session.close()
         subscriber_session.close()
+    return frames
+
+
+def test_the_service_publishes_the_live_tap_on_zenoh() -> None:
+    tap = LiveTap()
+    tap.begin_run({"plan_index": 0, "record": "r", "commanded": {"t": [0.0], "a": [0.5]}})
+    tap.put("detection", float("nan"), 2, -1)  # an operator's detection has no time: null in JSON
+    frames = published_frames(ServiceKeys.for_rig("consoletest"), tap, 1)
+    assert frames, "no live frame arrived"
+    first = frames[0]
+    assert first["session"] == "s.h5" and first["header"]["record"] == "r"
+    assert first["detections"] == [{"t": None, "body_id": 2, "direction": -1}]
+
+
+def test_a_run_s_tail_and_the_next_run_never_share_a_live_frame() -> None:
+    """The tap drained at once holds run 1's last poses, run 2's header and its first poses: they go out as two
+    frames, so that a page clearing its plots at run 2's header does not show run 1's tail as run 2's (the console
+    test saw run 1's 6 s in run 2's plot)."""
+    tap = LiveTap()
+    tap.begin_run({"plan_index": 0, "record": "r1", "commanded": {"t": [0.0], "a": [0.0]}})
+    tap.put("pose", [6.0, 6.3], [[0.0] * 6, [0.0] * 6])
+    tap.begin_run({"plan_index": 1, "record": "r2", "commanded": {"t": [0.0], "a": [0.0]}})
+    tap.put("pose", [-0.05, 0.0], [[0.0] * 6, [0.0] * 6])
+    frames = published_frames(ServiceKeys.for_rig("consoletest2"), tap, 3)
     runs = [(f.get("header", {}).get("plan_index"), f["pose"]["t"]) for f in frames if f["pose"]["t"]]
     assert runs == [(0, [6.0, 6.3]), (1, [-0.05, 0.0])], frames
 
