@@ -1,6 +1,12 @@
-"""``python -m sim_table``: run the table emulator (see :mod:`sim_table.process`)."""
+"""``python -m sim_table``: run the table emulator (see :mod:`sim_table.process`); ``--help`` from
+:mod:`sim_table.options` alone (the models are loaded only to run)."""
 
 import sys
+
+if {"-h", "--help"} & set(sys.argv[1:]):
+    from sim_table.options import argument_parser
+
+    argument_parser().parse_args(["--help"])
 
 from sim_table.process import main
 

@@ -39,9 +39,7 @@ from scipy.signal import TransferFunction, cont2discrete, dlti
 from analysis.table.dynamics import TableDynamics
 from analysis.table.model import TableModel
 from sim_table.actuators import Actuators, ActuatorSettings, ActuatorStep
-
-DYNAMICS = ("lag", "servo")
-"""The emulator's leg models: ``lag`` (first-order lag, :mod:`sim_table.actuators`) and ``servo`` (this module)."""
+from sim_table.options import DYNAMICS
 
 
 @njit(cache=True)

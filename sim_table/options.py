@@ -1,0 +1,83 @@
+"""The emulator's command line, apart from its models: ``python -m sim_table --help`` answers without loading
+MuJoCo, numba or the transports (what ``rig emulate --help`` shows)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+
+from protocols.mavlink.signing import KEY_ENV
+
+DYNAMICS = ("lag", "servo")
+"""The emulator's leg models: ``lag`` (first-order lag, :mod:`sim_table.actuators`) and ``servo``
+(:mod:`sim_table.dynamics`)."""
+
+
+def _speed(text: str) -> float:
+    """``--speed``: a factor > 0, or ``max`` (virtual time: math.inf)."""
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        speed = float(text)
+    except ValueError:
+        speed = math.nan
+    if not (math.isfinite(speed) and speed > 0):
+        raise argparse.ArgumentTypeError(f"expected a factor > 0 or max, got {text!r}")
+    return speed
+
+
+def _point(text: str) -> tuple[float, float, float]:
+    try:
+        x, y, z = (float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected X,Y,Z in metres, got {text!r}") from None
+    return x, y, z
+
+
+def _leg_stall(text: str) -> tuple[int, float]:
+    leg, _, at = text.partition("@")
+    try:
+        stall = int(leg), float(at)
+    except ValueError:
+        stall = (0, math.nan)
+    if not (1 <= stall[0] <= 6 and math.isfinite(stall[1]) and stall[1] >= 0):
+        raise argparse.ArgumentTypeError(f"expected LEG@S, a leg 1..6 and seconds >= 0, got {text!r}")
+    return stall
+
+
+def argument_parser() -> argparse.ArgumentParser:
+    """The emulator's command line (``python -m sim_table --help``)."""
+    p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+                                description="The emulated shake-table controller (docs/table-controller.md): "
+                                            "runs until SIGINT/SIGTERM, then prints its counters as JSON.")
+    p.add_argument("--listen", required=True,
+                   help="the transport and address to listen on: mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE "
+                        "(port 0: any free port) or canopen://CHANNEL?interface=…")
+    p.add_argument("--speed", type=_speed, default=1.0,
+                   help="controller time per real time, or max: virtual time, as fast as the emulator computes "
+                        "while the host's setpoints allow (docs/table-controller.md)")
+    p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F]",
+                   help="a specimen b x h [m] at plate (x, y) [m], optionally its depth [m], mass [kg] and "
+                        "friction coefficient; repeat for more (body ids 0, 1, … in this order)")
+    p.add_argument("--accel", action="append", type=_point, metavar="X,Y,Z",
+                   help="an accelerometer at plate (x, y, z) [m]; repeat for more (default: one at the centre)")
+    p.add_argument("--loss", type=float, default=0.0, metavar="PCT", help="drop this %% of datagrams, both ways")
+    p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay every datagram, both ways")
+    p.add_argument("--drive-fault-at", type=float, metavar="S", help="drive fault S s after the first stream start")
+    p.add_argument("--stall-at", type=float, metavar="S", help="drop all chunks from S s after the first stream start")
+    p.add_argument("--leg-stall", type=_leg_stall, metavar="LEG@S",
+                   help="leg LEG's actuator (1..6) seizes S s after the first stream start: it brakes to rest and "
+                        "stops following its command (CANopen: its drive's following-error supervision trips)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random number (noise, loss)")
+    p.add_argument("--key-file", type=Path,
+                   help=f"signing key file (default: ${KEY_ENV}); mavlink and zenoh only: canopen does not sign")
+    p.add_argument("--rig-config", type=Path, help="rig configuration TOML (default: Table IV, default hexapod)")
+    p.add_argument("--leg-noise", type=float, metavar="M",
+                   help="σ of a leg-length reading [m] (default: sim_table.actuators.ActuatorSettings's, 1 µm)")
+    p.add_argument("--dynamics", choices=DYNAMICS, default="lag",
+                   help="the legs' model: lag (first-order lag) or servo (servo-valve, oil column and displacement "
+                        "loop from the rig configuration's [dynamics], docs/table-dynamics.md)")
+    p.add_argument("--accel-noise", type=float, default=0.02, metavar="M/S2", help="σ of accelerometer noise")
+    p.add_argument("--counters", type=Path, metavar="FILE", help="write the exit counters here, not to stdout")
+    return p
