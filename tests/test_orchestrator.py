@@ -211,3 +211,34 @@ def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_p
     assert "scale factor" in operator.asked[1]
     for run in read_session(tmp_path / "s.h5")["runs"]:
         assert [(d["body_id"], d["direction"], d["source"]) for d in run["detections"]] == [(1, -1, "operator")]
+
+
+def _emulator_command_lines() -> list[list[str]]:
+    """The command lines of this process's ``python -m sim_table`` children (Linux /proc)."""
+    children = []
+    for task in Path("/proc/self/task").iterdir():
+        children += (task / "children").read_text().split()
+    lines = [Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0") for pid in children]
+    return [line for line in lines if "sim_table" in line]
+
+
+def test_the_emulated_table_is_the_sequence_s_rig(tmp_path: Path) -> None:
+    """``rig run --emulate`` (and the service, and the demo: ``rig.orchestrator.setup.table_for``) starts the
+    emulator with the sequence's rig configuration when it is not the default one, written out as TOML that loads
+    back to the same table model; with the default rig, no configuration is passed."""
+    import math
+
+    from analysis.table.model import TableModel
+    from rig.orchestrator.setup import table_for
+
+    (tmp_path / "tiny.toml").write_text(TINY + "\n[rig.limits.surge]\nacceleration_g = 0.4\n")
+    custom = load_sequence(tmp_path / "tiny.toml")
+    assert custom.table != TableModel()
+    with table_for(custom, None, True, None, math.inf):
+        (line,) = _emulator_command_lines()
+        config = Path(line[line.index("--rig-config") + 1])
+        assert TableModel.from_toml(config) == custom.table
+    (tmp_path / "plain.toml").write_text(TINY)
+    with table_for(load_sequence(tmp_path / "plain.toml"), None, True, None, math.inf):
+        (line,) = _emulator_command_lines()
+        assert "--rig-config" not in line

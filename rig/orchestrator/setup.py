@@ -17,6 +17,9 @@ from datetime import datetime
 from pathlib import Path
 from typing import Any
 
+import tomli_w
+
+from analysis.table.model import TableModel
 from rig import __version__
 from rig.emulator import EmulatorProcess, specimen_flags, speed_flags
 from rig.sequence import Sequence, load_sequence
@@ -66,7 +69,8 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
     """The table URL, the driver options and (emulated) the emulator's counters.
 
     ``table`` (else the sequence's ``table_url``) is used as it is; with ``emulate`` an emulator process is started
-    (and stopped on exit) with the sequence's bodies on its plate, ``speed`` its controller time per real time
+    (and stopped on exit) with the sequence's bodies on its plate and its rig configuration (limits, hexapod,
+    ``[dynamics]``; written out as TOML when it is not the default), ``speed`` its controller time per real time
     (math.inf: virtual time), and a one-session signing key unless ``key_file`` is given. NoTableError when there
     is neither.
     """
@@ -82,6 +86,10 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
             key_file = Path(scratch) / "session.key"
             key_file.write_text(secrets.token_hex(32) + "\n")
         flags = [*specimen_flags(sequence.bodies), *speed_flags(speed)]
+        if sequence.table != TableModel():  # the emulated table is the sequence's rig, not the default one
+            rig = Path(scratch) / "rig.toml"
+            rig.write_text(tomli_w.dumps(sequence.table.to_dict()))
+            flags += ["--rig-config", str(rig)]
         emulator = EmulatorProcess.start(EMULATOR_LISTEN, *flags, key_file=key_file)
         counters: dict[str, Any] = {}
         try:
