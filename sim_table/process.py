@@ -111,6 +111,8 @@ class EmulatorConfig:
 
     ``key``: the signing key, required on the transports that sign (:data:`SIGNING_SCHEMES`), unused on CANopen;
     ``leg_stall``: (leg 1..6, seconds after the first START_STREAM) when that leg's actuator seizes.
+    ``watchdog`` [s, controller time]: the host-heartbeat and setpoint watchdogs at 1x and faster (default
+    :data:`WATCHDOG_SECONDS`, the real controller's; virtual time uses :data:`VIRTUAL_WATCHDOG_SECONDS`).
     """
 
     listen: str
@@ -128,10 +130,13 @@ class EmulatorConfig:
     stall_at: float | None = None
     leg_stall: tuple[int, float] | None = None
     seed: int = 0
+    watchdog: float = WATCHDOG_SECONDS
 
     def __post_init__(self) -> None:
         if not (self.speed > 0):  # math.inf: virtual time (--speed max)
             raise ValueError(f"speed must be > 0 or max, got {self.speed!r}")
+        if not (math.isfinite(self.watchdog) and self.watchdog > 0):
+            raise ValueError(f"watchdog must be > 0 s, got {self.watchdog!r}")
         for name in ("drive_fault_at", "stall_at"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value >= 0):
@@ -164,7 +169,7 @@ class Emulator:
                                        watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9), link_clock=time.monotonic_ns)
         else:
             self.core = ControllerCore(table, tick_ns=self.tick_ns,
-                                       watchdog_ns=round(WATCHDOG_SECONDS * config.speed * 1e9))
+                                       watchdog_ns=round(config.watchdog * config.speed * 1e9))
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
                                         payload=sum(specimen.mass for specimen in config.specimens))
         self.track = PlateTrack(dt)
@@ -451,7 +456,7 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
-            stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed)
+            stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed, watchdog=args.watchdog)
     except ValueError as exc:
         p.error(str(exc))
     return config, args.counters
