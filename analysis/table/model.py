@@ -61,9 +61,8 @@ joints), so that ``from_dict(to_dict())`` gives back an equal model exactly.
 from __future__ import annotations
 
 import math
-import numbers
 import tomllib
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -74,7 +73,8 @@ from numba import njit
 from analysis.body import G
 from analysis.errors import AnalysisInputError
 from analysis.table.dynamics import TableDynamics
-from analysis.table.toml_lines import find_line, key_lines, syntax_message
+from analysis.table.toml_check import TomlChecker, is_number
+from analysis.table.toml_lines import KeyPath, key_lines, syntax_message
 from analysis.table.toml_lines import suggest as _suggest
 
 _DEG = math.pi / 180.0
@@ -108,13 +108,9 @@ def _half_angle(value: float, shown: float) -> str | None:
     return None if ok else f"must be at least 0 and below 60° (π/3 rad), got {shown!r}"
 
 
-def _is_number(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
-
-
 def _problem(value: object, check: _Check) -> str | None:
     """What is wrong with a number given in SI, or None."""
-    return check(float(value), value) if _is_number(value) else f"expected a number, got {value!r}"
+    return check(float(value), value) if is_number(value) else f"expected a number, got {value!r}"
 
 
 def _check_fields(owner: object, check: _Check, names: tuple[str, ...]) -> None:
@@ -739,21 +735,16 @@ def _keys(spec: _Spec) -> list[str]:
     return [key for keys, _ in spec.values() for key in keys]
 
 
-class _Reader:
+class _Reader(TomlChecker):
     """Reads a configuration mapping; ``text`` (the TOML source) gives the line numbers of keys."""
 
     def __init__(self, source: str, text: str | None) -> None:
-        self.source = source
-        self.lines = key_lines(text) if text is not None else {}
+        super().__init__(source, key_lines(text) if text is not None else {})
 
-    def line(self, path: tuple[str, ...]) -> int | None:
-        """The line of ``path``, else of the first key or header under it, else of its nearest parent."""
-        return find_line(self.lines, path)
-
-    def error(self, path: tuple[str, ...], problem: str) -> TableModelError:
+    def error(self, path: KeyPath, problem: str) -> TableModelError:
         line = self.line(path)
         where = f"{self.source}:{line}" if line else self.source
-        return TableModelError(f"{where}: {'.'.join(path)}: {problem}" if path else f"{where}: {problem}")
+        return TableModelError(f"{where}: {'.'.join(map(str, path))}: {problem}" if path else f"{where}: {problem}")
 
     def model(self, data: Mapping[str, Any]) -> TableModel:
         top = self.table(data, (), ("table", "limits", "hexapod", "dynamics"))
@@ -782,21 +773,6 @@ class _Reader:
             raise self.error(("dynamics", key) if key in table else ("dynamics",),
                              str(exc).partition(": ")[2]) from None
 
-    def table(self, value: Any, path: tuple[str, ...], allowed: Sequence[str]) -> Mapping[str, Any]:
-        """``value`` checked to be a table with only ``allowed`` keys."""
-        if not isinstance(value, Mapping):
-            raise self.error(path, f"expected a table, got {value!r}")
-        for key in value:
-            if key not in allowed:
-                raise self.error((*path, key), f"unknown key{_suggest(key, allowed)}; expected one of "
-                                               f"{', '.join(allowed)}")
-        return value
-
-    def number(self, value: Any, path: tuple[str, ...]) -> float:
-        if not _is_number(value):
-            raise self.error(path, f"expected a number, got {value!r}")
-        return float(value)
-
     def quantities(self, table: Mapping[str, Any], path: tuple[str, ...], spec: _Spec,
                    defaults: Mapping[str, float] | None) -> dict[str, float]:
         """The SI values of ``spec``'s fields; a missing field takes ``defaults`` (None: required)."""
@@ -811,7 +787,7 @@ class _Reader:
                 else:
                     values[name] = defaults[name]
                 continue
-            raw = self.number(table[given[0]], (*path, given[0]))
+            raw = self.real(table[given[0]], (*path, given[0]))
             problem = check(raw * keys[given[0]], raw)
             if problem:
                 raise self.error((*path, given[0]), problem)
@@ -848,6 +824,6 @@ class _Reader:
             if not isinstance(row, list) or len(row) != 3:
                 raise self.error(path, f"joint {k}: expected [x, y, z] in metres, got {row!r}")
             for coordinate in row:
-                if not math.isfinite(self.number(coordinate, path)):
+                if not math.isfinite(self.real(coordinate, path)):
                     raise self.error(path, f"joint {k}: coordinates must be finite, got {row!r}")
         return np.array(rows, dtype=float)

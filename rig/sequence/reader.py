@@ -8,7 +8,6 @@ docstring (`rig.sequence`).
 from __future__ import annotations
 
 import math
-import numbers
 import re
 import tomllib
 from collections.abc import Mapping
@@ -19,7 +18,8 @@ from urllib.parse import urlsplit
 
 from analysis.body import TABLE_V, Body
 from analysis.table.model import TableModel, TableModelError
-from analysis.table.toml_lines import KeyPath, dotted_path, find_line, key_lines, suggest, syntax_message
+from analysis.table.toml_check import TomlChecker
+from analysis.table.toml_lines import KeyPath, dotted_path, key_lines, suggest, syntax_message
 
 from .model import (
     DEFAULT_FRICTION,
@@ -46,35 +46,26 @@ RIG_KEYS = ("config", "table", "limits", "hexapod")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
 
 
-def _is_number(value: object) -> bool:
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
-class _Reader:
+class _Reader(TomlChecker):
     """Checks a parsed sequence mapping; ``lines`` (from the TOML text) give the line of each key."""
 
     def __init__(self, source: str, lines: Mapping[KeyPath, int], base_dir: Path) -> None:
-        self.source, self.lines, self.base_dir = source, lines, base_dir
+        super().__init__(source, lines)
+        self.base_dir = base_dir
 
     def error(self, path: KeyPath, problem: str) -> SequenceError:
-        line = find_line(self.lines, path) if path else None
+        line = self.line(path) if path else None
         if line is None and self.lines:
             line = 1  # a key missing at the top level: top-level keys belong at the top of the file
         return SequenceError(self.source, line, dotted_path(path), problem)
 
-    # ----- typed values ----------------------------------------------------------------------------
+    def unknown_key_hint(self, path: KeyPath, key: str, allowed: Seq[str]) -> str:
+        if path and key in TOP_KEYS:
+            return (f" (a top-level key: in TOML every key after a [section] header belongs to that section, so "
+                    f"write {key} before the first [section])")
+        return suggest(key, allowed)
 
-    def table(self, value: Any, path: KeyPath, allowed: Seq[str]) -> Mapping[str, Any]:
-        if not isinstance(value, Mapping):
-            raise self.error(path, f"expected a table, got {value!r}")
-        for key in value:
-            if key not in allowed:
-                hint = suggest(key, allowed)
-                if path and key in TOP_KEYS:
-                    hint = (f" (a top-level key: in TOML every key after a [section] header belongs to that "
-                            f"section, so write {key} before the first [section])")
-                raise self.error((*path, key), f"unknown key{hint}; expected one of {', '.join(allowed)}")
-        return value
+    # ----- typed values ----------------------------------------------------------------------------
 
     def require(self, table: Mapping[str, Any], path: KeyPath, key: str, expected: str) -> Any:
         if key not in table:
@@ -84,9 +75,7 @@ class _Reader:
     def number(self, value: Any, path: KeyPath, *, low: float | None = None, high: float | None = None,
                low_open: bool = True, what: str = "a number") -> float:
         """A finite number, above ``low`` (or at it, unless ``low_open``) and at most ``high``."""
-        if not _is_number(value):
-            raise self.error(path, f"expected {what}, got {value!r}")
-        x = float(value)
+        x = self.real(value, path, what)
         bad = not math.isfinite(x) or (low is not None and (x <= low if low_open else x < low)) \
             or (high is not None and x > high)
         if bad:
@@ -285,7 +274,7 @@ class _Reader:
         return tuple(entries)
 
     def record(self, value: Any, path: KeyPath) -> RecordEntry:
-        where = {"key": dotted_path(path), "line": find_line(self.lines, path)}
+        where = {"key": dotted_path(path), "line": self.line(path)}
         if isinstance(value, str):
             spec = self.string(value, path)
             return RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **where)
@@ -326,7 +315,7 @@ class _Reader:
         except ValueError as exc:
             key = "strongest" if "strongest" in str(exc) and "strongest" in table else "suite"
             raise self.error((*path, key), str(exc)) from None
-        line = find_line(self.lines, path)
+        line = self.line(path)
         return [RecordEntry(spec=spec, resolved=spec, scale=scale, corner=corner, key="records_from", line=line)
                 for spec in specs]
 
