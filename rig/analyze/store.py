@@ -1,4 +1,4 @@
-"""Writing the ``analysis`` groups of a session file, never touching its raw data.
+"""The ``analysis`` groups of a session file: written here, never touching its raw data, and read back here.
 
 Layout (schema ``shaketable-rig/analysis/1``):
 
@@ -25,16 +25,19 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-from collections.abc import Iterator
+import os
+from collections.abc import Iterator, Mapping
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
 
 from rig import __version__
-from rig.session import SessionError, crashed_message
+from rig.session import SessionError, crashed_message, open_session
 from rig.session.atomic import SessionFile
 from rig.session.locks import open_locked
+from rig.session.reader import attributes, records
 from rig.session.schema import iso_now
 
 from . import fig13
@@ -130,3 +133,21 @@ def _write_root(group: h5py.Group, analysis: SessionAnalysis, created: str) -> N
     for model, value in clean.items():
         group.attrs[f"max_difference_{model}"] = math.nan if value is None else float(value)
     group.create_dataset("fig13", data=fig13.to_array(analysis.fig13))
+
+
+def read_results(path: str | os.PathLike[str]) -> tuple[list[dict[str, Any]] | None, dict[str, Any]]:
+    """The session's ``/analysis`` group: its ``fig13`` rows (dicts of plain values; None when the session was not
+    analysed) and its attributes (module docstring; empty when not analysed)."""
+    with open_session(path) as h5:
+        group = h5.get(GROUP)
+        if not isinstance(group, h5py.Group):
+            return None, {}
+        rows = records(group["fig13"]) if isinstance(group.get("fig13"), h5py.Dataset) else None
+        return rows, attributes(group)
+
+
+def run_predictions(run: Mapping[str, Any]) -> list[dict[str, Any]] | None:
+    """A run's ``analysis/predictions`` rows from a run as `rig.session.read_session` gives it, None when the run
+    was not analysed."""
+    analysis = run.get("analysis")
+    return analysis.get("predictions") if isinstance(analysis, Mapping) else None

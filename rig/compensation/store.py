@@ -18,7 +18,9 @@ from __future__ import annotations
 
 import json
 import math
+import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -78,6 +80,21 @@ def write(path: Path, *, record: str, angle_deg: float, identification_run: str,
         group.create_dataset("t", data=np.asarray(t)[motion])
         group.create_dataset("target", data=result.target[motion])
         group.create_dataset("achieved", data=np.stack([a[motion] for a in result.achieved]))
+
+
+def read(path: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The session's ``/compensation`` group (module docstring), None when it has none: ``attrs`` (plain values)
+    and the arrays ``response``, ``iterations`` (compound rows), ``t``, ``target`` and ``achieved``."""
+    from rig.session import open_session
+    from rig.session.reader import attributes
+
+    with open_session(path) as h5:
+        group = h5.get(GROUP)
+        if group is None:
+            return None
+        out: dict[str, Any] = {"attrs": attributes(group)}
+        out.update({key: group[key][()] for key in ("response", "iterations", "t", "target", "achieved")})
+        return out
 
 
 def summary(group: object) -> dict[str, object]:

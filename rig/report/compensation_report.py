@@ -11,9 +11,9 @@ from typing import Any
 import numpy as np
 
 from analysis.spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum
+from rig.compensation import store as compensation_store
 
 from . import figures
-from .data import open_h5
 from .html import esc, figure, key_values, num, table
 
 AXES = ("surge", "lateral", "heave")
@@ -79,14 +79,11 @@ def _history_png(t: np.ndarray, target: np.ndarray, before: np.ndarray, after: n
 
 def compensation_section(path: Any) -> str:
     """The section's HTML, or "" when the session has no ``/compensation`` group."""
-    with open_h5(path) as h5:
-        if "compensation" not in h5:
-            return ""
-        group = h5["compensation"]
-        attrs = {key: group.attrs[key] for key in group.attrs}
-        response = group["response"][()]
-        rows = group["iterations"][()]
-        t, target, achieved = group["t"][()], group["target"][()], group["achieved"][()]
+    stored = compensation_store.read(path)
+    if stored is None:
+        return ""
+    attrs, response, rows = stored["attrs"], stored["response"], stored["iterations"]
+    t, target, achieved = stored["t"], stored["target"], stored["achieved"]
     band = tuple(float(x) for x in attrs.get("band_hz", (0.0, math.inf)))
     best = int(attrs.get("best", 0))
     parts = ["<h2>Drive compensation</h2>", key_values([

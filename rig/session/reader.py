@@ -17,6 +17,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -67,31 +68,34 @@ def plain(value: Any) -> Any:
     return value
 
 
-def _records(ds: h5py.Dataset) -> list[dict[str, Any]]:
+def records(ds: h5py.Dataset) -> list[dict[str, Any]]:
+    """A compound dataset's rows as dicts of plain values (bytes → str)."""
     data = ds[()]
     names = data.dtype.names or ()
-    return [{name: plain(row[name]) for name in names} for row in data]
+    return [{name: plain(row[name]) for name in names} for row in np.atleast_1d(data)]
 
 
-def _attrs(obj: h5py.HLObject) -> dict[str, Any]:
+def attributes(obj: h5py.HLObject) -> dict[str, Any]:
+    """An object's attributes as plain values."""
     return {key: plain(obj.attrs[key]) for key in obj.attrs}
 
 
 def _tree(group: h5py.Group) -> dict[str, Any]:
     """Any group (e.g. ``analysis``) as nested dicts: attributes under ``"attrs"``, datasets as arrays/records."""
-    out: dict[str, Any] = {"attrs": _attrs(group)}
+    out: dict[str, Any] = {"attrs": attributes(group)}
     for key, node in group.items():
         if isinstance(node, h5py.Group):
             out[key] = _tree(node)
         elif node.dtype.names:
-            out[key] = _records(node)
+            out[key] = records(node)
         else:
             out[key] = plain(node[()])
     return out
 
 
-def _run(group: h5py.Group, name: str, data: bool) -> dict[str, Any]:
-    attrs = _attrs(group)
+def read_run(group: h5py.Group, name: str, data: bool = True) -> dict[str, Any]:
+    """One run group as `read_session` gives its runs (with or without ``data``)."""
+    attrs = attributes(group)
     run: dict[str, Any] = {"name": name}
     for key in ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt"):
         run[key] = attrs.get(key)
@@ -107,7 +111,7 @@ def _run(group: h5py.Group, name: str, data: bool) -> dict[str, Any]:
         run[key] = group[key][()] if key in group else np.zeros((0, 7))
     run["accel"] = {sensor: ds[()] for sensor, ds in group["accel"].items()} if "accel" in group else {}
     for key in ("detections", "bodies", "faults", "events"):
-        run[key] = _records(group[key]) if key in group else []
+        run[key] = records(group[key]) if key in group else []
     if "analysis" in group:
         run["analysis"] = _tree(group["analysis"])
     return run
@@ -115,7 +119,7 @@ def _run(group: h5py.Group, name: str, data: bool) -> dict[str, Any]:
 
 def _read(path: Path, data: bool) -> dict[str, Any]:
     with open_session(path, timeout=0.0) as h5:
-        attrs = _attrs(h5)
+        attrs = attributes(h5)
         if attrs.get("schema") != schema.SCHEMA:
             raise SessionError(f"{path}: schema attribute is {attrs.get('schema')!r}; expected {schema.SCHEMA!r}")
         out: dict[str, Any] = {"path": str(path), "schema": attrs["schema"]}
@@ -125,7 +129,7 @@ def _read(path: Path, data: bool) -> dict[str, Any]:
             out[key] = json.loads(attrs[key]) if isinstance(attrs.get(key), str) else None
         out["attrs"] = attrs
         runs = h5.get("runs")
-        out["runs"] = [_run(runs[name], name, data) for name in sorted(runs)] if runs is not None else []
+        out["runs"] = [read_run(runs[name], name, data) for name in sorted(runs)] if runs is not None else []
         return out
 
 
@@ -150,6 +154,15 @@ def read_session(path: str | os.PathLike[str], *, data: bool = True, timeout: fl
                 raise SessionError(f"{path}: unreadable session file ({exc!r})") from None
         time.sleep(delay)
         delay = min(delay * 2, 0.2)
+
+
+def iter_runs(path: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
+    """The session's runs in order, each read (as `read_session` with ``data``) only when it is asked for: one
+    run's samples in memory at a time, for campaigns of hundreds of MB. The file stays open meanwhile."""
+    with open_session(path) as h5:
+        runs = h5.get("runs")
+        for name in sorted(runs) if runs is not None else []:
+            yield read_run(runs[name], name)
 
 
 def writer_flags(path: str | os.PathLike[str]) -> int:
