@@ -16,7 +16,7 @@ for all periods at once in a numba kernel. The oscillator starts at rest with a 
 sample. The input is padded with zeros for one longest period so that a peak of the free vibration after the input
 ends counts too.
 
-Verified in ``tests/test_report.py`` against closed forms: the steady-state amplitude under a harmonic input,
+Verified in ``tests/rig/test_report.py`` against closed forms: the steady-state amplitude under a harmonic input,
 ``|u| = a0 / sqrt((ω² − Ω²)² + (2ζωΩ)²)``, and the peak of the step response, ``(a0/ω²)(1 + exp(−ζπ/√(1−ζ²)))``.
 """
 

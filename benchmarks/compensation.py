@@ -9,7 +9,7 @@ legs (``sim_table.dynamics``, ``--dynamics servo``, the specimens' mass on the p
 accelerometers with their noise — on the drive's 1 kHz samples, without a transport or a clock (the emulator's
 virtual time at ``--speed max`` is another helper's work, not merged when this was written). So an iteration's time
 here is the physics and the correction, against the drive's duration (what one real-time play on the emulator or a
-table takes); ``rig iterate --emulate`` does the same over MAVLink in real time (tests/test_cli_iterate.py).
+table takes); ``rig iterate --emulate`` does the same over MAVLink in real time (tests/rig/test_cli_iterate.py).
 
 Target (issue 12): ≤ 5 % after ≤ 5 iterations where the uncompensated error is ≥ 20 %.
 

@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 # Imports are lazy (ISSUE 16): this module and every rig/cli_*.py import only typer, rich and the standard library
 # at module level, so that `rig --help` and each command's --help answer at once; each command imports what it uses
-# inside its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/test_cli_startup.py checks it.
+# inside its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
                   no_args_is_help=True, add_completion=False)

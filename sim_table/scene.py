@@ -84,7 +84,7 @@ class ContactSettings:
     solver's cost, so at 1e-8 it stopped after one iteration with the light bodies' contacts unresolved: Table V's
     0.36 kg and 0.56 kg bodies chattered on a 5° plate at rest (|θ| up to 0.03 rad, creeping mm downhill) and a
     body released at rest on an edge could stay frozen. At 1e-12 they stand still (|θ| < 1e-5) and the step
-    costs the same (`rig specimens check`, tests/test_specimens.py)."""
+    costs the same (`rig specimens check`, tests/emulator/test_specimens.py)."""
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.timestep) and 0 < self.timestep <= 0.01):

@@ -1,6 +1,18 @@
-"""Shared fixtures (kept small on purpose)."""
+"""Shared fixtures (kept small on purpose), and the check that keeps the ``integration`` mark true.
+
+Tests are grouped by the layer they check: ``tests/analysis`` (the models, the table's machine model, studies),
+``tests/emulator`` (``sim_table``), ``tests/transports`` (``protocols`` and ``drivers`` against the emulated table),
+``tests/rig`` (sessions, records, sequences, orchestrator, service, console, report, CLI); ``tests/test_layers.py``
+checks the imports of the whole project. A test that starts a process or opens a network socket is marked
+``integration`` (``pytestmark`` in its file): :func:`_integration_mark_is_true` makes any other test fail when it
+does either, so ``-m "not integration"`` is a suite of in-process unit tests.
+"""
 
 from __future__ import annotations
+
+import socket
+import subprocess
+from collections.abc import Iterator
 
 import pytest
 import typer
@@ -26,3 +38,27 @@ def app() -> typer.Typer:
 
     register_records(app)
     return app
+
+
+@pytest.fixture(autouse=True)
+def _integration_mark_is_true(request: pytest.FixtureRequest, monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
+    """Fail a test not marked ``integration`` that starts a process (``subprocess.Popen``, which ``subprocess.run``
+    and ``multiprocessing``'s spawn use) or creates an IPv4/IPv6 socket (local socket pairs, e.g. asyncio's, are
+    allowed). Sockets opened inside compiled extensions (zenoh) are not seen; their tests are marked anyway."""
+    if request.node.get_closest_marker("integration") is not None:
+        yield
+        return
+    test = request.node.nodeid
+    socket_init = socket.socket.__init__
+
+    def popen(self: subprocess.Popen, *args: object, **kwargs: object) -> None:
+        raise AssertionError(f"{test} starts a process but is not marked integration")
+
+    def new_socket(self: socket.socket, family: int = -1, *args: object, **kwargs: object) -> None:
+        if family in (socket.AF_INET, socket.AF_INET6, -1):
+            raise AssertionError(f"{test} opens a network socket but is not marked integration")
+        socket_init(self, family, *args, **kwargs)  # type: ignore[arg-type]
+
+    monkeypatch.setattr(subprocess.Popen, "__init__", popen)
+    monkeypatch.setattr(socket.socket, "__init__", new_socket)
+    yield

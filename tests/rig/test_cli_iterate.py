@@ -1,0 +1,58 @@
+"""``rig iterate`` end to end on the emulated table (``--dynamics servo``, MAVLink on loopback): the identification
+and iterations are runs of the session with their errors, ``/compensation`` holds the response and the iterations,
+the drive file plays; ``rig report`` shows them."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import h5py
+import pytest
+
+from rig.drive.file import load_drive
+
+pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+ITERATE = ["fema:KOBE/NIS000", "--angle", "4", "--emulate", "--window", "5,10", "--corner", "1",
+           "--identify-seconds", "10", "--iterations", "1"]
+
+
+def _rig(*args: str) -> subprocess.CompletedProcess[str]:
+    code = "import sys; from rig.cli import app; sys.exit(app())"
+    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=600)
+
+
+@pytest.mark.slow
+def test_iterate_on_the_emulator(tmp_path):
+    session = tmp_path / "s.h5"
+    done = _rig("iterate", *ITERATE, "-o", str(session), "--json")
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert set(out) >= {"iterations", "converged", "drive"}
+    errors = [it["rms_error_pct"] for it in out["iterations"]]
+    assert len(errors) == 2 and errors[0] > 10.0 and errors[1] < errors[0]
+    assert all(it["peak_error_pct"] >= 0 for it in out["iterations"])
+    with h5py.File(session, "r") as h5:
+        runs = sorted(h5["runs"])
+        assert len(runs) == 3 and h5["runs"][runs[0]].attrs["compensation"] == "identify"
+        for name, err in zip(runs[1:], errors, strict=True):
+            assert h5["runs"][name].attrs["rms_error_pct"] == pytest.approx(err)
+        group = h5["compensation"]
+        assert group["iterations"].shape == (2,) and group["achieved"].shape[0] == 2
+        assert group["response"]["surge_coherence"].max() > 0.9
+    drive = load_drive(out["drive"])
+    assert drive.angle == pytest.approx(0.0698, abs=1e-4)
+    report = _rig("report", str(session), "-o", str(tmp_path / "s.html"), "--json")
+    assert report.returncode == 0, report.stderr
+    html = (tmp_path / "s.html").read_text()
+    assert "Drive compensation" in html and "coherence" in html
+
+
+def test_iterate_refuses_bad_input(tmp_path):
+    done = _rig("iterate", "fema:KOBE/NIS000", "--angle", "4")
+    assert done.returncode == 2 and "either --table URL or --emulate" in done.stderr
+    done = _rig("iterate", "fema:NO/SUCH", "--angle", "4", "--emulate")
+    assert done.returncode == 2 and "NO/SUCH" in done.stderr
+    assert not list(tmp_path.iterdir())

@@ -1,0 +1,146 @@
+"""``rig run`` end to end: the real command line, the emulator as its own process over loopback UDP (MAVLink),
+the session file read back. The quick sequence unattended; ``kill -9`` mid-record and ``--resume``; bad
+sequence files refused before the table moves."""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+from test_orchestrator import TINY
+
+from rig.sequence import load_sequence
+from rig.session import read_session
+
+pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+ROOT = Path(__file__).resolve().parents[2]
+RIG = [sys.executable, "-m", "rig.cli"]
+
+
+def rig(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([*RIG, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout,
+                          env={**os.environ, "COLUMNS": "160"})
+
+
+def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -> None:
+    session = tmp_path / "quick.h5"
+    done = rig("run", str(ROOT / "examples" / "quick.toml"), "--emulate", "--speed", "max", "--yes", "-o", str(session),
+               cwd=tmp_path)  # virtual time: the same session contents as at 1x (docs/table-controller.md)
+    assert done.returncode == 0, done.stderr + done.stdout
+    sequence = load_sequence(ROOT / "examples" / "quick.toml")
+    plan = sequence.plan()
+    data = read_session(session)
+    assert data["schema"] == "shaketable-rig/session/1" and data["sequence"]["name"] == "quick"
+    runs = data["runs"]
+    assert [(r["plan_index"], r["status"]) for r in runs] == [(p.plan_index, "completed") for p in plan]
+    emulator = json.loads((tmp_path / "quick.emulator.json").read_text())
+    assert emulator["underruns"] == 0 and emulator["streams_completed"] == len(plan)
+    starts = []
+    for run, planned in zip(runs, plan, strict=True):
+        drive = sequence.prepare(planned)  # the commanded trajectory is the prepared drive, sample for sample
+        np.testing.assert_array_equal(run["commanded"], np.column_stack([drive.t, drive.poses]))
+        assert run["scale_factor"] == drive.scale_factor and run["angle_deg"] == planned.angle_deg
+        t = run["accel"]["0"][:, 0]  # every sample over the drive's duration, none missing
+        inside = t[(t >= -1e-9) & (t <= drive.duration + 1e-9)]  # ns → s rounding: virtual time is on the tick grid
+        assert inside[0] < 1e-3 and inside[-1] > drive.duration - 1e-3
+        np.testing.assert_allclose(np.diff(inside), 1e-3, atol=1e-9)
+        assert abs(len(inside) - round(drive.duration * 1000)) <= 1  # both ends on the grid: duration × rate + 1
+        # at rest on the plate tilted by β (x downhill): the specific force is −g in the plate frame,
+        # (−g sin β, 0, g cos β), ± the sensor's noise
+        tilt = math.radians(planned.angle_deg)
+        rest = run["accel"]["0"][t < 0.2, 1:].mean(axis=0)
+        np.testing.assert_allclose(rest, [-9.81 * math.sin(tilt), 0, 9.81 * math.cos(tilt)], atol=0.05)
+        starts.append(run["attrs"]["t_start_controller_ns"] * 1e-9)
+    # the detections of each run are the overturns the emulator reported in that run's time, body by body
+    ids = [b.body_id for b in sequence.bodies]
+    for k, run in enumerate(runs):
+        end = starts[k + 1] if k + 1 < len(runs) else math.inf
+        reported = sorted((ids[o["body_id"]], o["direction"]) for o in emulator["overturns"]
+                          if starts[k] <= o["t"] < end)
+        logged = sorted((d["body_id"], d["direction"]) for d in run["detections"])
+        assert logged == reported
+        assert all(d["source"] == "sensor" for d in run["detections"])
+    assert sum(len(r["detections"]) for r in runs) == len(emulator["overturns"]) > 0
+
+
+@pytest.mark.slow  # 22 s; kill -9 of a writer is in the quick suite by test_session_recover and test_session_log
+def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp_path: Path) -> None:
+    proc, session, seen = start_tiny(tmp_path)
+    try:
+        seen_at = time.monotonic()
+        time.sleep(0.4)
+        proc.send_signal(signal.SIGKILL)
+        killed_at = time.monotonic()
+        proc.wait()
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)  # the emulator it started
+    with h5py.File(session, "r", swmr=True) as h5:  # the file opens
+        assert h5["runs/0001"].attrs["status"] in (b"running", "running")
+    cut = read_session(session)["runs"][0]
+    last = cut["accel"]["0"][-1, 0]
+    assert last >= seen + (killed_at - seen_at) - 1.0  # at most the last second lost
+
+    done = rig("run", "--resume", str(session), "--emulate", "--yes", cwd=tmp_path)
+    assert done.returncode == 0, done.stderr + done.stdout
+    runs = read_session(session)["runs"]
+    assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"),
+                                                              (1, "completed")]
+    np.testing.assert_array_equal(runs[0]["accel"]["0"][: len(cut["accel"]["0"])], cut["accel"]["0"])
+
+
+def start_tiny(tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path, float]:
+    """``rig run`` of the tiny sequence on the emulator, in its own process group; returned once it is 1 s into
+    the first record, with the time [s] of the last sample seen then."""
+    (tmp_path / "tiny.toml").write_text(TINY)
+    session = tmp_path / "s.h5"
+    proc = subprocess.Popen([*RIG, "run", "tiny.toml", "--emulate", "--yes", "-o", str(session)], cwd=tmp_path,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+    seen, deadline = 0.0, time.monotonic() + 120
+    while seen < 1.0:
+        assert time.monotonic() < deadline and proc.poll() is None
+        time.sleep(0.2)
+        if session.exists():
+            runs = read_session(session)["runs"]
+            if runs and len(runs[0]["accel"].get("0", [])):
+                seen = runs[0]["accel"]["0"][-1, 0]
+    return proc, session, seen
+
+
+@pytest.mark.parametrize("interrupts", [1, 2])
+def test_ctrl_c_pauses_at_the_end_of_the_record_twice_aborts(tmp_path: Path, interrupts: int) -> None:
+    """Unattended, the first Ctrl-C ends the session after the record being played (it completes, the next is not
+    begun); a second one aborts that record at once. Either way the session is resumable: exit code 1."""
+    proc, session, _ = start_tiny(tmp_path)
+    for _ in range(interrupts):
+        proc.send_signal(signal.SIGINT)  # the rig process only, as a terminal's Ctrl-C reaches the foreground job
+        time.sleep(0.2)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 1, out
+    runs = read_session(session)["runs"]
+    assert [r["status"] for r in runs] == (["completed"] if interrupts == 1 else ["aborted"])
+    assert b"rig run --resume" in out
+
+
+@pytest.mark.parametrize(("edit", "where"), [
+    (lambda text: text.replace('angles_deg = [0]', 'angles_deg = [12]'), "tiny.toml:2: angles_deg"),
+    (lambda text: text.replace('KOBE/NIS000', 'KOBE/NOPE'), "tiny.toml:5: records[2]"),
+    (lambda text: text.replace('table5 = 5', 'table5 = "five"'), "tiny.toml:16: bodies[1].table5"),
+])
+def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path, edit: object, where: str) -> None:
+    (tmp_path / "tiny.toml").write_text(edit(TINY))  # type: ignore[operator]
+    done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--yes", "-o", "s.h5", cwd=tmp_path)
+    assert done.returncode == 2
+    assert where in done.stderr, done.stderr
+    assert not (tmp_path / "s.h5").exists()  # nothing written, nothing contacted

@@ -1,0 +1,62 @@
+"""``rig run … --console HOST:PORT`` without a separate service: the console serves the run's state from the
+in-process service's telemetry while the emulated table plays the tiny sequence, and the run ends as ``rig run
+--service`` does (exit code 0 when every run is done)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+from typing import Any
+
+import pytest
+from test_orchestrator import TINY
+from test_service import free_port
+
+pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+
+def state(url: str) -> dict[str, Any] | None:
+    try:
+        with urllib.request.urlopen(f"{url}api/state", timeout=5) as response:
+            return json.loads(response.read())
+    except (urllib.error.URLError, ConnectionError, TimeoutError):
+        return None
+
+
+@pytest.mark.slow  # a whole session at 1x through an in-process service and the console
+def test_rig_run_with_a_console(tmp_path: Path) -> None:
+    sequence = tmp_path / "tiny.toml"
+    sequence.write_text(TINY)
+    url = f"http://127.0.0.1:{free_port()}/"
+    env = {k: v for k, v in os.environ.items() if k != "SHAKETABLE_MAVLINK_KEY"}
+    run = subprocess.Popen([str(Path(sys.executable).with_name("rig")), "run", str(sequence), "--emulate", "--yes",
+                            "--console", url.removeprefix("http://").rstrip("/")], cwd=tmp_path, env=env,
+                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    seen: set[str] = set()
+    frames = 0
+    try:
+        deadline = time.monotonic() + 180
+        while run.poll() is None and time.monotonic() < deadline:
+            current = state(url)
+            if current is not None and current["status"] is not None:
+                seen.add(current["status"]["state"])
+                frames = max(frames, len(current["accel"]["t"]))
+            time.sleep(0.2)
+        output, _ = run.communicate(timeout=60)
+    finally:
+        if run.poll() is None:
+            run.kill()
+    assert "operator console: " + url in output and "operator token " in output
+    assert "running" in seen, seen  # the page's server followed the session
+    assert frames > 0  # and received its live data
+    sessions = list(tmp_path.glob("session-*-tiny.h5"))
+    assert len(sessions) == 1, output  # the session file where rig run writes it
+    assert run.returncode in (0, 1), output  # 1: the emulator faulted under load (the message says so)
+    if run.returncode == 0:
+        assert "done: 2 of 2 runs done" in output

@@ -1,0 +1,246 @@
+"""The orchestrator against the emulated table (its own process, MAVLink over loopback UDP): pause at the end of
+a record, abort and emergency stop mid-record (the emulator's counters show them, the run is logged ``aborted``),
+a run that cannot be played is refused and logged, resume from the first run that did not complete."""
+
+from __future__ import annotations
+
+import itertools
+import secrets
+import threading
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from rig.emulator import EmulatorProcess, specimen_flags
+from rig.orchestrator import FINAL_STATES, TRANSITIONS, Orchestrator, OrchestratorState, Progress
+from rig.sequence import Sequence, load_sequence
+from rig.session import SessionLog, read_session
+
+pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+TINY = """\
+name = "tiny"
+angles_deg = [0]
+records = [
+    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] },
+    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },
+]
+
+[drive]
+corner_hz = 1.0
+settle_s = 0.3
+
+[operator]
+confirm_before_run = false
+
+[[bodies]]
+table5 = 5
+x = 0.0
+y = 0.0
+"""
+
+
+@pytest.fixture(scope="module")
+def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("key") / "rig.key"
+    path.write_text(secrets.token_hex(32) + "\n")
+    return path
+
+
+@pytest.fixture
+def tiny(tmp_path: Path) -> Sequence:
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    return load_sequence(path)
+
+
+def new_log(sequence: Sequence, path: Path) -> SessionLog:
+    return SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
+                             software_version="test")
+
+
+def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None,
+         operator: Any = None) -> tuple[OrchestratorState, dict[str, Any]]:
+    """Run the orchestrator in a thread against a fresh emulator; ``during(orchestrator)`` from this thread."""
+    emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
+                                     key_file=key_file)  # virtual time: the same session as at 1x
+    try:
+        states = [OrchestratorState.IDLE]
+
+        def seen(progress: Progress) -> None:
+            if progress.state is not states[-1]:
+                states.append(progress.state)
+
+        orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
+                                    operator=operator, on_update=seen)
+        result: list[OrchestratorState] = []
+        worker = threading.Thread(target=lambda: result.append(orchestrator.run()))
+        worker.start()
+        if during is not None:
+            during(orchestrator)
+        worker.join(120)
+        assert not worker.is_alive()
+    finally:
+        counters = emulator.stop()
+    # every state change was one the table of transitions allows (the orchestrator checks it; this shows it)
+    assert all(new in TRANSITIONS[old] for old, new in itertools.pairwise(states)), states
+    assert states[-1] is result[0] and result[0] in FINAL_STATES
+    return result[0], counters
+
+
+def wait_for(predicate: Any, timeout: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, "timed out"
+        time.sleep(0.02)
+
+
+def test_pause_takes_effect_at_the_end_of_the_record_and_resume_continues(tiny: Sequence, tmp_path: Path,
+                                                                         key_file: Path) -> None:
+    log = new_log(tiny, tmp_path / "s.h5")
+    seen: list[tuple[int, int]] = []
+
+    def during(o: Orchestrator) -> None:
+        wait_for(lambda: o.progress.samples_sent > 500)
+        o.pause()
+        wait_for(lambda: o.state is OrchestratorState.PAUSED)
+        seen.append((len(log.runs()), o.progress.runs_done))
+        time.sleep(1.0)  # the table holds while paused: nothing starts
+        seen.append((len(log.runs()), o.progress.runs_done))
+        o.resume()
+
+    state, counters = play(tiny, log, key_file, during)
+    log.close()
+    assert state is OrchestratorState.DONE
+    assert seen == [(1, 1), (1, 1)]  # paused after the first record, which completed; the second not begun
+    runs = read_session(tmp_path / "s.h5")["runs"]
+    assert [r["status"] for r in runs] == ["completed", "completed"]
+    assert counters["streams_completed"] == 2 and counters["stops"] == 0 and counters["watchdog_stops"] == 0
+
+
+@pytest.mark.parametrize("kind", ["abort", "emergency_stop"])
+def test_abort_and_emergency_stop_act_at_once_and_the_run_is_logged_aborted(kind: str, tiny: Sequence,
+                                                                           tmp_path: Path, key_file: Path) -> None:
+    log = new_log(tiny, tmp_path / "s.h5")
+    when: list[float] = []
+
+    def during(o: Orchestrator) -> None:
+        wait_for(lambda: o.progress.samples_sent > 1000)
+        when.append(time.monotonic())
+        getattr(o, kind)()
+        wait_for(lambda: o.state in (OrchestratorState.DONE, OrchestratorState.FAULTED))
+        when.append(time.monotonic())
+
+    state, counters = play(tiny, log, key_file, during)
+    log.close()
+    assert state is (OrchestratorState.DONE if kind == "abort" else OrchestratorState.FAULTED)
+    runs = read_session(tmp_path / "s.h5")["runs"]
+    assert [r["status"] for r in runs] == ["aborted"]  # the second record never started
+    assert kind.replace("_", " ") in runs[0]["attrs"]["reason"]
+    assert counters["streams_completed"] == 0
+    assert counters["stops" if kind == "abort" else "emergency_stops"] == 1
+    assert counters["watchdog_stops"] == 0  # left disarmed (abort) or braked (emergency stop), not cut off
+    # the table stopped streaming at once: the run's commanded drive is ~5 s, the logged motion ends early
+    accel = runs[0]["accel"]["0"]
+    assert accel[-1, 0] < runs[0]["commanded"][-1, 0] - 0.5
+
+
+def test_resume_plays_again_what_did_not_complete(tiny: Sequence, tmp_path: Path,
+                                                                         key_file: Path) -> None:
+    """An aborted first session is resumed: the aborted run is played again in a new attempt, the rest follow."""
+    path = tmp_path / "s.h5"
+    log = new_log(tiny, path)
+
+    def abort_early(o: Orchestrator) -> None:
+        wait_for(lambda: o.progress.samples_sent > 300)
+        o.abort()
+
+    play(tiny, log, key_file, abort_early)
+    log.close()
+    log = SessionLog.resume(path)
+    assert log.done_plan_indices() == set()
+    state, counters = play(tiny, log, key_file)
+    log.close()
+    assert state is OrchestratorState.DONE and counters["streams_completed"] == 2
+    runs = read_session(path)["runs"]
+    assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "aborted"), (0, "completed"), (1, "completed")]
+    for r in runs[1:]:  # every accelerometer sample over the drive's duration, none missing
+        duration = r["commanded"][-1, 0]
+        t = r["accel"]["0"][:, 0]
+        inside = t[(t >= 0.0) & (t <= duration)]
+        assert inside[0] < 1e-3 and inside[-1] > duration - 1e-3
+        np.testing.assert_allclose(np.diff(inside), 1e-3, atol=1e-9)
+        assert abs(len(inside) - duration * 1000) <= 1
+
+
+class ScriptedOperator:
+    """An operator who answers from a script and notes what was asked."""
+
+    def __init__(self) -> None:
+        self.asked: list[str] = []
+
+    def place_bodies(self, prompt: str) -> None:
+        self.asked.append(f"place: {prompt}")
+
+    def confirm_run(self, run: Any, description: str) -> None:
+        self.asked.append(f"confirm {run.plan_index}: {description}")
+
+    def which_fell(self, run: Any, bodies: Any) -> list[tuple[int, int]]:
+        self.asked.append(f"which fell {run.plan_index}")
+        return [(bodies[0].body_id, -1)]
+
+
+def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_path: Path, key_file: Path) -> None:
+    """A stocky body that stands through a weak record: the sensors report nothing, so the operator is asked which
+    bodies fell; the answer is logged with source ``operator``. Placing and confirming are asked in order."""
+    text = TINY.replace("confirm_before_run = false", "confirm_before_run = true\nask_detections = true")
+    text = text.replace("table5 = 5", "table5 = 3")  # 152 x 500 mm: α = 16.9°
+    text = text.replace('window_s = [0.5, 3.5]', 'window_s = [0.0, 0.5]').replace('window_s = [5.0, 8.0]',
+                                                                                  'window_s = [0.0, 0.5]')
+    path = tmp_path / "ask.toml"
+    path.write_text(text)
+    sequence = load_sequence(path)
+    log = new_log(sequence, tmp_path / "s.h5")
+    operator = ScriptedOperator()
+    state, counters = play(sequence, log, key_file, operator=operator)
+    log.close()
+    assert state is OrchestratorState.DONE and counters["overturns"] == []
+    kinds = [a.split(":")[0].split(" ")[0] for a in operator.asked]
+    assert kinds == ["place", "confirm", "which", "confirm", "which"]
+    assert "scale factor" in operator.asked[1]
+    for run in read_session(tmp_path / "s.h5")["runs"]:
+        assert [(d["body_id"], d["direction"], d["source"]) for d in run["detections"]] == [(1, -1, "operator")]
+
+
+def _emulator_command_lines() -> list[list[str]]:
+    """The command lines of this process's ``python -m sim_table`` children (Linux /proc)."""
+    children = []
+    for task in Path("/proc/self/task").iterdir():
+        children += (task / "children").read_text().split()
+    lines = [Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0") for pid in children]
+    return [line for line in lines if "sim_table" in line]
+
+
+def test_the_emulated_table_is_the_sequence_s_rig(tmp_path: Path) -> None:
+    """``rig run --emulate`` (and the service, and the demo: ``rig.orchestrator.setup.table_for``) starts the
+    emulator with the sequence's rig configuration when it is not the default one, written out as TOML that loads
+    back to the same table model; with the default rig, no configuration is passed."""
+    import math
+
+    from analysis.table.model import TableModel
+    from rig.orchestrator.setup import table_for
+
+    (tmp_path / "tiny.toml").write_text(TINY + "\n[rig.limits.surge]\nacceleration_g = 0.4\n")
+    custom = load_sequence(tmp_path / "tiny.toml")
+    assert custom.table != TableModel()
+    with table_for(custom, None, True, None, math.inf):
+        (line,) = _emulator_command_lines()
+        config = Path(line[line.index("--rig-config") + 1])
+        assert TableModel.from_toml(config) == custom.table
+    (tmp_path / "plain.toml").write_text(TINY)
+    with table_for(load_sequence(tmp_path / "plain.toml"), None, True, None, math.inf):
+        (line,) = _emulator_command_lines()
+        assert "--rig-config" not in line

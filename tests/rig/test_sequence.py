@@ -1,0 +1,305 @@
+"""Sequence files: the examples load and pass the check before anything moves; every class of bad file is
+refused with the key and its line; plan order; JSON round trip."""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.body import TABLE_V
+from analysis.table.toml_lines import dotted_path, key_lines
+from rig.sequence import PlannedRun, Sequence, SequenceError, load_sequence
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+
+# A small valid sequence; the line numbers below are asserted in the error tests.
+BASE = """\
+name = "t"
+angles_deg = [0, 5]
+records = [
+    "fema-farfield:KOBE/NIS000",
+    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 5.5] },
+]
+
+[drive]
+corner_hz = 1.0
+
+[[bodies]]
+table5 = 4
+x = 0.0
+y = -0.15
+
+[[bodies]]
+name = "B"
+b = 0.049
+h = 0.2
+depth = 0.109
+mass = 0.56
+x = 0.0
+y = 0.15
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "seq.toml"
+    path.write_text(text)
+    return path
+
+
+def replace_line(line: int, new: str, text: str = BASE) -> str:
+    """``text`` with its 1-based ``line`` replaced by ``new`` (which may hold several lines, or none)."""
+    lines = text.splitlines()
+    lines[line - 1:line] = new.splitlines()
+    return "\n".join(lines) + "\n"
+
+
+def refused(tmp_path: Path, text: str, *, check: bool = False) -> SequenceError:
+    path = write(tmp_path, text)
+    with pytest.raises(SequenceError) as caught:
+        load_sequence(path).check() if check else load_sequence(path)
+    return caught.value
+
+
+# ----- the examples ----------------------------------------------------------------------------------------
+
+
+def test_quick_example_loads_checks_and_fits_the_demo() -> None:
+    seq = load_sequence(EXAMPLES / "quick.toml")
+    assert len(seq.bodies) == 2 and seq.angles_deg == (0.0, 4.0) and len(seq.records) == 3
+    assert [b.body_id for b in seq.bodies] == [1, 2]
+    assert all(math.radians(max(seq.angles_deg)) < b.body.alpha for b in seq.bodies)
+    assert all(entry.window is not None and entry.window[1] - entry.window[0] <= 10 for entry in seq.records)
+    started = time.perf_counter()
+    seq.check()
+    assert time.perf_counter() - started < 10
+    # 6 runs; the tilt ramps to 4° and back take 7.8 s of each tilted run
+    assert len(seq.plan()) == 6
+    assert seq.table_seconds() < 60.0
+    assert seq.operator.confirm_before_run is False and seq.operator.ask_detections is False
+
+
+def test_paper_campaign_loads_with_table_v_and_25_strongest_components() -> None:
+    seq = load_sequence(EXAMPLES / "paper-campaign.toml")
+    assert [b.body for b in seq.bodies] == list(TABLE_V)
+    assert seq.angles_deg == (0.0, 4.0, 4.5, 5.0, 5.5)
+    assert len(seq.records) == 25 and len({e.spec for e in seq.records}) == 25
+    assert all(e.spec.startswith(("fema-farfield:", "fema-nearfield:")) and e.scale is None for e in seq.records)
+    assert len(seq.plan()) == 125
+    # every Table V body stands at 5.5°: α = atan(b/h) ≥ 11.0°
+    assert min(math.degrees(b.body.alpha) for b in seq.bodies) > 11.0
+    seq.check(prepare_drives=False)
+
+
+def test_records_from_takes_the_largest_pga_first() -> None:
+    from rig.records import load_record, load_records
+
+    seq = load_sequence(EXAMPLES / "paper-campaign.toml")
+    pgas = [load_record(e.spec).pga for e in seq.records]
+    assert pgas == sorted(pgas, reverse=True)
+    weakest_taken = pgas[-1]
+    assert sum(m.pga > weakest_taken for m in load_records("fema")) <= 24
+    assert all(e.key == "records_from" and e.line == 14 for e in seq.records)
+
+
+def test_paper_campaign_every_drive_is_inside_the_table() -> None:
+    seq = load_sequence(EXAMPLES / "paper-campaign.toml")
+    seq.check()  # 125 drives, about 2-5 s
+
+
+# ----- refusals: key and line ------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("line", "new", "at", "message"), [
+    # missing key: reported at the [[bodies]] header of that body
+    (19, "", 16, "bodies[2].h: missing; expected a number > 0 m (or table5 = N)"),
+    # wrong types
+    (19, 'h = "0.2"', 19, "bodies[2].h: expected a finite number > 0 m, got '0.2'"),
+    (13, "x = true", 13, "bodies[1].x: expected a finite number in metres, got True"),
+    (2, 'angles_deg = "0, 5"', 2, "angles_deg: expected a non-empty list of plate angles in degrees"),
+    (1, 'name = "t"\nrepetitions = 1.5', 2, "repetitions: expected a whole number ≥ 1, got 1.5"),
+    # unknown keys (typos) are refused, with a suggestion
+    (20, "dpeth = 0.109", 20, "bodies[2].dpeth: unknown key (did you mean 'depth'?); expected one of"),
+    (2, "angels_deg = [0, 5]", 2, "angels_deg: unknown key (did you mean 'angles_deg'?)"),
+    (9, "corner = 1.0", 9, "drive.corner: unknown key (did you mean 'corner_hz'?)"),
+    # a top-level key written after a [section] belongs to that section: say so
+    (23, "y = 0.15\nrepetitions = 2", 24, "bodies[2].repetitions: unknown key (a top-level key: in TOML every key "
+                                          "after a [section] header belongs to that section"),
+    # zero and negative dimensions
+    (18, "b = 0", 18, "bodies[2].b: expected a finite number > 0 m, got 0"),
+    (21, "mass = -0.56", 21, "bodies[2].mass: expected a finite number > 0 kg, got -0.56"),
+    (12, "table5 = 8", 12, "bodies[1].table5: expected a whole number from 1 to 7, got 8"),
+    (12, "table5 = 4\nb = 0.04", 13, "bodies[1].b: give either table5 = N or the dimensions"),
+    # empty, duplicated and out-of-range angles
+    (2, "angles_deg = []", 2, "angles_deg: expected a non-empty list of plate angles in degrees"),
+    (2, "angles_deg = [0,\n  5,\n  5]", 4, "angles_deg[3]: 5° is already angles_deg[2]"),
+    (2, "angles_deg = [0, 12]", 2, "angles_deg[2]: expected an angle in degrees from 0 to the table's tilt limit 10°"),
+    (2, "angles_deg = [-1]", 2, "angles_deg[1]: expected an angle in degrees from 0"),
+    # overlapping bodies, a body off the plate
+    (23, "y = -0.1", 22, "bodies[2].x: body 2 (B) overlaps body 1 (T5-4) on the plate"),
+    (22, "x = 1.48", 22, "bodies[2].x: body 2 (B) does not fit on the plate: its base spans x = 1.456 … 1.504 m, "
+                         "expected within ±1.5 m"),
+    (17, 'name = "T5-4"', 17, "bodies[2].name: the name 'T5-4' is already body 1's"),
+    # record entries
+    (5, '    { record = "fema-nearfield:NORTHR/RRS_032", scale = 1.5 },', 5,
+     'records[2].scale: expected "table" or a fixed factor in (0, 1], got 1.5'),
+    (5, '    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [5, 1] },', 5,
+     "records[2].window_s: expected [t0, t1] in seconds of the record, 0 ≤ t0 < t1, got [5, 1]"),
+    (5, '    { scale = 0.5 },', 5, "records[2].record: missing; expected"),
+    (4, '    "fema-farfield:KOBE/NIS000",\n    "fema-farfield:KOBE/NIS000",', 5,
+     "records[2]: fema-farfield:KOBE/NIS000 is already records[1] with the same options"),
+    (6, ']\nrecords_from = { suite = "fema-far", strongest = 3 }', 7, "records_from.suite: unknown suite 'fema-far'"),
+    (6, ']\nrecords_from = { suite = "fema", strongest = 101 }', 7,
+     "records_from.strongest: strongest = 101 but suite 'fema' has 100 components"),
+    # the rest of the file
+    (1, 'name = "t"\ntable_url = "127.0.0.1:14600"', 2, "table_url: expected a table URL scheme://…"),
+    (9, 'corner_hz = 1.0\n[operator]\nplace_bodies = "at {angle}"', 11,
+     "operator.place_bodies: bad placeholder 'angle'"),
+    (9, "corner_hz = 1.0\n[rig]\nconfig = \"nowhere.toml\"", 11,
+     "rig.config: the rig configuration is refused:"),
+    (9, "corner_hz = 1.0\n[rig.limits.surge]\n\nvelocity_m_s = -0.5", 12,
+     "rig.limits.surge.velocity_m_s: must be a finite number > 0, got -0.5"),
+    (9, "corner_hz = 1.0\n[plate]\nsize_m = [3, 0]", 11, "plate.size_m[2]: expected [x, y] in metres, each > 0"),
+    # a missing top-level key is reported at line 1, where top-level keys belong
+    (2, "", 1, "angles_deg: missing; expected a list of plate angles in degrees"),
+    # TOML syntax
+    (13, "x = ", 13, "TOML syntax error: Invalid value (column 5)"),
+])
+def test_bad_files_are_refused_at_load_with_key_and_line(tmp_path: Path, line: int, new: str, at: int,
+                                                         message: str) -> None:
+    error = refused(tmp_path, replace_line(line, new))
+    assert str(error).startswith(f"{tmp_path}/seq.toml:{at}: {message}"), str(error)
+    assert error.line == at
+
+
+@pytest.mark.parametrize(("line", "new", "at", "message"), [
+    # unknown record (with the suite's suggestion)
+    (4, '    "fema-farfield:KOBE/NIS999",', 4,
+     "records[1]: fema-farfield:KOBE/NIS999: no record 'KOBE/NIS999' in suite 'fema-farfield'. Did you mean"),
+    (4, '    "nowhere/at/all.AT2",', 4, "records[1]: nowhere/at/all.AT2: "),
+    # a window past the record's end
+    (5, '    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 99] },', 5,
+     "records[2]: fema-nearfield:NORTHR/RRS_032 [0.5-99 s]: window_s = [0.5, 99] s ends after the record"),
+    # a fixed scale that drives the table outside Table IV: the record's line and the violation
+    (5, '    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 5.5], scale = 0.9 },', 5,
+     "records[2]: fema-nearfield:NORTHR/RRS_032 [0.5-5.5 s]: at β = 0° the fixed scale is refused: scale factor 0.9 "
+     "is outside (0, 0.6965]: surge velocity would reach 0.6461 against the limit 0.5"),
+])
+def test_bad_sequences_are_refused_by_the_check_with_key_and_line(tmp_path: Path, line: int, new: str, at: int,
+                                                                  message: str) -> None:
+    error = refused(tmp_path, replace_line(line, new), check=True)
+    assert str(error).startswith(f"{tmp_path}/seq.toml:{at}: {message}"), str(error)
+
+
+SLENDER = replace_line(19, "h = 0.5")  # body 2: α = atan(0.049 / 0.5) = 5.60°
+
+
+@pytest.mark.parametrize(("angles", "at", "key", "angle"), [
+    ("angles_deg = [0,\n    4,\n    9.5]", 4, "angles_deg[3]", "9.5"),
+    ("angles_deg = [5.6, 0]", 2, "angles_deg[1]", "5.6"),
+])
+def test_an_angle_a_body_cannot_stand_at_is_refused(tmp_path: Path, angles: str, at: int, key: str,
+                                                    angle: str) -> None:
+    error = refused(tmp_path, replace_line(2, angles, SLENDER), check=True)
+    assert str(error) == (f"{tmp_path}/seq.toml:{at}: {key}: body 2 (B, b = 0.049 m, h = 0.5 m) cannot stand at "
+                          f"β = {angle}°: its slenderness angle α = atan(b/h) = 5.60°, and a block tips over once "
+                          "β ≥ α (expected β < 5.60°)")
+
+
+def test_a_drive_outside_the_legs_stroke_is_refused_with_the_violation(tmp_path: Path) -> None:
+    # the default hexapod with a stroke that ends 7 mm above the home leg length (2.208 m)
+    hexapod = ("corner_hz = 1.0\n[rig.hexapod]\nbase_radius_m = 1.6\nplatform_radius_m = 1.1\n"
+               "base_half_angle_deg = 10\nplatform_half_angle_deg = 10\nplatform_joint_depth_m = 0.15\n"
+               "home_height_m = 2.1\nleg_min_m = 1.6\nleg_max_m = 2.215\nleg_speed_m_s = 0.9")
+    error = refused(tmp_path, replace_line(9, hexapod), check=True)
+    assert str(error).startswith(f"{tmp_path}/seq.toml:4: records[1]: fema-farfield:KOBE/NIS000: at β = 0° the drive "
+                                 "leaves the table: at t = "), str(error)
+    assert "exceeds the stroke limit 2.2150 m" in str(error)
+
+
+def test_prepare_refuses_a_run_whose_angle_a_body_cannot_stand_at(tmp_path: Path) -> None:
+    seq = load_sequence(write(tmp_path, replace_line(2, "angles_deg = [0, 5, 6]", SLENDER)))
+    runs = seq.plan()
+    drive = seq.prepare(runs[0])
+    assert drive.angle == 0.0 and drive.record == "KOBE/NIS000"
+    with pytest.raises(SequenceError, match=r"seq.toml:2: angles_deg\[3\]: body 2 \(B, .*cannot stand at β = 6°"):
+        seq.prepare(runs[-1])
+
+
+def test_windowed_record_is_cut_and_its_drive_starts_and_ends_at_rest(tmp_path: Path) -> None:
+    seq = load_sequence(write(tmp_path, BASE))
+    motion = seq.motion(1)
+    assert motion.name == "NORTHR/RRS_032 [0.5-5.5 s]"
+    assert motion.duration == pytest.approx(5.0, abs=motion.dt)
+    assert motion.provenance["window_s"] == [0.5, 5.5] and motion.provenance["sha256"] != \
+        motion.provenance["record_sha256"]
+    drive = seq.prepare(seq.plan()[3])  # RRS at 5°
+    assert drive.corner_frequency == 1.0 and drive.angle == pytest.approx(math.radians(5))
+    rest = [0, 0, 0, 0, math.radians(5), 0]  # the table is tilted once per angle: the drive starts and ends there
+    assert np.array_equal(drive.poses[0], rest) and np.array_equal(drive.poses[-1], rest)
+    assert abs(drive.velocities[[0, -1]]).max() < 1e-9
+
+
+def test_paths_are_read_from_the_sequence_folder_and_the_rig_config_applies(tmp_path: Path) -> None:
+    (tmp_path / "rig.toml").write_text("[limits.tilt]\nangle_deg = 6\n")
+    record = tmp_path / "rec.txt"
+    record.write_text("\n".join(f"{0.1 * math.sin(0.5 * k):.6f}" for k in range(800)) + "\n")
+    text = replace_line(4, '    { record = "rec.txt", dt_s = 0.01, units = "g" },')
+    text = replace_line(9, 'corner_hz = 1.0\n[rig]\nconfig = "rig.toml"', text)
+    seq = load_sequence(write(tmp_path, text))
+    assert seq.records[0].resolved == str(record)
+    assert seq.table.limits.tilt.angle == pytest.approx(math.radians(6))
+    seq.check()
+    error = refused(tmp_path, replace_line(2, "angles_deg = [0, 7]", text))
+    assert str(error).startswith(f"{tmp_path}/seq.toml:2: angles_deg[2]: expected an angle in degrees from 0 to the "
+                                 "table's tilt limit 6°")
+
+
+# ----- plan and JSON ---------------------------------------------------------------------------------------
+
+
+def test_plan_order_and_indices(tmp_path: Path) -> None:
+    seq = load_sequence(write(tmp_path, replace_line(1, 'name = "t"\nrepetitions = 2')))
+    plan = seq.plan()
+    assert [r.plan_index for r in plan] == list(range(8))
+    assert [(r.angle_deg, r.record_index, r.repetition) for r in plan] == [
+        (a, r, k) for a in (0.0, 5.0) for r in (0, 1) for k in (0, 1)]
+    assert plan[5] == PlannedRun(5, 1, 5.0, 0, seq.records[0], 1)
+    assert plan == seq.plan()  # stable
+    assert json.loads(json.dumps([run.to_dict() for run in plan]))[7] == {
+        "plan_index": 7, "angle_index": 1, "angle_deg": 5.0, "record_index": 1,
+        "record": "fema-nearfield:NORTHR/RRS_032", "scale": "table", "repetition": 1}
+
+
+@pytest.mark.parametrize("name", ["quick.toml", "paper-campaign.toml"])
+def test_to_dict_is_json_and_reads_back(name: str) -> None:
+    seq = load_sequence(EXAMPLES / name)
+    data = seq.to_dict()
+    text = json.dumps(data, allow_nan=False)
+    assert json.loads(text) == data
+    again = Sequence.from_dict(json.loads(text))
+    assert again.to_dict() == data
+    assert again.table == seq.table and again.bodies == seq.bodies and again.records[0].spec == seq.records[0].resolved
+    assert data["schema"] == "shaketable-rig/sequence/1"
+    assert data["bodies"][0]["body_id"] == 1
+
+
+def test_from_dict_errors_name_the_key_without_a_line() -> None:
+    data = load_sequence(EXAMPLES / "quick.toml").to_dict()
+    data["bodies"][1]["h"] = -1.0
+    with pytest.raises(SequenceError) as caught:
+        Sequence.from_dict(data, source="session.h5")
+    assert str(caught.value) == "session.h5: bodies[2].h: expected a finite number > 0 m, got -1.0"
+    assert caught.value.line is None and caught.value.key == "bodies[2].h"
+
+
+def test_key_lines_follow_arrays_of_tables_and_inline_values() -> None:
+    text = ('a = [1,\n  { k = "x # y" },\n]\n[[t]]\nv = 1\n[[t]]\n"q.k" = """\n]\n"""\nw = 2\n[t.sub]\nz = 3\n')
+    lines = key_lines(text)
+    assert lines[("a", 1, "k")] == 2 and lines[("t", 1)] == 6 and lines[("t", 1, "w")] == 10
+    assert lines[("t", 1, "sub", "z")] == 12 and lines[("t", 0, "v")] == 5 and lines[("t", 1, "q.k")] == 7
+    assert dotted_path(("t", 1, "sub")) == "t[2].sub"

@@ -1,0 +1,312 @@
+"""The MAVLink driver against the emulator: real UDP on 127.0.0.1, the emulator a separate process
+(``python -m sim_table``) on a free port, real pymavlink on both ends; hand-driven hosts (:class:`RawHost`) play
+the unsigned, forged and silent senders. Assertions are about what was delivered and how the table behaved,
+never about wall-clock times (those are in ``benchmarks/stream.py``)."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+import secrets
+import signal
+import subprocess
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import table_checks
+from stream_checks import drive_excerpt, stream_and_check, surge
+
+from drivers.controller import StreamAbortedError, TableError, TableStatus, open_table, register_scheme
+from drivers.mavlink import MavlinkTable
+from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks
+from protocols.mavlink.signing import signing_timestamp
+from rig.drive import prepare_drive
+from rig.emulator import EmulatorProcess
+from rig.records import load_record
+
+pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+D = dialect()
+LISTEN = "mavlink://127.0.0.1:0"
+
+
+# ----- the emulator process -----------------------------------------------------------------------------------
+
+
+def mavlink_address(emulator: EmulatorProcess) -> tuple[str, int]:
+    """(host, port) of a ``mavlink://HOST:PORT`` emulator."""
+    host, port = emulator.url.removeprefix("mavlink://").rsplit(":", 1)
+    return host, int(port)
+
+
+def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess:
+    return EmulatorProcess.start(LISTEN, *flags, key_file=key_file)
+
+
+@pytest.fixture(scope="module")
+def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("key") / "rig.key"
+    path.write_text(secrets.token_hex(32) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def plain(key_file: Path) -> Iterator[EmulatorProcess]:
+    """One emulator without bodies for the tests that leave it at rest."""
+    emulator = start_emulator(key_file=key_file)
+    yield emulator
+    emulator.stop()
+
+
+def at_rest(table: MavlinkTable) -> TableStatus:
+    """Wait until an earlier test's motion (a stop after its host left) is over."""
+    return table.wait_for_status(lambda s: s.state not in ("stopping", "homing", "tilting", "streaming"), 15)
+
+
+# ----- a hand-driven host -------------------------------------------------------------------------------------
+
+
+class RawHost(table_checks.Host):
+    """A host on its own socket with ids (system, 190): signs with ``key`` if given (starting at ``timestamp``),
+    sends heartbeats at ``heartbeat_rate`` [Hz] while ``beating``, collects statuses and COMMAND_ACKs."""
+
+    per_chunk = SETPOINTS_PER_CHUNK
+
+    def __init__(self, address: tuple[str, int], key: bytes | None = None, *, system: int = 250,
+                 timestamp: int | None = None, heartbeat_rate: float = 20.0) -> None:
+        self.heartbeat_period = 1.0 / heartbeat_rate
+        self.link = UdpLink.open(("127.0.0.1", 0), address, source_system=system, source_component=190)
+        if key is not None:
+            enable_signing(self.link.mav, key, link_id=0, timestamp=timestamp)
+        self.beating = True
+        self.statuses: list[Any] = []
+        self.acks: list[Any] = []
+        self.arrivals: list[Any] = []  # statuses and COMMAND_ACKs in the order they arrived
+        self._lock = threading.Lock()
+        self._running = True
+        self._threads = [threading.Thread(target=self._receive, daemon=True),
+                         threading.Thread(target=self._heartbeat, daemon=True)]
+        for thread in self._threads:
+            thread.start()
+
+    def send(self, msg: Any) -> None:
+        with self._lock:
+            self.link.send(msg)
+
+    def _receive(self) -> None:
+        while self._running:
+            for msg in self.link.receive(0.05):
+                if msg.get_type() == "SHAKETABLE_STATUS":
+                    self.statuses.append((time.monotonic_ns(), msg))
+                    self.arrivals.append(msg)
+                elif msg.get_type() == "COMMAND_ACK":
+                    self.acks.append(msg)
+                    self.arrivals.append(msg)
+
+    def _heartbeat(self) -> None:
+        while self._running:
+            if self.beating:
+                self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+            time.sleep(self.heartbeat_period)
+
+    def command(self, name: str, *params: float) -> str:
+        """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …)."""
+        command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
+        count = len(self.acks)
+        values = [*params] + [0.0] * (7 - len(params))
+        self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values))
+        deadline = time.monotonic() + 2.0
+        while time.monotonic() < deadline:
+            answers = [a for a in self.acks[count:] if a.command == command]
+            if answers:
+                return D.enums["MAV_RESULT"][answers[0].result].name.removeprefix("MAV_RESULT_").lower()
+            time.sleep(0.005)
+        raise AssertionError(f"no COMMAND_ACK for {command}")
+
+    def chunk(self, samples: np.ndarray, t_start_ns: int, seq: int) -> None:
+        (chunk,) = setpoint_chunks(samples, t_start_ns, 1_000_000, seq)
+        self.send(chunk)
+
+    def state(self, status: Any) -> str:
+        return D.enums["SHAKETABLE_STATE"][status.state].name.removeprefix("SHAKETABLE_STATE_").lower()
+
+    def fault(self, name: str) -> int:
+        return getattr(D, f"SHAKETABLE_FAULT_{name}")
+
+    def close(self) -> None:
+        self._running = False
+        for thread in self._threads:
+            thread.join()
+        self.link.close()
+
+
+# ----- trajectories -------------------------------------------------------------------------------------------
+
+
+# ----- streaming a prepared drive -------------------------------------------------------------------------------
+
+
+def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
+    """16.4 s of drive in virtual time (--speed max)."""
+    stream_and_check(drive_excerpt(), LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
+
+
+@pytest.mark.slow
+def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
+    """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
+    stream_and_check(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), LISTEN, key_file,
+                     SETPOINTS_PER_CHUNK, MavlinkTable, speed="1")
+
+
+# ----- signatures ---------------------------------------------------------------------------------------------
+
+
+def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorProcess, key_file: Path) -> None:
+    with open_table(plain.url, key_file=str(key_file)) as table:
+        before = at_rest(table)
+        unsigned = RawHost(mavlink_address(plain), system=255)
+        forged = RawHost(mavlink_address(plain), secrets.token_bytes(32), system=255,  # the driver's own ids and link,
+                         timestamp=signing_timestamp(time.time() + 3600))  # a timestamp an hour ahead
+        try:
+            assert unsigned.command("arm") == "denied"
+            assert forged.command("arm") == "denied"
+            assert unsigned.command("stop") == "accepted"
+            after = table.wait_for_status(lambda s: s.refused_commands >= before.refused_commands + 2, 2)
+            assert after.refused_commands == before.refused_commands + 2 and after.state == before.state
+            assert "UNSIGNED_COMMAND" in after.faults
+            # it arms: the forged timestamp did not lock the real host out
+            table_checks.motion_from_others_is_refused(table, (unsigned, forged), before.refused_commands + 2)
+        finally:
+            unsigned.close()
+            forged.close()
+
+
+def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
+    table_checks.wrong_key_is_refused(plain.url, tmp_path)
+
+
+# ----- watchdogs, stops, faults -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("silent", ["heartbeat", "stream"])
+def test_a_silent_host_gets_the_table_stopped_and_home(plain: EmulatorProcess, key_file: Path, silent: str) -> None:
+    host = RawHost(mavlink_address(plain), bytes.fromhex(key_file.read_text()))
+    table_checks.silent_host_gets_the_table_stopped(host, silent)
+
+
+def test_emergency_stop_mid_stream_stops_at_once_and_stays(key_file: Path) -> None:
+    table_checks.emergency_stop_mid_stream(LISTEN, key_file)
+
+
+def test_commands_survive_packet_loss_and_run_once(key_file: Path) -> None:
+    """20 % of the datagrams lost both ways: retries get every command through, de-duplication runs each once."""
+    table_checks.commands_survive_loss(LISTEN, key_file, MavlinkTable, 0.05, "packets")
+
+
+def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.MonkeyPatch, key_file: Path) -> None:
+    """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
+    controller's clock at twice real time."""
+    table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch)
+
+
+def test_a_motions_final_answer_comes_after_the_status_that_shows_it(key_file: Path) -> None:
+    """The final COMMAND_ACK of SET_TILT and HOME arrives after a status that shows the move over (armed, at its
+    target) and before one taken after it. (Sent as they were made, an ACK went before the statuses of its batch of
+    ticks, the status of the tick the move ended in among them; at twice real time a batch has four ticks.)"""
+    emulator = start_emulator("--speed", "2", key_file=key_file)
+    host = RawHost(mavlink_address(emulator), bytes.fromhex(key_file.read_text()), heartbeat_rate=50.0)
+    try:
+        assert host.command("arm") == "accepted"
+        for name, params, pitch in (("set_tilt", (math.radians(1),), math.radians(1)), ("home", (), 0.0)):
+            command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
+            start = len(host.arrivals)
+            assert host.command(name, *params) == "in_progress"
+            deadline = time.monotonic() + 10
+            final = None
+            while final is None and time.monotonic() < deadline:
+                time.sleep(0.01)
+                arrived = host.arrivals[start:]
+                final = next((k for k, m in enumerate(arrived)
+                              if m.get_type() == "COMMAND_ACK" and m.command == command and m.progress == 100), None)
+            assert final is not None, f"no final answer to {name}"
+            while len(host.arrivals) < start + final + 2:
+                time.sleep(0.01)
+            arrived = host.arrivals[start:]
+            before, after = arrived[final - 1], arrived[final + 1]
+            assert arrived[final].result == D.MAV_RESULT_ACCEPTED, (name, [
+                (host.state(m), m.faults, m.t_ns) for m in arrived if m.get_type() == "SHAKETABLE_STATUS"][-3:])
+            for status in (before, after):
+                assert status.get_type() == "SHAKETABLE_STATUS" and host.state(status) == "armed"
+                assert status.pose[4] == pytest.approx(pitch, abs=1e-4)
+            assert after.t_ns >= before.t_ns
+    finally:
+        host.close()
+        emulator.stop()
+
+
+def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+                                                              key_file=key_file), key_file)
+
+
+def test_stalled_stream_underruns_then_the_watchdog_stops_the_table(key_file: Path) -> None:
+    emulator = start_emulator("--stall-at", "0.5", "--speed", "2", key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
+            with pytest.raises(StreamAbortedError, match="STREAM_SILENT"):
+                table.stream(t, poses)
+            final = table.wait_for_state("faulted", 10)
+    finally:
+        counters = emulator.stop()
+    assert set(final.faults) == {"STREAM_SILENT", "UNDERRUN"} and final.underruns == 1
+    np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)
+    assert counters["link"]["chunks_stalled"] > 0 and counters["watchdog_stops"] == 1
+
+
+# ----- connection and registry --------------------------------------------------------------------------------
+
+
+def test_urls_pick_the_backend_and_options_reach_it(key_file: Path) -> None:
+    table = open_table("mavlink://127.0.0.1:14600", key_file=str(key_file), retries=7)
+    assert isinstance(table, MavlinkTable) and table.address == ("127.0.0.1", 14600) and table.retries == 7
+    register_scheme("loopback-test", lambda url, **options: MavlinkTable("mavlink://127.0.0.1:9", **options))
+    assert open_table("loopback-test://anything", command_timeout=0.3).command_timeout == 0.3
+    with pytest.raises(ValueError, match=r"unknown scheme 'can'; known: .*mavlink"):
+        open_table("can://vcan0")
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        open_table("mavlink://127.0.0.1")
+    with pytest.raises(TableError, match="no status received"):
+        table.status()
+
+
+def test_connect_without_a_controller_times_out(key_file: Path) -> None:
+    table_checks.connect_without_a_controller_times_out("mavlink://127.0.0.1:9", key_file)
+
+
+def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_file: Path) -> None:
+    """``rig emulate`` (registered on an app of its own here) becomes the emulator; SIGINT stops it cleanly."""
+    code = ("import typer\nfrom rig import cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
+            "@app.callback()\ndef main() -> None: pass\napp()")
+    counters = tmp_path / "counters.json"
+    proc = subprocess.Popen([sys.executable, "-c", code, "emulate", "--listen", "mavlink://127.0.0.1:0",
+                             "--key-file", str(key_file), "--counters", str(counters)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stderr is not None
+    url = re.search(r"mavlink://\S+", proc.stderr.readline())
+    assert url is not None
+    with open_table(url.group(0), key_file=str(key_file)) as table, table.statuses() as statuses:
+        assert next(iter(statuses)).state == "idle"
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=20) == 0
+    assert json.loads(counters.read_text())["state"] == "idle"
+    bad = subprocess.run([sys.executable, "-c", code, "emulate", "--speed", "2"], capture_output=True, text=True)
+    assert bad.returncode == 2 and "--listen" in bad.stderr

@@ -1,0 +1,404 @@
+"""The table link over zenoh: its payloads and signatures, then the driver against the emulator — real zenoh sessions
+on 127.0.0.1, the emulator a separate process (``python -m sim_table --listen zenoh://127.0.0.1:0/...``); a
+hand-driven host (:class:`RawHost`, its own zenoh session) plays the unsigned, forged, replaying and silent senders.
+Assertions are about what was delivered and how the table behaved, never about wall-clock times."""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import math
+import secrets
+import struct
+import threading
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+import table_checks
+import zenoh
+from stream_checks import drive_excerpt, stream_and_check
+
+from drivers.controller import TableError, TableTimeoutError, open_table
+from drivers.zenoh import ZenohTable
+from protocols.zenoh import Key, KeyExprError, parse_key, session_config, table_accel_selector, table_key
+from protocols.zenoh.auth import TRAILER_BYTES, Received, Signer, Verdict, Verifier
+from protocols.zenoh.payloads import PayloadError
+from protocols.zenoh.table import (
+    COMMANDS,
+    FAULTS,
+    RESULTS,
+    SETPOINTS_PER_CHUNK,
+    STATES,
+    AccelSamples,
+    Answer,
+    CommandRequest,
+    Overturn,
+    SetpointChunk,
+    StatusReport,
+    TableUrl,
+    decode_accel,
+    decode_answer,
+    decode_command,
+    decode_overturn,
+    decode_setpoints,
+    decode_status,
+    encode_accel,
+    encode_answer,
+    encode_command,
+    encode_heartbeat,
+    encode_overturn,
+    encode_setpoints,
+    encode_status,
+    fault_names,
+    parse_table_url,
+)
+from rig.drive import Drive, prepare_drive
+from rig.emulator import EmulatorProcess
+from rig.records import load_record
+from sim_table.controller import Command, Fault, Result, State
+
+pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+WAIT = 5.0
+"""Upper bound [s] on waiting for something that must happen (never reached when it works)."""
+
+
+# ----- wire format and signatures -----------------------------------------------------------------------------
+
+
+def test_the_wire_codes_are_the_controllers() -> None:
+    assert tuple(c.value for c in Command) == COMMANDS
+    assert tuple(r.value for r in Result) == RESULTS
+    assert tuple(s.value for s in State) == STATES
+    assert [1 << i for i in range(len(FAULTS))] == [int(Fault[name]) for name in FAULTS] == [int(f) for f in Fault]
+    assert fault_names(int(Fault.CHUNK_GAP | Fault.DRIVE)) == ("DRIVE", "CHUNK_GAP")
+
+
+def test_table_keys() -> None:
+    assert table_key("lab-a", "command") == "shaketable/lab-a/controller/command"
+    assert table_key("table", "accel", "1") == "shaketable/table/controller/accel/1"
+    assert parse_key(table_key("lab-a", "accel", "0")) == Key("lab-a", "controller", "accel", "0")
+    assert parse_key(table_key("lab-a", "host-heartbeat")) == Key("lab-a", "controller", "host-heartbeat")
+    assert zenoh.KeyExpr(table_accel_selector("lab-a")).includes(table_key("lab-a", "accel", "7"))
+    assert not zenoh.KeyExpr(table_accel_selector("lab-a")).intersects(table_key("lab-a", "status"))
+    with pytest.raises(KeyExprError, match="unknown table kind 'pose'"):
+        table_key("lab-a", "pose")
+    with pytest.raises(KeyExprError, match="table kind 'accel' needs a sensor name"):
+        table_key("lab-a", "accel")
+    with pytest.raises(KeyExprError, match="has 5 chunks; controller/status keys have 4"):
+        parse_key("shaketable/lab-a/controller/status/x")
+
+
+def test_table_urls() -> None:
+    assert parse_table_url("zenoh://127.0.0.1:7447/lab-a") == TableUrl("127.0.0.1", 7447, "lab-a")
+    assert parse_table_url("zenoh://127.0.0.1:7447").endpoint == "tcp/127.0.0.1:7447"
+    v6 = parse_table_url("zenoh://[::1]:0", any_port=True)
+    assert v6 == TableUrl("::1", 0, "table") and v6.url == "zenoh://[::1]:0/table"
+    for url, message in [("zenoh://127.0.0.1:0/t", "expected zenoh://HOST:PORT/TABLE"),
+                         ("zenoh://127.0.0.1/t", "expected zenoh://HOST:PORT/TABLE"),
+                         ("mavlink://127.0.0.1:7447", "expected zenoh://"),
+                         ("zenoh://localhost:7447/t", "loopback IP address"),
+                         ("zenoh://192.168.1.2:7447/t", "not on loopback"),
+                         ("zenoh://127.0.0.1:7447/Lab A", "table name 'Lab A' is not valid")]:
+        with pytest.raises(ValueError, match=message):
+            parse_table_url(url)
+
+
+def test_payloads_round_trip() -> None:
+    request = CommandRequest(2**64 - 1, "set_tilt", (0.0349, 1.0))
+    assert decode_command(encode_command(request)) == (request, Received(encode_command(request), b""))
+    answer = Answer(7, "in_progress", -5)
+    assert decode_answer(encode_answer(answer)) == answer
+    samples = np.random.default_rng(1).normal(size=(10, 6))
+    chunk, received = decode_setpoints(encode_setpoints(SetpointChunk(2**32 - 1, 10**15, 1_000_000, samples, True)))
+    assert (chunk.seq, chunk.t_start_ns, chunk.spacing_ns, chunk.end_of_stream) == (2**32 - 1, 10**15, 10**6, True)
+    np.testing.assert_array_equal(chunk.samples, samples)
+    assert received.trailer == b""
+    status = decode_status(encode_status(StatusReport(1, "emergency_stopped", 2, 3, 4, 0b10001000, 6, samples[0])))
+    assert status[:7] == (1, "emergency_stopped", 2, 3, 4, 0b10001000, 6)
+    np.testing.assert_array_equal(status.pose, samples[0])
+    batch = decode_accel(encode_accel(AccelSamples(3, 9, -1, 250_000, samples[:7, :3])))
+    assert batch[:4] == (3, 9, -1, 250_000)
+    np.testing.assert_array_equal(batch.samples, samples[:7, :3])
+    event = Overturn(2**40, 1, -1, -0.0349, 123)
+    assert decode_overturn(encode_overturn(event)) == event
+
+
+@pytest.mark.parametrize(("payload", "decode", "message"), [
+    (b"SHT", decode_answer, r"payload truncated: 3 bytes, the header alone has 8"),
+    (b"SHKT" + encode_answer(Answer(1, "accepted", 0))[4:], decode_answer, r"not a table link payload: magic b'SHKT'"),
+    (encode_answer(Answer(1, "accepted", 0))[:4] + b"\x02\x00" + encode_answer(Answer(1, "accepted", 0))[6:],
+     decode_answer, r"payload version 2 is not supported"),
+    (encode_heartbeat(5), decode_answer, r"expected a ANSWER payload, got HEARTBEAT"),
+    (encode_answer(Answer(1, "accepted", 0))[:6] + b"\x63\x00", decode_answer, r"got unknown kind 99"),
+    (encode_answer(Answer(1, "accepted", 0)) + b"\x00", decode_answer, r"ANSWER body has 18 bytes, expected 17"),
+    (encode_answer(Answer(1, "accepted", 0))[:16] + b"\x09" + bytes(8), decode_answer, r"unknown result code 9"),
+    (encode_command(CommandRequest(1, "arm", (0, 0))) + bytes(7), decode_command,
+     r"COMMAND payload has 40 bytes, expected 33 \(unsigned\) or 81 \(signed\)"),
+    (encode_command(CommandRequest(1, "arm", (0, 0)))[:16] + b"\x07" + bytes(16), decode_command,
+     r"unknown command code 7"),
+    (encode_setpoints(SetpointChunk(0, 0, 1, np.zeros((2, 6)), False))[:-8], decode_setpoints,
+     r"SETPOINTS payload has 119 bytes, expected 127 \(unsigned\)"),
+    (encode_setpoints(SetpointChunk(0, 0, 1, np.zeros((1, 6)), False))[:-8] + struct.pack("<d", math.nan),
+     decode_setpoints, r"SETPOINTS samples must be finite"),
+    (encode_accel(AccelSamples(0, 0, 0, 1, np.zeros((2, 3))))[:-1], decode_accel,
+     r"ACCEL body has 73 bytes, 2 samples need 74"),
+    (encode_overturn(Overturn(1, 0, 1, 0.0, 0))[:-17] + b"\x00" + bytes(16), decode_overturn,
+     r"direction must be \+1 or -1, got 0"),
+], ids=lambda v: v.__name__ if callable(v) else "")
+def test_payload_errors(payload: bytes, decode: Any, message: str) -> None:
+    with pytest.raises(PayloadError, match=message):
+        decode(payload)
+
+
+def sign_by_hand(key: bytes, key_expr: str, message: bytes, sender: int, stamp: int) -> bytes:
+    """The signature scheme as ``protocols.zenoh.auth`` documents it, written out independently."""
+    covered = message + struct.pack("<QQ", sender, stamp)
+    return covered + hmac.new(key, key_expr.encode() + b"\0" + covered, hashlib.sha256).digest()
+
+
+def test_signatures() -> None:
+    key, other = secrets.token_bytes(32), secrets.token_bytes(32)
+    where = table_key("lab-a", "command")
+    message = encode_command(CommandRequest(1, "arm", (0.0, 0.0)))
+    signer, verifier = Signer(key, 42), Verifier(key)
+
+    def verdict(payload: bytes, key_expr: str = where) -> Verdict:
+        return verifier.verify(key_expr, decode_command(payload)[1])
+
+    first = signer.sign(where, message)
+    assert len(first) == len(message) + TRAILER_BYTES
+    assert verdict(message) is Verdict.UNSIGNED
+    assert verdict(first, table_key("lab-b", "command")) is Verdict.BAD_SIGNATURE  # another table's key
+    assert verdict(first) is Verdict.SIGNED
+    assert verdict(first) is Verdict.STALE  # replayed
+    altered = bytearray(signer.sign(where, message))
+    altered[10] ^= 1
+    assert verdict(bytes(altered)) is Verdict.BAD_SIGNATURE
+    now_us = time.time_ns() // 1000
+    forged = sign_by_hand(other, where, message, 42, now_us + 3_600_000_000)  # the sender's id, an hour ahead
+    assert verdict(forged) is Verdict.BAD_SIGNATURE
+    assert verdict(signer.sign(where, message)) is Verdict.SIGNED  # the forgery did not move the stamp
+    assert verdict(sign_by_hand(key, where, message, 42, now_us + 10**9)) is Verdict.SIGNED  # by hand = documented
+    assert verdict(sign_by_hand(key, where, message, 7, now_us - 61_000_000)) is Verdict.STALE  # new sender, too old
+    assert verdict(sign_by_hand(key, where, message, 7, now_us - 59_000_000)) is Verdict.SIGNED
+
+
+# ----- the emulator process -----------------------------------------------------------------------------------
+
+
+LISTEN = "zenoh://127.0.0.1:0/table"
+
+
+def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess:
+    return EmulatorProcess.start(LISTEN, *flags, key_file=key_file)
+
+
+@pytest.fixture(scope="module")
+def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    path = tmp_path_factory.mktemp("key") / "rig.key"
+    path.write_text(secrets.token_hex(32) + "\n")
+    return path
+
+
+@pytest.fixture(scope="module")
+def plain(key_file: Path) -> Iterator[EmulatorProcess]:
+    """One emulator without bodies for the tests that leave it at rest."""
+    emulator = start_emulator(key_file=key_file)
+    yield emulator
+    emulator.stop()
+
+
+# ----- a hand-driven host -------------------------------------------------------------------------------------
+
+
+class RawHost(table_checks.Host):
+    """A host on its own zenoh session: signs with ``key`` if given (as sender ``sender``), publishes heartbeats at
+    20 Hz while ``beating``, collects statuses."""
+
+    per_chunk = SETPOINTS_PER_CHUNK
+
+    def __init__(self, url: str, key: bytes | None = None, *, sender: int = 1) -> None:
+        address = parse_table_url(url)
+        self.keys = {kind: table_key(address.table, kind) for kind in ("command", "setpoints", "host-heartbeat")}
+        self.signer = Signer(key, sender) if key is not None else None
+        self.session = zenoh.open(session_config(connect=[address.endpoint]))
+        self.statuses: list[tuple[int, StatusReport]] = []
+        self.session.declare_subscriber(table_key(address.table, "status"), lambda s: self.statuses.append(
+            (time.monotonic_ns(), decode_status(s.payload.to_bytes()))))
+        self.querier = self.session.declare_querier(self.keys["command"], timeout=1.0)
+        self.setpoints = self.session.declare_publisher(self.keys["setpoints"])
+        self.heartbeat = self.session.declare_publisher(self.keys["host-heartbeat"])
+        self.beating = True
+        self._running = True
+        self._thread = threading.Thread(target=self._beat, daemon=True)
+        self._thread.start()
+        self.wait(lambda s: True, WAIT)
+        deadline = time.monotonic() + WAIT
+        while not (self.querier.matching_status and self.setpoints.matching_status):
+            assert time.monotonic() < deadline, "no route to the controller"
+            time.sleep(0.01)
+
+    def _beat(self) -> None:
+        while self._running:
+            if self.beating:
+                self.heartbeat.put(encode_heartbeat(time.monotonic_ns()))
+            time.sleep(0.05)
+
+    def sign(self, kind: str, message: bytes) -> bytes:
+        return self.signer.sign(self.keys[kind], message) if self.signer is not None else message
+
+    def query(self, payload: bytes) -> str:
+        """Send a COMMAND payload until it is answered (a query right after connecting may find no route); the
+        result."""
+        for _ in range(20):
+            for reply in self.querier.get(payload=payload):
+                if reply.ok is not None:
+                    return decode_answer(reply.ok.payload.to_bytes()).result
+            time.sleep(0.05)
+        raise AssertionError("no answer")
+
+    def command(self, name: str, *params: float) -> str:
+        values = (*params, 0.0, 0.0)[:2]
+        return self.query(self.sign("command", encode_command(CommandRequest(secrets.randbits(64), name, values))))
+
+    def chunk(self, samples: np.ndarray, t_start_ns: int, seq: int) -> None:
+        self.setpoints.put(self.sign("setpoints", encode_setpoints(SetpointChunk(seq, t_start_ns, 1_000_000, samples,
+                                                                                 False))))
+
+    def fault(self, name: str) -> int:
+        return int(Fault[name])
+
+    def close(self) -> None:
+        self._running = False
+        self._thread.join()
+        self.session.close()
+
+
+# ----- trajectories -------------------------------------------------------------------------------------------
+
+
+# ----- streaming a prepared drive -------------------------------------------------------------------------------
+
+
+def check_stream(drive: Drive, key_file: Path, speed: str) -> None:
+    counters = stream_and_check(drive, "zenoh://127.0.0.1:0/lab-a", key_file, SETPOINTS_PER_CHUNK, ZenohTable,
+                                speed)
+    assert counters["refused_commands"] == 0 and counters["link"]["unsigned"] == 0
+
+
+def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
+    """16.4 s of drive in virtual time (--speed max)."""
+    check_stream(drive_excerpt(), key_file, "max")
+
+
+@pytest.mark.slow
+def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
+    """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
+    check_stream(prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5)), key_file, "1")
+
+
+# ----- signatures ---------------------------------------------------------------------------------------------
+
+
+def test_unsigned_forged_or_replayed_motion_is_refused_stopping_is_not(key_file: Path) -> None:
+    key = bytes.fromhex(key_file.read_text())
+    emulator = start_emulator(key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            assert isinstance(table, ZenohTable) and table._signer is not None
+            before = table.status()
+            driver = table._signer.sender
+            unsigned = RawHost(emulator.url)
+            forged = RawHost(emulator.url, secrets.token_bytes(32), sender=driver)  # the driver's sender id
+            honest = RawHost(emulator.url, key, sender=7)
+            try:
+                assert unsigned.command("arm") == "denied"
+                future = time.time_ns() // 1000 + 3_600_000_000  # an hour ahead: it would lock the driver out
+                arm = encode_command(CommandRequest(99, "arm", (0.0, 0.0)))
+                assert forged.query(sign_by_hand(secrets.token_bytes(32), table_key("table", "command"), arm, driver,
+                                                 future)) == "denied"
+                assert forged.command("home") == "denied"
+                assert unsigned.command("stop") == "accepted"
+                after = table.wait_for_status(lambda s: s.refused_commands >= before.refused_commands + 3, 2)
+                assert after.refused_commands == before.refused_commands + 3 and after.state == before.state == "idle"
+                assert "UNSIGNED_COMMAND" in after.faults
+
+                recorded = honest.sign("command", arm)
+                assert honest.query(recorded) == "accepted"
+                assert honest.query(recorded) == "denied"  # the same signed bytes again: a replay
+                # it arms: the forged future stamp did not lock the driver out
+                report = table_checks.motion_from_others_is_refused(table, (unsigned, forged),
+                                                                    before.refused_commands + 4)
+            finally:
+                for host in (unsigned, forged, honest):
+                    host.close()
+    finally:
+        counters = emulator.stop()
+    assert report.final.refused_commands == counters["refused_commands"]
+    link = counters["link"]  # why: the unsigned ARM, STOP and 10 chunks; the forged ARM, HOME, 10 chunks; the replay
+    assert (link["unsigned"], link["bad_signatures"], link["stale_signatures"]) == (12, 12, 1)
+
+
+# ----- watchdogs, stops, faults -------------------------------------------------------------------------------
+
+
+def test_emergency_stop_mid_stream_stops_at_once_and_stays(key_file: Path) -> None:
+    table_checks.emergency_stop_mid_stream(LISTEN, key_file)
+
+
+def test_commands_survive_message_loss_and_run_once(key_file: Path) -> None:
+    """20 % of the messages lost both ways: retries get every command through, de-duplication runs each once."""
+    table_checks.commands_survive_loss(LISTEN, key_file, ZenohTable, 0.1, "messages", counts_unanswered=True)
+
+
+def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.MonkeyPatch, key_file: Path) -> None:
+    """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
+    controller's clock at twice real time."""
+    table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch, ZenohTable)
+
+
+# ----- connection and registry --------------------------------------------------------------------------------
+
+
+def test_urls_pick_the_backend_and_options_reach_it(key_file: Path) -> None:
+    table = open_table("zenoh://127.0.0.1:7447/lab-a", key_file=str(key_file), retries=7)
+    assert isinstance(table, ZenohTable) and table.address == TableUrl("127.0.0.1", 7447, "lab-a")
+    assert table.retries == 7
+    with pytest.raises(ValueError, match="HOST:PORT"):
+        open_table("zenoh://127.0.0.1/lab-a")
+    with pytest.raises(TableError, match="no status received"):
+        table.status()
+
+
+def test_connect_without_a_controller_times_out(key_file: Path) -> None:
+    table_checks.connect_without_a_controller_times_out("zenoh://127.0.0.1:9/table", key_file)
+
+
+# ----- one emulator for the tests that leave it at rest (started last: it runs beside the others) -------------
+
+
+def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
+    table_checks.wrong_key_is_refused(plain.url, tmp_path)
+
+
+@pytest.mark.parametrize("silent", ["heartbeat", "stream"])
+def test_a_silent_host_gets_the_table_stopped_and_home(plain: EmulatorProcess, key_file: Path, silent: str) -> None:
+    host = RawHost(plain.url, bytes.fromhex(key_file.read_text()))
+    table_checks.silent_host_gets_the_table_stopped(host, silent)
+
+
+def test_another_table_name_at_the_same_address_hears_nothing(key_file: Path, plain: EmulatorProcess) -> None:
+    """The table name is part of every key: a host for table ``other`` at the same address hears nothing."""
+    wrong = plain.url.rsplit("/", 1)[0] + "/other"
+    with pytest.raises(TableTimeoutError):
+        open_table(wrong, key_file=str(key_file), connect_timeout=0.5).connect()
+
+
+def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+                                                              key_file=key_file), key_file)
