@@ -27,9 +27,21 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter
+from numba import njit
 
 from analysis.table.model import TableModel
+
+
+@njit(cache=True)
+def _first_order_lag(commanded: np.ndarray, start: np.ndarray, decay: float) -> np.ndarray:
+    """``y[i] = c[i] + (y[i−1] − c[i])·decay`` over the rows of ``commanded`` (k, m), from ``y[−1] = start`` (m,)."""
+    out = np.empty_like(commanded)
+    y = start.copy()
+    for i in range(commanded.shape[0]):
+        for j in range(commanded.shape[1]):
+            y[j] = commanded[i, j] + (y[j] - commanded[i, j]) * decay
+            out[i, j] = y[j]
+    return out
 
 
 @dataclass(frozen=True)
@@ -83,6 +95,7 @@ class Actuators:
         self.stalled = np.zeros(6, dtype=bool)
         """Legs whose actuator seized (set by the owner: injected fault): they brake to rest and stop following
         their command."""
+        self._filter(np.zeros((0, 6)), self.lengths)  # compile (or load) the numba loop now, not mid-stream
 
     def step(self, reference: np.ndarray, braked: np.ndarray) -> ActuatorStep:
         """Run k ticks: ``reference`` (k, 6) poses, ``braked`` (k,) whether the drives are braked at each."""
@@ -107,8 +120,8 @@ class Actuators:
 
     def _filter(self, commanded: np.ndarray, start: np.ndarray) -> np.ndarray:
         """The lag ``y ← c + (y − c)·e^(−dt/τ)`` run over k commands (k, 6) from ``start`` (6,), as one filter."""
-        a = self._decay
-        return lfilter([1.0 - a], [1.0, -a], commanded, axis=0, zi=(a * start)[None, :])[0]
+        return _first_order_lag(np.require(commanded, np.float64, ("C", "W")), np.array(start, dtype=np.float64),
+                                self._decay)
 
     def _lag(self, commanded: np.ndarray) -> np.ndarray | None:
         """The legs over k driven ticks; None if a leg would pass its speed limit."""

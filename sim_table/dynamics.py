@@ -31,15 +31,18 @@ is clipped to the per-axis envelope and the legs' commands to their stroke; brak
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numba import njit
-from scipy.signal import TransferFunction, cont2discrete, dlti
 
 from analysis.table.dynamics import TableDynamics
 from analysis.table.model import TableModel
 from sim_table.actuators import Actuators, ActuatorSettings, ActuatorStep
 from sim_table.options import DYNAMICS
+
+if TYPE_CHECKING:  # scipy.signal takes 0.6 s to import: only the servo model needs it, when built
+    from scipy.signal import TransferFunction, dlti
 
 
 @njit(cache=True)
@@ -128,12 +131,16 @@ class ServoActuators:
         return a, b
 
     def _plant(self) -> tuple[np.ndarray, np.ndarray]:
+        from scipy.signal import cont2discrete
+
         a, b = self._continuous()
         ad, bd, *_ = cont2discrete((a, b[:, None], np.eye(4), np.zeros((4, 1))), self.dt, method="zoh")
         return np.ascontiguousarray(ad), np.ascontiguousarray(bd[:, 0])
 
     def closed_loop(self) -> TransferFunction:
         """The continuous closed loop H(s) = L/r (module docstring) as a ``scipy.signal.TransferFunction``."""
+        from scipy.signal import TransferFunction
+
         d = self.dynamics
         wv, wh, zeta = 2.0 * math.pi * d.valve_bandwidth, self.omega_h, d.damping_ratio
         g_num = np.array([wv * wh * wh])
@@ -144,6 +151,8 @@ class ServoActuators:
 
     def discrete_closed_loop(self) -> dlti:
         """The sampled loop the legs run (no saturation), input r_k, output L at the tick's end, as a ``dlti``."""
+        from scipy.signal import dlti
+
         d, ad, bd = self.dynamics, self._ad, self._bd
         c = np.array([0.0, 0.0, 1.0, 0.0])
         kv, f = d.loop_gain, d.velocity_feedforward / self.dt
