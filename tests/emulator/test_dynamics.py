@@ -10,7 +10,7 @@ import pytest
 
 from analysis.table.dynamics import TableDynamics
 from analysis.table.model import TableModel, TableModelError
-from sim_table.actuators import ActuatorSettings
+from sim_table.actuators import ActuatorSettings, _first_order_lag
 from sim_table.dynamics import ServoActuators, _run, make_actuators
 
 DT = 1e-3
@@ -165,3 +165,20 @@ def test_the_emulator_chooses_its_legs_by_name():
         assert isinstance(emulator.actuators, Actuators)
     finally:
         emulator.close()
+
+
+def test_the_lag_legs_filter_is_scipy_s_first_order_filter() -> None:
+    """The "lag" legs' batch filter against scipy.signal.lfilter of y = (1 − a)·c + a·y[−1] with its initial state,
+    on random commands, a non-contiguous start and a read-only command array."""
+    from scipy.signal import lfilter
+
+    rng = np.random.default_rng(7)
+    a = math.exp(-0.001 / 0.005)
+    commanded = rng.normal(size=(41, 6))
+    start = rng.normal(size=(6, 2))[:, 0]
+    expected = lfilter([1.0 - a], [1.0, -a], commanded, axis=0, zi=(a * start)[None, :])[0]
+    commanded.flags.writeable = False
+    actuators = make_actuators("lag", TABLE, 0.001, ActuatorSettings())
+    got = actuators._filter(commanded, start)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-14)
+    assert _first_order_lag(np.zeros((0, 6)), np.zeros(6), a).shape == (0, 6)
