@@ -32,7 +32,7 @@ RIG_LAYERS = {
     "sequence": 1, "analyze": 1, "study_file": 1, "study_summary": 1,
     "session": 0, "records": 0, "drive": 0, "json_numpy": 0,
 }
-"""Inside ``rig``: a unit (subpackage or top-level module; ``cli_*.py`` and a ``cli/`` package are ``cli``) may
+"""Inside ``rig``: a unit (a subpackage such as ``cli``, or a top-level module) may
 import units of its own layer or below (docs/architecture.md, Inside rig). ``rig`` itself holds only
 ``__version__``."""
 
@@ -78,7 +78,7 @@ def _graph() -> dict[str, set[str]]:
 
 def _rig_unit(module: str) -> str:
     part = module.split(".")[1] if "." in module else ""
-    return "cli" if part == "cli" or part.startswith("cli_") else part
+    return part
 
 
 def _breaches(package: str) -> list[str]:

@@ -28,7 +28,7 @@ from analysis.design import (
     table3_estimators,
 )
 from analysis.errors import AnalysisInputError
-from rig.cli_design import register
+from rig.cli.design import register
 
 # --------------------------------------------------------------------------------------------------
 # Table II

@@ -379,7 +379,7 @@ def test_the_emulator_asks_for_a_signing_key_only_on_transports_that_sign(tmp_pa
     """``rig emulate`` (registered on an app of its own here: it becomes ``python -m sim_table``) with no key in the
     environment: canopen:// listens (CAN has no authentication); mavlink:// and zenoh:// are refused, naming the key
     option and variable."""
-    code = ("import typer\nfrom rig import cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
+    code = ("import typer\nfrom rig.cli import emulate as cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
             "@app.callback()\ndef main() -> None: pass\napp()")
     env = {name: value for name, value in os.environ.items() if name != KEY_ENV}
     counters = tmp_path / "counters.json"

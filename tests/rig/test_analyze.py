@@ -21,12 +21,10 @@ import h5py
 import numpy as np
 import pytest
 import typer
-from rich.console import Console
 from typer.testing import CliRunner
 
 from analysis import TABLE_I, TABLE_V, Body, simulate
 from analysis.body import G
-from rig import cli_analyze
 from rig.analyze import (
     Case,
     SessionBusyError,
@@ -36,6 +34,7 @@ from rig.analyze import (
     measured_inputs,
     plate_to_model,
 )
+from rig.cli import analyze as cli_analyze
 from rig.drive import prepare_drive
 from rig.records import load_record
 from rig.session import SessionLog, read_session
@@ -317,11 +316,7 @@ def analyze_app() -> typer.Typer:
     def main() -> None:
         """Test root."""
 
-    def fail(message: str) -> None:
-        print(f"error: {message}", file=sys.stderr)
-        raise typer.Exit(code=2)
-
-    cli_analyze.register(app, fail, Console(width=160))
+    cli_analyze.register(app)
     return app
 
 

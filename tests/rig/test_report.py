@@ -38,7 +38,7 @@ from analysis.spectrum import (
     uniform,
 )
 from analysis.study import study
-from rig import cli_report
+from rig.cli import report as cli_report
 from rig.records import load_records
 from rig.report import ReportError, file_kind, write_report
 from rig.sequence import load_sequence
@@ -326,11 +326,7 @@ def test_cli_report_json(files: dict[str, Path], tmp_path: Path) -> None:
     def main() -> None:
         """Test root."""
 
-    def fail(message: str) -> None:
-        typer.echo(f"error: {message}", err=True)
-        raise typer.Exit(code=2)
-
-    cli_report.register(app, fail, console=None)
+    cli_report.register(app)
     out = tmp_path / "s.html"
     result = CliRunner().invoke(app, ["report", str(files["study"]), "-o", str(out), "--json"])
     assert result.exit_code == 0, result.output

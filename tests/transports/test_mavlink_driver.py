@@ -294,7 +294,7 @@ def test_connect_without_a_controller_times_out(key_file: Path) -> None:
 
 def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_file: Path) -> None:
     """``rig emulate`` (registered on an app of its own here) becomes the emulator; SIGINT stops it cleanly."""
-    code = ("import typer\nfrom rig import cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
+    code = ("import typer\nfrom rig.cli import emulate as cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
             "@app.callback()\ndef main() -> None: pass\napp()")
     counters = tmp_path / "counters.json"
     proc = subprocess.Popen([sys.executable, "-c", code, "emulate", "--listen", "mavlink://127.0.0.1:0",

@@ -12,7 +12,7 @@ code 2; ``--library DIR`` overrides the library directory, see `rig.records.libr
 
 ``--accept-vertical``: a file that holds only a vertical component may drive surge alone (refused otherwise).
 
-The lead's ``rig/cli.py`` calls `register` to mount the group on the main application.
+``rig.cli`` calls `register` to mount the group on the main application.
 """
 
 from __future__ import annotations
@@ -23,15 +23,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
-from rich.console import Console
 from rich.table import Table
 from rich.text import Text
 
+from rig.cli._common import console, emit_json, fail
+
 if TYPE_CHECKING:
     from rig.records import GroundMotion, Imported
-
-#: Exit code for a record that cannot be found or read (same as a usage error).
-EXIT_RECORD_ERROR = 2
 
 records_app = typer.Typer(
     name="records",
@@ -63,24 +61,6 @@ UnitsOption = Annotated[
 def register(app: typer.Typer) -> None:
     """Add the ``records`` command group (``list``, ``show``, ``import``) to ``app``."""
     app.add_typer(records_app, name="records")
-
-
-def _fail(exc: Exception) -> typer.Exit:
-    """Print ``error: …`` on stderr (plain text, no traceback) and return the exit to raise."""
-    typer.echo(f"error: {exc}", err=True)
-    return typer.Exit(code=EXIT_RECORD_ERROR)
-
-
-def _emit_json(obj: dict[str, Any]) -> None:
-    """Print one JSON object on stdout (numpy scalars converted, NaN refused)."""
-    typer.echo(json.dumps(obj, default=_json_default, allow_nan=False))
-
-
-def _json_default(value: Any) -> Any:
-    """JSON fallback for numpy scalars and other simple values."""
-    if hasattr(value, "item"):
-        return value.item()
-    return str(value)
 
 
 def _summary(motion: GroundMotion) -> dict[str, Any]:
@@ -131,7 +111,6 @@ def _print_overview(data: dict[str, Any]) -> None:
     for row in data["suites"]:
         table.add_row(Text(row["name"]), str(row["components"]))
     table.add_row(Text("total", style="bold"), str(data["total_components"]))
-    console = Console()
     console.print(table)
     for alias, members in data["aliases"].items():
         console.print(Text(f"alias: {alias} = {' + '.join(members)}"))
@@ -160,7 +139,7 @@ def _print_listing(data: dict[str, Any]) -> None:
         cells = (f"{c['dt']:g}", str(c["npts"]), f"{c['duration']:.2f}")
         pgas = ("" if c[key] is None else peak(c[key]) for key, _ in pga_columns)
         table.add_row(Text(c["name"]), *cells, *pgas)
-    Console().print(table)
+    console.print(table)
 
 
 def _print_record(data: dict[str, Any]) -> None:
@@ -180,7 +159,7 @@ def _print_record(data: dict[str, Any]) -> None:
     rows += [(key, _fmt(value)) for key, value in data["provenance"].items()]
     for key, value in rows:
         table.add_row(Text(key), Text(value))
-    Console().print(table)
+    console.print(table)
 
 
 def peak(value: float) -> str:
@@ -211,7 +190,7 @@ def _print_imported(data: dict[str, Any]) -> None:
         name = r["name"] + (" (replaced)" if r["replaced"] else "")
         table.add_row(Text(name), Text(Path(r["path"]).name), str(r["npts"]), f"{r['dt']:g}", peak(r["pga"]),
                       Text(r["source"]))
-    Console().print(table)
+    console.print(table)
 
 
 @records_app.command("list")
@@ -231,9 +210,9 @@ def list_command(
     try:
         data = _suites_overview(library) if suite is None else _suite_listing(suite, library)
     except RecordError as exc:
-        raise _fail(exc) from None
+        fail(str(exc))
     if as_json:
-        _emit_json(data)
+        emit_json(data, allow_nan=False)
     elif suite is None:
         _print_overview(data)
     else:
@@ -261,10 +240,10 @@ def show_command(
     try:
         motion = load_record(spec, dt=dt, units=units, library=library, accept_vertical=accept_vertical)
     except RecordError as exc:
-        raise _fail(exc) from None
+        fail(str(exc))
     data = {**_summary(motion), "provenance": motion.provenance}
     if as_json:
-        _emit_json(data)
+        emit_json(data, allow_nan=False)
     else:
         _print_record(data)
 
@@ -295,13 +274,13 @@ def import_command(
         entries = import_records(sources, name=name, dt=dt, units=units, directory=library, replace=replace,
                                  accept_vertical=accept_vertical)
     except RecordError as exc:
-        raise _fail(exc) from None
+        fail(str(exc))
     data = {
         "library": str(library_dir(library)),
         "count": len(entries),
         "imported": [_imported(entry, source) for entry, source in zip(entries, sources, strict=True)],
     }
     if as_json:
-        _emit_json(data)
+        emit_json(data, allow_nan=False)
     else:
         _print_imported(data)

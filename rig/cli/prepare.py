@@ -7,28 +7,20 @@ and names the first violation — with ``--json`` also as ``{"refused": {...}}``
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
-from rich.console import Console
 from rich.table import Table
 
-from rig.cli_errors import print_error, stderr_console
+from rig.cli._common import EXIT_REFUSED, EXIT_USAGE, console, emit_json, err_console, print_error
 
 if TYPE_CHECKING:
     from analysis.table.model import TableModel
     from rig.drive import Drive
 
-EXIT_BAD_INPUT = 2
-EXIT_REFUSED = 3
-
-_console = Console(width=None if sys.stdout.isatty() else 160)
-_err = stderr_console()
 
 
 def register(app: typer.Typer) -> None:
@@ -68,25 +60,22 @@ def prepare_cmd(
         drive = prepare_drive(motion, angle=math.radians(angle), table=table, scale=scale, corner=corner, rate=rate)
     except DriveRefusedError as exc:
         if as_json:
-            _emit({"refused": {"record": record, **vars(exc.violation), "message": exc.violation.message()}})
-        print_error(_err, "refused", str(exc))
+            emit_json({"refused": {"record": record, **vars(exc.violation), "message": exc.violation.message()}},
+                      allow_nan=False)
+        print_error(err_console, "refused", str(exc))
         raise typer.Exit(EXIT_REFUSED) from None
     except (RecordError, DriveError, TableModelError) as exc:
-        print_error(_err, "error", str(exc))
-        raise typer.Exit(EXIT_BAD_INPUT) from None
+        print_error(err_console, "error", str(exc))
+        raise typer.Exit(EXIT_USAGE) from None
     out = drive.to_json()
     if plot is not None:
         from rig.drive.plot import plot_drive  # matplotlib only when a figure is asked for
 
         out["plot"] = str(plot_drive(motion, drive, plot))
     if as_json:
-        _emit(out)
+        emit_json(out, allow_nan=False)
         return
     _print_drive(drive, out)
-
-
-def _emit(obj: dict[str, Any]) -> None:
-    sys.stdout.write(json.dumps(obj, allow_nan=False) + "\n")
 
 
 def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
@@ -112,9 +101,9 @@ def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
             mark = "[bold]" if (axis, quantity) == (gov["axis"], gov["quantity"]) else ""
             cells.append(f"{mark}{value:.3f} / {limit:.3g} ({100 * value / limit:.0f} %)")
         table.add_row(axis, *cells)
-    _console.print(table)
+    console.print(table)
     binding = "governs" if gov["binding"] else "is the closest limit (scale 1 fits)"
-    _console.print(
+    console.print(
         f"{gov['axis']} {gov['quantity']} {binding}; high-pass corner {drive.corner_frequency:.3g} Hz "
         f"(peak acceleration kept by the filter: "
         + ", ".join(f"{a} {100 * r:.1f} %" for a, r in drive.highpass_pga_ratio.items())

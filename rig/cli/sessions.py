@@ -3,14 +3,14 @@ written), and recovery of a session whose writer was killed (`rig.session.recove
 
 from __future__ import annotations
 
-import json
 import math
 import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
+
+from rig.cli._common import console, emit_json, fail
 
 #: What ``rig sessions list`` shows in its "writer" column for each `rig.session.writer_state`.
 _STATE_SHOWN = {"writing": "writing", "crashed": "CRASHED: rig sessions recover", "closed": ""}
@@ -71,7 +71,7 @@ def print_session(path: Path, console: Any) -> None:
     console.print(table)
 
 
-def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+def register(app: typer.Typer) -> None:
     """Add ``rig sessions list|show|recover``."""
     sessions = typer.Typer(help="Session files: list a directory's, show one's runs, recover a crashed one.",
                            no_args_is_help=True)
@@ -124,7 +124,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         except (SessionError, OSError) as exc:
             fail(str(exc))
         if as_json:
-            sys.stdout.write(json.dumps(done.as_dict()) + "\n")
+            emit_json(done.as_dict())
             return
         if not done.changed:
             console.print(f"{path}: nothing to recover (no writer flags set, no run left running)", highlight=False)

@@ -10,7 +10,6 @@ or ``$SHAKETABLE_MAVLINK_KEY``) unless ``--no-auth``; pause, abort and emergency
 
 from __future__ import annotations
 
-import json
 import signal
 import sys
 import threading
@@ -22,6 +21,8 @@ import typer
 from rich.live import Live
 from rich.prompt import Confirm
 from rich.text import Text
+
+from rig.cli._common import console, emit_json, fail
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
     from rig.service import ServiceClient, TelemetryFeed
@@ -281,7 +282,7 @@ def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool,
     say("stopped")
 
 
-def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+def register(app: typer.Typer) -> None:
     """Add ``rig serve`` and the ``rig service`` commands to the ``rig`` application."""
 
     @app.command("serve")
@@ -326,7 +327,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             except ServiceError as exc:
                 fail(str(exc))
             if as_json:
-                sys.stdout.write(json.dumps(reply) + "\n")
+                emit_json(reply)
             elif name == "state":
                 console.print(status_line(reply))
                 console.print(f"session: {reply['session'] or '-'}", highlight=False)
@@ -350,21 +351,3 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         except SigningKeyError as exc:
             fail(str(exc))
     app.add_typer(service_app, name="service")
-
-
-def main() -> None:  # pragma: no cover - ``python -m rig.cli_serve`` until ``rig.cli`` registers these commands
-    from rich.console import Console
-
-    app = typer.Typer(no_args_is_help=True, add_completion=False)
-    err = Console(stderr=True)
-
-    def fail(message: str) -> None:
-        err.print(f"[bold red]error:[/] {message}", highlight=False)
-        raise typer.Exit(code=2)
-
-    register(app, fail, Console())
-    app()
-
-
-if __name__ == "__main__":  # pragma: no cover
-    main()

@@ -5,16 +5,15 @@ file's ``analysis`` groups (raw data untouched; re-running replaces them) unless
 
 from __future__ import annotations
 
-import json
 import math
-import sys
-from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
 from rich.table import Table
+
+from rig.cli._common import console, emit_json, fail
 
 if TYPE_CHECKING:
     from rig.analyze import SessionAnalysis
@@ -110,7 +109,7 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
             f"{a.overturned_experiment_only}, neither {a.overturned_neither}", highlight=False)
 
 
-def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+def register(app: typer.Typer) -> None:
     """Add ``rig analyze``."""
 
     @app.command("analyze")
@@ -144,6 +143,6 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         except (SessionError, AnalysisInputError, OSError) as exc:
             fail(str(exc))
         if as_json:
-            sys.stdout.write(json.dumps(result.to_json()) + "\n")
+            emit_json(result.to_json())
             return
         print_analysis(result, console)

@@ -32,7 +32,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
     """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``
     (module docstring); the exit code of ``rig run --service`` (0 all runs done, 1 stopped early, 2 refused)."""
     from protocols.mavlink import KEY_ENV
-    from rig.cli_serve import drive_service
+    from rig.cli.serve import drive_service
     from rig.console.server import ConsoleError, ConsoleProcess
     from rig.console.token import token_from_key_file
     from rig.service import OrchestratorService, ServiceError

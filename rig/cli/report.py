@@ -4,16 +4,16 @@ with exit 2."""
 
 from __future__ import annotations
 
-import json
 import sys
-from collections.abc import Callable
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated
 
 import typer
 
+from rig.cli._common import console, emit_json, fail
 
-def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+
+def register(app: typer.Typer) -> None:
     """Add ``rig report``."""
 
     @app.command("report")
@@ -26,7 +26,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         """An HTML report (figures embedded, A4 width) of a session (rig, sequence, runs, spectra, detections,
         Fig. 13) or of a study (COR curves, fitted equations, Tables II–III, Fig. 2)."""
         target = output if output is not None else path.with_suffix(".html")
-        from rig.cli_sessions import crashed_warning
+        from rig.cli.sessions import crashed_warning
         from rig.report import ReportError, write_report
         from rig.session import SessionError
 
@@ -45,7 +45,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         except (ReportError, SessionError, OSError) as exc:
             fail(str(exc))
         if as_json:
-            sys.stdout.write(json.dumps(result.as_dict()) + "\n")
+            emit_json(result.as_dict())
             return
         console.print(f"{result.kind} report written to [bold]{result.output}[/] ({result.bytes / 1e6:.1f} MB, "
                       f"{result.figures} figures, {result.seconds:.1f} s)", highlight=False)

@@ -15,16 +15,15 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, cast
 
 import typer
-from rich.console import Console
 from rich.table import Table
 
 from analysis.body import Body
 from analysis.errors import AnalysisInputError
+from rig.cli._common import console, emit_json, fail
 
 if TYPE_CHECKING:
     from analysis.design import Equation
 
-EXIT_USAGE = 2
 
 
 class EquationName(StrEnum):
@@ -92,7 +91,7 @@ def _print_table(body: Body, result: dict[str, object]) -> None:
     table.add_row("inclination", f"{result['angle_deg']:.3f}° ({result['angle_rad']:.5f} rad)")
     table.add_row("c1, c2", f"{result['c1']:.5f} rad, {result['c2']:g}")
     table.add_row("COR limit (0.5 + c2)", f"{100 * cast(float, result['limit']):.4g} %")
-    Console().print(table)
+    console.print(table)
 
 
 def design(
@@ -121,10 +120,9 @@ def design(
         fitted = study_coefficients(study, eq) if study is not None else None
         result = design_result(parsed, confidence, eq, fitted)
     except AnalysisInputError as exc:
-        typer.echo(f"rig design: error: {exc}", err=True)
-        raise typer.Exit(EXIT_USAGE) from None
+        fail(str(exc))
     if as_json:
-        typer.echo(json.dumps(result, allow_nan=False))
+        emit_json(result, allow_nan=False)
     else:
         _print_table(parsed, result)
 

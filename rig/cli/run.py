@@ -25,6 +25,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
+from rig.cli._common import console, fail
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -204,8 +205,8 @@ def _paused(orchestrator: Orchestrator, interrupts: list[int], yes: bool, consol
         orchestrator.abort()
 
 
-def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
-    """Add ``rig run`` to the ``rig`` application."""
+def register(app: typer.Typer) -> None:
+    """Add ``rig run`` and ``rig demo``."""
 
     @app.command("run")
     def run(sequence_file: Annotated[Path | None, typer.Argument(metavar="SEQUENCE.toml",
@@ -231,7 +232,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
         if console_at is not None:
-            from rig.cli_console import run_with_console
+            from rig.cli.with_console import run_with_console
 
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
@@ -251,7 +252,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
         from rig.session import SessionError
 
         if service is not None:
-            from rig.cli_serve import drive_service
+            from rig.cli.serve import drive_service
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
@@ -284,15 +285,27 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             raise typer.Exit(code=1)
 
 
-QUICK_SEQUENCE = Path(__file__).resolve().parents[1] / "examples" / "quick.toml"
+    @app.command("demo")
+    def demo_cmd(
+        output_dir: Annotated[Path, typer.Option("--output-dir", help="where the session file goes")
+                              ] = Path("demo-output"),
+        speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
+                                             help="the emulator's controller time per real time, or max (virtual "
+                                                  "time: as fast as it computes)")] = 1.0,
+    ) -> None:
+        """The demo: the emulated table (its own process, MAVLink on loopback, two Table V bodies on the plate) runs
+        examples/quick.toml unattended; the session file is written, analysed and reported (HTML)."""
+        demo(output_dir, speed)
+
+QUICK_SEQUENCE = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
 """The demo's sequence: two Table V bodies, two angles, three short records."""
 
 
-def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console: Any) -> None:
+def demo(output_dir: Path, speed: float) -> None:
     """``rig demo``: the emulated table runs the quick sequence unattended into a new session file in
     ``output_dir``; the session and what the emulator itself saw are summarised, the models re-run on the
     measured motion (`rig analyze`), the HTML report written (`rig report`), and the files named."""
-    from rig.cli_sessions import print_session
+    from rig.cli.sessions import print_session
     from rig.emulator import EmulatorError
     from rig.orchestrator.setup import (
         create_log,
@@ -326,7 +339,7 @@ def demo(output_dir: Path, speed: float, *, fail: Callable[[str], Any], console:
     console.print(f"the emulator's specimens overturned {len(seen['overturns'])} times; it counted "
                   f"{seen['underruns']} underruns and {seen['refused_commands']} refused commands")
     from rig.analyze import analyze_session
-    from rig.cli_analyze import print_analysis
+    from rig.cli.analyze import print_analysis
 
     console.print("[bold]analysis[/]: both models re-run on the measured plate motion (rig analyze)")
     print_analysis(analyze_session(path), console)

@@ -1,62 +1,27 @@
-"""The ``rig`` command line (ARCHITECTURE §7).
+"""``rig simulate`` (one body, one record, one angle) and ``rig study`` (the paper's analytical study).
 
-``--json`` prints exactly one JSON object on stdout; errors go to stderr with exit code 2 and no
-traceback. Angles are in degrees here (radians inside).
+Angles are in degrees here (radians inside).
 """
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, NoReturn
+from typing import TYPE_CHECKING, Annotated
 
 import typer
-from rich.console import Console
 
-from rig import (
-    cli_analyze,
-    cli_design,
-    cli_emulate,
-    cli_iterate,
-    cli_prepare,
-    cli_records,
-    cli_report,
-    cli_run,
-    cli_serve,
-    cli_sessions,
-    cli_specimens,
-)
-from rig.cli_errors import plain_warnings, print_error, stderr_console
-from rig.emulator import parse_speed
+from rig.cli._common import console, emit_json, fail
 
 if TYPE_CHECKING:
     from analysis import Body
     from analysis.study import StudyResult
 
-# Imports are lazy (ISSUE 16): this module and every rig/cli_*.py import only typer, rich and the standard library
-# at module level, so that `rig --help` and each command's --help answer at once; each command imports what it uses
-# inside its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
 
-app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
-                  no_args_is_help=True, add_completion=False)
-console = Console(width=None if sys.stdout.isatty() else 160)
-err_console = stderr_console()
-plain_warnings()
-
-
-def fail(message: str) -> NoReturn:
-    """Print the error on stderr (one line when stderr is not a terminal) and exit 2."""
-    print_error(err_console, "error", message)
-    raise typer.Exit(code=2)
-
-
-def emit_json(obj: dict) -> None:
-    """One JSON object on stdout."""
-    from rig.json_numpy import json_default
-
-    sys.stdout.write(json.dumps(obj, default=json_default) + "\n")
+def register(app: typer.Typer) -> None:
+    """Add ``simulate`` and ``study``."""
+    app.command("simulate")(simulate_cmd)
+    app.command("study")(study_cmd)
 
 
 def parse_angles(text: str) -> list[float]:
@@ -90,7 +55,6 @@ def parse_bodies(text: str) -> list[Body]:
         fail(f"--bodies {text!r}: {exc}; expected 'table1', 'table1:1,4' or '0.10x0.50,…'")
 
 
-@app.command("simulate")
 def simulate_cmd(
     record: Annotated[str, typer.Argument(help="a record file (.AT2, .txt, .csv, .h5, H1+H2[+UP]) or SUITE:NAME")],
     body: Annotated[str, typer.Option(help="BxH in metres, e.g. 0.10x0.50")],
@@ -133,7 +97,6 @@ def simulate_cmd(
     console.print(table)
 
 
-@app.command("study")
 def study_cmd(
     records: Annotated[str, typer.Option(help="fema | fema-farfield | fema-nearfield | SUITE:NAME | file")],
     bodies: Annotated[str, typer.Option(help="table1, table1:1,4 or BxH,BxH")] = "table1",
@@ -217,40 +180,3 @@ def print_cor_table(res: StudyResult, summary: dict | None = None) -> None:
     elif fit:
         console.print(f"Eq. 11 fitted to the average: c1 = {fit.c1:.4f} (95 % CI {fit.c1_ci[0]:.4f}–"
                       f"{fit.c1_ci[1]:.4f}), c2 = {fit.c2:.3f}; the paper: c1 = 0.048, c2 = 0.48.")
-
-
-@app.command("demo")
-def demo_cmd(
-    output_dir: Annotated[Path, typer.Option("--output-dir", help="where the session file goes")] = Path("demo-output"),
-    speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
-                                         help="the emulator's controller time per real time, or max (virtual "
-                                              "time: as fast as it computes)")] = 1.0,
-) -> None:
-    """The demo: the emulated table (its own process, MAVLink on loopback, two Table V bodies on the plate) runs
-    examples/quick.toml unattended; the session file is written, analysed and reported (HTML)."""
-    cli_run.demo(output_dir, speed, fail=fail, console=console)
-
-
-cli_records.register(app)
-cli_prepare.register(app)
-cli_design.register(app)
-cli_emulate.register(app)
-cli_run.register(app, fail, console)
-cli_sessions.register(app, fail, console)
-cli_specimens.register(app)
-cli_serve.register(app, fail, console)
-cli_analyze.register(app, fail, console)
-cli_report.register(app, fail, console)
-cli_iterate.register(app, fail, console)
-
-
-def main() -> None:
-    """The ``rig`` command. When stderr is not a terminal, a usage error is click's plain text (``Error: …`` on one
-    line, greppable) instead of typer's rich panel, which wraps at 80 columns."""
-    if not sys.stderr.isatty():
-        app.rich_markup_mode = None  # read when the command is built (typer.main.get_group)
-    app()
-
-
-if __name__ == "__main__":  # pragma: no cover - python -m rig.cli
-    main()

@@ -7,18 +7,18 @@ drive does not fit the table.
 
 from __future__ import annotations
 
-import json
 import math
 import sys
-from collections.abc import Callable
 from datetime import datetime
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
+from rig.cli._common import console, emit_json, fail
 
-def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None:
+
+def register(app: typer.Typer) -> None:
     """Add ``rig iterate``."""
 
     @app.command("iterate")
@@ -105,7 +105,7 @@ def register(app: typer.Typer, fail: Callable[[str], Any], console: Any) -> None
             print(f"error: {exc}", file=sys.stderr)
             raise typer.Exit(1) from None
         if as_json:
-            sys.stdout.write(json.dumps(outcome.to_json()) + "\n")
+            emit_json(outcome.to_json())
             return
         for it, run in zip(outcome.result.iterations, outcome.runs, strict=True):
             console.print(f"iteration {it.index} (run {run}): fall-line RMS error {it.rms_error_pct:.1f} %, peak "

@@ -1,0 +1,49 @@
+"""The ``rig`` command line (ARCHITECTURE §7): one module per command or command group, each adding itself with
+``register(app)``; what they share (consoles, errors, JSON output, exit codes) is `rig.cli._common`.
+
+``--json`` prints exactly one JSON object on stdout; errors go to stderr with exit code 2 and no
+traceback. Angles are in degrees here (radians inside).
+
+Imports are lazy (issue 16): this package and every module in it import only typer, rich and the standard library at
+module level, so that `rig --help` and each command's --help answer at once; each command imports what it uses inside
+its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import typer
+
+from rig.cli import (
+    analyze,
+    design,
+    emulate,
+    iterate,
+    prepare,
+    records,
+    report,
+    run,
+    serve,
+    sessions,
+    specimens,
+    study,
+)
+
+app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
+                  no_args_is_help=True, add_completion=False)
+
+for command in (study, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report, iterate):
+    command.register(app)
+
+
+def main() -> None:
+    """The ``rig`` command. When stderr is not a terminal, a usage error is click's plain text (``Error: …`` on one
+    line, greppable) instead of typer's rich panel, which wraps at 80 columns."""
+    if not sys.stderr.isatty():
+        app.rich_markup_mode = None  # read when the command is built (typer.main.get_group)
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover - python -m rig.cli
+    main()
