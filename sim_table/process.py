@@ -188,6 +188,7 @@ class Emulator:
         self._drive_fault_done = False
         self._leg_stalled = False
         self._batches: deque[tuple[int, int]] = deque(maxlen=TIMING_WINDOW)  # (ticks, busy ns)
+        self._batches_lock = threading.Lock()  # counters() may be read from another thread (in-process emulator)
         self._ticks = 0
         self._busy_ns = 0
         self._cpu_ns = 0
@@ -236,7 +237,8 @@ class Emulator:
             self._next_tick = int(times[-1]) + self.tick_ns
             self._batch(times)
             busy = time.monotonic_ns() - now
-            self._batches.append((count, busy))
+            with self._batches_lock:
+                self._batches.append((count, busy))
             self._ticks += count
             self._busy_ns += busy
             self._cpu_ns += time.thread_time_ns() - cpu
@@ -283,7 +285,8 @@ class Emulator:
             self._batch(times)
             self._clock = int(times[-1])
             busy = time.monotonic_ns() - now
-            self._batches.append((count, busy))
+            with self._batches_lock:
+                self._batches.append((count, busy))
             self._ticks += count
             self._busy_ns += busy
             self._cpu_ns += time.thread_time_ns() - cpu
@@ -394,9 +397,12 @@ class Emulator:
 
     def counters(self) -> dict[str, Any]:
         """Everything counted, as plain JSON types."""
-        per_tick = np.array([busy / count for count, busy in self._batches]) if self._batches else np.zeros(1)
-        batch = np.array([busy for _, busy in self._batches]) if self._batches else np.zeros(1)
-        sizes = np.array([count for count, _ in self._batches]) if self._batches else np.zeros(1)
+        with self._batches_lock:
+            batches = np.array(self._batches, dtype=np.float64).reshape(-1, 2)
+        if not len(batches):
+            batches = np.zeros((1, 2))
+        sizes, batch = batches[:, 0], batches[:, 1]
+        per_tick = np.divide(batch, sizes, out=np.zeros_like(batch), where=sizes > 0)
         simulated = self._ticks * self.tick_ns
         timing = {
             "ticks": self._ticks,
@@ -413,7 +419,7 @@ class Emulator:
         }
         return {"url": self.url, "speed": "max" if self.virtual else self.config.speed, "state": self.core.state.value,
                 "faults": [f.name for f in Fault if self.core.faults & f], **self.core.counters.as_dict(),
-                "link": self.endpoint.counters_dict(), "timing": timing, "overturns": self._overturns}
+                "link": self.endpoint.counters_dict(), "timing": timing, "overturns": list(self._overturns)}
 
     def close(self) -> None:
         self.endpoint.close()

@@ -185,6 +185,26 @@ def test_stream_a_prepared_fema_drive_excerpt_at_500_hz() -> None:
 # ----- bus load ---------------------------------------------------------------------------------------------------
 
 
+def test_counters_can_be_read_while_the_loop_runs() -> None:
+    """``counters()`` is read from the caller's thread while the loop appends its batch timings (CI once saw
+    "deque mutated during iteration" here); a short switch interval makes the threads interleave often."""
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-5)
+    try:
+        with emulated() as emulator:
+            seen: list[int] = []
+            deadline = time.monotonic() + 30
+            while (not seen or seen[-1] < 2000) and time.monotonic() < deadline:
+                counters = emulator.counters()
+                json.dumps(counters)
+                seen.append(counters["timing"]["ticks"])
+    finally:
+        sys.setswitchinterval(interval)
+    assert seen[-1] >= 2000, f"the loop ran only {seen[-1]} ticks in 30 s"
+    assert seen == sorted(seen)
+    assert len(seen) > 100  # read many times while it ran
+
+
 def test_a_rate_beyond_the_bus_is_refused_with_the_bus_load() -> None:
     with pytest.raises(BusLoadError) as refused:
         open_table("canopen://nowhere?interface=virtual", rate=1000)
