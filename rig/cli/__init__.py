@@ -17,6 +17,7 @@ import typer
 
 from rig.cli import (
     analyze,
+    demo,
     design,
     emulate,
     iterate,
@@ -33,7 +34,8 @@ from rig.cli import (
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
                   no_args_is_help=True, add_completion=False)
 
-for command in (study, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report, iterate):
+for command in (study, demo, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report,
+                iterate):
     command.register(app)
 
 
