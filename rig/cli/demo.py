@@ -12,7 +12,7 @@ from typing import Annotated
 
 import typer
 
-from rig.cli._common import console, fail
+from rig.cli._common import EXIT_STOPPED, console, fail
 from rig.cli.run import run_session
 from rig.emulator import parse_speed
 
@@ -85,4 +85,4 @@ def demo(output_dir: Path, speed: float) -> None:
     console.print(f"session file:      {path}\nemulator counters: {emulator_file}\n"
                   f"report:            {report.output} ({report.figures} figures; open it in a browser)")
     if not complete:
-        raise typer.Exit(code=1)
+        raise typer.Exit(code=EXIT_STOPPED)

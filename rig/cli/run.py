@@ -24,7 +24,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
-from rig.cli._common import console, fail
+from rig.cli._common import EXIT_STOPPED, console, fail
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -281,4 +281,4 @@ def register(app: typer.Typer) -> None:
             fail(str(exc))
         if not complete:
             console.print(f"the session stopped early: continue it with rig run --resume {path}")
-            raise typer.Exit(code=1)
+            raise typer.Exit(code=EXIT_STOPPED)
