@@ -45,7 +45,3 @@ def main() -> None:
     if not sys.stderr.isatty():
         app.rich_markup_mode = None  # read when the command is built (typer.main.get_group)
     app()
-
-
-if __name__ == "__main__":  # pragma: no cover - python -m rig.cli
-    main()
