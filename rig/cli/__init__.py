@@ -4,9 +4,10 @@
 ``--json`` prints exactly one JSON object on stdout; errors go to stderr with exit code 2 and no
 traceback. Angles are in degrees here (radians inside).
 
-Imports are lazy (issue 16): this package and every module in it import only typer, rich and the standard library at
-module level, so that `rig --help` and each command's --help answer at once; each command imports what it uses inside
-its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
+Imports are lazy (issue 16): this package and every module in it import only typer, rich, the standard library and
+light modules (`rig.emulator` for ``parse_speed``, `analysis.body`) at module level, so that `rig --help` and each
+command's --help answer at once; each command imports what it uses inside its body (numpy, scipy, numba, h5py,
+matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
 """
 
 from __future__ import annotations
