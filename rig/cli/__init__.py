@@ -4,9 +4,10 @@
 ``--json`` prints exactly one JSON object on stdout; errors go to stderr with exit code 2 and no
 traceback. Angles are in degrees here (radians inside).
 
-Imports are lazy (issue 16): this package and every module in it import only typer, rich and the standard library at
-module level, so that `rig --help` and each command's --help answer at once; each command imports what it uses inside
-its body (numpy, scipy, numba, h5py, matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
+Imports are lazy (issue 16): this package and every module in it import only typer, rich, the standard library and
+light modules (`rig.emulator` for ``parse_speed``, `analysis.body`) at module level, so that `rig --help` and each
+command's --help answer at once; each command imports what it uses inside its body (numpy, scipy, numba, h5py,
+matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ import typer
 
 from rig.cli import (
     analyze,
+    demo,
     design,
     emulate,
     iterate,
@@ -33,7 +35,8 @@ from rig.cli import (
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
                   no_args_is_help=True, add_completion=False)
 
-for command in (study, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report, iterate):
+for command in (study, demo, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report,
+                iterate):
     command.register(app)
 
 
@@ -43,7 +46,3 @@ def main() -> None:
     if not sys.stderr.isatty():
         app.rich_markup_mode = None  # read when the command is built (typer.main.get_group)
     app()
-
-
-if __name__ == "__main__":  # pragma: no cover - python -m rig.cli
-    main()

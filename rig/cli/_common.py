@@ -15,7 +15,7 @@ from __future__ import annotations
 import json
 import sys
 import warnings
-from typing import Any, NoReturn, TextIO
+from typing import NoReturn, TextIO
 
 import typer
 from rich.console import Console
@@ -38,15 +38,18 @@ def _show_warning(message: Warning | str, category: type[Warning], filename: str
     (file or sys.stderr).write(f"warning: {message}\n")
 
 
-def plain_warnings() -> Any:
+def plain_warnings() -> None:
     """Print warnings (e.g. `rig.records.RecordWarning`) as ``warning: …`` lines on stderr from now on."""
     warnings.showwarning = _show_warning
 
 
+EXIT_STOPPED = 1
+"""Exit code of a session that stopped early or was not started (``rig run``, ``rig demo``; resumable), or of a
+``rig iterate`` whose run the table stopped."""
 EXIT_USAGE = 2
 """Exit code of a usage error, bad input or a file that cannot be used (click's own for usage errors)."""
 EXIT_REFUSED = 3
-"""Exit code of ``rig prepare`` for a drive the table cannot play."""
+"""Exit code of ``rig prepare`` and ``rig iterate`` for a drive the table cannot play."""
 
 console = Console(width=None if sys.stdout.isatty() else 160)
 """Where commands print for people (stdout; 160 columns when it is not a terminal)."""

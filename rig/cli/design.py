@@ -19,11 +19,10 @@ from rich.table import Table
 
 from analysis.body import Body
 from analysis.errors import AnalysisInputError
-from rig.cli._common import console, emit_json, fail
+from rig.cli._common import EXIT_USAGE, console, emit_json, err_console, print_error
 
 if TYPE_CHECKING:
     from analysis.design import Equation
-
 
 
 class EquationName(StrEnum):
@@ -120,7 +119,8 @@ def design(
         fitted = study_coefficients(study, eq) if study is not None else None
         result = design_result(parsed, confidence, eq, fitted)
     except AnalysisInputError as exc:
-        fail(str(exc))
+        print_error(err_console, "rig design: error", str(exc))  # its own prefix since it was written
+        raise typer.Exit(EXIT_USAGE) from None
     if as_json:
         emit_json(result, allow_nan=False)
     else:

@@ -8,14 +8,13 @@ drive does not fit the table.
 from __future__ import annotations
 
 import math
-import sys
 from datetime import datetime
 from pathlib import Path
 from typing import Annotated, Any
 
 import typer
 
-from rig.cli._common import console, emit_json, fail
+from rig.cli._common import EXIT_REFUSED, EXIT_STOPPED, console, emit_json, err_console, fail, print_error
 
 
 def register(app: typer.Typer) -> None:
@@ -77,8 +76,8 @@ def register(app: typer.Typer) -> None:
             motion = load_entry(RecordEntry(spec=record, resolved=record, window=span))
             drive = prepare_drive(motion, angle=math.radians(angle), table=model, corner=corner, ramps=False)
         except DriveRefusedError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            raise typer.Exit(3) from None
+            print_error(err_console, "error", str(exc))
+            raise typer.Exit(EXIT_REFUSED) from None
         except (RecordError, DriveError, TableModelError, ValueError) as exc:
             fail(str(exc))
         stamp = datetime.now().strftime("%Y%m%d-%H%M%S")
@@ -102,8 +101,8 @@ def register(app: typer.Typer) -> None:
         except (SessionError, DriveFileError, OSError, ValueError) as exc:
             fail(str(exc))
         except RuntimeError as exc:
-            print(f"error: {exc}", file=sys.stderr)
-            raise typer.Exit(1) from None
+            print_error(err_console, "error", str(exc))
+            raise typer.Exit(EXIT_STOPPED) from None
         if as_json:
             emit_json(outcome.to_json())
             return

@@ -9,7 +9,6 @@ Exit codes: 0 all runs done, 1 the session stopped early (resumable with ``--res
 
 from __future__ import annotations
 
-import json
 import queue
 import signal
 import threading
@@ -25,7 +24,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
-from rig.cli._common import console, fail
+from rig.cli._common import EXIT_STOPPED, console, fail
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -206,7 +205,7 @@ def _paused(orchestrator: Orchestrator, interrupts: list[int], yes: bool, consol
 
 
 def register(app: typer.Typer) -> None:
-    """Add ``rig run`` and ``rig demo``."""
+    """Add ``rig run``."""
 
     @app.command("run")
     def run(sequence_file: Annotated[Path | None, typer.Argument(metavar="SEQUENCE.toml",
@@ -282,71 +281,4 @@ def register(app: typer.Typer) -> None:
             fail(str(exc))
         if not complete:
             console.print(f"the session stopped early: continue it with rig run --resume {path}")
-            raise typer.Exit(code=1)
-
-
-    @app.command("demo")
-    def demo_cmd(
-        output_dir: Annotated[Path, typer.Option("--output-dir", help="where the session file goes")
-                              ] = Path("demo-output"),
-        speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
-                                             help="the emulator's controller time per real time, or max (virtual "
-                                                  "time: as fast as it computes)")] = 1.0,
-    ) -> None:
-        """The demo: the emulated table (its own process, MAVLink on loopback, two Table V bodies on the plate) runs
-        examples/quick.toml unattended; the session file is written, analysed and reported (HTML)."""
-        demo(output_dir, speed)
-
-QUICK_SEQUENCE = Path(__file__).resolve().parents[2] / "examples" / "quick.toml"
-"""The demo's sequence: two Table V bodies, two angles, three short records."""
-
-
-def demo(output_dir: Path, speed: float) -> None:
-    """``rig demo``: the emulated table runs the quick sequence unattended into a new session file in
-    ``output_dir``; the session and what the emulator itself saw are summarised, the models re-run on the
-    measured motion (`rig analyze`), the HTML report written (`rig report`), and the files named."""
-    from rig.cli.sessions import print_session
-    from rig.emulator import EmulatorError
-    from rig.orchestrator.setup import (
-        create_log,
-        default_session_path,
-        load_checked,
-        table_for,
-        write_emulator_counters,
-    )
-    from rig.sequence import SequenceError
-    from rig.session import SessionError
-
-    try:
-        sequence = load_checked(QUICK_SEQUENCE)
-        output_dir.mkdir(parents=True, exist_ok=True)
-        path = default_session_path(sequence, output_dir)
-        console.print(f"[bold]shaketable-rig demo[/]: {sequence.name!r} ({len(sequence.plan())} runs, "
-                      f"{sequence.table_seconds():.0f} s of table time) on the emulated table over MAVLink "
-                      f"(loopback), bodies {', '.join(b.name for b in sequence.bodies)} on the plate")
-        with table_for(sequence, None, True, None, speed) as (url, options, counters):
-            assert counters is not None
-            log = create_log(sequence, path)
-            try:
-                complete = run_session(sequence, log, url, options, yes=True, console=console)
-            finally:
-                log.close()
-        emulator_file = write_emulator_counters(path, counters())
-    except (SequenceError, SessionError, EmulatorError) as exc:
-        fail(str(exc))
-    print_session(path, console)
-    seen = json.loads(emulator_file.read_text())
-    console.print(f"the emulator's specimens overturned {len(seen['overturns'])} times; it counted "
-                  f"{seen['underruns']} underruns and {seen['refused_commands']} refused commands")
-    from rig.analyze import analyze_session
-    from rig.cli.analyze import print_analysis
-
-    console.print("[bold]analysis[/]: both models re-run on the measured plate motion (rig analyze)")
-    print_analysis(analyze_session(path), console)
-    from rig.report import write_report
-
-    report = write_report(path, path.with_suffix(".html"))
-    console.print(f"session file:      {path}\nemulator counters: {emulator_file}\n"
-                  f"report:            {report.output} ({report.figures} figures; open it in a browser)")
-    if not complete:
-        raise typer.Exit(code=1)
+            raise typer.Exit(code=EXIT_STOPPED)

@@ -22,7 +22,7 @@ from rich.live import Live
 from rich.prompt import Confirm
 from rich.text import Text
 
-from rig.cli._common import console, emit_json, fail
+from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, print_error
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
     from rig.service import ServiceClient, TelemetryFeed
@@ -52,14 +52,14 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
     try:
         client = ServiceClient(connect, key_file)
     except ServiceError as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False)
-        return 2
+        print_error(console, "error", str(exc))
+        return EXIT_USAGE
     with client, client.telemetry() as feed:
         what = f"resume {resume}" if resume is not None else f"run {sequence}"
         if not yes and not _confirm(f"{what.capitalize()} on the rig service at {connect}? It runs unattended: "
                                     "the bodies are taken as placed and every run starts at once.", console):
             console.print("not started")
-            return 1
+            return EXIT_STOPPED
         interrupts = [0]  # Ctrl-C while the service prepares the session: acted on once it runs
 
         def on_sigint(signum: int, frame: object) -> None:
@@ -72,21 +72,21 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
                                        resume=resume)
                 seq = client.state()["seq"]
             except ServiceError as exc:
-                console.print(f"[bold red]error:[/] {exc}", highlight=False)
-                return 2
+                print_error(console, "error", str(exc))
+                return EXIT_USAGE
             console.print(f"session file: {session}", highlight=False)
             final = _follow(client, feed, session, seq, interrupts, yes, console)
         finally:
             _handle_sigint(previous)
     if final is None:
-        return 1
+        return EXIT_STOPPED
     progress = final["progress"]
     console.print(f"[bold]{final['state']}[/]: {final['message']}", highlight=False)
     if final["state"] == "done" and progress["runs_done"] == progress["runs_total"]:
         return 0
     console.print(f"{progress['runs_done']} of {progress['runs_total']} runs done; continue the session with "
                   f"rig run --service {connect} --resume {session}", highlight=False)
-    return 1
+    return EXIT_STOPPED
 
 
 class _Display:
@@ -165,7 +165,7 @@ def _follow(client: ServiceClient, feed: TelemetryFeed, session: str, seq: int, 
                         interrupts[0] = sent = 0
                     display.go_on()
     except ServiceUnavailableError as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        print_error(console, "error", str(exc))
         return None
 
 
@@ -198,7 +198,7 @@ def _after_pause(client: ServiceClient, yes: bool, console: Any) -> bool:
         console.print("the session ends here; continue it with --resume SESSION.h5")
         client.abort()
     except ServiceError as exc:
-        console.print(f"[bold red]error:[/] {exc}", highlight=False)
+        print_error(console, "error", str(exc))
     return False
 
 

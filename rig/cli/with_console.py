@@ -19,6 +19,8 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from rig.cli._common import EXIT_USAGE, print_error
+
 
 def _free_endpoint() -> str:
     with socket.socket() as probe:
@@ -44,8 +46,8 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
         try:
             page = ConsoleProcess(service, http, key_file=key_file, say=say)
         except ConsoleError as exc:
-            console.print(f"[bold red]error:[/] {exc}", highlight=False)
-            return 2
+            print_error(console, "error", str(exc))
+            return EXIT_USAGE
         with page:
             console.print(f"operator console: {page.url}", highlight=False)
             return drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
@@ -60,14 +62,14 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),
                                           say=lambda m: say(f"rig service: {m}"))
         except ServiceError as exc:
-            console.print(f"[bold red]error:[/] {exc}", highlight=False)
-            return 2
+            print_error(console, "error", str(exc))
+            return EXIT_USAGE
         try:
             try:
                 page = ConsoleProcess(endpoint, http, key_file=key_file, say=say)
             except ConsoleError as exc:
-                console.print(f"[bold red]error:[/] {exc}", highlight=False)
-                return 2
+                print_error(console, "error", str(exc))
+                return EXIT_USAGE
             with page:
                 console.print(f"operator console: {page.url} (operator token {token_from_key_file(key_file)})",
                               highlight=False)

@@ -336,4 +336,4 @@ def test_cli_design_errors(app: typer.Typer, args: list[str]) -> None:
     result = CliRunner().invoke(app, ["design", *args, "--json"])
     assert result.exit_code == 2
     assert result.stdout == ""
-    assert "error" in result.stderr and "Traceback" not in result.stderr
+    assert result.stderr.startswith("rig design: error: ") and "Traceback" not in result.stderr
