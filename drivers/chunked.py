@@ -71,7 +71,6 @@ SILENCE_NS = 1_000_000_000
 """With no status for this long [ns, host time] past a chunk's deadline, it is sent by the clock estimate alone
 (a lost link: the controller's watchdog decides)."""
 
-
 MOTION_STATES = frozenset({"homing", "tilting"})
 """The controller's states while a HOME or SET_TILT moves the table."""
 
