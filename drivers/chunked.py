@@ -1,11 +1,22 @@
-"""Streaming by timestamped setpoint chunks sent ahead of the controller's clock (MAVLink, zenoh).
+"""The transports whose controller buffers setpoints (MAVLink, zenoh): their commands, written once over a small
+request hook, and streaming by timestamped setpoint chunks sent ahead of the controller's clock.
 
-The transports whose controller buffers setpoints (``docs/table-controller.md``) stream the same way: START_STREAM
-with the next chunk number (numbers run on across streams, below :data:`FIRST_SEQ_LIMIT`), then chunks of
-``samples_per_chunk`` poses, each made just before it is due and sent when the controller time of its first
-sample is ``lead`` s away (``time.sleep`` to the absolute host deadline from the clock estimate, never busy
-waiting), the last flagged end of stream; then wait until the controller reports the stream played. A backend
-says how to start a stream, encode a chunk and send it.
+**Commands.** As python-can's ``BusABC`` writes ``recv`` once over a backend's ``_recv_internal``,
+:class:`ChunkedStreamController` writes ARM, DISARM, HOME, SET_TILT, STOP, EMERGENCY_STOP and START_STREAM once
+over :meth:`ChunkedStreamController._request`: the backend sends a command (named in lower case, two float
+parameters) until the controller answers, raises on a refusal or no answer, and returns the answer as a
+:class:`CommandAnswer`. A command then returns once a status shows what it did (:data:`STATUS_TIMEOUT`: else the
+link is lost). HOME and SET_TILT are answered "in progress", then finally when the motion ends; waiting for a
+motion ends at its final answer, or at a status taken after its answer that shows the table out of
+:data:`MOTION_STATES` (the final answer may be lost); it then fails with :class:`CommandFailedError` unless the
+motion reached its target (its final answer says so, or without one the table is ``armed``).
+
+**Streams.** These transports (``docs/table-controller.md``) stream the same way: START_STREAM with the next
+chunk number (numbers run on across streams, below :data:`FIRST_SEQ_LIMIT`), then chunks of ``samples_per_chunk``
+poses, each made just before it is due and sent when the controller time of its first sample is ``lead`` s away
+(``time.sleep`` to the absolute host deadline from the clock estimate, never busy waiting), the last flagged end
+of stream; then wait until the controller reports the stream played. A backend says how to encode a chunk and
+send it.
 
 Pacing follows the controller's clock: a chunk goes out when the clock estimate says its first sample is
 ``lead`` away, or earlier when a status already shows the controller there (a clock running faster than
@@ -28,7 +39,7 @@ from __future__ import annotations
 
 import math
 import time
-from abc import abstractmethod
+from abc import ABC, abstractmethod
 from collections.abc import Callable
 from typing import Any
 
@@ -36,12 +47,15 @@ import numpy as np
 
 from drivers.clock import ClockSync
 from drivers.controller import (
+    STATUS_TIMEOUT,
     STOPPED_STATES,
     TILT_AXES,
+    CommandFailedError,
     StreamAbortedError,
     StreamReport,
     TableController,
     TableStatus,
+    TableTimeoutError,
     finite_poses,
     sample_spacing,
 )
@@ -57,21 +71,61 @@ SILENCE_NS = 1_000_000_000
 """With no status for this long [ns, host time] past a chunk's deadline, it is sent by the clock estimate alone
 (a lost link: the controller's watchdog decides)."""
 
+MOTION_STATES = frozenset({"homing", "tilting"})
+"""The controller's states while a HOME or SET_TILT moves the table."""
+
+
+class CommandAnswer(ABC):
+    """The controller's answer to one command, as :class:`ChunkedStreamController` waits on it; for a motion
+    (HOME, SET_TILT) answered in progress, its final answers are collected as they arrive until :meth:`close`."""
+
+    in_progress: bool
+    """Whether the controller answered "in progress": a motion that answers again when it ends."""
+
+    over_from_ns: int
+    """Controller time [ns] from which a status out of :data:`MOTION_STATES` shows the motion over."""
+
+    @abstractmethod
+    def shown(self, status: TableStatus) -> bool:
+        """Whether ``status`` shows what the command did (it was taken, or received, after the answer)."""
+
+    @abstractmethod
+    def reached(self) -> bool | None:
+        """Whether the motion's first final answer says it reached its target; None before a final answer."""
+
+    @abstractmethod
+    def shows_end(self, status: TableStatus) -> bool:
+        """After a final answer: whether ``status`` shows where the motion ended."""
+
+    @abstractmethod
+    def close(self) -> None:
+        """Stop collecting final answers (idempotent)."""
+
 
 class ChunkedStreamController(TableController):
-    """A `TableController` whose `stream` sends chunks ``lead`` ahead (module docstring)."""
+    """A `TableController` whose commands are written once over :meth:`_request` and whose `stream` sends chunks
+    ``lead`` ahead (module docstring)."""
 
     samples_per_chunk: int
     """Poses per setpoint chunk on this transport."""
+
+    motion_stopped_result: str
+    """The result named by the :class:`CommandFailedError` of a motion stopped before its target."""
 
     def __init__(self, url: str) -> None:
         super().__init__(url)
         self.clock = ClockSync()
         self._next_seq = 0
 
+    # ----- the backend's hooks
+
     @abstractmethod
-    def _start_stream(self, first_seq: int) -> None:
-        """Send START_STREAM with the first chunk number (raises like any command)."""
+    def _request(self, name: str, params: tuple[float, float]) -> CommandAnswer:
+        """Send command ``name`` (``arm``, ``set_tilt`` …) with ``params`` until the controller answers; its answer,
+        collecting final answers from before the command is sent (a quick final answer is not missed). Raises
+        :class:`~drivers.controller.CommandDeniedError`, :class:`~drivers.controller.CommandRejectedError` or
+        :class:`CommandFailedError` when the controller refused it, :class:`TableTimeoutError` without an answer
+        after the retries."""
 
     @abstractmethod
     def _encode_chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray,
@@ -82,16 +136,68 @@ class ChunkedStreamController(TableController):
     def _send_chunk(self, message: Any) -> None:
         """Send one encoded chunk (signed where the transport signs)."""
 
-    @abstractmethod
-    def _set_tilt(self, angle: float, axis_index: int, wait: bool, timeout: float) -> None:
-        """Send SET_TILT (angle [rad], axis index in :data:`~drivers.controller.TILT_AXES`) and wait if asked."""
+    # ----- commands
+
+    def arm(self) -> None:
+        self._command("arm")
+
+    def disarm(self) -> None:
+        self._command("disarm")
+
+    def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
+        self._motion("home", (0.0, 0.0), wait, timeout)
 
     def set_tilt(self, angle: float, axis: str = "pitch", *, wait: bool = True, timeout: float = 120.0) -> None:
         if axis not in TILT_AXES:
             raise ValueError(f"axis must be one of {TILT_AXES}, got {axis!r}")
         if not math.isfinite(angle):
             raise ValueError(f"angle must be finite, got {angle!r}")
-        self._set_tilt(angle, TILT_AXES.index(axis), wait, timeout)
+        self._motion("set_tilt", (angle, float(TILT_AXES.index(axis))), wait, timeout)
+
+    def stop(self) -> None:
+        self._command("stop")
+
+    def emergency_stop(self) -> None:
+        self._command("emergency_stop")
+
+    def _command(self, name: str, params: tuple[float, float] = (0.0, 0.0)) -> CommandAnswer:
+        """Send ``name`` (:meth:`_request`); unless it is in progress, return once a status shows what it did
+        (:class:`TableTimeoutError` after :data:`~drivers.controller.STATUS_TIMEOUT` s: the link is lost). The
+        answer, still collecting final answers when it is in progress."""
+        answer = self._request(name, params)
+        if not answer.in_progress:
+            answer.close()
+            self.wait_for_status(answer.shown, STATUS_TIMEOUT)
+        return answer
+
+    def _motion(self, name: str, params: tuple[float, float], wait: bool, timeout: float) -> None:
+        """HOME or SET_TILT; with ``wait``, until it is over (module docstring): :class:`TableTimeoutError` after
+        ``timeout`` s, :class:`CommandFailedError` when it was stopped before its target."""
+        answer = self._command(name, params)
+        if not answer.in_progress:
+            return
+        try:
+            if not wait:
+                return
+
+            def over() -> bool:
+                latest = self.feedback.latest
+                return answer.reached() is not None or (latest is not None and latest.t_ns >= answer.over_from_ns
+                                                        and latest.state not in MOTION_STATES)
+
+            if not self.feedback.wait_for(over, timeout):
+                raise TableTimeoutError(f"{name.upper()}: still moving after {timeout} s")
+            if answer.reached() is not None:
+                self.wait_for_status(answer.shows_end, STATUS_TIMEOUT)
+            latest = self.status()
+            reached = answer.reached()
+            if not (latest.state == "armed" if reached is None else reached):
+                raise CommandFailedError(name.upper(), self.motion_stopped_result, latest.state,
+                                         "the motion was stopped before its target")
+        finally:
+            answer.close()
+
+    # ----- streaming
 
     def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
                on_progress: Callable[[int, int], None] | None = None,
@@ -104,7 +210,7 @@ class ChunkedStreamController(TableController):
         per_chunk = self.samples_per_chunk
         underruns_before = self.status().underruns
         first_seq = self._next_seq
-        self._start_stream(first_seq)
+        self._command("start_stream", (float(first_seq), 0.0))
         count = math.ceil(len(poses) / per_chunk)
         self._next_seq = (first_seq + count) % FIRST_SEQ_LIMIT
         reported = self.status().t_ns  # the START_STREAM's status (virtual time: where the clock holds)

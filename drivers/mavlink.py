@@ -41,9 +41,8 @@ from typing import Any
 
 import numpy as np
 
-from drivers.chunked import ChunkedStreamController
+from drivers.chunked import MOTION_STATES, ChunkedStreamController, CommandAnswer
 from drivers.controller import (
-    STATUS_TIMEOUT,
     AccelBatch,
     CommandDeniedError,
     CommandFailedError,
@@ -75,7 +74,6 @@ lost in a row (at 20 Hz one lost heartbeat left a 100 ms gap, and 5 % loss tripp
 TIMESYNC_EVERY = 25
 """A TIMESYNC request every this many heartbeats (2 Hz)."""
 
-_MOTION_STATES = frozenset({"homing", "tilting"})
 _STATUS_GRACE_NS = 40_000_000  # a status this long after a motion's ACK (controller time) reflects it
 
 
@@ -84,6 +82,37 @@ class _AckSlot:
 
     def __init__(self) -> None:
         self.acks: list[tuple[int, int, int]] = []
+
+
+class _AckAnswer(CommandAnswer):
+    """A command's first COMMAND_ACK (``result``, received at host time ``host_ns``); the later ACKs of a motion
+    arrive in ``slot`` while it stays in the table's ACK slots."""
+
+    def __init__(self, table: MavlinkTable, cmd_id: int, slot: _AckSlot, result: int, host_ns: int) -> None:
+        self.table, self.cmd_id, self.slot, self.host_ns = table, cmd_id, slot, host_ns
+        self.in_progress = result == table.d.MAV_RESULT_IN_PROGRESS
+        self.over_from_ns = table.clock.to_controller(host_ns) + _STATUS_GRACE_NS
+
+    def shown(self, status: TableStatus) -> bool:
+        """Received after the ACK: the controller sends a command's answer after the status of the tick it took
+        effect in, and a status taken after it next."""
+        return status.host_ns > self.host_ns
+
+    def _finals(self) -> list[int]:
+        """The final results received (retransmissions may bring more IN_PROGRESS answers)."""
+        return [result for result, _, _ in self.slot.acks if result != self.table.d.MAV_RESULT_IN_PROGRESS]
+
+    def reached(self) -> bool | None:
+        finals = self._finals()
+        return finals[0] == self.table.d.MAV_RESULT_ACCEPTED if finals else None
+
+    def shows_end(self, status: TableStatus) -> bool:
+        """Received after the last ACK, out of the motion."""
+        return status.host_ns > self.slot.acks[-1][2] and status.state not in MOTION_STATES
+
+    def close(self) -> None:
+        if self.table._acks.get(self.cmd_id) is self.slot:  # not a later command's slot for the same id
+            self.table._acks.pop(self.cmd_id, None)
 
 
 class MavlinkTable(ChunkedStreamController):
@@ -238,10 +267,14 @@ class MavlinkTable(ChunkedStreamController):
         with self._send_lock:
             link.send(msg)
 
-    # ----- commands -------------------------------------------------------------------------------------
+    # ----- commands (ChunkedStreamController) ---------------------------------------------------------
 
-    def _command(self, name: str, *params: float) -> tuple[int, int]:
-        """Send MAV_CMD_SHAKETABLE_<name> until acknowledged; (result, host ns of the ACK) unless refused."""
+    motion_stopped_result = "FAILED"
+
+    def _request(self, name: str, params: tuple[float, float]) -> _AckAnswer:
+        """Send MAV_CMD_SHAKETABLE_<NAME> until acknowledged (module docstring); its first ACK unless refused. The
+        ACK slot of a command answered IN_PROGRESS stays for its final ACK until the answer is closed."""
+        name = name.upper()
         cmd_id = getattr(self.d, f"MAV_CMD_SHAKETABLE_{name}")
         values = [float(p) for p in params] + [0.0] * (7 - len(params))
         lock = self._command_locks.setdefault(cmd_id, threading.Lock())
@@ -259,18 +292,10 @@ class MavlinkTable(ChunkedStreamController):
                 self._check(name, result)
                 if result != self.d.MAV_RESULT_IN_PROGRESS:
                     del self._acks[cmd_id]
-                    self._status_after(when)
-                return result, when
+                return _AckAnswer(self, cmd_id, slot, result, when)
             except BaseException:
                 self._acks.pop(cmd_id, None)
                 raise
-
-    def _status_after(self, host_ns: int) -> None:
-        """Wait for a status received after ``host_ns`` (a command's answer): the controller sends a command's
-        answer after the status of the tick it took effect in, and a status taken after it next, so ``status()``
-        then shows what the command did (:class:`TableTimeoutError` after :data:`STATUS_TIMEOUT`: the link is
-        lost)."""
-        self.wait_for_status(lambda s: s.host_ns > host_ns, STATUS_TIMEOUT)
 
     def _check(self, name: str, result: int) -> None:
         d = self.d
@@ -287,58 +312,7 @@ class MavlinkTable(ChunkedStreamController):
             result, f"result {result_name}")
         raise CommandFailedError(name, result_name, state, why)
 
-    def _motion(self, name: str, params: tuple[float, ...], wait: bool, timeout: float) -> None:
-        cmd_id = getattr(self.d, f"MAV_CMD_SHAKETABLE_{name}")
-        result, acked = self._command(name, *params)
-        if result != self.d.MAV_RESULT_IN_PROGRESS:
-            return
-        slot = self._acks[cmd_id]
-        after = self.clock.to_controller(acked) + _STATUS_GRACE_NS
-        try:
-            if not wait:
-                return
-
-            def final() -> list[int]:  # retransmissions may bring more IN_PROGRESS answers
-                return [result for result, _, _ in slot.acks if result != self.d.MAV_RESULT_IN_PROGRESS]
-
-            def over() -> bool:
-                latest = self.feedback.latest
-                return bool(final()) or (latest is not None and latest.t_ns >= after
-                                         and latest.state not in _MOTION_STATES)
-
-            if not self.feedback.wait_for(over, timeout):
-                raise TableTimeoutError(f"{name}: still moving after {timeout} s")
-            if final():  # a status received after the final answer, out of the motion, shows where it ended
-                self.wait_for_status(lambda s: s.host_ns > slot.acks[-1][2] and s.state not in _MOTION_STATES,
-                                     STATUS_TIMEOUT)
-            latest = self.status()
-            if (final()[0] if final() else latest.state) not in (self.d.MAV_RESULT_ACCEPTED, "armed"):
-                raise CommandFailedError(name, "FAILED", latest.state, "the motion was stopped before its target")
-        finally:
-            self._acks.pop(cmd_id, None)
-
-    def arm(self) -> None:
-        self._command("ARM")
-
-    def disarm(self) -> None:
-        self._command("DISARM")
-
-    def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
-        self._motion("HOME", (), wait, timeout)
-
-    def _set_tilt(self, angle: float, axis_index: int, wait: bool, timeout: float) -> None:
-        self._motion("SET_TILT", (angle, float(axis_index)), wait, timeout)
-
-    def stop(self) -> None:
-        self._command("STOP")
-
-    def emergency_stop(self) -> None:
-        self._command("EMERGENCY_STOP")
-
     # ----- streaming (ChunkedStreamController) ---------------------------------------------------------
-
-    def _start_stream(self, first_seq: int) -> None:
-        self._command("START_STREAM", float(first_seq))
 
     def _encode_chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray,
                       end_of_stream: bool) -> Any:

@@ -46,9 +46,8 @@ from collections.abc import Callable
 import numpy as np
 import zenoh
 
-from drivers.chunked import ChunkedStreamController
+from drivers.chunked import ChunkedStreamController, CommandAnswer
 from drivers.controller import (
-    STATUS_TIMEOUT,
     AccelBatch,
     CommandDeniedError,
     CommandFailedError,
@@ -96,7 +95,30 @@ CLOCK_TIMEOUT = 0.5
 RETRY_SPACING = 0.01
 """Least time between two attempts of a command [s] (a query without a route ends at once)."""
 
-_MOTION_STATES = frozenset({"homing", "tilting"})
+
+class _QueryAnswer(CommandAnswer):
+    """A command's ANSWER (the query's reply, ``answer``); the final answers of a motion arrive in ``finals`` while
+    they stay in the table's ``finals_by_id`` under the command id."""
+
+    def __init__(self, finals_by_id: dict[int, list[Answer]], cmd_id: int, answer: Answer,
+                 finals: list[Answer]) -> None:
+        self.finals_by_id, self.cmd_id, self.answer, self.finals = finals_by_id, cmd_id, answer, finals
+        self.in_progress = answer.result == "in_progress"
+        self.over_from_ns = answer.t_ns
+
+    def shown(self, status: TableStatus) -> bool:
+        """Taken at or after the answer: the controller reports a state change at once."""
+        return status.t_ns >= self.answer.t_ns
+
+    def reached(self) -> bool | None:
+        return self.finals[0].result == "accepted" if self.finals else None
+
+    def shows_end(self, status: TableStatus) -> bool:
+        """Taken at or after the first final answer."""
+        return status.t_ns >= self.finals[0].t_ns
+
+    def close(self) -> None:
+        self.finals_by_id.pop(self.cmd_id, None)
 
 
 class ZenohTable(ChunkedStreamController):
@@ -125,7 +147,7 @@ class ZenohTable(ChunkedStreamController):
         self._setpoints_lock = threading.Lock()  # signing and sending a chunk
         self._closing = threading.Event()
         self._thread: threading.Thread | None = None
-        self._finals: dict[int, list[Answer]] = {}  # cmd id of a motion waited for -> its final answers
+        self._finals: dict[int, list[Answer]] = {}  # cmd id of a command sent, or moving -> its final answers
         self._clock_sent: deque[int] = deque(maxlen=64)
         self._next_cmd = secrets.randbits(63)
         self._accel_expected: dict[int, int] = {}
@@ -271,14 +293,24 @@ class ZenohTable(ChunkedStreamController):
         assert self._signer is not None  # connected
         return self._signer.sign(key, message)
 
-    # ----- commands -------------------------------------------------------------------------------------
+    # ----- commands (ChunkedStreamController) ---------------------------------------------------------
 
-    def _command(self, name: str, params: tuple[float, float] = (0.0, 0.0), cmd_id: int | None = None) -> Answer:
+    motion_stopped_result = "cancelled"
+
+    def _request(self, name: str, params: tuple[float, float]) -> _QueryAnswer:
+        cmd_id = self._new_cmd_id()
+        finals = self._finals[cmd_id] = []  # before the query: a quick final answer is not missed
+        try:
+            answer = self._query(name, params, cmd_id)
+        except BaseException:
+            del self._finals[cmd_id]
+            raise
+        return _QueryAnswer(self._finals, cmd_id, answer, finals)
+
+    def _query(self, name: str, params: tuple[float, float], cmd_id: int) -> Answer:
         """Query ``name`` until answered (module docstring); the answer unless refused."""
         if self._session is None:
             raise TableError(f"{self.url}: not connected")
-        if cmd_id is None:
-            cmd_id = self._new_cmd_id()
         message = encode_command(CommandRequest(cmd_id, name, params))
         key = self._keys["command"]
         errors: list[str] = []
@@ -297,8 +329,6 @@ class ZenohTable(ChunkedStreamController):
             raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts of "
                                     f"{self.command_timeout} s{last}")
         self._check(name, answer.result)
-        if answer.result != "in_progress":
-            self._status_after(answer.t_ns)
         return answer
 
     def _first_answer(self, replies: zenoh.Handler[zenoh.Reply], cmd_id: int, errors: list[str]) -> Answer | None:
@@ -321,12 +351,6 @@ class ZenohTable(ChunkedStreamController):
             self._next_cmd = (self._next_cmd + 1) % 2**64
             return self._next_cmd
 
-    def _status_after(self, t_ns: int) -> None:
-        """Wait for a status taken at or after controller time ``t_ns`` (an answer's): the controller reports a
-        state change at once, so ``status()`` then shows what the command did (:class:`TableTimeoutError` after
-        :data:`STATUS_TIMEOUT`: the link is lost)."""
-        self.wait_for_status(lambda s: s.t_ns >= t_ns, STATUS_TIMEOUT)
-
     def _check(self, name: str, result: str) -> None:
         if result in ("accepted", "in_progress"):
             return
@@ -340,52 +364,7 @@ class ZenohTable(ChunkedStreamController):
         why = {"failed": "invalid parameters", "cancelled": "the motion was stopped before its target"}[result]
         raise CommandFailedError(upper, result, state, why)
 
-    def _motion(self, name: str, params: tuple[float, float], wait: bool, timeout: float) -> None:
-        cmd_id = self._new_cmd_id()
-        finals = self._finals[cmd_id] = []
-        try:
-            answer = self._command(name, params, cmd_id)
-            if answer.result != "in_progress" or not wait:
-                return
-
-            def over() -> bool:
-                latest = self.feedback.latest
-                return bool(finals) or (latest is not None and latest.t_ns >= answer.t_ns
-                                        and latest.state not in _MOTION_STATES)
-
-            if not self.feedback.wait_for(over, timeout):
-                raise TableTimeoutError(f"{name.upper()}: still moving after {timeout} s")
-            if finals:
-                self._status_after(finals[0].t_ns)
-            latest = self.status()
-            if (finals[0].result if finals else latest.state) not in ("accepted", "armed"):
-                raise CommandFailedError(name.upper(), "cancelled", latest.state,
-                                         "the motion was stopped before its target")
-        finally:
-            self._finals.pop(cmd_id, None)
-
-    def arm(self) -> None:
-        self._command("arm")
-
-    def disarm(self) -> None:
-        self._command("disarm")
-
-    def home(self, *, wait: bool = True, timeout: float = 120.0) -> None:
-        self._motion("home", (0.0, 0.0), wait, timeout)
-
-    def _set_tilt(self, angle: float, axis_index: int, wait: bool, timeout: float) -> None:
-        self._motion("set_tilt", (angle, float(axis_index)), wait, timeout)
-
-    def stop(self) -> None:
-        self._command("stop")
-
-    def emergency_stop(self) -> None:
-        self._command("emergency_stop")
-
     # ----- streaming (ChunkedStreamController) ---------------------------------------------------------
-
-    def _start_stream(self, first_seq: int) -> None:
-        self._command("start_stream", (float(first_seq), 0.0))
 
     def _encode_chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray,
                       end_of_stream: bool) -> bytes:

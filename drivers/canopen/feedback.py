@@ -1,0 +1,115 @@
+"""What the network's thread receives, matched to the SYNC it answered: the drives' TPDO1 (statusword, position),
+the accelerometers' samples (published in batches of :data:`ACCEL_BATCH`) and the detector's overturn events; and
+the statuses made of the SYNCs all six drives answered (:data:`STATUS_RATE` per second of measured time, and one
+at every state change)."""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from drivers.canopen.faults import FAULT_ORDER
+from drivers.canopen.master import MasterBase
+from drivers.canopen.nodes import DriveLink, SensorLink
+from drivers.controller import AccelBatch, Detection, TableStatus
+from protocols.canopen import TPDO1
+from protocols.canopen.sensors import ACCEL_TPDO1, EVENT_TPDO1, decode_force, event_age_ns, event_tilt
+
+STATUS_RATE = 50.0
+"""Statuses per second (and one at every state change)."""
+
+ACCEL_BATCH = 25
+"""Accelerometer samples per published batch."""
+
+
+class FeedbackFrames(MasterBase):
+    """The PDO callbacks of the network's thread, and the poses and statuses of the frames they collect."""
+
+    def _answered(self, timestamp: float) -> tuple[int, int] | None:
+        """(index, deadline [ns]) of the SYNC a frame with this time stamp answered: the last one sent before it."""
+        with self._lock:
+            for wall, index, deadline in reversed(self._syncs):
+                if wall <= timestamp:
+                    return index, deadline
+        return None
+
+    def _on_drive(self, link: DriveLink, pdo_map: Any) -> None:
+        feedback = TPDO1.decode(bytes(pdo_map.data))
+        answered = self._answered(pdo_map.timestamp)
+        with self._lock:
+            link.statusword, link.position = feedback.statusword, feedback.position_actual
+            if answered is not None:
+                self._frames.setdefault(answered[0], {})[self._drives.index(link)] = feedback.position_actual
+
+    def _on_accel(self, sensor: SensorLink, pdo_map: Any) -> None:
+        answered = self._answered(pdo_map.timestamp)
+        if answered is None:
+            return
+        force = decode_force(ACCEL_TPDO1.decode(bytes(pdo_map.data)))
+        index = answered[0]
+        if sensor.next_index is not None and index != sensor.next_index:
+            self._publish_accel(sensor)
+            sensor.lost += max(0, index - sensor.next_index)
+            sensor.seq += 1  # a gap in the batches' sequence numbers marks the lost samples
+        sensor.pending.append((index, force))
+        sensor.next_index = index + 1
+        if len(sensor.pending) >= ACCEL_BATCH:
+            self._publish_accel(sensor)
+
+    def _publish_accel(self, sensor: SensorLink) -> None:
+        if not sensor.pending:
+            return
+        deadline = self._deadline(sensor.pending[0][0])
+        if deadline is not None:
+            self.feedback.publish_accel(AccelBatch(sensor.sensor_id, sensor.seq, deadline - self.sample_delay_ns,
+                                                   self.period_ns, np.array([f for _, f in sensor.pending])))
+            sensor.seq += 1
+        else:
+            sensor.lost += len(sensor.pending)
+        sensor.pending.clear()
+
+    def _on_event(self, pdo_map: Any) -> None:
+        record = EVENT_TPDO1.decode(bytes(pdo_map.data))
+        received = time.monotonic_ns() - round((time.time() - pdo_map.timestamp) * 1e9)
+        self.feedback.publish_detection(Detection(record.event_id, record.body_id, record.direction,
+                                                  event_tilt(record), received - event_age_ns(record)))
+
+    def _frame_pose(self, frame: dict[int, int]) -> np.ndarray:
+        """The pose (6,) of the leg positions [µm] one SYNC's TPDOs reported (forward kinematics)."""
+        lengths = np.array(self.scaling.lengths([frame[leg] for leg in range(len(self._drives))]))
+        return self.table.pose_from_leg_lengths(lengths, guess=self._measured)
+
+    def _measured_pose(self) -> np.ndarray:
+        lengths = np.array(self.scaling.lengths([link.position for link in self._drives]))
+        self._measured = self.table.pose_from_leg_lengths(lengths, guess=self._measured)
+        return self._measured.copy()
+
+    def _statuses(self, now: int, every: int) -> list[TableStatus]:
+        """A status for every ``every``-th SYNC all six drives answered since the last call, in order — 50 Hz of
+        measured time, whenever the answers arrive — and for the newest one when the state changed since the last
+        status."""
+        complete = sorted(index for index, frame in self._frames.items() if len(frame) == len(self._drives))
+        if not complete:
+            return []
+        due = [index for index in complete if index % every == 0]
+        if self._status_owed and complete[-1] not in due:
+            due.append(complete[-1])
+        statuses = [self._status(index, deadline, now) for index in due
+                    if (deadline := self._deadline(index)) is not None]
+        for old in [i for i in self._frames if i <= complete[-1]]:
+            del self._frames[old]
+        self._status_owed = False
+        return statuses
+
+    def _status(self, index: int, deadline: int, now: int) -> TableStatus:
+        """The status of SYNC ``index`` (at ``deadline``): the pose its TPDOs report, the state now."""
+        self._measured = self._frame_pose(self._frames[index])
+        depth = 0
+        if self._state == "streaming" and self._trajectory is not None:
+            depth = len(self._trajectory.poses) - self._trajectory.due(self._tau)
+        self._published_state = self._state
+        faults = tuple(name for name in FAULT_ORDER if name in self._faults)
+        return TableStatus(deadline - self.feedback_delay_ns, self._state, depth, self._cycle_index % 2**32,
+                           self._underruns, faults, 0, self._measured.copy(), now)

@@ -1,0 +1,149 @@
+"""The CANopen master's options and shared state (:class:`MasterBase`), on which each module of the package does
+one job: :mod:`~drivers.canopen.setup` (NMT, SDO, PDO mapping; connect and close), :mod:`~drivers.canopen.cycle`
+(the SYNC cycle thread), :mod:`~drivers.canopen.feedback` (the frames received and the statuses made of them),
+:mod:`~drivers.canopen.faults` (fault supervision) and :mod:`~drivers.canopen.motion` (the commands and the
+reference the master plays); :class:`~drivers.canopen.table.CanopenTable` combines them."""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from urllib.parse import parse_qs, urlsplit
+
+import canopen
+import numpy as np
+
+from analysis.table.model import TableModel
+from analysis.table.moves import Move, axis_limits
+from drivers.canopen.nodes import DriveLink, NodeLink, SensorLink
+from drivers.canopen.trajectory import Trajectory
+from drivers.controller import FaultSource, TableController, TableError
+from protocols.canopen import DEFAULT_RATE_HZ, LEG_NODE_IDS, LegScaling, check_bus_load, cycle_period_us
+from protocols.canopen.sensors import ACCELEROMETER_NODE_IDS
+
+DEFAULT_BITRATE = 1_000_000
+"""Bus bitrate [bit/s] unless the URL or an option says otherwise."""
+
+FOLLOWING_ERROR_LAG = 0.010
+"""How far behind its command a leg may be, as time at the legs' top speed [s]: each drive's following error window
+0x6065 is this × the table model's leg speed (9000 µm at 0.9 m/s). A leg that follows trails its command by τ·v (a
+first-order lag, τ = 5 ms for the table's drives), by at most 4.5 mm at top speed: the window is twice that bound.
+A leg that stops while moving at v trips it (9 mm − τ·v)/v later: 5 ms at top speed, 85 ms at 0.1 m/s."""
+
+DRIVING_STATES = frozenset({"armed", "homing", "tilting", "streaming"})
+"""States in which the drives follow the master's reference."""
+
+_QUERY = ("interface", "bitrate", "rate", "accelerometers")
+
+
+def _query(url: str) -> tuple[str, dict[str, str]]:
+    parts = urlsplit(url)
+    query = {key: values[-1] for key, values in parse_qs(parts.query).items()}
+    unknown = sorted(set(query) - set(_QUERY))
+    if parts.scheme != "canopen" or not parts.netloc or unknown:
+        raise ValueError(f"table URL {url!r}: expected canopen://CHANNEL?interface=NAME[&bitrate=N][&rate=HZ]"
+                         f"[&accelerometers=N]" + (f" (unknown {', '.join(unknown)})" if unknown else ""))
+    return parts.netloc, query
+
+
+class MasterBase(TableController):
+    """The options (those of :class:`~drivers.canopen.table.CanopenTable`), the nodes, and the controller
+    state every part of the master reads and changes under ``_lock`` (re-entrant: the cycle thread, the network's
+    thread and the caller's commands take it)."""
+
+    def __init__(self, url: str, *, interface: str | None = None, bitrate: int | None = None,
+                 rate: float | None = None, accelerometers: int | None = None, detector: bool = True,
+                 table: TableModel | None = None, connect_timeout: float = 5.0, command_timeout: float = 2.0) -> None:
+        super().__init__(url)
+        self.channel, query = _query(url)
+        try:
+            self.interface = interface or query["interface"]
+            self.bitrate = int(bitrate if bitrate is not None else query.get("bitrate", DEFAULT_BITRATE))
+            self.rate = float(rate if rate is not None else query.get("rate", DEFAULT_RATE_HZ))
+            count = int(accelerometers if accelerometers is not None else query.get("accelerometers", 1))
+        except KeyError:
+            raise ValueError(f"table URL {url!r}: the python-can interface is missing (?interface=NAME)") from None
+        if not 0 <= count <= len(ACCELEROMETER_NODE_IDS):
+            raise ValueError(f"accelerometers must be 0..{len(ACCELEROMETER_NODE_IDS)}, got {count}")
+        self.bus_load = check_bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, accelerometers=count)
+        """Worst-case share of the bitrate the cycle takes."""
+        self.period_ns = cycle_period_us(self.rate) * 1000
+        self.table = table or TableModel()
+        geometry = self.table.geometry
+        self.scaling = LegScaling(geometry.leg_min, geometry.leg_max)
+        lim = self.table.limits
+        self._bounds = np.array([lim.surge.displacement, lim.lateral.displacement, lim.heave.displacement,
+                                 lim.tilt.angle, lim.tilt.angle, math.inf])
+        self._acceleration = axis_limits(self.table)[1]
+        self.accelerometer_count = count
+        self.detector = detector
+        self.connect_timeout = connect_timeout
+        self.command_timeout = command_timeout
+        self.target_delay_ns = 0
+        """The drives' target delay (0x2010) [ns]: a target latched at a SYNC is reached this long after it."""
+        self.feedback_delay_ns = 0
+        """The drives' feedback delay (0x2011) [ns]: a TPDO's position was measured this long before its SYNC."""
+        self.sample_delay_ns = 0
+        """The accelerometers' sample delay (0x2101) [ns]."""
+        self._network: canopen.Network | None = None
+        self._drives: list[DriveLink] = []
+        self._sensors: list[SensorLink] = []
+        self._detector: NodeLink | None = None
+        self._lock = threading.RLock()
+        self._closing = threading.Event()
+        self._thread: threading.Thread | None = None
+        self._failure: BaseException | None = None
+        # the master's controller state (under _lock)
+        self._state = "idle"
+        self._faults: set[str] = set()
+        self._stop_reason: str | None = None  # the fault that is stopping the table (None: STOP)
+        self._arming = False
+        self._pose = np.zeros(6)  # the reference, for time _tau
+        self._velocity = np.zeros(6)
+        self._tau = 0
+        self._move: Move | None = None
+        self._trajectory: Trajectory | None = None
+        self._homing_after_stop = False
+        self._cycle_index = 0
+        self._next_deadline = 0
+        self._arrived_ns = 0  # time stamp [ns, controller time] of the status that showed the last move in position
+        self._underruns = 0
+        self._dry = False
+        self._lateness: list[int] | None = None  # per cycle during a stream [ns]
+        self._stream_cycles = 0
+        self._published_state = ""
+        self._status_owed = False
+        # feedback (under _lock)
+        self._syncs: deque[tuple[float, int, int]] = deque(maxlen=512)  # (wall time sent, index, deadline ns)
+        self._frames: dict[int, dict[int, int]] = {}  # SYNC index -> {leg index: position}
+        self._measured = np.zeros(6)
+        self._played: Trajectory | None = None  # the last trajectory streamed to its end
+        self.late_cycles = 0
+        """Cycles that went out a whole period or more after their deadline."""
+        self.lateness_max_ns = 0
+        """Largest lateness of a cycle [ns]."""
+        self.silent_drives: set[int] = set()
+        """Legs (1..6) whose heartbeat was lost since the last ARM."""
+        self.following_error_window_um = round(FOLLOWING_ERROR_LAG * self.table.geometry.leg_speed * 1e6)
+        """The following error window 0x6065 written to every drive [µm] (:data:`FOLLOWING_ERROR_LAG`)."""
+        self._sources: list[FaultSource] = []  # EMCYs since the last status (under _lock)
+
+    def _links(self) -> list[NodeLink]:
+        return [*self._drives, *self._sensors, *([self._detector] if self._detector else [])]
+
+    def _check_alive(self) -> None:
+        if self._failure is not None:
+            raise TableError(f"{self.url}: the CANopen cycle stopped: {self._failure!r}") from self._failure
+        if self._network is None:
+            raise TableError(f"{self.url}: not connected")
+
+    def _set_state(self, state: str) -> None:
+        self._state = state
+        if state != "stopping":
+            self._homing_after_stop = False
+
+    def _deadline(self, index: int) -> int | None:
+        """The deadline [ns] of SYNC ``index`` (None once forgotten: 512 cycles back)."""
+        with self._lock:
+            return next((d for _, i, d in reversed(self._syncs) if i == index), None)

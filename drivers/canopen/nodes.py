@@ -1,0 +1,60 @@
+"""What the CANopen master knows of each node on the bus: its heartbeat and NMT state, its EMCYs, and per kind
+(leg drive, accelerometer) what its PDOs last reported."""
+
+from __future__ import annotations
+
+import time
+
+import canopen
+
+from protocols.canopen import State, decode_statusword
+
+NMT_OPERATIONAL = 0x05
+"""The NMT state a heartbeat reports for *operational*."""
+
+
+class NodeLink:
+    """What the master knows of one node: its ``RemoteNode``, last heartbeat [host ns], the NMT state that heartbeat
+    reported, and EMCYs."""
+
+    def __init__(self, node: canopen.RemoteNode) -> None:
+        self.node = node
+        self.heartbeat_ns: int | None = None
+        self.nmt_state: int | None = None
+        self.started_ns = 0  # when the master last sent it the NMT start command [host ns]
+        self.emcy: list[tuple[int, int]] = []  # (code, host ns)
+        node.nmt.add_heartbeat_callback(self._beat)
+
+    def _beat(self, state: int) -> None:
+        self.heartbeat_ns = time.monotonic_ns()
+        self.nmt_state = state
+
+    def heartbeat_age(self, now: int) -> float | None:
+        """Seconds since its last heartbeat (None before the first)."""
+        return None if self.heartbeat_ns is None else (now - self.heartbeat_ns) * 1e-9
+
+
+class DriveLink(NodeLink):
+    """A leg drive: its last statusword and position, the controlword last sent."""
+
+    def __init__(self, node: canopen.RemoteNode) -> None:
+        super().__init__(node)
+        self.statusword: int | None = None
+        self.position = 0
+        self.word = 0
+
+    @property
+    def state(self) -> State | None:
+        return None if self.statusword is None else decode_statusword(self.statusword)
+
+
+class SensorLink(NodeLink):
+    """An accelerometer: the samples waiting to be published as one batch."""
+
+    def __init__(self, node: canopen.RemoteNode, sensor_id: int) -> None:
+        super().__init__(node)
+        self.sensor_id = sensor_id
+        self.pending: list[tuple[int, tuple[float, float, float]]] = []  # (SYNC index, force)
+        self.next_index: int | None = None
+        self.seq = 0
+        self.lost = 0
