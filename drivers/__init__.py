@@ -21,6 +21,7 @@ from drivers.controller import (
     TableError,
     TableStatus,
     TableTimeoutError,
+    TiltBatch,
     open_table,
     register_scheme,
 )
@@ -40,6 +41,7 @@ __all__ = [
     "TableError",
     "TableStatus",
     "TableTimeoutError",
+    "TiltBatch",
     "open_table",
     "register_scheme",
 ]

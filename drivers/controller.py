@@ -129,6 +129,25 @@ class AccelBatch:
         return self.t_start_ns + self.spacing_ns * np.arange(len(self.samples), dtype=np.int64)
 
 
+@dataclass(frozen=True, eq=False)
+class TiltBatch:
+    """Consecutive samples of one body's rocking angle from its tilt sensor (the overturn detector's channel):
+    ``angles[k]`` [rad] was taken at ``t_start_ns + k * spacing_ns`` [ns, controller time]. The angle is the
+    body's rotation about the plate's y axis relative to the plate, > 0 when its top has moved towards +x (the
+    low side, downhill). ``body_id`` is its place in the run's bodies (as :class:`Detection`); ``seq`` counts the
+    body's batches (a gap is a lost batch)."""
+
+    body_id: int
+    seq: int
+    t_start_ns: int
+    spacing_ns: int
+    angles: np.ndarray
+
+    def times_ns(self) -> np.ndarray:
+        """Time of every sample [ns, controller time], int64."""
+        return self.t_start_ns + self.spacing_ns * np.arange(len(self.angles), dtype=np.int64)
+
+
 @dataclass(frozen=True)
 class Detection:
     """An overturn on the plate: ``event_id`` (unique per controller run), ``body_id`` (its place in the run's
@@ -259,11 +278,12 @@ class Subscription(Generic[T]):
 class Feedback:
     """The controller's feedback as received: the latest status, its history for waiting, and subscriptions.
 
-    Backends call :meth:`publish_status`, :meth:`publish_accel` and :meth:`publish_detection` from their receive
-    thread. Detections are de-duplicated by ``event_id`` for the life of this object (one connection).
+    Backends call :meth:`publish_status`, :meth:`publish_accel`, :meth:`publish_tilt` and
+    :meth:`publish_detection` from their receive thread. Detections are de-duplicated by ``event_id`` for the life
+    of this object (one connection).
     """
 
-    _TOPICS = ("status", "accel", "detection", "fault")
+    _TOPICS = ("status", "accel", "tilt", "detection", "fault")
 
     def __init__(self) -> None:
         self._lock = threading.Condition()
@@ -303,6 +323,10 @@ class Feedback:
     def publish_accel(self, batch: AccelBatch) -> None:
         with self._lock:
             self._publish("accel", batch)
+
+    def publish_tilt(self, batch: TiltBatch) -> None:
+        with self._lock:
+            self._publish("tilt", batch)
 
     def publish_detection(self, detection: Detection) -> bool:
         """Publish a detection unless its event id was seen; True if it was new."""
@@ -447,6 +471,11 @@ class TableController(ABC):
     def accelerations(self) -> Subscription[AccelBatch]:
         """Every accelerometer batch from now on, as received (check ``seq`` for lost batches)."""
         return self.feedback.subscribe("accel")
+
+    def tilts(self) -> Subscription[TiltBatch]:
+        """Every body-tilt batch from now on, as received (check ``seq`` for lost batches); a backend whose
+        controller sends none (CANopen) never puts any."""
+        return self.feedback.subscribe("tilt")
 
     def detections(self) -> Subscription[Detection]:
         """Every overturn detection from now on, each event id once."""
