@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from .fig13 import Fig13Row, beyond_chance
+from .restitution import BodyRestitution
 from .transform import ModelInput
 
 
@@ -139,7 +140,9 @@ class SessionAnalysis:
     models: tuple[str, ...]
     solver: str
     restitution: str
-    """The models' impact rule as given: ``"0.0"`` (plastic, the paper's), ``"housner"`` or a number."""
+    """The models' impact rule as given: ``"0.0"`` (plastic, the paper's), ``"housner"``, a number or ``"fit"``."""
+    fitted_restitution: dict[int, BodyRestitution]
+    """With ``"fit"``: each body's restitution and where it came from (empty otherwise)."""
     runs: list[RunAnalysis]
     skipped: list[SkippedRun]
     fig13: list[Fig13Row]
@@ -161,6 +164,7 @@ class SessionAnalysis:
         """The ``rig analyze --json`` object."""
         return _clean({
             "path": self.path, "models": list(self.models), "solver": self.solver, "restitution": self.restitution,
+            "fitted_restitution": [b.to_json() for b in self.fitted_restitution.values()],
             "written": self.written,
             "runs": [r.to_json() for r in self.runs], "skipped": [s.to_json() for s in self.skipped],
             "fig13": [r.to_json() for r in self.fig13], "max_difference": self.max_difference,

@@ -5,7 +5,8 @@ For every ``completed`` run (others are skipped and listed with their status: ``
 ``refused``, ``skipped``, ``running``): the run's accelerometer samples → the models' input
 (`rig.analyze.transform`), then every body of the run's ``bodies`` table and every model through
 ``analysis.simulate`` at the run's angle (plastic impacts and the general model's default high friction, as in
-the paper's analysis; ``restitution`` can change the impact rule). The observed direction of a body is its first
+the paper's analysis; ``restitution`` can change the impact rule, ``"fit"`` identifies each body's from its
+measured tilts: `rig.analyze.restitution`). The observed direction of a body is its first
 detection in the run (sensor or operator), 0 if none. The Fig. 13 table and its COR definition:
 `rig.analyze.fig13`; the file layout: `rig.analyze.store`.
 """
@@ -14,7 +15,7 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from analysis.simulate import resolve_restitution
 from rig.session import read_session
 
 from . import fig13, store
+from .restitution import BodyRestitution, fitted_restitution
 from .results import Agreement, Prediction, RunAnalysis, SessionAnalysis, SkippedRun
 from .transform import TransformError, measured_inputs
 
@@ -56,9 +58,9 @@ def body_of(row: dict[str, Any]) -> Body:
 
 
 def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor: str | None = None,
-                restitution: float | str = 0.0) -> RunAnalysis:
-    """One run (as `rig.session.read_session` returns it) → its predictions. `TransformError` if it has no usable
-    accelerometer samples."""
+                restitution: float | str | Mapping[int, float] = 0.0) -> RunAnalysis:
+    """One run (as `rig.session.read_session` returns it) → its predictions. ``restitution``: one impact rule for
+    every body, or {body_id: restitution}. `TransformError` if it has no usable accelerometer samples."""
     angle_deg = float(run["angle_deg"])
     beta = math.radians(angle_deg)
     inp = measured_inputs(run["accel"], beta, sensor)
@@ -70,9 +72,10 @@ def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor:
         seen, t_seen = observed.get(body_id, (0, math.nan))
         try:
             body = body_of(row)
+            impact = restitution.get(body_id, "housner") if isinstance(restitution, Mapping) else restitution
             for model in models:
                 res = simulate(body, inp.acc_h, inp.dt, beta=beta, acc_v=inp.acc_v, model=model,  # type: ignore[arg-type]
-                               solver=solver, restitution=restitution)  # type: ignore[arg-type]
+                               solver=solver, restitution=impact)  # type: ignore[arg-type]
                 t_over = math.nan if res.t_overturn is None else inp.t0 + res.t_overturn
                 predictions.append(Prediction(run["name"], body_id, body.name, model, res.direction, t_over,
                                               res.theta_max, res.status, seen, t_seen))
@@ -85,6 +88,11 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
              restitution: float | str, written: bool) -> SessionAnalysis:
     runs: list[RunAnalysis] = []
     skipped: list[SkippedRun] = []
+    fitted: dict[int, BodyRestitution] = {}
+    impact: float | str | dict[int, float] = restitution
+    if restitution == "fit":
+        fitted = fitted_restitution(session["runs"])
+        impact = {body_id: body.value for body_id, body in fitted.items()}
     for run in session["runs"]:
         status = str(run["status"])
         if status != "completed":
@@ -92,7 +100,7 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
             skipped.append(SkippedRun(run["name"], status, str(reason)))
             continue
         try:
-            runs.append(analyze_run(run, models, solver, sensor, restitution))
+            runs.append(analyze_run(run, models, solver, sensor, impact))
         except TransformError as exc:
             skipped.append(SkippedRun(run["name"], status, str(exc)))
     predictions = [p for r in runs for p in r.predictions]
@@ -101,7 +109,8 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
     rows = fig13.fig13_rows(cases)
     diff = fig13.max_difference(rows)
     return SessionAnalysis(
-        path=str(path), models=models, solver=solver, restitution=str(restitution), runs=runs, skipped=skipped,
+        path=str(path), models=models, solver=solver, restitution=str(restitution), fitted_restitution=fitted,
+        runs=runs, skipped=skipped,
         fig13=rows, max_difference={m: diff.get(m) for m in models},
         agreement={m: Agreement.of(m, predictions) for m in models}, written=written)
 
@@ -115,7 +124,8 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
 
     ``sensor``: use that accelerometer only (default: the mean of all). ``restitution``: the models' impact rule,
     0 (plastic, the paper's analysis: default), ``"housner"`` (1 − 1.5 sin²α, a rigid block's no-bounce impact)
-    or a number in [0, 1]. Raises `AnalysisInputError` for a bad model/solver/restitution,
+    a number in [0, 1], or ``"fit"``: each body's from the session's measured tilts (`rig.analyze.restitution`;
+    a body that hardly rocked gets Housner's). Raises `AnalysisInputError` for a bad model/solver/restitution,
     `rig.session.SessionError` for a file that cannot be read or (with ``write``) is being
     written (`rig.analyze.store.SessionBusyError`).
     """
@@ -124,7 +134,8 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
         raise AnalysisInputError(f"models {list(models)!r}: expected one or both of {list(MODELS)}")
     if solver not in SOLVERS:
         raise AnalysisInputError(f"solver {solver!r}: expected one of {list(SOLVERS)}")
-    resolve_restitution(Body(b=0.1, h=0.5), restitution)  # a bad value fails here, not as skipped bodies
+    if restitution != "fit":
+        resolve_restitution(Body(b=0.1, h=0.5), restitution)  # a bad value fails here, not as skipped bodies
     path = Path(path)
     if not write:
         return _analyze(read_session(path), path, models, solver, sensor, restitution, written=False)

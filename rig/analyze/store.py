@@ -4,7 +4,8 @@ Layout (schema ``shaketable-rig/analysis/1``):
 
 * ``/runs/<NNNN>/analysis/`` per analysed run: attributes ``schema``, ``software_version``, ``created`` (ISO 8601
   UTC), ``transform`` (`rig.analyze.transform.DESCRIPTION`), ``models`` and ``sensors`` (JSON lists), ``solver``,
-  ``restitution`` (the models' impact rule, text),
+  ``restitution`` (the models' impact rule, text), ``fitted_restitution`` (JSON list, with ``fit``: per body
+  ``body_id``, ``value``, ``source`` ``fit``/``housner``, ``impacts``, ``low``, ``high``; empty otherwise),
   ``angle_deg``, ``dt`` [s], ``t0`` [s], ``duration`` [s], ``resampled``, ``gaps``, ``notes`` and
   ``skipped_bodies`` (JSON); dataset ``predictions`` (`PREDICTION`): body_id, model, direction (+1 low side, −1
   high side, 0 none), t_overturn [s, run clock, NaN if none], theta_max [rad], observed (direction, 0 if none),
@@ -41,6 +42,7 @@ from rig.session.reader import attributes, records
 from rig.session.schema import iso_now
 
 from . import fig13
+from .restitution import BodyRestitution
 from .results import SessionAnalysis
 from .transform import DESCRIPTION
 
@@ -78,7 +80,8 @@ def locked(path: Path) -> Iterator[SessionFile]:
 def _provenance(analysis: SessionAnalysis, created: str) -> dict[str, str]:
     return {"schema": SCHEMA, "software_version": __version__, "created": created, "transform": DESCRIPTION,
             "models": json.dumps(list(analysis.models)), "solver": analysis.solver,
-            "restitution": analysis.restitution}
+            "restitution": analysis.restitution,
+            "fitted_restitution": json.dumps([b.to_json() for b in analysis.fitted_restitution.values()])}
 
 
 def prediction_rows(analysis: SessionAnalysis, run: str) -> np.ndarray:
@@ -144,6 +147,18 @@ def read_results(path: str | os.PathLike[str]) -> tuple[list[dict[str, Any]] | N
             return None, {}
         rows = records(group["fig13"]) if isinstance(group.get("fig13"), h5py.Dataset) else None
         return rows, attributes(group)
+
+
+def fitted_restitution(attrs: Mapping[str, Any]) -> list[BodyRestitution]:
+    """The per-body restitution of ``rig analyze --restitution fit`` from the ``/analysis`` attributes
+    (`read_results`); empty for any other impact rule or an older analysis."""
+    try:
+        rows = json.loads(attrs.get("fitted_restitution") or "[]")
+    except ValueError:
+        return []
+    return [BodyRestitution(int(r["body_id"]), float(r["value"]), str(r["source"]), int(r["impacts"]),
+                            math.nan if r.get("low") is None else float(r["low"]),
+                            math.nan if r.get("high") is None else float(r["high"])) for r in rows]
 
 
 def run_predictions(run: Mapping[str, Any]) -> list[dict[str, Any]] | None:

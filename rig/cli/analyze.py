@@ -87,6 +87,8 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
     console.print(f"[bold]{result.path}[/]: {len(result.runs)} run(s) analysed, models {', '.join(result.models)}"
                   f" ({result.solver} solver, restitution {result.restitution})"
                   + (", stored in its analysis groups" if result.written else ""))
+    for body in result.fitted_restitution.values():
+        console.print(f"  body {body.body_id}: restitution {body.label()}", highlight=False)
     for skipped in result.skipped:
         console.print(f"  skipped run {skipped.run} ({skipped.status}): {skipped.reason}", highlight=False)
     for run in result.runs:
@@ -118,7 +120,8 @@ def register(app: typer.Typer) -> None:
         model: Annotated[str, typer.Option(help="rocking | general | both")] = "both",
         solver: Annotated[str, typer.Option(help="fast | reference")] = "fast",
         restitution: Annotated[str, typer.Option(help="the models' impact rule: 0 (plastic, the paper's), "
-                                                      "'housner' or a number in [0, 1]")] = "0",
+                                                      "'housner', a number in [0, 1], or 'fit' (each body's "
+                                                      "from its measured tilts)")] = "0",
         sensor: Annotated[str | None, typer.Option(help="use this accelerometer only (default: the mean of all)")
                           ] = None,
         write: Annotated[bool, typer.Option("--write/--no-write", help="store the result in the session file")
@@ -130,9 +133,10 @@ def register(app: typer.Typer) -> None:
         if model not in MODEL_CHOICES:
             fail(f"--model {model!r}: expected one of {', '.join(MODEL_CHOICES)}")
         try:
-            impact: float | str = restitution if restitution.lower() == "housner" else float(restitution)
+            impact: float | str = (restitution.lower() if restitution.lower() in ("housner", "fit")
+                                   else float(restitution))
         except ValueError:
-            fail(f"--restitution {restitution!r}: expected 0, 'housner' or a number in [0, 1]")
+            fail(f"--restitution {restitution!r}: expected 0, 'housner', a number in [0, 1] or 'fit'")
         from analysis.errors import AnalysisInputError
         from rig.analyze import analyze_session
         from rig.session import SessionError

@@ -1,10 +1,11 @@
-"""A run's recorder: the table's feedback (accelerations, measured pose, detections, faults) into the run's log.
+"""A run's recorder: the table's feedback (accelerations, body tilts, measured pose, detections, faults) into the
+run's log.
 
 It subscribes when made (before the stream starts, so nothing is missed) and writes from its own thread once
 :meth:`RunRecorder.start` has the controller time of the drive's first sample: every time in the run's log is
 seconds from that instant (the commanded trajectory's t = 0), negative for what was measured before it.
-Accelerometer ids map to the run's sensor names; detection body ids are the bodies' order on the table (the
-emulator's ``--body`` order, a real detector's channel order), mapped to the sequence's body ids.
+Accelerometer ids map to the run's sensor names; detection and tilt body ids are the bodies' order on the table
+(the emulator's ``--body`` order, a real detector's channel order), mapped to the sequence's body ids.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from typing import Any
 
 import numpy as np
 
-from drivers.controller import AccelBatch, Detection, FaultEvent, TableController, TableStatus
+from drivers.controller import AccelBatch, Detection, FaultEvent, TableController, TableStatus, TiltBatch
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.sinks import RunSink
 from rig.orchestrator.states import Progress
@@ -43,6 +44,7 @@ class RunRecorder:
         self.progress = progress
         self.detections: list[tuple[float, int, int]] = []
         self._accel = table.accelerations()
+        self._tilts = table.tilts()
         self._statuses = table.statuses()
         self._detections = table.detections()
         self._faults = table.faults()
@@ -51,6 +53,7 @@ class RunRecorder:
         self._thread = threading.Thread(target=self._loop, name="run-recorder", daemon=True)
         self._baseline: dict[int, list[float]] = {}
         self._undeclared: set[int] = set()
+        self._undeclared_tilts: set[int] = set()
 
     def start(self, t0_ns: int) -> None:
         """The drive's first sample is due at controller time ``t0_ns``: start writing."""
@@ -63,7 +66,7 @@ class RunRecorder:
             self._stop.wait(linger)
             self._stop.set()
             self._thread.join()
-        for sub in (self._accel, self._statuses, self._detections, self._faults):
+        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults):
             sub.close()
 
     def _loop(self) -> None:
@@ -78,6 +81,8 @@ class RunRecorder:
     def _drain(self) -> None:
         for batch in self._accel.drain():
             self._write_accel(batch)
+        for tilt in self._tilts.drain():
+            self._write_tilt(tilt)
         statuses = self._statuses.drain()
         if statuses:
             self._write_poses(statuses)
@@ -103,6 +108,16 @@ class RunRecorder:
             self.progress.peak_accel = max(self.progress.peak_accel, float(np.abs(fall_line).max()))
             if self.live is not None and batch.sensor_id == next(iter(self.sensors)):  # the display's sensor
                 self.live.accel(batch.sensor_id, self._seconds(batch.times_ns()), fall_line)
+
+    def _write_tilt(self, batch: TiltBatch) -> None:
+        if not 0 <= batch.body_id < len(self.body_ids):
+            if batch.body_id not in self._undeclared_tilts:
+                self._undeclared_tilts.add(batch.body_id)
+                self.run_log.add_event(float(self._seconds(batch.t_start_ns)),
+                                       f"tilt reported for body index {batch.body_id}, which is not on the plate "
+                                       f"(bodies 0–{len(self.body_ids) - 1}): not logged")
+            return
+        self.run_log.append_tilt(self.body_ids[batch.body_id], self._seconds(batch.times_ns()), batch.angles)
 
     def _write_poses(self, statuses: list[TableStatus]) -> None:
         t = self._seconds(np.array([s.t_ns for s in statuses], dtype=np.int64))

@@ -21,6 +21,10 @@ class RunSink(Protocol):
     def append_accel(self, sensor: str, t: np.ndarray, xyz: np.ndarray) -> None:
         """Accelerometer samples: ``t`` (k,) [s], ``xyz`` (k, 3) [m/s²]."""
 
+    def append_tilt(self, body_id: int, t: np.ndarray, angle: np.ndarray) -> None:
+        """A body's tilt-sensor samples: ``t`` (k,) [s], ``angle`` (k,) [rad, relative to the plate, > 0 towards
+        the low side]."""
+
     def append_pose(self, t: np.ndarray, pose: np.ndarray) -> None:
         """Measured table pose: ``t`` (k,) [s], ``pose`` (k, 6)."""
 

@@ -21,6 +21,7 @@ import numpy as np
 from analysis.body import G
 from analysis.proportions import SIGNIFICANCE
 from analysis.spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum, uniform
+from rig.analyze.store import fitted_restitution
 
 from . import figures
 from .compensation_report import compensation_section
@@ -278,6 +279,20 @@ def _sequence_section(header: SessionData, body_rows: list[dict[str, Any]]) -> s
     return "\n".join(parts)
 
 
+def _impact_model(attrs: dict[str, Any]) -> list[tuple[str, str]]:
+    """The models' impact rule as `rig analyze` used it, and each body's fitted restitution with ``fit``."""
+    rule = str(attrs.get("restitution", "0.0"))
+    named = {"housner": "Housner's restitution 1 − 1.5 sin²α", "fit": "restitution fitted per body from the "
+             "measured tilts (ratio of rates across each impact)"}
+    try:
+        text = named.get(rule) or ("plastic (no bounce, the paper's)" if float(rule) == 0.0
+                                   else f"restitution {float(rule):g}")
+    except ValueError:
+        text = rule
+    return [("impact model", text)] + [(f"restitution, body {body.body_id}", body.label())
+                                       for body in fitted_restitution(attrs)]
+
+
 def _fig13_section(header: SessionData, names: dict[int, str]) -> str:
     parts = ["<h2>Analysis against experiment (Fig. 13)</h2>"]
     rows = header.fig13
@@ -321,8 +336,7 @@ def _fig13_section(header: SessionData, names: dict[int, str]) -> str:
         "points], dashed ±5 pp (the paper's largest difference)."), alt="Fig. 13 analysis against experiment"))
     maxima = [(f"largest |difference|, {k.removeprefix('max_difference_')}", f"{num(v, '.1f', 100)} pp")
               for k, v in sorted(header.analysis_attrs.items()) if k.startswith("max_difference_")]
-    if maxima:
-        parts.append(key_values(maxima))
+    parts.append(key_values(_impact_model(header.analysis_attrs) + maxima))
     ordered = sorted(rows, key=lambda r: (str(r["model"]), float(r["angle_deg"]), int(r["body_id"])))
     parts.append(table(
         ["model", "β [°]", "body", "runs", "overturned (analysis)", "towards low (analysis)", "COR analysis [%]",

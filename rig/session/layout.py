@@ -92,6 +92,9 @@ def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, re
     accel = create_group(group, "accel")
     for sensor in sensors:
         _columns(_growing(accel, sensor, 4, schema.ACCEL_CHUNK), schema.ACCEL_COLUMNS, schema.ACCEL_UNITS)
+    tilt = create_group(group, "tilt")
+    for body_id in bodies["body_id"]:
+        _columns(_growing(tilt, str(int(body_id)), 2, schema.TILT_CHUNK), schema.TILT_COLUMNS, schema.TILT_UNITS)
     _table(group, "detections", schema.DETECTION)
     _table(group, "faults", schema.FAULT)
     _table(group, "events", schema.EVENT)

@@ -296,6 +296,7 @@ class SessionLog:
                 datasets = {"commanded": group["commanded"], "pose": group["pose"], "events": group["events"],
                             "detections": group["detections"], "faults": group["faults"]}
                 datasets.update({f"accel/{sensor}": group["accel"][sensor] for sensor in sensors})
+                datasets.update({f"tilt/{name}": group["tilt"][name] for name in group["tilt"]})
                 writer = BlockWriter(h5, datasets, self._flush_interval)
             except BaseException:
                 h5.close()
@@ -304,7 +305,7 @@ class SessionLog:
             self.finish_run(info, "interrupted", {"begin_error": str(exc)[:500]})
             raise
         writer.start()
-        self._active = RunLog(self, info, sensors, h5, writer)
+        self._active = RunLog(self, info, sensors, [int(b) for b in body_rows["body_id"]], h5, writer)
         return self._active
 
     @staticmethod

@@ -110,6 +110,7 @@ def read_run(group: h5py.Group, name: str, data: bool = True) -> dict[str, Any]:
     for key in ("commanded", "pose"):
         run[key] = group[key][()] if key in group else np.zeros((0, 7))
     run["accel"] = {sensor: ds[()] for sensor, ds in group["accel"].items()} if "accel" in group else {}
+    run["tilt"] = {int(body): ds[()] for body, ds in group["tilt"].items()} if "tilt" in group else {}
     for key in ("detections", "bodies", "faults", "events"):
         run[key] = records(group[key]) if key in group else []
     if "analysis" in group:
@@ -138,6 +139,7 @@ def read_session(path: str | os.PathLike[str], *, data: bool = True, timeout: fl
     "rig_config": dict, "sequence": dict, "attrs", "runs": [...]}``; each run a dict with ``name``, ``record``,
     ``scale_factor``, ``angle_deg``, ``status``, ``started``, ``ended``, ``plan_index``, ``attempt``, ``sensors``,
     ``attrs`` and, with ``data``, ``commanded``/``pose`` (n, 7) arrays, ``accel`` {sensor: (m, 4) array},
+    ``tilt`` {body_id: (l, 2) array of t, angle} (empty without tilt sensors),
     ``detections``/``bodies``/``faults``/``events`` as lists of dicts, ``analysis`` if present (without
     ``data``: ``samples``, the row count per accelerometer). Strings are ``str``."""
     path = Path(path)

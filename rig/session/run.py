@@ -38,8 +38,8 @@ class RunLog:
     """The run being recorded; obtained from `SessionLog.begin_run`. Appends are thread-safe and never wait for
     the disk."""
 
-    def __init__(self, session: SessionLog, info: RunInfo, sensors: Sequence[str], h5: h5py.File,
-                 writer: BlockWriter) -> None:
+    def __init__(self, session: SessionLog, info: RunInfo, sensors: Sequence[str], body_ids: Sequence[int],
+                 h5: h5py.File, writer: BlockWriter) -> None:
         self._session = session
         self.info = info
         self.sensors = tuple(sensors)
@@ -48,6 +48,7 @@ class RunLog:
         self._ended = False
         self._lock = threading.Lock()  # an append racing `end` is either written or refused, never dropped
         self._accel_keys = {sensor: f"accel/{sensor}" for sensor in sensors}
+        self._tilt_keys = {body_id: f"tilt/{body_id}" for body_id in body_ids}
 
     @property
     def name(self) -> str:
@@ -83,6 +84,15 @@ class RunLog:
             raise SessionError(f"{self._session.path}: run {self.name}: unknown sensor {sensor!r}; expected one "
                                f"of {list(self.sensors)}")
         self._put(key, _rows(t, xyz, 3, f"accel {sensor!r}"))
+
+    def append_tilt(self, body_id: int, t: np.ndarray, angle: np.ndarray) -> None:
+        """A body's tilt-sensor samples: ``t`` (k,) [s], ``angle`` (k,) [rad, relative to the plate, > 0 towards
+        the low side]."""
+        key = self._tilt_keys.get(body_id)
+        if key is None:
+            raise SessionError(f"{self._session.path}: run {self.name}: body {body_id!r} is not on the plate; "
+                               f"expected one of {list(self._tilt_keys)}")
+        self._put(key, _rows(t, np.reshape(angle, (-1, 1)), 1, f"tilt of body {body_id}"))
 
     def append_pose(self, t: np.ndarray, pose: np.ndarray) -> None:
         """Measured table pose: ``t`` (k,) [s], ``pose`` (k, 6): surge, sway, heave [m], roll, pitch, yaw [rad]."""

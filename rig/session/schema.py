@@ -20,6 +20,9 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
 
 * ``commanded`` (N, 7): t, surge, sway, heave [m], roll, pitch, yaw [rad];
 * ``accel/<sensor>`` (M, 4): t, ax, ay, az [m/s², plate frame];
+* ``tilt/<body_id>`` (L, 2): t, angle [rad]: the body's rocking angle from its tilt sensor, relative to the
+  plate, > 0 when its top has moved towards +x (the low side); one per body of ``bodies`` (empty when the
+  table sends no tilts: CANopen; files written before the tilt sensors have no ``tilt`` group);
 * ``pose`` (K, 7): measured table pose from the controller's status feedback, columns as ``commanded``;
 * ``detections``: compound `DETECTION`: t [s], body_id, direction (+1 towards the low side, −1 towards the
   high side, 0 none), source (``"sensor"`` | ``"operator"``);
@@ -53,12 +56,15 @@ RUN_ATTRS = ("record", "scale_factor", "angle_deg", "status", "started", "ended"
 
 ACCEL_COLUMNS = ("t", "ax", "ay", "az")
 ACCEL_UNITS = ("s", "m/s^2", "m/s^2", "m/s^2")
+TILT_COLUMNS = ("t", "angle")
+TILT_UNITS = ("s", "rad")
 POSE_COLUMNS = ("t", "surge", "sway", "heave", "roll", "pitch", "yaw")
 POSE_UNITS = ("s", "m", "m", "m", "rad", "rad", "rad")
 
 #: Rows per chunk: 4096 × 4 × 8 B = 128 KiB for an accelerometer (about 4 s at 1 kHz).
 ACCEL_CHUNK = 4096
 POSE_CHUNK = 2048
+TILT_CHUNK = 2048
 TABLE_CHUNK = 128
 
 SOURCE_LEN, NAME_LEN, TEXT_LEN = 16, 64, 512

@@ -21,9 +21,10 @@ import h5py
 import numpy as np
 import pytest
 import typer
+from scipy.interpolate import CubicHermiteSpline
 from typer.testing import CliRunner
 
-from analysis import TABLE_I, TABLE_V, Body, simulate
+from analysis import TABLE_I, TABLE_V, AnalysisInputError, Body, simulate
 from analysis.body import G
 from rig.analyze import (
     Case,
@@ -357,3 +358,80 @@ def test_rig_run_on_the_emulator_then_rig_analyze(tmp_path: Path) -> None:
     assert bad.exit_code == 2 and "restitution" in bad.stderr
     bad = runner.invoke(analyze_app(), ["analyze", str(tmp_path / "missing.h5")])
     assert bad.exit_code == 2 and "no such session file" in bad.stderr
+
+
+# ------------------------------------------------------------- restitution fitted from the measured body tilts
+def tilted_session(path: Path, restitution: float, with_tilts: bool = True) -> Path:
+    """Two runs (0° and 2°) of a 2 Hz burst that rocks a slender body without overturning it, and a stocky body
+    that does not rock; the slender body's tilt sensor reads the reference solver's angle, run with
+    ``restitution``, at 200 Hz (the stocky one's reads 0)."""
+    slender, stocky = Body(b=0.1, h=0.5, name="slender"), Body(b=0.3, h=0.4, name="stocky")
+    bodies = [body_row(1, slender), body_row(2, stocky)]
+    log = SessionLog.create(path, rig_config={"test": True}, sequence={"name": "tilts"}, software_version="test")
+    t = np.arange(round(6.0 * RATE)) / RATE
+    burst = 0.21 * np.sin(2 * np.pi * 2.0 * t) * np.exp(-(((t - 1.5) / 0.7) ** 2))  # [g]
+    for i, angle_deg in enumerate((0.0, 2.0)):
+        beta = math.radians(angle_deg)
+        force = np.column_stack([burst * G * math.cos(beta) - G * math.sin(beta), np.zeros_like(t),
+                                 burst * G * math.sin(beta) + G * math.cos(beta)])  # f = Ry(β)ᵀ (a − g)
+        commanded = np.zeros((t.size, 7))
+        commanded[:, 0], commanded[:, 5] = t, beta
+        run = log.begin_run(i, record=f"burst{i}", scale_factor=1.0, angle_deg=angle_deg, commanded=commanded,
+                            bodies=bodies, sensors=["0"])
+        run.append_accel("0", t, force)
+        if with_tilts:
+            result = simulate(slender, burst, 1.0 / RATE, beta=beta, solver="reference", restitution=restitution,
+                              history=True, t_after=3.0)
+            assert result.status == "rest" and len(result.trace.impacts) > 5
+            trace = result.trace
+            t_trace, theta, omega = (np.asarray(v) for v in (trace.t, trace.theta, trace.omega))
+            sensed = np.arange(0.0021, t[-1], 0.005)
+            angle = np.zeros_like(sensed)  # at rest before the first uplift and after the last impact
+            for piece in np.split(np.arange(t_trace.size), np.flatnonzero(np.diff(t_trace) <= 0) + 1):
+                if piece.size > 1:
+                    inside = (sensed >= t_trace[piece[0]]) & (sensed <= t_trace[piece[-1]])
+                    angle[inside] = CubicHermiteSpline(t_trace[piece], theta[piece], omega[piece])(sensed[inside])
+            run.append_tilt(1, sensed, angle)
+            run.append_tilt(2, sensed, np.zeros_like(sensed))
+        run.end("completed")
+    log.close()
+    return path
+
+
+def test_restitution_fit_identifies_each_bodys_restitution_from_its_tilts(tmp_path: Path) -> None:
+    path = tilted_session(tmp_path / "tilts.h5", restitution=0.8)
+    result = analyze_session(path, ("rocking",), restitution="fit")
+    slender, stocky = result.fitted_restitution[1], result.fitted_restitution[2]
+    assert slender.source == "fit" and slender.impacts >= 5
+    assert slender.value == pytest.approx(0.8, rel=0.02) and slender.low <= slender.value <= slender.high
+    assert stocky.source == "housner" and stocky.impacts == 0  # it never rocked
+    assert stocky.value == pytest.approx(Body(b=0.3, h=0.4).housner_restitution())
+    # the models ran with those values: the same predictions as with each body's value given by hand
+    for body_id, value in ((1, slender.value), (2, stocky.value)):
+        by_hand = analyze_session(path, ("rocking",), restitution=value, write=False)
+        assert [(p.run, p.direction, p.theta_max) for p in result.predictions if p.body_id == body_id] == [
+            (p.run, p.direction, p.theta_max) for p in by_hand.predictions if p.body_id == body_id]
+    # stored with the analysis and said by the CLI
+    with h5py.File(path, "r", swmr=True, locking=False) as h5:
+        assert h5["analysis"].attrs["restitution"] == "fit"
+        stored = json.loads(h5["analysis"].attrs["fitted_restitution"])
+    assert [(b["body_id"], b["source"]) for b in stored] == [(1, "fit"), (2, "housner")]
+    from rig.report import write_report
+
+    html = write_report(path, tmp_path / "tilts.html").output.read_text()
+    assert "restitution fitted per body" in html and f"{slender.value:.3f} [{slender.low:.3f}" in html
+    out = CliRunner().invoke(analyze_app(), ["analyze", str(path), "--model", "rocking", "--restitution", "fit",
+                                             "--no-write"])
+    assert out.exit_code == 0, out.output
+    assert f"body 1: restitution {slender.value:.3f} [" in out.stdout and "restitution fit" in out.stdout
+    assert "body 2: restitution" in out.stdout and "Housner's: 0 impacts measured" in out.stdout
+
+
+def test_restitution_fit_without_tilts_is_refused(tmp_path: Path) -> None:
+    path = tilted_session(tmp_path / "no-tilts.h5", restitution=0.8, with_tilts=False)
+    with pytest.raises(AnalysisInputError, match="no body tilt samples"):
+        analyze_session(path, restitution="fit")
+    out = CliRunner().invoke(analyze_app(), ["analyze", str(path), "--restitution", "fit"])
+    assert out.exit_code == 2 and "no body tilt samples" in out.stderr
+    with h5py.File(path, "r", swmr=True, locking=False) as h5:  # nothing written
+        assert "analysis" not in h5 and not any("analysis" in run for run in h5["runs"].values())

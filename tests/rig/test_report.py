@@ -275,7 +275,11 @@ def test_session_analysed_by_rig_analyze(files: dict[str, Path], tmp_path: Path)
     html = write_report(session, tmp_path / "analysed.html").output.read_text()
     assert "Not analysed yet" not in html and "Fig. 13 data" in html
     assert "Analysis (rig analyze): predicted against observed" in html
+    assert "plastic (no bounce, the paper&#x27;s)" in html or "plastic (no bounce, the paper's)" in html
     assert len(assert_self_contained(html)) == 3  # the run, Fig. 2, Fig. 13
+    analyze_session(session, models=("rocking",), restitution="housner")
+    html = write_report(session, tmp_path / "housner.html").output.read_text()
+    assert "Housner" in html and "1 − 1.5 sin²α" in html and "plastic (no bounce" not in html
 
 
 def test_study_report(files: dict[str, Path]) -> None:

@@ -283,6 +283,7 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
     ks = np.arange(250)
     run.append_accel("plate", ks / RATE, _accel_values(0, ks))
     run.append_pose(ks / RATE, _pose_values(ks))
+    run.append_tilt(2, ks[::5] / RATE, 0.001 * ks[::5])
     run.add_detection(0.2, 1, +1, "sensor")
     run.add_detection(0.3, 2, -1, "operator")
     run.add_fault(0.1, "underrun", "setpoint buffer empty for 12 ms " + "é" * 400)  # cut at a character boundary
@@ -319,6 +320,9 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
         assert g["accel/body1"].shape == (0, 4)
         assert g["accel/plate"].attrs["columns"] == "t,ax,ay,az"
         assert g["pose"].shape == (250, 7) and g["pose"].attrs["columns"].startswith("t,surge,sway,heave")
+        assert set(g["tilt"]) == {"1", "2"} and g["tilt/1"].shape == (0, 2)  # one per body
+        assert g["tilt/2"].shape == (50, 2) and g["tilt/2"].attrs["columns"] == "t,angle"
+        assert g["tilt/2"].attrs["units"] == "s,rad"
         det = g["detections"][()]
         assert det.dtype.names == ("t", "body_id", "direction", "source")
         assert det["body_id"].tolist() == [1, 2] and det["direction"].tolist() == [1, -1]
@@ -341,6 +345,8 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
     assert r["faults"][0]["name"] == "underrun" and r["faults"][0]["detail"].endswith("é")
     assert len(r["faults"][0]["detail"].encode()) <= 512
     assert r["events"] == [{"t": 0.0, "text": "state: streaming"}]
+    assert set(r["tilt"]) == {1, 2} and r["tilt"][1].shape == (0, 2)
+    assert np.array_equal(r["tilt"][2], np.column_stack([ks[::5] / RATE, 0.001 * ks[::5]]))
 
     # `rig analyze` later adds groups with plain h5py; the session can still be read and resumed afterwards
     with h5py.File(path, "a") as h5:
@@ -413,6 +419,10 @@ def test_api_validation(tmp_path: Path) -> None:
         run.append_accel("b", np.zeros(2), np.zeros((2, 3)))
     with pytest.raises(SessionError, match=r"\(k, 3\)"):
         run.append_accel("a", np.zeros(2), np.zeros((3, 3)))
+    with pytest.raises(SessionError, match="body 7 is not on the plate"):
+        run.append_tilt(7, np.zeros(2), np.zeros(2))
+    with pytest.raises(SessionError, match=r"tilt of body 1.*\(k, 1\)"):
+        run.append_tilt(1, np.zeros(2), np.zeros(3))
     with pytest.raises(SessionError, match="source"):
         run.add_detection(0.0, 1, 1, "camera")
     with pytest.raises(SessionError, match="status"):
