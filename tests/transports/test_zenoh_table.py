@@ -40,12 +40,14 @@ from protocols.zenoh.table import (
     SetpointChunk,
     StatusReport,
     TableUrl,
+    TiltSamples,
     decode_accel,
     decode_answer,
     decode_command,
     decode_overturn,
     decode_setpoints,
     decode_status,
+    decode_tilt,
     encode_accel,
     encode_answer,
     encode_command,
@@ -53,6 +55,7 @@ from protocols.zenoh.table import (
     encode_overturn,
     encode_setpoints,
     encode_status,
+    encode_tilt,
     fault_names,
     parse_table_url,
 )
@@ -83,6 +86,8 @@ def test_table_keys() -> None:
     assert table_key("table", "accel", "1") == "shaketable/table/controller/accel/1"
     assert parse_key(table_key("lab-a", "accel", "0")) == Key("lab-a", "controller", "accel", "0")
     assert parse_key(table_key("lab-a", "host-heartbeat")) == Key("lab-a", "controller", "host-heartbeat")
+    assert parse_key(table_key("lab-a", "tilt")) == Key("lab-a", "controller", "tilt")
+    assert not zenoh.KeyExpr(table_accel_selector("lab-a")).intersects(table_key("lab-a", "tilt"))
     assert zenoh.KeyExpr(table_accel_selector("lab-a")).includes(table_key("lab-a", "accel", "7"))
     assert not zenoh.KeyExpr(table_accel_selector("lab-a")).intersects(table_key("lab-a", "status"))
     with pytest.raises(KeyExprError, match="unknown table kind 'pose'"):
@@ -126,6 +131,10 @@ def test_payloads_round_trip() -> None:
     np.testing.assert_array_equal(batch.samples, samples[:7, :3])
     event = Overturn(2**40, 1, -1, -0.0349, 123)
     assert decode_overturn(encode_overturn(event)) == event
+    tilt = decode_tilt(encode_tilt(TiltSamples(2**32 - 1, 2**32 - 1, 10**15, 5_000_000, samples[:, 4])))
+    assert tilt[:4] == (2**32 - 1, 2**32 - 1, 10**15, 5_000_000)
+    np.testing.assert_array_equal(tilt.angles, samples[:, 4])
+    assert decode_tilt(encode_tilt(TiltSamples(0, 0, 0, 1, []))).angles.shape == (0,)
 
 
 @pytest.mark.parametrize(("payload", "decode", "message"), [
@@ -149,6 +158,9 @@ def test_payloads_round_trip() -> None:
      r"ACCEL body has 73 bytes, 2 samples need 74"),
     (encode_overturn(Overturn(1, 0, 1, 0.0, 0))[:-17] + b"\x00" + bytes(16), decode_overturn,
      r"direction must be \+1 or -1, got 0"),
+    (encode_tilt(TiltSamples(0, 0, 0, 1, np.zeros(2)))[:-1], decode_tilt, r"TILT body has 43 bytes, 2 samples need 44"),
+    (encode_tilt(TiltSamples(0, 0, 0, 1, np.zeros(2)))[:20], decode_tilt, r"TILT body has 12 bytes, its fixed part"),
+    (encode_accel(AccelSamples(0, 0, 0, 1, np.zeros((1, 3)))), decode_tilt, r"expected a TILT payload, got ACCEL"),
 ], ids=lambda v: v.__name__ if callable(v) else "")
 def test_payload_errors(payload: bytes, decode: Any, message: str) -> None:
     with pytest.raises(PayloadError, match=message):
