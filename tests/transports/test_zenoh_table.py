@@ -374,6 +374,32 @@ def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.M
     table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch, ZenohTable)
 
 
+# ----- telemetry ----------------------------------------------------------------------------------------------
+
+
+def test_tilt_payloads_are_published_and_each_bodys_lost_ones_counted() -> None:
+    """TILT publications as received (no session): each becomes a TiltBatch of its body with its timing and angles;
+    a skipped seq of a body counts as lost batches of that body only, across the sequence's wrap; an undecodable one
+    is counted as a bad payload."""
+    table = ZenohTable("zenoh://127.0.0.1:7447/lab-a")
+    tilts = table.tilts()
+    receive = table._receiver(table._on_tilt)
+
+    class Sample:
+        def __init__(self, payload: bytes) -> None:
+            self.payload = zenoh.ZBytes(payload)
+
+    angles = np.linspace(-0.2, 0.9, 10)
+    for body, seq in [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]:  # body 0 loses 2^32 - 1, body 7 loses 1, 2
+        receive(Sample(encode_tilt(TiltSamples(body, seq, 5_000_000 * (seq + 1), 5_000_000, angles + body))))
+    receive(Sample(encode_tilt(TiltSamples(0, 2, 0, 1, angles))[:-1]))
+    got = tilts.drain()
+    assert [(b.body_id, b.seq) for b in got] == [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]
+    assert table.link_stats()["tilt_batches_lost"] == table.tilt_batches_lost == 3 and table.bad_payloads == 1
+    np.testing.assert_array_equal(got[3].angles, angles + 7)
+    assert (got[3].t_start_ns, got[3].spacing_ns) == (20_000_000, 5_000_000)
+
+
 # ----- connection and registry --------------------------------------------------------------------------------
 
 
