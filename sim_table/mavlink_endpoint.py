@@ -142,7 +142,7 @@ class MavlinkEndpoint:
         self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
         self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
         self._answers: list[tuple[Any, tuple[str, int]]] = []  # COMMAND_ACKs held until the batch's statuses are out
-        self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
+        self._accel = Batcher(ACCEL_PER_BATCH)
         self._tilt = Batcher(TILT_PER_BATCH)
         self._resends: list[tuple[int, int, int, Any]] = []  # (due host ns, copies left, event id, message)
         self._next_heartbeat = 0
@@ -323,29 +323,19 @@ class MavlinkEndpoint:
 
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
         """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
-        t0, spacing, parts, seq = self._accel.get(sensor_id, (t_start_ns, spacing_ns, [], 0))
-        parts.append(samples)
-        pending = np.concatenate(parts)
-        full = len(pending) - len(pending) % ACCEL_PER_BATCH
-        if full:
-            self._send_accel(sensor_id, pending[:full], t0, spacing, seq)
-            seq += full // ACCEL_PER_BATCH
-            t0 += full * spacing
-        self._accel[sensor_id] = (t0, spacing, [pending[full:]], seq)
+        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
+            self._send_accel(batch)
 
     def flush_accel(self) -> None:
         """Send the samples still short of a full batch."""
-        for sensor_id, (t0, spacing, parts, seq) in list(self._accel.items()):
-            pending = np.concatenate(parts)
-            if len(pending):
-                self._send_accel(sensor_id, pending, t0, spacing, seq)
-            self._accel[sensor_id] = (t0 + len(pending) * spacing, spacing, [], seq + 1)
+        for batch in self._accel.flush():
+            self._send_accel(batch)
 
-    def _send_accel(self, sensor_id: int, samples: np.ndarray, t0: int, spacing: int, seq: int) -> None:
-        for batch in accel_batches(samples, sensor_id, t0, spacing, seq % 2**32):
-            self._send(batch)
-        self.counters.accel_batches_sent += math.ceil(len(samples) / ACCEL_PER_BATCH)
-        self.counters.accel_samples_sent += len(samples)
+    def _send_accel(self, batch: Batch) -> None:
+        (message,) = accel_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)
+        self.counters.accel_batches_sent += 1
+        self.counters.accel_samples_sent += len(batch.samples)
+        self._send(message)
 
     def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
         """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""

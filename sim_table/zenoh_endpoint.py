@@ -161,7 +161,7 @@ class ZenohEndpoint:
         self._queued = 0
         self._answers: OrderedDict[int, tuple[bytes, Result]] = OrderedDict()  # cmd id -> (message, result)
         self._requesters: dict[Command, int] = {}  # motion in progress -> its cmd id
-        self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
+        self._accel = Batcher(ACCEL_PER_BATCH)
         self._tilt = Batcher(TILT_PER_BATCH)
         self._resends: list[tuple[int, int, int, bytes]] = []  # (due host ns, copies left, event id, payload)
         self._next_heartbeat = 0
@@ -317,34 +317,23 @@ class ZenohEndpoint:
 
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
         """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
-        t0, spacing, parts, seq = self._accel.get(sensor_id, (t_start_ns, spacing_ns, [], 0))
-        parts.append(samples)
-        pending = np.concatenate(parts)
-        full = len(pending) - len(pending) % ACCEL_PER_BATCH
-        for start in range(0, full, ACCEL_PER_BATCH):
-            self._send_accel(AccelSamples(sensor_id, seq % 2**32, t0, spacing,
-                                          pending[start:start + ACCEL_PER_BATCH]))
-            seq += 1
-            t0 += ACCEL_PER_BATCH * spacing
-        self._accel[sensor_id] = (t0, spacing, [pending[full:]], seq)
+        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
+            self._send_accel(batch)
 
     def flush_accel(self) -> None:
         """Send the samples still short of a full batch."""
-        for sensor_id, (t0, spacing, parts, seq) in list(self._accel.items()):
-            pending = np.concatenate(parts)
-            if len(pending):
-                self._send_accel(AccelSamples(sensor_id, seq % 2**32, t0, spacing, pending))
-                seq += 1
-            self._accel[sensor_id] = (t0 + len(pending) * spacing, spacing, [], seq)
+        for batch in self._accel.flush():
+            self._send_accel(batch)
 
-    def _send_accel(self, batch: AccelSamples) -> None:
-        publisher = self._accel_publishers.get(batch.sensor_id)
+    def _send_accel(self, batch: Batch) -> None:
+        publisher = self._accel_publishers.get(batch.source)
         if publisher is None:
-            publisher = self._accel_publishers[batch.sensor_id] = self._session.declare_publisher(
-                table_key(self.address.table, "accel", str(batch.sensor_id)), congestion_control=self._batch_congestion)
+            publisher = self._accel_publishers[batch.source] = self._session.declare_publisher(
+                table_key(self.address.table, "accel", str(batch.source)), congestion_control=self._batch_congestion)
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
-        self._publish(publisher, encode_accel(batch))
+        self._publish(publisher, encode_accel(AccelSamples(batch.source, batch.seq, batch.t_start_ns,
+                                                           batch.spacing_ns, batch.samples)))
 
     def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
         """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""

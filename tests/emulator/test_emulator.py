@@ -23,6 +23,7 @@ from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import Command, ControllerCore, Done, Fault, Result, State, StateChange
+from sim_table.endpoint import Batcher
 from sim_table.process import TILT_RATE, Emulator, EmulatorConfig, parse_args, parse_body
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
@@ -438,6 +439,22 @@ def test_virtual_time_never_plays_a_tick_whose_setpoint_has_not_come() -> None:
         assert sent["status_sent"] >= emulator.controller_time(0) // 20_000_000  # 50 Hz of controller time
     finally:
         emulator.close()
+
+
+def test_batcher_numbers_each_sources_batches_and_continues_its_time() -> None:
+    """The endpoints' batching of evenly spaced samples: full batches at once, each source its own numbering and
+    time line (its first piece's start, then contiguous), the rest on flush, the numbering going on after it."""
+    batcher = Batcher(4)
+    assert batcher.add(0, 10, 5, np.arange(3.0)) == []
+    assert batcher.add(1, 0, 7, np.zeros((2, 3))) == []
+    full = batcher.add(0, 999, 5, np.arange(3.0, 10.0))  # a later piece's own start is not looked at
+    assert [(b.source, b.seq, b.t_start_ns, b.spacing_ns) for b in full] == [(0, 0, 10, 5), (0, 1, 30, 5)]
+    np.testing.assert_array_equal(np.concatenate([b.samples for b in full]), np.arange(8.0))
+    rest = batcher.flush()
+    assert [(b.source, b.seq, b.t_start_ns, len(b.samples)) for b in rest] == [(0, 2, 50, 2), (1, 0, 0, 2)]
+    assert batcher.flush() == []
+    after = batcher.add(0, 0, 5, np.arange(4.0))
+    assert [(b.source, b.seq, b.t_start_ns) for b in after] == [(0, 3, 60)]
 
 
 def test_the_bodies_tilt_sensors_sample_every_fifth_tick_on_a_contiguous_grid(monkeypatch: pytest.MonkeyPatch) -> None:
