@@ -5,8 +5,8 @@ the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.
 
 Threads: a **receive thread** drains the socket continuously (receive buffer enlarged to
 :data:`RECEIVE_BUFFER`), stamps each datagram with its arrival time and dispatches every message to the feedback
-(status, accelerometer batches, overturn events de-duplicated by event id), to the waiting command, or to the
-clock; a **heartbeat thread** sends HEARTBEAT at :data:`HEARTBEAT_RATE` and a TIMESYNC request every
+(status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id), to the waiting
+command, or to the clock; a **heartbeat thread** sends HEARTBEAT at :data:`HEARTBEAT_RATE` and a TIMESYNC request every
 :data:`TIMESYNC_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread;
 sending is serialised by a lock.
 
@@ -51,6 +51,7 @@ from drivers.controller import (
     TableError,
     TableStatus,
     TableTimeoutError,
+    TiltBatch,
     host_port,
     register_scheme,
     sleep_until,
@@ -62,6 +63,7 @@ from protocols.mavlink import (
     load_signing_key,
     setpoint_chunks,
     unpack_accel_batch,
+    unpack_tilt_batch,
 )
 
 RECEIVE_BUFFER = 4 << 20
@@ -150,6 +152,9 @@ class MavlinkTable(ChunkedStreamController):
         self._accel_expected: dict[int, int] = {}
         self.accel_batches_lost = 0
         """Accelerometer batches missing from the sequence numbers received."""
+        self._tilt_expected: dict[int, int] = {}
+        self.tilt_batches_lost = 0
+        """Body-tilt batches missing from the sequence numbers received (each body's own)."""
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
 
@@ -214,6 +219,8 @@ class MavlinkTable(ChunkedStreamController):
             self.feedback.publish_status(self._status(msg, now))
         elif kind == "SHAKETABLE_ACCEL_BATCH":
             self._accel(msg)
+        elif kind == "SHAKETABLE_TILT_BATCH":
+            self._tilt(msg)
         elif kind == "SHAKETABLE_OVERTURN_EVENT":
             self.feedback.publish_detection(Detection(msg.event_id, msg.body_id, msg.direction, msg.tilt, msg.t_ns))
         elif kind == "COMMAND_ACK":
@@ -241,6 +248,15 @@ class MavlinkTable(ChunkedStreamController):
         self._accel_expected[msg.sensor_id] = (msg.batch_seq + 1) % 2**32
         self.feedback.publish_accel(AccelBatch(msg.sensor_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
                                                series.samples))
+
+    def _tilt(self, msg: Any) -> None:
+        series = unpack_tilt_batch(msg)
+        expected = self._tilt_expected.get(msg.body_id)
+        if expected is not None and msg.batch_seq != expected:
+            self.tilt_batches_lost += (msg.batch_seq - expected) % 2**32
+        self._tilt_expected[msg.body_id] = (msg.batch_seq + 1) % 2**32
+        self.feedback.publish_tilt(TiltBatch(msg.body_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
+                                             series.samples[:, 0]))
 
     def _heartbeat_loop(self) -> None:
         period = round(1e9 / HEARTBEAT_RATE)
@@ -325,10 +341,11 @@ class MavlinkTable(ChunkedStreamController):
     # ----- diagnostics ----------------------------------------------------------------------------------
 
     def link_stats(self) -> dict[str, float | None]:
-        """Clock estimate and round trips, accelerometer batches lost, duplicate overturn events dropped, age of
-        the controller's last heartbeat [s] (None before the first)."""
+        """Clock estimate and round trips, accelerometer and body-tilt batches lost, duplicate overturn events
+        dropped, age of the controller's last heartbeat [s] (None before the first)."""
         beat = self.last_controller_heartbeat_ns
         return {**self.clock.stats(), "accel_batches_lost": self.accel_batches_lost,
+                "tilt_batches_lost": self.tilt_batches_lost,
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "controller_heartbeat_age_s": None if beat is None else (time.monotonic_ns() - beat) * 1e-9}
 

@@ -8,8 +8,8 @@ connects there (scouting off, :func:`protocols.zenoh.session_config`) and speaks
 a random sender id per connection and a strictly increasing µs stamp against replay).
 
 Threads: zenoh's callback threads stamp each publication of the controller with its arrival time and publish it
-to the feedback (status, accelerometer batches, overturn events de-duplicated by event id, final answers) or the
-clock; a **heartbeat thread** publishes HEARTBEAT at :data:`HEARTBEAT_RATE` and a clock query every
+to the feedback (status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id, final
+answers) or the clock; a **heartbeat thread** publishes HEARTBEAT at :data:`HEARTBEAT_RATE` and a clock query every
 :data:`CLOCK_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread; signing and
 sending are serialised per key (commands, setpoints), so each key's stamps leave in order and a setpoint
 publication waiting on a congested link never holds up a STOP.
@@ -56,6 +56,7 @@ from drivers.controller import (
     TableError,
     TableStatus,
     TableTimeoutError,
+    TiltBatch,
     register_scheme,
     sleep_until,
 )
@@ -74,6 +75,7 @@ from protocols.zenoh.table import (
     decode_heartbeat,
     decode_overturn,
     decode_status,
+    decode_tilt,
     encode_clock_request,
     encode_command,
     encode_heartbeat,
@@ -140,7 +142,7 @@ class ZenohTable(ChunkedStreamController):
         self.connect_timeout = connect_timeout
         self._keys = {kind: table_key(self.address.table, kind) for kind in ("command", "clock", "setpoints",
                                                                             "host-heartbeat", "answer", "status",
-                                                                            "overturn", "heartbeat")}
+                                                                            "overturn", "heartbeat", "tilt")}
         self._session: zenoh.Session | None = None
         self._signer: Signer | None = None
         self._command_lock = threading.Lock()  # command ids, signing and sending a command
@@ -153,6 +155,9 @@ class ZenohTable(ChunkedStreamController):
         self._accel_expected: dict[int, int] = {}
         self.accel_batches_lost = 0
         """Accelerometer batches missing from the sequence numbers received."""
+        self._tilt_expected: dict[int, int] = {}
+        self.tilt_batches_lost = 0
+        """Body-tilt batches missing from the sequence numbers received (each body's own)."""
         self.command_attempts_unanswered = 0
         """Command queries that ended without an answer (and were sent again, or timed out)."""
         self.bad_payloads = 0
@@ -177,6 +182,7 @@ class ZenohTable(ChunkedStreamController):
             keys = self._keys
             for key, handler in ((keys["status"], self._on_status), (keys["answer"], self._on_answer),
                                  (keys["overturn"], self._on_overturn), (keys["heartbeat"], self._on_heartbeat),
+                                 (keys["tilt"], self._on_tilt),
                                  (table_accel_selector(self.address.table), self._on_accel)):
                 session.declare_subscriber(key, self._receiver(handler))
             self._setpoints = session.declare_publisher(keys["setpoints"], express=True,
@@ -256,6 +262,15 @@ class ZenohTable(ChunkedStreamController):
         self._accel_expected[batch.sensor_id] = (batch.seq + 1) % 2**32
         self.feedback.publish_accel(AccelBatch(batch.sensor_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
                                                batch.samples))
+
+    def _on_tilt(self, payload: bytes, now: int) -> None:
+        batch = decode_tilt(payload)
+        expected = self._tilt_expected.get(batch.body_id)
+        if expected is not None and batch.seq != expected:
+            self.tilt_batches_lost += (batch.seq - expected) % 2**32
+        self._tilt_expected[batch.body_id] = (batch.seq + 1) % 2**32
+        self.feedback.publish_tilt(TiltBatch(batch.body_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
+                                             batch.angles))
 
     def _on_clock_reply(self, reply: zenoh.Reply) -> None:
         now = time.monotonic_ns()
@@ -377,11 +392,12 @@ class ZenohTable(ChunkedStreamController):
     # ----- diagnostics ----------------------------------------------------------------------------------
 
     def link_stats(self) -> dict[str, float | None]:
-        """Clock estimate and round trips, accelerometer batches lost, duplicate overturn events dropped, command
-        queries unanswered, undecodable publications, age of the controller's last heartbeat [s] (None before
-        the first)."""
+        """Clock estimate and round trips, accelerometer and body-tilt batches lost, duplicate overturn events
+        dropped, command queries unanswered, undecodable publications, age of the controller's last heartbeat [s]
+        (None before the first)."""
         beat = self.last_controller_heartbeat_ns
         return {**self.clock.stats(), "accel_batches_lost": self.accel_batches_lost,
+                "tilt_batches_lost": self.tilt_batches_lost,
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "command_attempts_unanswered": self.command_attempts_unanswered, "bad_payloads": self.bad_payloads,
                 "controller_heartbeat_age_s": None if beat is None else (time.monotonic_ns() - beat) * 1e-9}

@@ -732,6 +732,13 @@ class CanopenEndpoint:
     def flush_accel(self) -> None:
         """Nothing waits: every sample an accelerometer sends goes out on its SYNC."""
 
+    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
+        """Nothing is sent: the bus has no room for tilt telemetry (``protocols/canopen/bus_load.py``); the overturn
+        detector reports overturns only."""
+
+    def flush_tilt(self) -> None:
+        """Nothing waits: no tilt sample is sent."""
+
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
         """An overturn event: sent now and again :data:`EVENT_REPEATS` times, each copy with its age."""
         with self._lock:

@@ -7,7 +7,9 @@ An endpoint is the controller end of one transport (``mavlink://HOST:PORT`` → 
   over in arrival order as ``(arrival controller ns, action)`` pairs, each action applied to the
   `~sim_table.controller.ControllerCore` between ticks at its arrival time;
 - the loop gives the endpoint what to send: final command answers (:meth:`Endpoint.command_done`), statuses,
-  accelerometer samples, overturn events; :meth:`Endpoint.service` sends what is due (heartbeats, resends).
+  accelerometer samples, the bodies' tilt samples, overturn events; :meth:`Endpoint.service` sends what is due
+  (heartbeats, resends). Evenly spaced samples (accelerometers, tilts) come in pieces that continue each other in
+  time; an endpoint that sends them in batches gathers them with a :class:`Batcher`.
 
 Behaviour on every transport: ``docs/table-controller.md``.
 """
@@ -17,7 +19,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 from urllib.parse import urlsplit
 
 import numpy as np
@@ -69,10 +71,53 @@ class Endpoint(Protocol):
     def send_status(self, snap: Snapshot) -> None: ...
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None: ...
     def flush_accel(self) -> None: ...
+    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None: ...
+    def flush_tilt(self) -> None: ...
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None: ...
     def service(self, now: int, state: State) -> None: ...
     def close(self) -> None: ...
     def counters_dict(self) -> dict[str, Any]: ...
+
+
+class Batch(NamedTuple):
+    """Batch ``seq`` (counted per source from 0, modulo 2^32) of ``source`` (a sensor, a body): row k of ``samples``
+    was taken at ``t_start_ns + k * spacing_ns`` [ns, controller time]."""
+
+    source: int
+    seq: int
+    t_start_ns: int
+    spacing_ns: int
+    samples: np.ndarray
+
+
+class Batcher:
+    """Gathers evenly spaced samples per source into batches of ``size``. A source's first :meth:`add` sets its
+    start time and spacing; every later one continues it (its own times are not looked at again)."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._pending: dict[int, tuple[int, int, np.ndarray, int]] = {}  # source -> (t0, spacing, samples, seq)
+
+    def add(self, source: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> list[Batch]:
+        """Queue ``source``'s next ``samples`` (n, ...), the first at ``t_start_ns`` [ns] if it is the source's
+        first; the batches now full."""
+        t0, spacing, pending, seq = self._pending.get(source, (t_start_ns, spacing_ns, samples[:0], 0))
+        pending = np.concatenate([pending, samples])
+        batches = []
+        while len(pending) >= self.size:
+            batches.append(Batch(source, seq % 2**32, t0, spacing, pending[:self.size]))
+            pending, seq, t0 = pending[self.size:], seq + 1, t0 + self.size * spacing
+        self._pending[source] = (t0, spacing, pending, seq)
+        return batches
+
+    def flush(self) -> list[Batch]:
+        """The samples still short of a full batch: one (shorter) batch for each source that has any."""
+        batches = []
+        for source, (t0, spacing, pending, seq) in list(self._pending.items()):
+            if len(pending):
+                batches.append(Batch(source, seq % 2**32, t0, spacing, pending))
+                self._pending[source] = (t0 + len(pending) * spacing, spacing, pending[:0], seq + 1)
+        return batches
 
 
 @runtime_checkable

@@ -23,9 +23,9 @@ Protocol decisions (the host side is ``drivers.mavlink``):
   STOP, DISARM and EMERGENCY_STOP are accepted unsigned. A badly signed message must not move pymavlink's
   per-stream replay timestamp (pymavlink records it before checking the signature, so one forged message with
   a future timestamp would lock the real host out): it is restored.
-- **Telemetry** (status, accelerometer batches, overturn events, heartbeats) goes to every address that sent a
-  HEARTBEAT within :data:`PEER_TIMEOUT` s. Overturn events are sent at once and again 3 times 100 ms apart
-  (real time), with the same event id.
+- **Telemetry** (status, accelerometer batches, tilt batches of :data:`~protocols.mavlink.TILT_PER_BATCH` angles
+  per body, overturn events, heartbeats) goes to every address that sent a HEARTBEAT within :data:`PEER_TIMEOUT`
+  s. Overturn events are sent at once and again 3 times 100 ms apart (real time), with the same event id.
 - **Fault injection**: ``loss`` drops each datagram in either direction with that probability; ``delay`` [s]
   holds each one that long in either direction (seeded).
 """
@@ -48,16 +48,18 @@ import numpy as np
 from protocols.mavlink import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
+    TILT_PER_BATCH,
     FramingError,
     UdpLink,
     accel_batches,
     dialect,
     enable_signing,
     signed_with_key,
+    tilt_batches,
     unpack_setpoint_chunk,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
-from sim_table.endpoint import Action, EndpointOptions
+from sim_table.endpoint import Action, Batch, Batcher, EndpointOptions
 
 DEDUP_WINDOW = 1.0
 """How long a command is remembered for recognising its retransmissions [s, real time]."""
@@ -99,6 +101,8 @@ class LinkCounters:
     chunks_stalled: int = 0
     accel_batches_sent: int = 0
     accel_samples_sent: int = 0
+    tilt_batches_sent: int = 0
+    tilt_samples_sent: int = 0
     overturn_events: int = 0
     overturn_messages_sent: int = 0
     status_sent: int = 0
@@ -138,7 +142,8 @@ class MavlinkEndpoint:
         self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
         self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
         self._answers: list[tuple[Any, tuple[str, int]]] = []  # COMMAND_ACKs held until the batch's statuses are out
-        self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
+        self._accel = Batcher(ACCEL_PER_BATCH)
+        self._tilt = Batcher(TILT_PER_BATCH)
         self._resends: list[tuple[int, int, int, Any]] = []  # (due host ns, copies left, event id, message)
         self._next_heartbeat = 0
         self._commands = {getattr(self.d, f"MAV_CMD_SHAKETABLE_{c.name}"): c for c in Command}
@@ -318,29 +323,35 @@ class MavlinkEndpoint:
 
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
         """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
-        t0, spacing, parts, seq = self._accel.get(sensor_id, (t_start_ns, spacing_ns, [], 0))
-        parts.append(samples)
-        pending = np.concatenate(parts)
-        full = len(pending) - len(pending) % ACCEL_PER_BATCH
-        if full:
-            self._send_accel(sensor_id, pending[:full], t0, spacing, seq)
-            seq += full // ACCEL_PER_BATCH
-            t0 += full * spacing
-        self._accel[sensor_id] = (t0, spacing, [pending[full:]], seq)
+        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
+            self._send_accel(batch)
 
     def flush_accel(self) -> None:
         """Send the samples still short of a full batch."""
-        for sensor_id, (t0, spacing, parts, seq) in list(self._accel.items()):
-            pending = np.concatenate(parts)
-            if len(pending):
-                self._send_accel(sensor_id, pending, t0, spacing, seq)
-            self._accel[sensor_id] = (t0 + len(pending) * spacing, spacing, [], seq + 1)
+        for batch in self._accel.flush():
+            self._send_accel(batch)
 
-    def _send_accel(self, sensor_id: int, samples: np.ndarray, t0: int, spacing: int, seq: int) -> None:
-        for batch in accel_batches(samples, sensor_id, t0, spacing, seq % 2**32):
-            self._send(batch)
-        self.counters.accel_batches_sent += math.ceil(len(samples) / ACCEL_PER_BATCH)
-        self.counters.accel_samples_sent += len(samples)
+    def _send_accel(self, batch: Batch) -> None:
+        (message,) = accel_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)
+        self.counters.accel_batches_sent += 1
+        self.counters.accel_samples_sent += len(batch.samples)
+        self._send(message)
+
+    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
+        """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""
+        for batch in self._tilt.add(body_id, t_start_ns, spacing_ns, angles):
+            self._send_tilt(batch)
+
+    def flush_tilt(self) -> None:
+        """Send the angles still short of a full batch."""
+        for batch in self._tilt.flush():
+            self._send_tilt(batch)
+
+    def _send_tilt(self, batch: Batch) -> None:
+        (message,) = tilt_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)
+        self.counters.tilt_batches_sent += 1
+        self.counters.tilt_samples_sent += len(batch.samples)
+        self._send(message)
 
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
         """An overturn event, now and again :data:`EVENT_RESENDS` times."""

@@ -9,9 +9,9 @@ what the batch produced:
 2. each tick's reference pose goes through the :class:`~sim_table.actuators.Actuators` (vectorised per batch);
 3. the achieved motion, one tick late with central differences (:class:`~sim_table.accelerometers.PlateTrack`),
    drives the virtual accelerometers and the physical specimens (``sim_table.specimens``, MuJoCo), whose
-   overturns become overturn events;
-4. a status every 20 ms of controller time and at every state change, accelerometer batches, final command
-   answers, heartbeats.
+   overturns become overturn events and whose angles are their tilt sensors' samples (:data:`TILT_RATE`);
+4. a status every 20 ms of controller time and at every state change, accelerometer and tilt batches, final
+   command answers, heartbeats.
 
 Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep 100 ms of **real** time at any
 ``--speed`` (they guard the link, whose heartbeats keep real time).
@@ -97,6 +97,13 @@ VIRTUAL_WATCHDOG_SECONDS = 1.0
 got, so host silence endangers nothing until the stream is over; a host busy logging a stream played several
 times faster than real time may pause its sender longer than 100 ms, and a silent host is still stopped."""
 
+TILT_RATE = 200.0
+"""Sample rate of the bodies' tilt sensors [Hz] (the overturn detector's channel: each body's angle relative to the
+plate, ``sim_table.specimens``): every ``round(controller_rate / TILT_RATE)``-th tick — every 5th at the default
+1 kHz, 5 ms apart —, at the tick times whose controller time [ns] is a multiple of that spacing, dated as the
+accelerometer samples are (the plate's time, one tick late). Each body's samples go to the endpoint's ``add_tilt``,
+fallen bodies' too; without bodies nothing is sent."""
+
 TIMING_WINDOW = 100_000
 """Batches kept for the tick-time percentiles in the counters."""
 
@@ -176,6 +183,8 @@ class Emulator:
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
                                              seed=config.seed + 1)
         self.scene = SpecimenScene(config.specimens) if config.specimens else None
+        self.tilt_spacing_ns = max(1, round(table.controller_rate / TILT_RATE)) * self.tick_ns
+        """Time between two samples of a tilt sensor [ns, controller time] (:data:`TILT_RATE`)."""
         self._start = time.monotonic_ns()
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
@@ -209,12 +218,12 @@ class Emulator:
 
     def run(self, stop: threading.Event) -> None:
         """Start the clock and the endpoint, tick in real time (× speed) or virtual time until ``stop`` is set;
-        then send the last accelerometer samples."""
+        then send the last accelerometer and tilt samples."""
         self._start = deadline = time.monotonic_ns()
         self.endpoint.start()
         if self.virtual:
             self._run_virtual(stop)
-            self.endpoint.flush_accel()
+            self._flush()
             return
         while not stop.is_set():
             deadline += WAKE_PERIOD_NS
@@ -224,7 +233,12 @@ class Emulator:
             else:
                 deadline = now  # late: run what is due now, do not burst to catch up missed wakes
             self.step(time.monotonic_ns())
+        self._flush()
+
+    def _flush(self) -> None:
+        """Send the samples the endpoint holds short of a full batch."""
         self.endpoint.flush_accel()
+        self.endpoint.flush_tilt()
 
     def step(self, now: int) -> None:
         """Run every tick due at host time ``now`` [ns] (at most :data:`MAX_BATCH`), then send."""
@@ -363,16 +377,23 @@ class Emulator:
 
     def _specimens(self, times: np.ndarray, poses: np.ndarray, rates: np.ndarray, placements: list[int]) -> None:
         """The specimens through the batch's ticks (``times`` [ns], the plate's ``poses`` and ``rates``), stepped in
-        C between the ticks where they are placed afresh (``placements``)."""
+        C between the ticks where they are placed afresh (``placements``); their overturns and tilt samples sent."""
         assert self.scene is not None
         seconds = times * 1e-9
+        sampled: list[np.ndarray] = []  # the tilt sensors' samples (m, bodies), at the ticks on their grid
+        first_sample: int | None = None  # controller time of the first [ns]
         for start, end in itertools.pairwise(sorted({0, *placements, len(times)})):
             if start in placements:
                 self.scene.place(poses[start])
             part = np.arange(start, end)[seconds[start:end] > self.scene.time]
             if len(part) == 0:
                 continue
-            for overturn in self.scene.advance_many(seconds[part], poses[part], rates[part]):
+            overturns = self.scene.advance_many(seconds[part], poses[part], rates[part])
+            on_grid = times[part] % self.tilt_spacing_ns == 0
+            if on_grid.any():
+                first_sample = int(times[part][on_grid][0]) if first_sample is None else first_sample
+                sampled.append(self.scene.sample_angles[on_grid])
+            for overturn in overturns:
                 i = part[min(int(np.searchsorted(seconds[part], overturn.t)), len(part) - 1)]  # its tick
                 self._events += 1
                 t_ns = round(overturn.t * 1e9)
@@ -380,6 +401,10 @@ class Emulator:
                 self.endpoint.send_overturn(self._events, overturn.body_id, overturn.direction, tilt, t_ns)
                 self._overturns.append({"event_id": self._events, "body_id": overturn.body_id,
                                         "direction": overturn.direction, "t": t_ns * 1e-9, "tilt": tilt})
+        if first_sample is not None:
+            angles = np.concatenate(sampled)
+            for body in range(angles.shape[1]):
+                self.endpoint.add_tilt(body, first_sample, self.tilt_spacing_ns, angles[:, body])
 
     def _inject_faults(self, t: int) -> None:
         start = self.core.first_stream_ns

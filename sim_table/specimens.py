@@ -23,6 +23,10 @@ passed a few tenths of a second before the body lands (the analytical models tim
 |θ| = π/2). The direction is ``sign(θ)``: +1 towards +x (the low side), −1 towards the high side. Each body
 is reported once per placement. Falls along the plate's y (sideways) are outside this measure: the paper's
 bodies are at least twice as deep as wide so that they do not happen.
+
+The scene is also each body's **tilt sensor** (the overturn detector's channel): after every :meth:`advance`
+or :meth:`~SpecimenScene.advance_many`, :attr:`~SpecimenScene.sample_angles` holds θ of every body at each
+plate sample time given, fallen bodies included (the emulator sends them as tilt telemetry).
 """
 
 from __future__ import annotations
@@ -81,6 +85,11 @@ class SpecimenScene:
         self._detections: list[Overturn] = []
         self._standing = np.ones(len(self.specimens), dtype=bool)
         self._theta = np.zeros(len(self.specimens))
+        self.sample_angles = np.zeros((0, len(self.specimens)))
+        """θ of every specimen [rad] (> 0: its top moved towards the plate's +x) at each time of the last
+        :meth:`advance` (1, n) or :meth:`advance_many` (k, n): the state of the physics step that ended within half
+        a step of it (an interval too short for a step repeats the angles before it). Empty (0, n) after
+        :meth:`place`."""
         self.place(np.zeros(6) if plate_pose is None else plate_pose)
 
     @property
@@ -119,12 +128,14 @@ class SpecimenScene:
         self._detections = []
         self._standing[:] = True
         self._theta = self.specimen_angles()
+        self.sample_angles = np.zeros((0, n))
 
     def advance(self, t: float, plate_pose: Sequence[float], plate_velocity: Sequence[float]) -> list[Overturn]:
         """Step the physics to time ``t`` [s], where the plate has ``plate_pose`` and ``plate_velocity`` (6,).
 
-        Returns the overturns detected in this interval (also kept for :meth:`detections`). The clock
-        moves in whole physics steps and stops within half a step of ``t``.
+        Returns the overturns detected in this interval (also kept for :meth:`detections`); the bodies' angles at
+        ``t`` are :attr:`sample_angles` (1, n). The clock moves in whole physics steps and stops within half a step
+        of ``t``.
         """
         t0, pose0, vel0 = self._sample
         if not t > t0:
@@ -148,6 +159,7 @@ class SpecimenScene:
                 found.extend(self._detect(dt))
         self._sample = (t, pose1, vel1)
         self._detections.extend(found)
+        self.sample_angles = self.specimen_angles()[None, :]
         return found
 
     def advance_many(self, times: np.ndarray, plate_poses: np.ndarray, plate_velocities: np.ndarray) -> list[Overturn]:
@@ -158,8 +170,8 @@ class SpecimenScene:
         curve once, at the batch's start, and each step's generalised force armature × acceleration (what
         :meth:`advance` applies after putting them back on the curve) keeps them there — the bodies' reactions
         (impacts too) move a plate of :data:`~sim_table.scene.PLATE_ARMATURE` by < 1e-6 m over hundreds of
-        steps. The bodies' angles are read from each step's state, and overturns detected and timed as
-        :meth:`advance` does.
+        steps. The bodies' angles are read from each step's state, overturns detected and timed as
+        :meth:`advance` does, and the angles at ``times`` kept in :attr:`sample_angles` (k, n).
         """
         times = np.asarray(times, dtype=float)
         poses, rates = np.asarray(plate_poses, dtype=float), np.asarray(plate_velocities, dtype=float)
@@ -170,6 +182,7 @@ class SpecimenScene:
                                 f"{times.shape}, {poses.shape}, {rates.shape}")
         t0, pose0, vel0 = self._sample
         if k == 0:
+            self.sample_angles = np.zeros((0, len(self.specimens)))
             return []
         if not (times[0] > t0 and np.all(np.diff(times) > 0)):
             raise SpecimenError(f"advance_many: times must increase, got {times[0]!r} s after {t0!r} s …")
@@ -190,6 +203,7 @@ class SpecimenScene:
                 u_there.append((clock + dt - start) / span)
                 clock += dt
         found: list[Overturn] = []
+        angles = self.specimen_angles()[None, :]  # before the batch, then after each step
         if interval:
             steps = [c[interval] for c in paths]
             here_array = _evaluate(steps, np.array(u_here)[:, None])
@@ -209,29 +223,31 @@ class SpecimenScene:
                                         initial_warmstart=warmstart[None])
             mujoco.mj_kinematics(m, d)
             self._plate_rate = step_rates[-1]
+            step_angles = _specimen_angles(states[0][:, 1:1 + m.nq], len(self.specimens))
             if self._standing.any():
-                found = self._detect_states(states[0], dt)
+                found = self._detect_steps(states[0][:, 0], step_angles, dt)
+            self._theta = self.specimen_angles()
+            angles = np.vstack([angles, step_angles])
+        # each sample time's angles: those after the last step of its interval (row 0: before the batch)
+        self.sample_angles = angles[np.searchsorted(interval, np.arange(k), side="right")]
         self._sample = (float(times[-1]), poses[-1].copy(), rates[-1].copy())
         self._detections.extend(found)
         return found
 
-    def _detect_states(self, states: np.ndarray, dt: float) -> list[Overturn]:
-        """Overturns in the steps whose FULLPHYSICS ``states`` (steps, nstate) were just taken, as :meth:`_detect`
-        finds them step by step."""
-        qpos = states[:, 1:1 + self.model.nq]
-        angles = _specimen_angles(qpos, len(self.specimens))
+    def _detect_steps(self, step_times: np.ndarray, angles: np.ndarray, dt: float) -> list[Overturn]:
+        """Overturns in the steps just taken, which ended at ``step_times`` (steps,) [s] with the bodies at ``angles``
+        (steps, n) [rad], as :meth:`_detect` finds them step by step."""
         events = []
         previous = np.vstack([self._theta[None, :], angles[:-1]])
-        for step in range(len(states)):
+        for step in range(len(angles)):
             theta = angles[step]
             for i in np.flatnonzero(self._standing & (np.abs(theta) >= self.thresholds)):
                 a0, a1 = abs(previous[step, i]), abs(theta[i])
                 fraction = min(1.0, max(0.0, (self.thresholds[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
-                events.append(Overturn(states[step, 0] - (1.0 - fraction) * dt, int(i), 1 if theta[i] > 0 else -1))
+                events.append(Overturn(step_times[step] - (1.0 - fraction) * dt, int(i), 1 if theta[i] > 0 else -1))
                 self._standing[i] = False
             if not self._standing.any():
                 break
-        self._theta = self.specimen_angles()
         return sorted(events)
 
     def _detect(self, dt: float) -> list[Overturn]:

@@ -25,10 +25,11 @@ Protocol decisions:
   ``stale_signatures``).
 - **Clock**: a query on ``clock`` is answered with the controller time when it is answered.
 - **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
-  per sensor), overturn events (sent at once and again 3 times 100 ms apart, real time, with the same event id),
-  heartbeats every 50 ms. zenoh's default congestion control (drop when the link's queue stays full): the
-  controller never waits for its host — except in virtual time (``--speed max``), where the accelerometer batches
-  block instead (time waits, and no sample is dropped however fast the emulator runs).
+  per sensor), tilt batches of :data:`~protocols.zenoh.table.TILT_PER_BATCH` angles (every body's on one key),
+  overturn events (sent at once and again 3 times 100 ms apart, real time, with the same event id), heartbeats every
+  50 ms. zenoh's default congestion control (drop when the link's queue stays full): the controller never waits for
+  its host — except in virtual time (``--speed max``), where the accelerometer and tilt batches block instead (time
+  waits, and no sample is dropped however fast the emulator runs).
 - **Fault injection**: ``loss`` drops each message in either direction with that probability (a dropped query
   ends without a reply); ``delay`` [s] holds each one that long in either direction (seeded).
 """
@@ -54,12 +55,14 @@ from protocols.zenoh.auth import Verdict, Verifier
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
     ACCEL_PER_BATCH,
+    TILT_PER_BATCH,
     AccelSamples,
     Answer,
     ClockReply,
     Overturn,
     StatusReport,
     TableUrl,
+    TiltSamples,
     decode_clock_request,
     decode_command,
     decode_heartbeat,
@@ -70,10 +73,11 @@ from protocols.zenoh.table import (
     encode_heartbeat,
     encode_overturn,
     encode_status,
+    encode_tilt,
     parse_table_url,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
-from sim_table.endpoint import Action, EndpointOptions
+from sim_table.endpoint import Action, Batch, Batcher, EndpointOptions
 
 REMEMBERED_COMMANDS = 256
 """Commands remembered by id for recognising retries."""
@@ -111,6 +115,8 @@ class LinkCounters:
     chunks_stalled: int = 0
     accel_batches_sent: int = 0
     accel_samples_sent: int = 0
+    tilt_batches_sent: int = 0
+    tilt_samples_sent: int = 0
     overturn_events: int = 0
     overturn_messages_sent: int = 0
     status_sent: int = 0
@@ -130,7 +136,7 @@ class ZenohEndpoint:
         self.clock = clock
         self.loss = loss
         self.delay_ns = round(delay * 1e9)
-        self._accel_congestion = zenoh.CongestionControl.BLOCK if virtual_time else zenoh.CongestionControl.DROP
+        self._batch_congestion = zenoh.CongestionControl.BLOCK if virtual_time else zenoh.CongestionControl.DROP
         self.counters = LinkCounters()
         self.stall_chunks = False
         """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
@@ -140,12 +146,13 @@ class ZenohEndpoint:
         self._session, self.address = _listen(address)
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
-                                   "heartbeat")}
+                                   "heartbeat", "tilt")}
         declare = self._session.declare_publisher
         self._status = declare(self._keys["status"], express=True)
         self._answer = declare(self._keys["answer"], express=True)
         self._overturn = declare(self._keys["overturn"])
         self._heartbeat = declare(self._keys["heartbeat"], express=True)
+        self._tilt_publisher = declare(self._keys["tilt"], congestion_control=self._batch_congestion)
         self._accel_publishers: dict[int, zenoh.Publisher] = {}
         self._entities: list[Any] = []
         self._inbox: deque[tuple[int, str, zenoh.Query | None, bytes]] = deque()  # (due, kind, query, payload)
@@ -154,7 +161,8 @@ class ZenohEndpoint:
         self._queued = 0
         self._answers: OrderedDict[int, tuple[bytes, Result]] = OrderedDict()  # cmd id -> (message, result)
         self._requesters: dict[Command, int] = {}  # motion in progress -> its cmd id
-        self._accel: dict[int, tuple[int, int, list[np.ndarray], int]] = {}  # sensor -> (t0, spacing, parts, seq)
+        self._accel = Batcher(ACCEL_PER_BATCH)
+        self._tilt = Batcher(TILT_PER_BATCH)
         self._resends: list[tuple[int, int, int, bytes]] = []  # (due host ns, copies left, event id, payload)
         self._next_heartbeat = 0
 
@@ -309,34 +317,39 @@ class ZenohEndpoint:
 
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
         """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
-        t0, spacing, parts, seq = self._accel.get(sensor_id, (t_start_ns, spacing_ns, [], 0))
-        parts.append(samples)
-        pending = np.concatenate(parts)
-        full = len(pending) - len(pending) % ACCEL_PER_BATCH
-        for start in range(0, full, ACCEL_PER_BATCH):
-            self._send_accel(AccelSamples(sensor_id, seq % 2**32, t0, spacing,
-                                          pending[start:start + ACCEL_PER_BATCH]))
-            seq += 1
-            t0 += ACCEL_PER_BATCH * spacing
-        self._accel[sensor_id] = (t0, spacing, [pending[full:]], seq)
+        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
+            self._send_accel(batch)
 
     def flush_accel(self) -> None:
         """Send the samples still short of a full batch."""
-        for sensor_id, (t0, spacing, parts, seq) in list(self._accel.items()):
-            pending = np.concatenate(parts)
-            if len(pending):
-                self._send_accel(AccelSamples(sensor_id, seq % 2**32, t0, spacing, pending))
-                seq += 1
-            self._accel[sensor_id] = (t0 + len(pending) * spacing, spacing, [], seq)
+        for batch in self._accel.flush():
+            self._send_accel(batch)
 
-    def _send_accel(self, batch: AccelSamples) -> None:
-        publisher = self._accel_publishers.get(batch.sensor_id)
+    def _send_accel(self, batch: Batch) -> None:
+        publisher = self._accel_publishers.get(batch.source)
         if publisher is None:
-            publisher = self._accel_publishers[batch.sensor_id] = self._session.declare_publisher(
-                table_key(self.address.table, "accel", str(batch.sensor_id)), congestion_control=self._accel_congestion)
+            publisher = self._accel_publishers[batch.source] = self._session.declare_publisher(
+                table_key(self.address.table, "accel", str(batch.source)), congestion_control=self._batch_congestion)
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
-        self._publish(publisher, encode_accel(batch))
+        self._publish(publisher, encode_accel(AccelSamples(batch.source, batch.seq, batch.t_start_ns,
+                                                           batch.spacing_ns, batch.samples)))
+
+    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
+        """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""
+        for batch in self._tilt.add(body_id, t_start_ns, spacing_ns, angles):
+            self._send_tilt(batch)
+
+    def flush_tilt(self) -> None:
+        """Send the angles still short of a full batch."""
+        for batch in self._tilt.flush():
+            self._send_tilt(batch)
+
+    def _send_tilt(self, batch: Batch) -> None:
+        self.counters.tilt_batches_sent += 1
+        self.counters.tilt_samples_sent += len(batch.samples)
+        self._publish(self._tilt_publisher, encode_tilt(TiltSamples(batch.source, batch.seq, batch.t_start_ns,
+                                                                    batch.spacing_ns, batch.samples)))
 
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
         """An overturn event, now and again :data:`EVENT_RESENDS` times."""

@@ -3,15 +3,16 @@
 - :mod:`~protocols.mavlink.codegen`: generates the dialect's Python code with pymavlink's mavgen on first use
   (cached per user, never committed) and imports it: :func:`dialect`.
 - :mod:`~protocols.mavlink.framing`: setpoint arrays (N, 6) ↔ SHAKETABLE_SETPOINT_CHUNK messages, accelerometer
-  arrays (N, 3) ↔ SHAKETABLE_ACCEL_BATCH messages.
+  arrays (N, 3) ↔ SHAKETABLE_ACCEL_BATCH messages, a body's tilt angles (N,) ↔ SHAKETABLE_TILT_BATCH messages.
 - :mod:`~protocols.mavlink.signing`: the rig's signing key, MAVLink 2 signing on a link, which messages need it.
 - :mod:`~protocols.mavlink.link`: a UDP endpoint speaking the dialect (:class:`UdpLink`), or pymavlink's mavutil
   with it (:func:`mavlink_connection`).
 
 Messages (ids 42500–42509 reserved): SHAKETABLE_SETPOINT_CHUNK (42500), SHAKETABLE_ACCEL_BATCH (42501),
-SHAKETABLE_OVERTURN_EVENT (42502), SHAKETABLE_STATUS (42503); commands in COMMAND_LONG (MAV_CMD 42550–42559
-reserved): MAV_CMD_SHAKETABLE_ARM, _DISARM, _HOME, _SET_TILT, _START_STREAM, _STOP, _EMERGENCY_STOP. Units and
-field meanings are in the XML. Importing this package generates nothing; the first :func:`dialect` call does.
+SHAKETABLE_OVERTURN_EVENT (42502), SHAKETABLE_STATUS (42503), SHAKETABLE_TILT_BATCH (42504); commands in
+COMMAND_LONG (MAV_CMD 42550–42559 reserved): MAV_CMD_SHAKETABLE_ARM, _DISARM, _HOME, _SET_TILT, _START_STREAM,
+_STOP, _EMERGENCY_STOP. Units and field meanings are in the XML. Importing this package generates nothing; the first
+:func:`dialect` call does.
 """
 
 from protocols.mavlink.codegen import DIALECT_NAME, DialectError, dialect
@@ -19,6 +20,7 @@ from protocols.mavlink.framing import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
     SETPOINTS_PER_CHUNK,
+    TILT_PER_BATCH,
     FramingError,
     SequenceGapError,
     Series,
@@ -26,8 +28,10 @@ from protocols.mavlink.framing import (
     join_accel_batches,
     join_setpoint_chunks,
     setpoint_chunks,
+    tilt_batches,
     unpack_accel_batch,
     unpack_setpoint_chunk,
+    unpack_tilt_batch,
 )
 from protocols.mavlink.link import UdpLink, mavlink_connection
 from protocols.mavlink.signing import (
@@ -45,6 +49,7 @@ __all__ = [
     "END_OF_STREAM",
     "KEY_ENV",
     "SETPOINTS_PER_CHUNK",
+    "TILT_PER_BATCH",
     "DialectError",
     "FramingError",
     "SequenceGapError",
@@ -61,6 +66,8 @@ __all__ = [
     "requires_signature",
     "setpoint_chunks",
     "signed_with_key",
+    "tilt_batches",
     "unpack_accel_batch",
     "unpack_setpoint_chunk",
+    "unpack_tilt_batch",
 ]

@@ -1,13 +1,16 @@
 """Split sample arrays into the dialect's chunk messages and join received messages back into arrays.
 
-Two streams use the same framing: setpoints (host → controller, :data:`SETPOINTS_PER_CHUNK` poses of 6 DOF per
-``SHAKETABLE_SETPOINT_CHUNK``) and accelerations (controller → host, :data:`ACCEL_PER_BATCH` samples of 3 axes
-per ``SHAKETABLE_ACCEL_BATCH``). A stream is evenly spaced in time: sample ``k`` of a message is at
+Three streams use the same framing: setpoints (host → controller, :data:`SETPOINTS_PER_CHUNK` poses of 6 DOF per
+``SHAKETABLE_SETPOINT_CHUNK``), accelerations (controller → host, :data:`ACCEL_PER_BATCH` samples of 3 axes
+per ``SHAKETABLE_ACCEL_BATCH``) and body tilts (controller → host, :data:`TILT_PER_BATCH` angles of one body per
+``SHAKETABLE_TILT_BATCH``). A stream is evenly spaced in time: sample ``k`` of a message is at
 ``t_start_ns + k * spacing_ns`` [ns, controller clock]; the last message of a split may be partial, its
 ``count`` saying how many samples it uses (the floats after them are zero). Consecutive messages carry
 consecutive sequence numbers (``chunk_seq`` / ``batch_seq``, modulo 2^32) and continue each other in time.
 
-Units: poses are surge, sway, heave [m], roll, pitch, yaw [rad]; accelerations ax, ay, az [m/s², plate frame].
+Units: poses are surge, sway, heave [m], roll, pitch, yaw [rad]; accelerations ax, ay, az [m/s², plate frame];
+tilts the body's rotation about the plate's y axis relative to the plate [rad], > 0 when its top has moved towards
+the plate's +x (the low side).
 On the wire samples are float32; arrays come back as float64 holding those float32 values exactly.
 """
 
@@ -26,6 +29,9 @@ SETPOINTS_PER_CHUNK = 8
 
 ACCEL_PER_BATCH = 19
 """Samples in one SHAKETABLE_ACCEL_BATCH (``samples`` is float[57], the most that fits a 255-byte payload)."""
+
+TILT_PER_BATCH = 59
+"""Angles in one SHAKETABLE_TILT_BATCH (``samples`` is float[59], the most that fits a 255-byte payload)."""
 
 END_OF_STREAM = 1
 """SHAKETABLE_CHUNK_FLAGS_END_OF_STREAM: the ``flags`` bit of a stream's last setpoint chunk."""
@@ -82,6 +88,7 @@ class _Layout:
 
 _SETPOINT = _Layout("SHAKETABLE_SETPOINT_CHUNK", "chunk_seq", 6, SETPOINTS_PER_CHUNK, None, END_OF_STREAM)
 _ACCEL = _Layout("SHAKETABLE_ACCEL_BATCH", "batch_seq", 3, ACCEL_PER_BATCH, "sensor_id", 0)
+_TILT = _Layout("SHAKETABLE_TILT_BATCH", "batch_seq", 1, TILT_PER_BATCH, "body_id", 0)
 
 
 def _check_int(name: str, value: int, low: int, high: int) -> None:
@@ -206,3 +213,19 @@ def join_accel_batches(messages: Iterable[Any], first_seq: int | None = None) ->
     time does not continue.
     """
     return _join(_ACCEL, messages, first_seq)
+
+
+def tilt_batches(angles: Any, body_id: int, t_start_ns: int, spacing_ns: int, first_seq: int = 0) -> list[Any]:
+    """SHAKETABLE_TILT_BATCH messages for body ``body_id``'s angles ``angles`` (N,) [rad, > 0 top towards the
+    plate's +x], sample 0 at ``t_start_ns`` [ns, controller clock], then every ``spacing_ns`` [ns]; batch ``k`` has
+    ``batch_seq = first_seq + k`` (mod 2^32). Angles are rounded to float32. N = 0 gives []."""
+    _check_int("body_id", body_id, 0, 2**16)
+    arr = np.asarray(angles, dtype=np.float64)
+    if arr.ndim != 1:
+        raise ValueError(f"angles must have shape (N,), got {arr.shape}")
+    return _split(_TILT, arr[:, None], t_start_ns, spacing_ns, first_seq, {"body_id": int(body_id)}, {})
+
+
+def unpack_tilt_batch(msg: Any) -> Series:
+    """The ``count`` angles (count, 1) [rad] of one SHAKETABLE_TILT_BATCH with their timing (body: ``msg.body_id``)."""
+    return _unpack(_TILT, msg)

@@ -30,6 +30,7 @@ table link key                                  zenoh entity        payload (:mo
 ``shaketable/<t>/controller/status``            publication         STATUS
 ``shaketable/<t>/controller/accel/<s>``         publication         ACCEL (one key per accelerometer ``<s>``)
 ``shaketable/<t>/controller/overturn``          publication         OVERTURN
+``shaketable/<t>/controller/tilt``              publication         TILT (every body's, the body in the payload)
 ``shaketable/<t>/controller/heartbeat``         publication         HEARTBEAT (controller time)
 ==============================================  ==================  ===========================================
 
@@ -51,7 +52,7 @@ TELEMETRY_KINDS = ("status", "accel", "detection", "run")
 """Telemetry publications (``accel`` has one more chunk: the sensor)."""
 
 TABLE_KINDS = ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "accel", "overturn",
-               "heartbeat")
+               "heartbeat", "tilt")
 """Keys of the table link (``accel`` has one more chunk: the sensor)."""
 
 PLANES = ("service", "telemetry", "alive", "controller")

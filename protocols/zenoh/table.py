@@ -10,7 +10,9 @@ Every payload starts with an 8-byte little-endian header ``magic b"SHTC", versio
 (UNSIGNED16, :class:`TableKind`)`` (the rig service's payloads, :mod:`protocols.zenoh.payloads`, use another
 magic), then a fixed little-endian body; COMMAND and SETPOINTS may end in a 48-byte signature trailer
 (:mod:`protocols.zenoh.auth`). Units: times integer ns (controller time unless said), poses ``(surge, sway, heave
-[m], roll, pitch, yaw [rad])``, accelerations [m/s², plate frame, specific force]. Version 1 bodies:
+[m], roll, pitch, yaw [rad])``, accelerations [m/s², plate frame, specific force], a body's tilt [rad] its rotation
+about the plate's y axis relative to the plate, > 0 when its top has moved towards the plate's +x (the low side).
+Version 1 bodies:
 
 ==============  ============================================================================================
 kind            body
@@ -29,6 +31,8 @@ STATUS          t_ns i64, state u8 (:data:`STATES`), buffer_depth, last_chunk_se
 ACCEL           sensor u16, seq u32 (the sensor's batch count), t_start i64, spacing i64, n u32, n × 3 f64
 OVERTURN        event_id u64, body_id u32, direction i8 (+1 low side, −1 high side), tilt f64 [rad], t_ns i64
 HEARTBEAT       t_ns i64 (the sender's clock: host monotonic, or controller time)
+TILT            body_id u32, seq u32 (the body's batch count), t_start i64, spacing i64, n u32, n × f64 (the body's
+                tilt [rad])
 ==============  ============================================================================================
 
 A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
@@ -81,6 +85,9 @@ MAX_SAMPLES = 1000
 ACCEL_PER_BATCH = 50
 """Samples the controller puts in an accelerometer batch (50 ms at 1 kHz)."""
 
+TILT_PER_BATCH = 10
+"""Samples the controller puts in a body's tilt batch (50 ms at 200 Hz)."""
+
 _HEADER = struct.Struct("<4sHH")
 _COMMAND = struct.Struct("<QBdd")
 _ANSWER = struct.Struct("<QBq")
@@ -91,6 +98,7 @@ _STATUS = struct.Struct("<qBIIIII6d")
 _ACCEL = struct.Struct("<HIqqI")
 _OVERTURN = struct.Struct("<QIbdq")
 _HEARTBEAT = struct.Struct("<q")
+_TILT = struct.Struct("<IIqqI")
 
 
 class TableKind(IntEnum):
@@ -105,6 +113,7 @@ class TableKind(IntEnum):
     ACCEL = 7
     OVERTURN = 8
     HEARTBEAT = 9
+    TILT = 10
 
 
 class TableUrl(NamedTuple):
@@ -180,6 +189,17 @@ class AccelSamples(NamedTuple):
     t_start_ns: int
     spacing_ns: int
     samples: np.ndarray
+
+
+class TiltSamples(NamedTuple):
+    """Batch ``seq`` of body ``body_id``'s tilt sensor: ``angles`` (n,) [rad], sample k at ``t_start_ns + k *
+    spacing_ns``."""
+
+    body_id: int
+    seq: int
+    t_start_ns: int
+    spacing_ns: int
+    angles: np.ndarray
 
 
 class Overturn(NamedTuple):
@@ -382,6 +402,25 @@ def decode_accel(payload: bytes) -> AccelSamples:
         raise PayloadError(f"ACCEL body has {len(body)} bytes, {n} samples need {_ACCEL.size + 24 * n}")
     samples = np.frombuffer(body, dtype="<f8", count=3 * n, offset=_ACCEL.size).reshape(n, 3).astype(np.float64)
     return AccelSamples(sensor, seq, t_start, spacing, samples)
+
+
+def encode_tilt(batch: TiltSamples) -> bytes:
+    angles = np.asarray(batch.angles, dtype="<f8")
+    if angles.ndim != 1:
+        raise PayloadError(f"tilt samples must have shape (n,), got {angles.shape}")
+    return (_header(TableKind.TILT) + _TILT.pack(batch.body_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
+                                                 len(angles)) + angles.tobytes())
+
+
+def decode_tilt(payload: bytes) -> TiltSamples:
+    body = _body(payload, TableKind.TILT)
+    if len(body) < _TILT.size:
+        raise PayloadError(f"TILT body has {len(body)} bytes, its fixed part alone {_TILT.size}")
+    body_id, seq, t_start, spacing, n = _TILT.unpack_from(body)
+    if len(body) != _TILT.size + 8 * n:
+        raise PayloadError(f"TILT body has {len(body)} bytes, {n} samples need {_TILT.size + 8 * n}")
+    angles = np.frombuffer(body, dtype="<f8", count=n, offset=_TILT.size).astype(np.float64)
+    return TiltSamples(body_id, seq, t_start, spacing, angles)
 
 
 def encode_overturn(event: Overturn) -> bytes:

@@ -18,12 +18,13 @@ import pytest
 from analysis.body import G
 from analysis.table.model import TableModel
 from analysis.table.moves import IN_POSITION, SETTLE_TIME_NS
-from protocols.mavlink import KEY_ENV
+from protocols.mavlink import KEY_ENV, TILT_PER_BATCH
 from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import Command, ControllerCore, Done, Fault, Result, State, StateChange
-from sim_table.process import Emulator, EmulatorConfig, parse_args, parse_body
+from sim_table.endpoint import Batcher
+from sim_table.process import TILT_RATE, Emulator, EmulatorConfig, parse_args, parse_body
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -438,6 +439,61 @@ def test_virtual_time_never_plays_a_tick_whose_setpoint_has_not_come() -> None:
         assert sent["status_sent"] >= emulator.controller_time(0) // 20_000_000  # 50 Hz of controller time
     finally:
         emulator.close()
+
+
+def test_batcher_numbers_each_sources_batches_and_continues_its_time() -> None:
+    """The endpoints' batching of evenly spaced samples: full batches at once, each source its own numbering and
+    time line (its first piece's start, then contiguous), the rest on flush, the numbering going on after it."""
+    batcher = Batcher(4)
+    assert batcher.add(0, 10, 5, np.arange(3.0)) == []
+    assert batcher.add(1, 0, 7, np.zeros((2, 3))) == []
+    full = batcher.add(0, 999, 5, np.arange(3.0, 10.0))  # a later piece's own start is not looked at
+    assert [(b.source, b.seq, b.t_start_ns, b.spacing_ns) for b in full] == [(0, 0, 10, 5), (0, 1, 30, 5)]
+    np.testing.assert_array_equal(np.concatenate([b.samples for b in full]), np.arange(8.0))
+    rest = batcher.flush()
+    assert [(b.source, b.seq, b.t_start_ns, len(b.samples)) for b in rest] == [(0, 2, 50, 2), (1, 0, 0, 2)]
+    assert batcher.flush() == []
+    after = batcher.add(0, 0, 5, np.arange(4.0))
+    assert [(b.source, b.seq, b.t_start_ns) for b in after] == [(0, 3, 60)]
+
+
+def test_the_bodies_tilt_sensors_sample_every_fifth_tick_on_a_contiguous_grid(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Two bodies, virtual time, a 0.7 s stream of a gentle surge: each body's angles reach the endpoint at
+    ``TILT_RATE`` (every 5th 1 kHz tick), on the 5 ms grid of controller time (dated as the accelerometer samples:
+    one tick late), each call continuing the previous one, every tick on the grid once; the bodies stand (|θ| small,
+    not exactly 0: the contact is compliant); full batches of ``TILT_PER_BATCH`` are counted as sent."""
+    specimens = (parse_body("0.05x0.50@0.4,0"), parse_body("0.15x0.45@-0.4,0"))
+    emulator = Emulator(EmulatorConfig(listen="mavlink://127.0.0.1:0", key=bytes(32), speed=math.inf,
+                                       specimens=specimens))
+    calls: list[tuple[int, int, int, np.ndarray]] = []
+    forward = emulator.endpoint.add_tilt
+    monkeypatch.setattr(emulator.endpoint, "add_tilt", lambda body, t0, spacing, angles: (
+        calls.append((body, t0, spacing, np.array(angles))), forward(body, t0, spacing, angles)))
+    try:
+        core = emulator.core
+        assert core.command(Command.ARM, (), True, 0) is Result.ACCEPTED
+        assert core.command(Command.START_STREAM, (0.0,), True, 0) is Result.ACCEPTED
+        samples = np.zeros((700, 6))
+        samples[:, 0] = 0.002 * np.sin(np.linspace(0.0, 2 * math.pi, 700))
+        core.heartbeat(0)
+        core.chunk(0, 10_000_000, 1_000_000, samples, True, True, 0)
+        while core.state is State.STREAMING:
+            emulator.step_virtual(0)
+        plate_time = emulator.controller_time(0) - emulator.tick_ns  # the last tick's plate time
+        counters = emulator.endpoint.counters_dict()
+    finally:
+        emulator.close()
+    spacing = round(1e9 / TILT_RATE)
+    assert emulator.tilt_spacing_ns == spacing == 5 * MS
+    for body in (0, 1):
+        mine = [c for c in calls if c[0] == body]
+        assert {c[2] for c in mine} == {spacing}
+        times = np.concatenate([t0 + spacing * np.arange(len(angles)) for _, t0, _, angles in mine])
+        np.testing.assert_array_equal(times, spacing * np.arange(1, plate_time // spacing + 1))  # from 5 ms on
+        angles = np.concatenate([c[3] for c in mine])
+        assert 0 < np.abs(angles).max() < 1e-3
+    assert counters["tilt_samples_sent"] == 2 * (len(times) // TILT_PER_BATCH) * TILT_PER_BATCH
+    assert counters["tilt_batches_sent"] == 2 * (len(times) // TILT_PER_BATCH)
 
 
 def test_speed_max_parses_and_canopen_refuses_it(tmp_path: Path) -> None:

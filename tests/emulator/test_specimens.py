@@ -276,3 +276,39 @@ def test_advance_many_steps_the_batch_as_advance_steps_each_sample() -> None:
         np.testing.assert_allclose([e.t for e in batched], [e.t for e in each], atol=0.5 * SAMPLE)
         np.testing.assert_allclose(many.data.qpos[:6], one.data.qpos[:6], atol=1e-6)
         assert many.time == one.time and many.detections() == batched
+
+
+def test_sample_angles_are_each_bodys_angle_at_every_sample_time_fallen_bodies_included() -> None:
+    """The tilt sensor's channel (``sample_angles``): two bodies released leaning ±0.6 rad and one standing on a
+    still plate, fed in batches (and one interval shorter than a step). Each batch's rows are the angles at its
+    sample times, as :meth:`advance` sample by sample gives them while nothing has fallen; a fallen body keeps being
+    reported, lying on its side in its direction; the standing one stays at 0."""
+    specimens = [Specimen(Body(0.1, 0.5), y=-0.6 + 0.6 * i, friction=0.8) for i in range(3)]
+    one, many = SpecimenScene(specimens), SpecimenScene(specimens)
+    leans = [0.6, 0.0, -0.6]
+    one.place(leans=leans)
+    many.place(leans=leans)
+    assert many.sample_angles.shape == (0, 3)
+    t = np.arange(1, 1501) * SAMPLE
+    pose = np.zeros((len(t), 6))
+    each, batched, found = [], [], []
+    for a, b in itertools.pairwise([*range(0, len(t), 40), len(t)]):
+        found += many.advance_many(t[a:b], pose[a:b], pose[a:b])
+        assert many.sample_angles.shape == (b - a, 3)
+        np.testing.assert_allclose(many.sample_angles[-1], many.specimen_angles(), atol=1e-12)
+        batched.append(many.sample_angles)
+        for k in range(a, b):
+            one.advance(t[k], pose[k], pose[k])
+            assert one.sample_angles.shape == (1, 3)
+            each.append(one.sample_angles[0])
+    batched, each = np.vstack(batched), np.array(each)
+    first_fall = round(found[0].t / SAMPLE)
+    np.testing.assert_allclose(batched[:first_fall], each[:first_fall], atol=1e-5)
+    np.testing.assert_allclose(batched[0], leans, atol=0.02)  # released at rest where they leaned
+    assert sorted((e.body_id, e.direction) for e in found) == [(0, 1), (2, -1)]
+    np.testing.assert_allclose(batched[-1], [0.5 * math.pi, 0.0, -0.5 * math.pi], atol=0.05)
+    assert np.abs(batched[:, 1]).max() < 1e-4
+    before = many.sample_angles[-1]
+    many.advance_many(t[-1] + np.array([0.4, 1.0]) * SAMPLE, pose[:2], pose[:2])  # the first too short for a step
+    np.testing.assert_array_equal(many.sample_angles[0], before)
+    assert many.time == pytest.approx(t[-1] + SAMPLE)

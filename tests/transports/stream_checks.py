@@ -12,14 +12,18 @@ from typing import Any
 
 import numpy as np
 
-from drivers.controller import StreamReport, TableStatus, open_table
+from drivers.controller import StreamReport, Subscription, TableStatus, TiltBatch, open_table
 from rig.drive import Drive, prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
+from sim_table.process import TILT_RATE, parse_body
+from sim_table.specimens import LYING, OVERTURN_MARGIN
 
 TAU = 0.005  # the emulator's default leg lag [s]
 POSE_NOISE = 2e-5  # leg reading noise (1 µm) through the kinematics, float32 on the wire, interpolation [m, rad]
 SLENDER, STOCKY = "0.05x0.50@0.4,0", "0.15x0.45@-0.4,0"
+WAIT = 10.0
+"""Upper bound [s] on waiting for telemetry that must come (never reached when it works)."""
 
 
 def drive_excerpt() -> Drive:
@@ -90,17 +94,61 @@ def assert_overturns_reported_once(found: list[Any], stats: dict[str, Any], coun
     assert counters["link"]["overturn_messages_sent"] == 4 * len(found)
 
 
+def collect_tilts(tilts: Subscription[TiltBatch], bodies: int, until_ns: int) -> list[TiltBatch]:
+    """The tilt batches received, waiting (up to :data:`WAIT`) until each of the first ``bodies`` bodies has a sample
+    at or after controller time ``until_ns`` (a batch is sent when full: up to 59 samples, 295 ms, on MAVLink)."""
+    batches: list[TiltBatch] = []
+    deadline = time.monotonic() + WAIT
+    while True:
+        batches += tilts.drain()
+        last = {b.body_id: int(b.times_ns()[-1]) for b in batches}
+        if all(last.get(body, -1) >= until_ns for body in range(bodies)) or time.monotonic() > deadline:
+            return batches
+        time.sleep(0.05)
+
+
+def assert_tilts(drive: Drive, report: StreamReport, batches: list[TiltBatch], bodies: list[str],
+                 overturns: list[dict[str, Any]]) -> None:
+    """Each of ``bodies`` (``--body`` texts) reported its tilt: batches in sequence, samples every 1/TILT_RATE on the
+    grid of controller time, contiguous from batch to batch, every grid time of the stream once. The angle is
+    relative to the plate: ~0 while the body rests on the tilted plate (the drive's leading hold). A body among the
+    emulator's ``overturns`` stayed within its detection threshold (α + margin) before its overturn and is past it,
+    in its direction, at the first sample after; any other stayed within it."""
+    spacing = round(1e9 / TILT_RATE)
+    assert {b.body_id for b in batches} == set(range(len(bodies)))
+    for body_id, text in enumerate(bodies):
+        mine = [b for b in batches if b.body_id == body_id]
+        assert [b.seq for b in mine] == list(range(mine[0].seq, mine[0].seq + len(mine)))
+        times = np.concatenate([b.times_ns() for b in mine])
+        angles = np.concatenate([b.angles for b in mine])
+        assert times[0] % spacing == 0 and np.all(np.diff(times) == spacing)
+        inside = (times >= report.t_start_ns) & (times <= report.t_end_ns)
+        assert inside.sum() == report.t_end_ns // spacing - math.ceil(report.t_start_ns / spacing) + 1
+        hold = (times >= report.t_start_ns + round((drive.motion[0] - 0.4) * 1e9)) & (
+            times <= report.t_start_ns + round(drive.motion[0] * 1e9))  # resting at the tilt
+        assert hold.sum() >= 0.4 * TILT_RATE and np.abs(angles[hold]).max() < 1e-3
+        threshold = min(parse_body(text).body.alpha + OVERTURN_MARGIN, LYING)
+        fell = [o for o in overturns if o["body_id"] == body_id]
+        if fell:
+            t_fall = round(fell[0]["t"] * 1e9)
+            assert np.abs(angles[times < t_fall]).max() < threshold
+            assert fell[0]["direction"] * angles[times >= t_fall][0] >= threshold
+        else:
+            assert np.abs(angles).max() < threshold
+
+
 def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chunk: int,
                      controller_type: type, speed: str = "max") -> dict[str, Any]:
     """Stream ``drive`` through the transport of ``listen`` to an emulator at ``speed`` (default: virtual time)
-    with a slender and a stocky body and two accelerometers; assert the issue's checks; return the emulator's
-    counters for transport checks."""
+    with a slender and a stocky body and two accelerometers; assert the issue's checks (and the bodies' tilt
+    telemetry); return the emulator's counters for transport checks."""
     emulator = EmulatorProcess.start(listen, "--body", SLENDER, "--body", STOCKY, "--accel", "0,0,0",
                                      "--accel", "1.0,-0.5,0", "--speed", speed, key_file=key_file)
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             assert isinstance(table, controller_type)
             statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
+            tilts = table.tilts()
             table.arm()
             progress: list[tuple[int, int]] = []
             started = time.monotonic()
@@ -108,6 +156,7 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
                                                 on_progress=lambda *p: progress.append(p))
             wall = time.monotonic() - started
             time.sleep(0.6)  # the last overturn event's repetitions (3 × 100 ms)
+            tilt_batches = collect_tilts(tilts, 2, report.t_end_ns)
             stats = table.link_stats()
     finally:
         counters = emulator.stop()
@@ -135,4 +184,8 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
     assert_overturns_reported_once(found, stats, counters)
     assert [d.t_ns for d in found] == [round(o["t"] * 1e9) for o in counters["overturns"]]
     assert len({d.event_id for d in found}) == len(found) == len({d.body_id for d in found})
+
+    # the bodies' tilt: every sample once, in order, and physically right (the overturns checked against it)
+    assert stats["tilt_batches_lost"] == 0 and len(tilt_batches) <= counters["link"]["tilt_batches_sent"]
+    assert_tilts(drive, report, tilt_batches, [SLENDER, STOCKY], counters["overturns"])
     return counters

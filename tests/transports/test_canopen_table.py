@@ -150,12 +150,14 @@ def test_stream_a_prepared_fema_drive_excerpt_at_500_hz() -> None:
         with open_table(emulator.url) as table:
             assert isinstance(table, CanopenTable) and table.rate == RATE and table.bus_load == pytest.approx(0.775)
             statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
+            tilts = table.tilts()
             table.arm()
             progress: list[tuple[int, int]] = []
             report = table.stream(drive.t, drive.poses, on_progress=lambda *p: progress.append(p))
             time.sleep(0.6)  # the last overturn event's repetitions (3 × 100 ms), the last accelerometer batch
             stats = table.link_stats()
             received, found, during = accel.drain(), detections.drain(), statuses.drain()
+            assert tilts.drain() == []  # no tilt telemetry on the bus (no room for it)
         counters = emulator.counters()
     assert_played_through(drive, report, progress, counters, report.duration)  # real time: the master paces
     assert counters["chunks_missing"] == 0 and counters["refused_commands"] == 0  # CAN: nothing is signed

@@ -6,6 +6,7 @@ mocked except where a test injects a failure or a concurrent process into the ge
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import time
@@ -21,6 +22,7 @@ from protocols.mavlink import (
     END_OF_STREAM,
     KEY_ENV,
     SETPOINTS_PER_CHUNK,
+    TILT_PER_BATCH,
     DialectError,
     FramingError,
     SequenceGapError,
@@ -37,8 +39,10 @@ from protocols.mavlink import (
     requires_signature,
     setpoint_chunks,
     signed_with_key,
+    tilt_batches,
     unpack_accel_batch,
     unpack_setpoint_chunk,
+    unpack_tilt_batch,
 )
 
 # A schema change must show up here: update the numbers together with both ends of the link.
@@ -47,6 +51,7 @@ PINNED = {  # name: (message id, CRC_EXTRA)
     "SHAKETABLE_ACCEL_BATCH": (42501, 143),
     "SHAKETABLE_OVERTURN_EVENT": (42502, 232),
     "SHAKETABLE_STATUS": (42503, 161),
+    "SHAKETABLE_TILT_BATCH": (42504, 51),
 }
 COMMANDS = {
     "MAV_CMD_SHAKETABLE_ARM": 42550,
@@ -160,9 +165,12 @@ def test_reserved_numbers_are_free_in_every_bundled_dialect(d):
 def test_framing_constants_match_the_generated_messages(d):
     chunk = d.MAVLink_shaketable_setpoint_chunk_message
     batch = d.MAVLink_shaketable_accel_batch_message
+    tilt = d.MAVLink_shaketable_tilt_batch_message
     assert max(chunk.array_lengths) == SETPOINTS_PER_CHUNK * 6
     assert max(batch.array_lengths) == ACCEL_PER_BATCH * 3
     assert batch.unpacker.size + 3 * 4 > 255  # one more sample would not fit
+    assert max(tilt.array_lengths) == TILT_PER_BATCH
+    assert tilt.unpacker.size == 255  # full: one more angle would not fit
 
 
 def test_changing_a_field_type_changes_its_crc_and_only_its_own(d, cache, tmp_path, monkeypatch):
@@ -284,9 +292,11 @@ def _examples(d):
     chunk = setpoint_chunks(np.linspace(-0.2, 0.3, 8 * 6).reshape(8, 6), 123_456_789_012, 1_000_000, 77,
                             end_of_stream=True)[0]
     batch = accel_batches(np.linspace(-9.81, 9.81, 19 * 3).reshape(19, 3), 3, 2**40, 500_000, 2**32 - 1)[0]
+    tilt = tilt_batches(np.linspace(-1.6, 1.6, 59), 65_535, 2**40, 5_000_000, 2**32 - 1)[0]
     return [
         chunk,
         batch,
+        tilt,
         d.MAVLink_shaketable_overturn_event_message(event_id=4_000_000_000, body_id=65_535, direction=-1,
                                                     tilt=0.0872665, t_ns=2**63 + 5),
         d.MAVLink_shaketable_status_message(t_ns=987_654_321, state=d.SHAKETABLE_STATE_STREAMING, buffer_depth=96,
@@ -440,6 +450,27 @@ def test_accel_batches_join_back_exactly_across_the_sequence_wrap():
     np.testing.assert_array_equal(series.samples, accel.astype(np.float32))
     one = unpack_accel_batch(batches[2])
     assert one.t_start_ns == 10**12 + 38 * 1_000_000 and one.samples.shape == (19, 3)
+
+
+def test_tilt_batches_unpack_exactly_with_their_body_sequence_and_times():
+    angles = np.random.default_rng(6).normal(scale=0.5, size=130)
+    batches = tilt_batches(angles, 513, 10**12, 5_000_000, first_seq=2**32 - 1)
+    assert [b.batch_seq for b in batches] == [2**32 - 1, 0, 1]
+    assert [b.count for b in batches] == [59, 59, 12] and {b.body_id for b in batches} == {513}
+    parts = [unpack_tilt_batch(b) for b in batches]
+    assert [p.t_start_ns for p in parts] == [10**12, 10**12 + 59 * 5_000_000, 10**12 + 118 * 5_000_000]
+    assert all(p.spacing_ns == 5_000_000 and p.samples.shape == (p.samples.shape[0], 1) for p in parts)
+    np.testing.assert_array_equal(np.concatenate([p.samples[:, 0] for p in parts]), angles.astype(np.float32))
+    assert parts[-1].end_ns == 10**12 + 130 * 5_000_000
+    assert tilt_batches([], 0, 0, 1) == []
+    with pytest.raises(ValueError, match="body_id"):
+        tilt_batches([0.1], 2**16, 0, 1)
+    with pytest.raises(ValueError, match=r"shape \(N,\)"):
+        tilt_batches(np.zeros((2, 1)), 0, 0, 1)
+    with pytest.raises(ValueError, match="finite"):
+        tilt_batches([math.nan], 0, 0, 1)
+    with pytest.raises(FramingError, match="expected SHAKETABLE_TILT_BATCH"):
+        unpack_tilt_batch(accel_batches(np.zeros((1, 3)), 0, 0, 1)[0])
 
 
 def test_joining_detects_lost_repeated_and_inconsistent_messages(d):

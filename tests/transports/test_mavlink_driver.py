@@ -25,7 +25,7 @@ from stream_checks import drive_excerpt, stream_and_check, surge
 
 from drivers.controller import StreamAbortedError, TableError, TableStatus, open_table, register_scheme
 from drivers.mavlink import MavlinkTable
-from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks
+from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks, tilt_batches
 from protocols.mavlink.signing import signing_timestamp
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
@@ -270,6 +270,26 @@ def test_stalled_stream_underruns_then_the_watchdog_stops_the_table(key_file: Pa
     assert set(final.faults) == {"STREAM_SILENT", "UNDERRUN"} and final.underruns == 1
     np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)
     assert counters["link"]["chunks_stalled"] > 0 and counters["watchdog_stops"] == 1
+
+
+# ----- telemetry ----------------------------------------------------------------------------------------------
+
+
+def test_tilt_batches_are_published_and_each_bodys_lost_ones_counted() -> None:
+    """SHAKETABLE_TILT_BATCHes as received (no socket): each becomes a TiltBatch of its body with its timing and
+    angles; a skipped batch_seq of a body counts as lost batches of that body only, across the sequence's wrap."""
+    table = MavlinkTable("mavlink://127.0.0.1:9")
+    tilts = table.tilts()
+    body0 = tilt_batches(np.linspace(-0.2, 0.9, 59 * 4), 0, 5_000_000, 5_000_000, first_seq=2**32 - 2)
+    body3 = tilt_batches(np.zeros(59 * 2), 3, 5_000_000, 5_000_000)
+    for message in [body0[0], body3[0], body0[2], body3[1], body0[3]]:  # body 0 loses seq 2^32 - 1
+        table._dispatch(message, 0)
+    got = tilts.drain()
+    assert [(b.body_id, b.seq) for b in got] == [(0, 2**32 - 2), (3, 0), (0, 0), (3, 1), (0, 1)]
+    assert table.link_stats()["tilt_batches_lost"] == table.tilt_batches_lost == 1
+    np.testing.assert_array_equal(got[2].angles, np.linspace(-0.2, 0.9, 59 * 4)[118:177].astype(np.float32))
+    assert got[2].angles.shape == (59,) and got[2].t_start_ns == 5_000_000 + 118 * 5_000_000
+    assert np.all(np.diff(got[2].times_ns()) == 5_000_000)
 
 
 # ----- connection and registry --------------------------------------------------------------------------------

@@ -40,12 +40,14 @@ from protocols.zenoh.table import (
     SetpointChunk,
     StatusReport,
     TableUrl,
+    TiltSamples,
     decode_accel,
     decode_answer,
     decode_command,
     decode_overturn,
     decode_setpoints,
     decode_status,
+    decode_tilt,
     encode_accel,
     encode_answer,
     encode_command,
@@ -53,6 +55,7 @@ from protocols.zenoh.table import (
     encode_overturn,
     encode_setpoints,
     encode_status,
+    encode_tilt,
     fault_names,
     parse_table_url,
 )
@@ -83,6 +86,8 @@ def test_table_keys() -> None:
     assert table_key("table", "accel", "1") == "shaketable/table/controller/accel/1"
     assert parse_key(table_key("lab-a", "accel", "0")) == Key("lab-a", "controller", "accel", "0")
     assert parse_key(table_key("lab-a", "host-heartbeat")) == Key("lab-a", "controller", "host-heartbeat")
+    assert parse_key(table_key("lab-a", "tilt")) == Key("lab-a", "controller", "tilt")
+    assert not zenoh.KeyExpr(table_accel_selector("lab-a")).intersects(table_key("lab-a", "tilt"))
     assert zenoh.KeyExpr(table_accel_selector("lab-a")).includes(table_key("lab-a", "accel", "7"))
     assert not zenoh.KeyExpr(table_accel_selector("lab-a")).intersects(table_key("lab-a", "status"))
     with pytest.raises(KeyExprError, match="unknown table kind 'pose'"):
@@ -126,6 +131,10 @@ def test_payloads_round_trip() -> None:
     np.testing.assert_array_equal(batch.samples, samples[:7, :3])
     event = Overturn(2**40, 1, -1, -0.0349, 123)
     assert decode_overturn(encode_overturn(event)) == event
+    tilt = decode_tilt(encode_tilt(TiltSamples(2**32 - 1, 2**32 - 1, 10**15, 5_000_000, samples[:, 4])))
+    assert tilt[:4] == (2**32 - 1, 2**32 - 1, 10**15, 5_000_000)
+    np.testing.assert_array_equal(tilt.angles, samples[:, 4])
+    assert decode_tilt(encode_tilt(TiltSamples(0, 0, 0, 1, []))).angles.shape == (0,)
 
 
 @pytest.mark.parametrize(("payload", "decode", "message"), [
@@ -149,6 +158,9 @@ def test_payloads_round_trip() -> None:
      r"ACCEL body has 73 bytes, 2 samples need 74"),
     (encode_overturn(Overturn(1, 0, 1, 0.0, 0))[:-17] + b"\x00" + bytes(16), decode_overturn,
      r"direction must be \+1 or -1, got 0"),
+    (encode_tilt(TiltSamples(0, 0, 0, 1, np.zeros(2)))[:-1], decode_tilt, r"TILT body has 43 bytes, 2 samples need 44"),
+    (encode_tilt(TiltSamples(0, 0, 0, 1, np.zeros(2)))[:20], decode_tilt, r"TILT body has 12 bytes, its fixed part"),
+    (encode_accel(AccelSamples(0, 0, 0, 1, np.zeros((1, 3)))), decode_tilt, r"expected a TILT payload, got ACCEL"),
 ], ids=lambda v: v.__name__ if callable(v) else "")
 def test_payload_errors(payload: bytes, decode: Any, message: str) -> None:
     with pytest.raises(PayloadError, match=message):
@@ -360,6 +372,32 @@ def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.M
     """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
     controller's clock at twice real time."""
     table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch, ZenohTable)
+
+
+# ----- telemetry ----------------------------------------------------------------------------------------------
+
+
+def test_tilt_payloads_are_published_and_each_bodys_lost_ones_counted() -> None:
+    """TILT publications as received (no session): each becomes a TiltBatch of its body with its timing and angles;
+    a skipped seq of a body counts as lost batches of that body only, across the sequence's wrap; an undecodable one
+    is counted as a bad payload."""
+    table = ZenohTable("zenoh://127.0.0.1:7447/lab-a")
+    tilts = table.tilts()
+    receive = table._receiver(table._on_tilt)
+
+    class Sample:
+        def __init__(self, payload: bytes) -> None:
+            self.payload = zenoh.ZBytes(payload)
+
+    angles = np.linspace(-0.2, 0.9, 10)
+    for body, seq in [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]:  # body 0 loses 2^32 - 1, body 7 loses 1, 2
+        receive(Sample(encode_tilt(TiltSamples(body, seq, 5_000_000 * (seq + 1), 5_000_000, angles + body))))
+    receive(Sample(encode_tilt(TiltSamples(0, 2, 0, 1, angles))[:-1]))
+    got = tilts.drain()
+    assert [(b.body_id, b.seq) for b in got] == [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]
+    assert table.link_stats()["tilt_batches_lost"] == table.tilt_batches_lost == 3 and table.bad_payloads == 1
+    np.testing.assert_array_equal(got[3].angles, angles + 7)
+    assert (got[3].t_start_ns, got[3].spacing_ns) == (20_000_000, 5_000_000)
 
 
 # ----- connection and registry --------------------------------------------------------------------------------
