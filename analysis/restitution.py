@@ -11,8 +11,10 @@ real (or soft-contact) impact lasts a few milliseconds. The plate may be moving:
 to the motion between impacts, so the ratio holds during shaking as in free rocking.
 
 An impact is used only when it is clean: the rate before it at least ``min_rate`` [rad/s] (a resting body's
-noise has no impacts), enough samples on both sides, no other crossing within ``window`` of it (chatter), and
-the body still rocking the same way after it (the ratio within (0, ``max_ratio``]).
+noise has no impacts), enough samples on both sides, each side's samples on one smooth arc (within
+:data:`MAX_RESIDUAL` of its quadratic: a body put back upright after a fall jumps, it does not rock), no other
+crossing within ``window`` of it (chatter), and the body still rocking the same way after it (the ratio within
+(0, ``max_ratio``]).
 
 :func:`fit_restitution` combines the ratios of one body (from any number of runs): the median (robust to the
 odd impact disturbed by a neighbour or a jolt), with a 95 % interval of the median from the order statistics
@@ -42,6 +44,9 @@ about 0.12 rad/s at impact)."""
 
 MAX_RATIO = 1.2
 """Largest ratio kept: above 1 only by measurement error (an impact takes energy out)."""
+
+MAX_RESIDUAL = 2e-3
+"""Largest distance [rad] of a side's samples from its quadratic (a rocking arc fits within 1e-4 rad)."""
 
 MIN_SAMPLES = 3
 """Samples needed on each side of an impact for its quadratic."""
@@ -112,11 +117,14 @@ def impact_ratios(t: ArrayLike, theta: ArrayLike, *, window: float = WINDOW, gap
 
 
 def _slope(t: np.ndarray, theta: np.ndarray, tc: float, start: float, end: float) -> float | None:
-    """Slope at ``tc`` of the quadratic through the samples in [start, end] (None: too few)."""
+    """Slope at ``tc`` of the quadratic through the samples in [start, end] (None: too few, or not on one arc)."""
     lo, hi = np.searchsorted(t, min(start, end), "left"), np.searchsorted(t, max(start, end), "right")
     if hi - lo < MIN_SAMPLES:
         return None
     coefficients = np.polynomial.polynomial.polyfit(t[lo:hi] - tc, theta[lo:hi], 2)
+    residual = theta[lo:hi] - np.polynomial.polynomial.polyval(t[lo:hi] - tc, coefficients)
+    if np.max(np.abs(residual)) > MAX_RESIDUAL:
+        return None
     return float(coefficients[1])
 
 

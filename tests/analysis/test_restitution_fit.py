@@ -95,3 +95,11 @@ def test_bad_input_is_named() -> None:
         impact_ratios([0.0, 0.1], [0.0, math.nan])
     with pytest.raises(AnalysisInputError, match="gap"):
         impact_ratios([0.0, 0.1], [0.0, 0.1], gap=0.05, window=0.04)
+
+
+def test_a_body_put_back_upright_is_not_an_impact() -> None:
+    """Between runs a fallen body (θ = −π/2) is stood up again: its angle jumps to 0, where it rests with
+    rounding-level values that change sign within the window of the jump (as the emulator's sessions show)."""
+    t = np.arange(0.0, 1.0, TILT_SAMPLE) + 0.0021
+    angle = np.where(t < 0.5, -0.5 * math.pi, 1e-30 * (t - 0.52))
+    assert impact_ratios(t, angle) == []
