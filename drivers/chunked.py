@@ -50,12 +50,14 @@ from drivers.controller import (
     STATUS_TIMEOUT,
     STOPPED_STATES,
     TILT_AXES,
+    AccelBatch,
     CommandFailedError,
     StreamAbortedError,
     StreamReport,
     TableController,
     TableStatus,
     TableTimeoutError,
+    TiltBatch,
     finite_poses,
     sample_spacing,
 )
@@ -102,6 +104,20 @@ class CommandAnswer(ABC):
         """Stop collecting final answers (idempotent)."""
 
 
+class LostBatches:
+    """Batches missing from each source's sequence numbers (modulo 2³²): a gap counts the batches it skipped."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self._expected: dict[int, int] = {}
+
+    def receive(self, source: int, seq: int) -> None:
+        expected = self._expected.get(source)
+        if expected is not None and seq != expected:
+            self.count += (seq - expected) % 2**32
+        self._expected[source] = (seq + 1) % 2**32
+
+
 class ChunkedStreamController(TableController):
     """A `TableController` whose commands are written once over :meth:`_request` and whose `stream` sends chunks
     ``lead`` ahead (module docstring)."""
@@ -116,6 +132,8 @@ class ChunkedStreamController(TableController):
         super().__init__(url)
         self.clock = ClockSync()
         self._next_seq = 0
+        self._accel_lost = LostBatches()
+        self._tilt_lost = LostBatches()
 
     # ----- the backend's hooks
 
@@ -135,6 +153,28 @@ class ChunkedStreamController(TableController):
     @abstractmethod
     def _send_chunk(self, message: Any) -> None:
         """Send one encoded chunk (signed where the transport signs)."""
+
+    # ----- telemetry batches
+
+    @property
+    def accel_batches_lost(self) -> int:
+        """Accelerometer batches missing from the sequence numbers received (each sensor's own)."""
+        return self._accel_lost.count
+
+    @property
+    def tilt_batches_lost(self) -> int:
+        """Body-tilt batches missing from the sequence numbers received (each body's own)."""
+        return self._tilt_lost.count
+
+    def _publish_accel(self, batch: AccelBatch) -> None:
+        """Count a received accelerometer batch's gap, then publish it."""
+        self._accel_lost.receive(batch.sensor_id, batch.seq)
+        self.feedback.publish_accel(batch)
+
+    def _publish_tilt(self, batch: TiltBatch) -> None:
+        """Count a received body-tilt batch's gap, then publish it."""
+        self._tilt_lost.receive(batch.body_id, batch.seq)
+        self.feedback.publish_tilt(batch)
 
     # ----- commands
 

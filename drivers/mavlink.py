@@ -149,12 +149,6 @@ class MavlinkTable(ChunkedStreamController):
         self._timesync_sent: deque[int] = deque(maxlen=64)
         self._fault_bits = [(bit, entry.name.removeprefix("SHAKETABLE_FAULT_"))  # single bits (not ENUM_END)
                             for bit, entry in self.d.enums["SHAKETABLE_FAULT"].items() if bit & (bit - 1) == 0]
-        self._accel_expected: dict[int, int] = {}
-        self.accel_batches_lost = 0
-        """Accelerometer batches missing from the sequence numbers received."""
-        self._tilt_expected: dict[int, int] = {}
-        self.tilt_batches_lost = 0
-        """Body-tilt batches missing from the sequence numbers received (each body's own)."""
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
 
@@ -242,21 +236,13 @@ class MavlinkTable(ChunkedStreamController):
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)
-        expected = self._accel_expected.get(msg.sensor_id)
-        if expected is not None and msg.batch_seq != expected:
-            self.accel_batches_lost += (msg.batch_seq - expected) % 2**32
-        self._accel_expected[msg.sensor_id] = (msg.batch_seq + 1) % 2**32
-        self.feedback.publish_accel(AccelBatch(msg.sensor_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
-                                               series.samples))
+        self._publish_accel(AccelBatch(msg.sensor_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
+                                       series.samples))
 
     def _tilt(self, msg: Any) -> None:
         series = unpack_tilt_batch(msg)
-        expected = self._tilt_expected.get(msg.body_id)
-        if expected is not None and msg.batch_seq != expected:
-            self.tilt_batches_lost += (msg.batch_seq - expected) % 2**32
-        self._tilt_expected[msg.body_id] = (msg.batch_seq + 1) % 2**32
-        self.feedback.publish_tilt(TiltBatch(msg.body_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
-                                             series.samples[:, 0]))
+        self._publish_tilt(TiltBatch(msg.body_id, msg.batch_seq, series.t_start_ns, series.spacing_ns,
+                                     series.samples[:, 0]))
 
     def _heartbeat_loop(self) -> None:
         period = round(1e9 / HEARTBEAT_RATE)

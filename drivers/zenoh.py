@@ -152,12 +152,6 @@ class ZenohTable(ChunkedStreamController):
         self._finals: dict[int, list[Answer]] = {}  # cmd id of a command sent, or moving -> its final answers
         self._clock_sent: deque[int] = deque(maxlen=64)
         self._next_cmd = secrets.randbits(63)
-        self._accel_expected: dict[int, int] = {}
-        self.accel_batches_lost = 0
-        """Accelerometer batches missing from the sequence numbers received."""
-        self._tilt_expected: dict[int, int] = {}
-        self.tilt_batches_lost = 0
-        """Body-tilt batches missing from the sequence numbers received (each body's own)."""
         self.command_attempts_unanswered = 0
         """Command queries that ended without an answer (and were sent again, or timed out)."""
         self.bad_payloads = 0
@@ -256,21 +250,12 @@ class ZenohTable(ChunkedStreamController):
 
     def _on_accel(self, payload: bytes, now: int) -> None:
         batch = decode_accel(payload)
-        expected = self._accel_expected.get(batch.sensor_id)
-        if expected is not None and batch.seq != expected:
-            self.accel_batches_lost += (batch.seq - expected) % 2**32
-        self._accel_expected[batch.sensor_id] = (batch.seq + 1) % 2**32
-        self.feedback.publish_accel(AccelBatch(batch.sensor_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
-                                               batch.samples))
+        self._publish_accel(AccelBatch(batch.sensor_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
+                                       batch.samples))
 
     def _on_tilt(self, payload: bytes, now: int) -> None:
         batch = decode_tilt(payload)
-        expected = self._tilt_expected.get(batch.body_id)
-        if expected is not None and batch.seq != expected:
-            self.tilt_batches_lost += (batch.seq - expected) % 2**32
-        self._tilt_expected[batch.body_id] = (batch.seq + 1) % 2**32
-        self.feedback.publish_tilt(TiltBatch(batch.body_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
-                                             batch.angles))
+        self._publish_tilt(TiltBatch(batch.body_id, batch.seq, batch.t_start_ns, batch.spacing_ns, batch.angles))
 
     def _on_clock_reply(self, reply: zenoh.Reply) -> None:
         now = time.monotonic_ns()

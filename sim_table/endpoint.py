@@ -120,6 +120,41 @@ class Batcher:
         return batches
 
 
+class BatchedTelemetry:
+    """The `Endpoint` methods that batch accelerometer and tilt samples (MAVLink, zenoh): the endpoint sets
+    ``_accel`` and ``_tilt`` (a :class:`Batcher` each, of its transport's batch sizes) and sends each batch in
+    :meth:`_send_accel` / :meth:`_send_tilt`."""
+
+    _accel: Batcher
+    _tilt: Batcher
+
+    def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
+        """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
+        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
+            self._send_accel(batch)
+
+    def flush_accel(self) -> None:
+        """Send the samples still short of a full batch."""
+        for batch in self._accel.flush():
+            self._send_accel(batch)
+
+    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
+        """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""
+        for batch in self._tilt.add(body_id, t_start_ns, spacing_ns, angles):
+            self._send_tilt(batch)
+
+    def flush_tilt(self) -> None:
+        """Send the angles still short of a full batch."""
+        for batch in self._tilt.flush():
+            self._send_tilt(batch)
+
+    def _send_accel(self, batch: Batch) -> None:
+        raise NotImplementedError
+
+    def _send_tilt(self, batch: Batch) -> None:
+        raise NotImplementedError
+
+
 @runtime_checkable
 class LegFeedback(Protocol):
     """An endpoint whose drives report each leg's measured length (CANopen: at every SYNC) and watch its following

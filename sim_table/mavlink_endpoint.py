@@ -59,7 +59,7 @@ from protocols.mavlink import (
     unpack_setpoint_chunk,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
-from sim_table.endpoint import Action, Batch, Batcher, EndpointOptions
+from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, EndpointOptions
 
 DEDUP_WINDOW = 1.0
 """How long a command is remembered for recognising its retransmissions [s, real time]."""
@@ -108,7 +108,7 @@ class LinkCounters:
     status_sent: int = 0
 
 
-class MavlinkEndpoint:
+class MavlinkEndpoint(BatchedTelemetry):
     """The controller's UDP endpoint at ``local`` (host, port; port 0 = any free one).
 
     ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns;
@@ -321,31 +321,11 @@ class MavlinkEndpoint:
             snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
             [float(v) for v in snap.pose]))
 
-    def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
-        """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
-        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
-            self._send_accel(batch)
-
-    def flush_accel(self) -> None:
-        """Send the samples still short of a full batch."""
-        for batch in self._accel.flush():
-            self._send_accel(batch)
-
     def _send_accel(self, batch: Batch) -> None:
         (message,) = accel_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
         self._send(message)
-
-    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
-        """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""
-        for batch in self._tilt.add(body_id, t_start_ns, spacing_ns, angles):
-            self._send_tilt(batch)
-
-    def flush_tilt(self) -> None:
-        """Send the angles still short of a full batch."""
-        for batch in self._tilt.flush():
-            self._send_tilt(batch)
 
     def _send_tilt(self, batch: Batch) -> None:
         (message,) = tilt_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)

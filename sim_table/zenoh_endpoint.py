@@ -77,7 +77,7 @@ from protocols.zenoh.table import (
     parse_table_url,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
-from sim_table.endpoint import Action, Batch, Batcher, EndpointOptions
+from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, EndpointOptions
 
 REMEMBERED_COMMANDS = 256
 """Commands remembered by id for recognising retries."""
@@ -122,7 +122,7 @@ class LinkCounters:
     status_sent: int = 0
 
 
-class ZenohEndpoint:
+class ZenohEndpoint(BatchedTelemetry):
     """The controller's zenoh endpoint for ``address`` (module docstring).
 
     ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns; ``loss``
@@ -315,16 +315,6 @@ class ZenohEndpoint:
             snap.t_ns, snap.state.value, min(snap.buffer_depth, 2**32 - 1), snap.last_chunk_seq, snap.underruns,
             int(snap.faults), snap.refused_commands, snap.pose)))
 
-    def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
-        """Queue a sensor's next samples (n, 3), the first at ``t_start_ns``; full batches are sent at once."""
-        for batch in self._accel.add(sensor_id, t_start_ns, spacing_ns, samples):
-            self._send_accel(batch)
-
-    def flush_accel(self) -> None:
-        """Send the samples still short of a full batch."""
-        for batch in self._accel.flush():
-            self._send_accel(batch)
-
     def _send_accel(self, batch: Batch) -> None:
         publisher = self._accel_publishers.get(batch.source)
         if publisher is None:
@@ -334,16 +324,6 @@ class ZenohEndpoint:
         self.counters.accel_samples_sent += len(batch.samples)
         self._publish(publisher, encode_accel(AccelSamples(batch.source, batch.seq, batch.t_start_ns,
                                                            batch.spacing_ns, batch.samples)))
-
-    def add_tilt(self, body_id: int, t_start_ns: int, spacing_ns: int, angles: np.ndarray) -> None:
-        """Queue a body's next tilt angles (n,) [rad], the first at ``t_start_ns``; full batches are sent at once."""
-        for batch in self._tilt.add(body_id, t_start_ns, spacing_ns, angles):
-            self._send_tilt(batch)
-
-    def flush_tilt(self) -> None:
-        """Send the angles still short of a full batch."""
-        for batch in self._tilt.flush():
-            self._send_tilt(batch)
 
     def _send_tilt(self, batch: Batch) -> None:
         self.counters.tilt_batches_sent += 1
