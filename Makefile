@@ -18,9 +18,9 @@ demo: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
-# the README's test command: lint and every test not marked slow, on two workers (pytest-xdist; about 3 min)
+# the README's test command: lint and every test not marked slow (minutes)
 test: $(STAMP) lint
-	$(BIN)/pytest -q -m "not slow" -n 2 --durations=25
+	$(BIN)/pytest -q -m "not slow" --durations=25
 
 # the long tests: full-suite agreement with the reference, stress, published pulse thresholds
 test-slow: $(STAMP)
