@@ -42,6 +42,7 @@ length other than the layout's.
 from __future__ import annotations
 
 import ipaddress
+import math
 import struct
 from enum import IntEnum
 from typing import NamedTuple
@@ -386,41 +387,46 @@ def decode_status(payload: bytes) -> StatusReport:
 
 
 def encode_accel(batch: AccelSamples) -> bytes:
-    samples = np.asarray(batch.samples, dtype="<f8")
-    if samples.ndim != 2 or samples.shape[1] != 3:
-        raise PayloadError(f"accelerometer samples must have shape (n, 3), got {samples.shape}")
-    return (_header(TableKind.ACCEL) + _ACCEL.pack(batch.sensor_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
-                                                   len(samples)) + samples.tobytes())
+    return _encode_samples(TableKind.ACCEL, _ACCEL, batch.sensor_id, batch, batch.samples, (3,),
+                           "accelerometer samples must have shape (n, 3)")
 
 
 def decode_accel(payload: bytes) -> AccelSamples:
-    body = _body(payload, TableKind.ACCEL)
-    if len(body) < _ACCEL.size:
-        raise PayloadError(f"ACCEL body has {len(body)} bytes, its fixed part alone {_ACCEL.size}")
-    sensor, seq, t_start, spacing, n = _ACCEL.unpack_from(body)
-    if len(body) != _ACCEL.size + 24 * n:
-        raise PayloadError(f"ACCEL body has {len(body)} bytes, {n} samples need {_ACCEL.size + 24 * n}")
-    samples = np.frombuffer(body, dtype="<f8", count=3 * n, offset=_ACCEL.size).reshape(n, 3).astype(np.float64)
-    return AccelSamples(sensor, seq, t_start, spacing, samples)
+    return AccelSamples(*_decode_samples(payload, TableKind.ACCEL, _ACCEL, (3,)))
 
 
 def encode_tilt(batch: TiltSamples) -> bytes:
-    angles = np.asarray(batch.angles, dtype="<f8")
-    if angles.ndim != 1:
-        raise PayloadError(f"tilt samples must have shape (n,), got {angles.shape}")
-    return (_header(TableKind.TILT) + _TILT.pack(batch.body_id, batch.seq, batch.t_start_ns, batch.spacing_ns,
-                                                 len(angles)) + angles.tobytes())
+    return _encode_samples(TableKind.TILT, _TILT, batch.body_id, batch, batch.angles, (),
+                           "tilt samples must have shape (n,)")
 
 
 def decode_tilt(payload: bytes) -> TiltSamples:
-    body = _body(payload, TableKind.TILT)
-    if len(body) < _TILT.size:
-        raise PayloadError(f"TILT body has {len(body)} bytes, its fixed part alone {_TILT.size}")
-    body_id, seq, t_start, spacing, n = _TILT.unpack_from(body)
-    if len(body) != _TILT.size + 8 * n:
-        raise PayloadError(f"TILT body has {len(body)} bytes, {n} samples need {_TILT.size + 8 * n}")
-    angles = np.frombuffer(body, dtype="<f8", count=n, offset=_TILT.size).astype(np.float64)
-    return TiltSamples(body_id, seq, t_start, spacing, angles)
+    return TiltSamples(*_decode_samples(payload, TableKind.TILT, _TILT, ()))
+
+
+def _encode_samples(kind: TableKind, fixed: struct.Struct, source: int, batch: AccelSamples | TiltSamples,
+                    samples: np.ndarray, row: tuple[int, ...], expected: str) -> bytes:
+    """A sample batch of ``source``: ``fixed`` (source, seq, t_start, spacing, n), then n rows of shape ``row`` as
+    f64; ``expected`` says the shape in the error."""
+    values = np.asarray(samples, dtype="<f8")
+    if values.shape[1:] != row or values.ndim != 1 + len(row):
+        raise PayloadError(f"{expected}, got {values.shape}")
+    return _header(kind) + fixed.pack(source, batch.seq, batch.t_start_ns, batch.spacing_ns,
+                                      len(values)) + values.tobytes()
+
+
+def _decode_samples(payload: bytes, kind: TableKind, fixed: struct.Struct, row: tuple[int, ...]
+                    ) -> tuple[int, int, int, int, np.ndarray]:
+    """(source, seq, t_start, spacing, samples (n, *row)) of a batch written by :func:`_encode_samples`."""
+    body = _body(payload, kind)
+    if len(body) < fixed.size:
+        raise PayloadError(f"{kind.name} body has {len(body)} bytes, its fixed part alone {fixed.size}")
+    source, seq, t_start, spacing, n = fixed.unpack_from(body)
+    width = math.prod(row)
+    if len(body) != fixed.size + 8 * width * n:
+        raise PayloadError(f"{kind.name} body has {len(body)} bytes, {n} samples need {fixed.size + 8 * width * n}")
+    samples = np.frombuffer(body, dtype="<f8", count=width * n, offset=fixed.size).reshape(n, *row)
+    return source, seq, t_start, spacing, samples.astype(np.float64)
 
 
 def encode_overturn(event: Overturn) -> bytes:
