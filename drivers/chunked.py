@@ -248,6 +248,7 @@ class ChunkedStreamController(TableController):
             raise ValueError(f"lead must be > 0 s, got {lead!r}")
         lead_ns = round(lead * 1e9)
         per_chunk = self.samples_per_chunk
+        self.heap.hold()  # refreeze: what the runs before made is not visited by the stream's collections
         underruns_before = self.status().underruns
         first_seq = self._next_seq
         self._command("start_stream", (float(first_seq), 0.0))

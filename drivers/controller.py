@@ -30,6 +30,8 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from drivers.heap import HeapHold
+
 T = TypeVar("T")
 
 STOPPED_STATES = frozenset({"stopping", "faulted", "emergency_stopped", "idle"})
@@ -371,17 +373,21 @@ class TableController(ABC):
     def __init__(self, url: str) -> None:
         self.url = url
         self.feedback = Feedback()
+        self.heap = HeapHold()
+        """Held from ``connect`` to ``close`` and refrozen as a stream starts: the collector's full passes stay
+        short while the link is open (:mod:`drivers.heap`)."""
 
     # --- connection
 
     @abstractmethod
     def connect(self) -> None:
-        """Open the link, start heartbeats, synchronise the clocks; returns once the controller reported a status
-        (:class:`TableTimeoutError` if it does not answer)."""
+        """Hold :attr:`heap`, open the link, start heartbeats, synchronise the clocks; returns once the controller
+        reported a status (:class:`TableTimeoutError` if it does not answer)."""
 
     @abstractmethod
     def close(self) -> None:
-        """Stop heartbeats and the receive thread, close the link and every subscription. Idempotent."""
+        """Stop heartbeats and the receive thread, close the link and every subscription, release :attr:`heap`.
+        Idempotent."""
 
     def __enter__(self) -> TableController:
         self.connect()

@@ -158,6 +158,7 @@ class MavlinkTable(ChunkedStreamController):
         if self._link is not None:
             return
         key = load_signing_key(self.key_file)
+        self.heap.hold()
         host, port = self.address
         local = "127.0.0.1" if _is_loopback(host) else "0.0.0.0"
         self._link = UdpLink.open((local, 0), (host, port), source_system=self.system,
@@ -191,6 +192,7 @@ class MavlinkTable(ChunkedStreamController):
         self._link.close()
         self._link = None
         self.feedback.close()
+        self.heap.release()
 
     def _receive_loop(self) -> None:
         assert self._link is not None

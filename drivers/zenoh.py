@@ -166,9 +166,11 @@ class ZenohTable(ChunkedStreamController):
             return
         self._signer = Signer(load_signing_key(self.key_file), secrets.randbits(64))
         deadline = time.monotonic() + self.connect_timeout
+        self.heap.hold()
         try:
             session = zenoh.open(session_config(connect=[self.address.endpoint]))
         except zenoh.ZError as exc:
+            self.heap.release()
             raise TableError(f"{self.url}: cannot open a zenoh session: {exc}") from None
         self._session = session
         self._closing.clear()
@@ -210,6 +212,7 @@ class ZenohTable(ChunkedStreamController):
         self._session.close()
         self._session = None
         self.feedback.close()
+        self.heap.release()
 
     # ----- receiving (zenoh's callback threads) ----------------------------------------------------------
 

@@ -184,6 +184,7 @@ class Motions(MasterBase):
         shortest = (self.target_delay_ns + self.period_ns) * 1e-9
         if not (math.isfinite(lead) and lead > shortest):
             raise ValueError(f"lead must exceed {shortest:g} s (the drives' target delay and a cycle), got {lead!r}")
+        self.heap.hold()  # refreeze: what the runs before made is not visited by the stream's collections
         with self._lock:
             if self._state != "armed":
                 self._refuse("START_STREAM", "not accepted in this state")

@@ -51,6 +51,7 @@ class SetUp(MasterBase):
     def connect(self) -> None:
         if self._network is not None:
             return
+        self.heap.hold()
         network = canopen.Network(can.Bus(interface=self.interface, channel=self.channel, bitrate=self.bitrate))
         network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
         self._network = network
@@ -179,3 +180,4 @@ class SetUp(MasterBase):
         self._network.disconnect()
         self._network = None
         self.feedback.close()
+        self.heap.release()
