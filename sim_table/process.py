@@ -41,6 +41,7 @@ zenoh; not on canopen, which has no authentication (the bus is a private cable).
 
 from __future__ import annotations
 
+import gc
 import itertools
 import json
 import math
@@ -507,6 +508,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # bodies that overlap or do not fit the scene
         print(f"sim_table: {exc}", file=sys.stderr)
         return 2
+    gc.collect()
+    gc.freeze()  # the set-up out of reach of the collector: its full passes stay short while serving (drivers/heap)
     speed = "max" if emulator.virtual else f"{config.speed:g}"
     print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
           f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
