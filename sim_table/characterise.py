@@ -33,13 +33,13 @@ import json
 import math
 import sys
 from collections.abc import Sequence
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 
-from analysis import TABLE_V, Body
+from analysis import TABLE_V
 from analysis.body import G
-from sim_table.scene import Specimen
+from sim_table.scene import Specimen, parse_body
 from sim_table.specimens import SpecimenScene
 
 SAMPLE = 1.0e-3
@@ -72,6 +72,8 @@ class Characterisation:
     friction: float
     restitution: float
     restitution_housner: float
+    restitution_target: float
+    """What the restitution is calibrated to: the body's set restitution, else Housner's."""
     quarter_period_s: float
     quarter_period_closed_form_s: float
     tilt_deg: float
@@ -83,7 +85,7 @@ class Characterisation:
     def errors(self) -> dict[str, float]:
         """Relative errors of each measurement against its closed form (signed, fraction)."""
         return {
-            "restitution": self.restitution / self.restitution_housner - 1.0,
+            "restitution": self.restitution / self.restitution_target - 1.0,
             "quarter_period": self.quarter_period_s / self.quarter_period_closed_form_s - 1.0,
             "uplift_low": self.uplift_g["low"] / self.uplift_eq1_g["low"] - 1.0,
             "uplift_high": self.uplift_g["high"] / self.uplift_eq1_g["high"] - 1.0,
@@ -155,44 +157,44 @@ def characterise(specimen: Specimen, tilt: float) -> Characterisation:
     if not 0.0 <= tilt < alpha:
         raise ValueError(f"{body.label()}: the tilt {math.degrees(tilt):g}° must be below its α "
                          f"{math.degrees(alpha):.2f}° (it would not stand)")
-    alone = Specimen(body, friction=specimen.friction, damping_ratio=specimen.damping_ratio)
+    alone = Specimen(body, friction=specimen.friction, damping_ratio=specimen.damping_ratio,
+                     restitution=specimen.restitution)
     restitution, quarter = free_rocking(alone)
     low, high = math.tan(alpha - tilt), math.tan(alpha + tilt)
     uplift = {"low": _ramp(alone, tilt, -1.0, "rock", 1.5 * low + 0.05),
               "high": _ramp(alone, tilt, +1.0, "rock", 1.5 * high + 0.05)}
     mu = min(specimen.friction, 0.5 * math.tan(alpha))
-    sliding = _ramp(Specimen(body, friction=mu, damping_ratio=specimen.damping_ratio), 0.0, +1.0, "slide",
+    sliding = _ramp(replace(alone, friction=mu), 0.0, +1.0, "slide",
                     1.5 * mu + 0.05)
     return Characterisation(
         body=body.label(), b=body.b, h=body.h, alpha_deg=math.degrees(alpha), friction=specimen.friction,
-        restitution=restitution, restitution_housner=1.0 - 1.5 * math.sin(alpha) ** 2,
+        restitution=restitution, restitution_housner=alone.housner_restitution,
+        restitution_target=alone.housner_restitution if specimen.restitution is None else specimen.restitution,
         quarter_period_s=quarter, quarter_period_closed_form_s=math.acosh(alpha / (alpha - 0.5 * alpha)) / body.p,
         tilt_deg=math.degrees(tilt), uplift_g=uplift, uplift_eq1_g={"low": low, "high": high},
         sliding_g=sliding, sliding_mu=mu)
 
 
-def _body(text: str) -> Body:
-    try:
-        b, h = (float(x) for x in text.lower().split("x"))
-        return Body(b, h)
-    except (ValueError, TypeError):
-        raise argparse.ArgumentTypeError(f"--body {text!r}: expected BxH in metres, e.g. 0.1x0.5") from None
-
-
 def main(argv: Sequence[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m sim_table.characterise",
                                 description="Characterise the emulator's specimens against the closed forms.")
-    p.add_argument("--body", type=_body, action="append", default=[], metavar="BxH", help="a body b×h [m]")
+    p.add_argument("--body", action="append", default=[], metavar="BxH[;mu=F][;restitution=E]",
+                   help="a body b×h [m], optionally its friction coefficient (else --friction) and measured "
+                        "restitution (the target of its impacts; else Housner's); the emulator's --body syntax")
     p.add_argument("--table5", action="store_true", help="the paper's seven Table V bodies")
     p.add_argument("--tilt", type=float, default=5.0, help="plate tilt for the uplift [deg] (default 5)")
     p.add_argument("--friction", type=float, default=0.8, help="friction coefficient μ (default 0.8)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     args = p.parse_args(argv)
-    bodies = [*args.body, *(TABLE_V if args.table5 else [])]
-    if not bodies:
+    try:
+        specimens = [parse_body(text if ";mu=" in text else f"{text};mu={args.friction!r}") for text in args.body]
+    except ValueError as exc:
+        p.error(str(exc))
+    specimens += [Specimen(body, friction=args.friction) for body in (TABLE_V if args.table5 else [])]
+    if not specimens:
         p.error("give --body BxH or --table5")
     try:
-        results = [characterise(Specimen(body, friction=args.friction), math.radians(args.tilt)) for body in bodies]
+        results = [characterise(s, math.radians(args.tilt)) for s in specimens]
     except (ValueError, RuntimeError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
@@ -201,8 +203,10 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     for r in results:
         e = r.errors()
-        print(f"{r.body}: restitution {r.restitution:.3f} (Housner {r.restitution_housner:.3f}, "
-              f"{100 * e['restitution']:+.1f} %); quarter period {r.quarter_period_s:.4f} s (closed form "
+        target = (f"Housner {r.restitution_housner:.3f}" if r.restitution_target == r.restitution_housner
+                  else f"set {r.restitution_target:.3f}, Housner {r.restitution_housner:.3f}")
+        print(f"{r.body}: restitution {r.restitution:.3f} ({target}, {100 * e['restitution']:+.1f} %); "
+              f"quarter period {r.quarter_period_s:.4f} s (closed form "
               f"{r.quarter_period_closed_form_s:.4f} s, {100 * e['quarter_period']:+.1f} %); uplift at "
               f"{r.tilt_deg:g}° {r.uplift_g['low']:.4f} g low / {r.uplift_g['high']:.4f} g high (Eq. 1 "
               f"{r.uplift_eq1_g['low']:.4f} / {r.uplift_eq1_g['high']:.4f}, {100 * e['uplift_low']:+.1f} / "

@@ -57,9 +57,10 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--speed", type=_speed, default=1.0,
                    help="controller time per real time, or max: virtual time, as fast as the emulator computes "
                         "while the host's setpoints allow (docs/table-controller.md)")
-    p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F]",
-                   help="a specimen b x h [m] at plate (x, y) [m], optionally its depth [m], mass [kg] and "
-                        "friction coefficient; repeat for more (body ids 0, 1, … in this order)")
+    p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F][;restitution=E]",
+                   help="a specimen b x h [m] at plate (x, y) [m], optionally its depth [m], mass [kg], "
+                        "friction coefficient and measured restitution (its impacts reproduce it; default: the "
+                        "contact's own, Housner's); repeat for more (body ids 0, 1, … in this order)")
     p.add_argument("--accel", action="append", type=_point, metavar="X,Y,Z",
                    help="an accelerometer at plate (x, y, z) [m]; repeat for more (default: one at the centre)")
     p.add_argument("--loss", type=float, default=0.0, metavar="PCT", help="drop this %% of datagrams, both ways")

@@ -57,7 +57,6 @@ from typing import Any
 
 import numpy as np
 
-from analysis import Body
 from analysis.table.model import TableModel
 from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
@@ -66,7 +65,7 @@ from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
 from sim_table.dynamics import make_actuators
 from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.options import argument_parser
-from sim_table.scene import Specimen
+from sim_table.scene import Specimen, parse_body
 from sim_table.specimens import SpecimenScene
 
 WAKE_PERIOD_NS = 2_000_000
@@ -452,26 +451,6 @@ class Emulator:
 
 
 # ----- command line -------------------------------------------------------------------------------------
-
-
-def parse_body(text: str) -> Specimen:
-    """``BxH[@X,Y][;depth=D][;mass=M][;mu=F]``: a block b × h [m] whose base centre stands at plate (x, y) [m]
-    (default the centre), optionally its depth [m], mass [kg] and friction coefficient μ (Specimen's defaults)."""
-    head, *options = text.split(";")
-    size, _, place = head.partition("@")
-    body = Body.parse(size)
-    try:
-        x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
-        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)}
-    except ValueError:
-        raise ValueError(f"--body {text!r}: expected BxH@X,Y[;depth=D][;mass=M][;mu=F] in metres and kg, "
-                         "e.g. 0.05x0.50@0.3,0;depth=0.1;mass=5") from None
-    unknown = set(extra) - {"depth", "mass", "mu"}
-    if unknown:
-        raise ValueError(f"--body {text!r}: unknown option(s) {', '.join(sorted(unknown))} (depth, mass, mu)")
-    if "depth" in extra or "mass" in extra:
-        body = Body(body.b, body.h, depth=extra.get("depth"), mass=extra.get("mass"), name=body.name)
-    return Specimen(body, x=x, y=y, **({"friction": extra["mu"]} if "mu" in extra else {}))
 
 
 def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:

@@ -58,6 +58,11 @@ PLATE_MARGIN = 0.1
 DEFAULT_DENSITY = 600.0
 """Density of a specimen whose mass is not given [kg/m³]: agglomerated wood, as Table V's bodies."""
 
+MIN_CONTACT_RESTITUTION = 0.1
+"""Lowest contact restitution (Housner's; b/h ≤ 1.22) that the impact model scales to a set restitution: the
+factor restitution / contact restitution would otherwise amplify what little rocking a stocky body's contact
+leaves."""
+
 
 class SpecimenError(ValueError):
     """A specimen, a scene or a plate motion the emulator cannot run: the message says which and why."""
@@ -107,7 +112,10 @@ class Specimen:
     body's ``b`` lies along x, its depth along y (default 2·b, the paper's minimum). Its mass defaults to
     :data:`DEFAULT_DENSITY` × volume. ``friction``: the coefficient μ between body and plate [-];
     ``damping_ratio`` [-] of its contacts: 1 = no bounce (near-plastic impacts, as the paper assumes),
-    below 1 the contact bounces (a restitution-like softness).
+    below 1 the contact bounces (a restitution-like softness). ``restitution`` [-], in (0, 1]: the body's
+    measured coefficient of restitution (ratio of angular velocities across a rocking impact), which its impacts
+    then reproduce (:mod:`sim_table.specimens`, the impact model); None: the contact's own, Housner's
+    1 − 1.5 sin²α within a few per cent (``docs/specimens.md``).
     """
 
     body: Body
@@ -115,6 +123,7 @@ class Specimen:
     y: float = 0.0
     friction: float = 0.8
     damping_ratio: float = 1.0
+    restitution: float | None = None
 
     def __post_init__(self) -> None:
         name = self.body.label()
@@ -124,6 +133,18 @@ class Specimen:
             raise SpecimenError(f"specimen {name}: friction μ must be > 0, got {self.friction!r}")
         if not 0 < self.damping_ratio <= 1:
             raise SpecimenError(f"specimen {name}: damping ratio must be in (0, 1], got {self.damping_ratio!r}")
+        if self.restitution is not None and not (math.isfinite(self.restitution) and 0 < self.restitution <= 1):
+            raise SpecimenError(f"specimen {name}: restitution must be in (0, 1], got {self.restitution!r}")
+        if self.restitution is not None and self.housner_restitution < MIN_CONTACT_RESTITUTION:
+            raise SpecimenError(
+                f"specimen {name}: a restitution can be set only for a body whose contact restitution (Housner's "
+                f"1 - 1.5 sin²α = {self.housner_restitution:.3f}) is at least {MIN_CONTACT_RESTITUTION:g}: "
+                f"b/h = {self.body.b / self.body.h:.3f} is too stocky for the impact model (docs/specimens.md)")
+
+    @property
+    def housner_restitution(self) -> float:
+        """Housner's coefficient of restitution 1 − 1.5 sin²α of the body [-] (what its contact dissipates)."""
+        return 1.0 - 1.5 * math.sin(self.body.alpha) ** 2
 
     @property
     def depth(self) -> float:
@@ -141,6 +162,30 @@ class Specimen:
         """(x_min, x_max, y_min, y_max) of its base on the plate [m]."""
         hb, hd = 0.5 * self.body.b, 0.5 * self.depth
         return self.x - hb, self.x + hb, self.y - hd, self.y + hd
+
+
+def parse_body(text: str) -> Specimen:
+    """``BxH[@X,Y][;depth=D][;mass=M][;mu=F][;restitution=E]`` (the emulator's ``--body``): a block b × h [m] whose
+    base centre stands at plate (x, y) [m] (default the centre), optionally its depth [m], mass [kg], friction
+    coefficient μ and measured restitution e (:class:`Specimen`'s defaults); :class:`SpecimenError` names what is
+    wrong."""
+    head, *options = text.split(";")
+    size, _, place = head.partition("@")
+    body = Body.parse(size)
+    try:
+        x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
+        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)}
+    except ValueError:
+        raise SpecimenError(f"--body {text!r}: expected BxH@X,Y[;depth=D][;mass=M][;mu=F][;restitution=E] in "
+                            "metres and kg, e.g. 0.05x0.50@0.3,0;depth=0.1;mass=5") from None
+    unknown = set(extra) - {"depth", "mass", "mu", "restitution"}
+    if unknown:
+        raise SpecimenError(f"--body {text!r}: unknown option(s) {', '.join(sorted(unknown))} "
+                            "(depth, mass, mu, restitution)")
+    if "depth" in extra or "mass" in extra:
+        body = Body(body.b, body.h, depth=extra.get("depth"), mass=extra.get("mass"), name=body.name)
+    options = {"friction": extra["mu"]} if "mu" in extra else {}
+    return Specimen(body, x=x, y=y, restitution=extra.get("restitution"), **options)
 
 
 def plate_half_size(specimens: Sequence[Specimen]) -> tuple[float, float]:

@@ -24,6 +24,16 @@ passed a few tenths of a second before the body lands (the analytical models tim
 is reported once per placement. Falls along the plate's y (sideways) are outside this measure: the paper's
 bodies are at least twice as deep as wide so that they do not happen.
 
+**Impacts** (the impact model). A body's rocking impacts are its contact's: MuJoCo's soft contact with
+damping ratio 1 dissipates about what Housner's rigid impact does (restitution 1 − 1.5 sin²α, within a few per
+cent: ``rig specimens check``). A body whose :attr:`~sim_table.scene.Specimen.restitution` e is set (a value
+measured on the lab's block) has every impact scaled to it: when θ passes through 0 after the body has leaned
+at least :data:`IMPACT_LEAN` since its previous impact, its velocity relative to the plate (linear and angular:
+the rotation about its new pivot, rigidly) is multiplied by e / (1 − 1.5 sin²α) at the end of that physics
+step. The impact map is linear in the velocities, so the ratio of angular velocities across the impact becomes
+e times the contact's own ratio over Housner's. A body standing still (its contact jitter stays below 1e-5 rad)
+and a fallen body are left alone.
+
 The scene is also each body's **tilt sensor** (the overturn detector's channel): after every :meth:`advance`
 or :meth:`~SpecimenScene.advance_many`, :attr:`~SpecimenScene.sample_angles` holds θ of every body at each
 plate sample time given, fallen bodies included (the emulator sends them as tilt telemetry).
@@ -44,6 +54,10 @@ from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, S
 
 OVERTURN_MARGIN = 0.8
 """Default rotation past the slenderness angle α at which a body counts as overturned [rad]."""
+
+IMPACT_LEAN = 1.0e-3
+"""|θ| [rad] a body must have reached since its last impact for its next passage through θ = 0 to count as an
+impact (the impact model, module docstring)."""
 
 LYING = 0.5 * math.pi - 0.05
 """Cap of the overturn threshold [rad]: a body within 0.05 rad of lying on its side has overturned."""
@@ -85,6 +99,10 @@ class SpecimenScene:
         self._detections: list[Overturn] = []
         self._standing = np.ones(len(self.specimens), dtype=bool)
         self._theta = np.zeros(len(self.specimens))
+        self._impacts = _Impacts(self.specimens)
+        joints = self.model.body_jntadr[self._bodies]
+        self._dofs = self.model.jnt_dofadr[joints]
+        """First degree of freedom of each specimen's free joint (linear velocity, then angular in its frame)."""
         self.sample_angles = np.zeros((0, len(self.specimens)))
         """θ of every specimen [rad] (> 0: its top moved towards the plate's +x) at each time of the last
         :meth:`advance` (1, n) or :meth:`advance_many` (k, n): the state of the physics step that ended within half
@@ -128,6 +146,7 @@ class SpecimenScene:
         self._detections = []
         self._standing[:] = True
         self._theta = self.specimen_angles()
+        self._impacts.reset(self._theta)
         self.sample_angles = np.zeros((0, n))
 
     def advance(self, t: float, plate_pose: Sequence[float], plate_velocity: Sequence[float]) -> list[Overturn]:
@@ -154,6 +173,10 @@ class SpecimenScene:
             d.qfrc_applied[:6] = (PLATE_ARMATURE / dt) * (rate - self._plate_rate)
             mujoco.mj_step(m, d)
             mujoco.mj_kinematics(m, d)
+            if self._impacts.active:
+                hit = self._impacts.first(self.specimen_angles()[None, :], self._standing)
+                if hit is not None:
+                    self._restitute(hit[1])
             here, self._plate_rate = there, rate
             if self._standing.any():
                 found.extend(self._detect(dt))
@@ -214,18 +237,10 @@ class SpecimenScene:
             force[:, :6] = (PLATE_ARMATURE / dt) * (step_rates - previous_rates)
             d.qpos[:6] = here_array[0]
             d.qvel[:6] = self._plate_rate
-            spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-            state = np.empty(mujoco.mj_stateSize(m, spec))
-            mujoco.mj_getState(m, d, state, spec)
-            warmstart = d.qacc_warmstart.copy()
-            states, _ = rollout.rollout(m, d, state[None], force[None],
-                                        control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED,
-                                        initial_warmstart=warmstart[None])
-            mujoco.mj_kinematics(m, d)
+            states, step_angles = self._rollout(force)
             self._plate_rate = step_rates[-1]
-            step_angles = _specimen_angles(states[0][:, 1:1 + m.nq], len(self.specimens))
             if self._standing.any():
-                found = self._detect_steps(states[0][:, 0], step_angles, dt)
+                found = self._detect_steps(states[:, 0], step_angles, dt)
             self._theta = self.specimen_angles()
             angles = np.vstack([angles, step_angles])
         # each sample time's angles: those after the last step of its interval (row 0: before the batch)
@@ -233,6 +248,53 @@ class SpecimenScene:
         self._sample = (float(times[-1]), poses[-1].copy(), rates[-1].copy())
         self._detections.extend(found)
         return found
+
+    def _rollout(self, force: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Step the physics from :attr:`data` once per row of generalised ``force`` (steps, nv) in C; the states
+        after each step (steps, FULLPHYSICS size) and the bodies' angles (steps, n), :attr:`data` left after the
+        last. A batch with an impact of a body whose restitution is set (module docstring) is cut after that
+        step, the impact scaled, and the rest of the batch stepped from there."""
+        m, d = self.model, self.data
+        spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+        state = np.empty(mujoco.mj_stateSize(m, spec))
+        parts, angle_parts = [], []
+        start = 0
+        while start < len(force):
+            mujoco.mj_getState(m, d, state, spec)
+            states = rollout.rollout(m, d, state[None], force[None, start:],
+                                     control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED,
+                                     initial_warmstart=d.qacc_warmstart.copy()[None])[0][0]
+            angles = _specimen_angles(states[:, 1:1 + m.nq], len(self.specimens))
+            hit = self._impacts.first(angles, self._standing) if self._impacts.active else None
+            if hit is None:
+                mujoco.mj_kinematics(m, d)
+                parts.append(states)
+                angle_parts.append(angles)
+                break
+            step, bodies = hit
+            mujoco.mj_setState(m, d, states[step], spec)
+            self._restitute(bodies)
+            mujoco.mj_getState(m, d, states[step], spec)
+            parts.append(states[:step + 1])
+            angle_parts.append(angles[:step + 1])
+            start += step + 1
+        return np.vstack(parts), np.vstack(angle_parts)
+
+    def _restitute(self, bodies: np.ndarray) -> None:
+        """Scale the velocity relative to the plate of each of ``bodies`` (indices) by its impact factor
+        (module docstring), in :attr:`data`, and bring the derived quantities up to date."""
+        m, d = self.model, self.data
+        mujoco.mj_forward(m, d)
+        plate = np.empty(6)  # angular, then linear velocity of the plate's origin, world frame
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._plate, plate, 0)
+        for i in bodies:
+            k, body, dof = self._impacts.factor[i], self._bodies[i], self._dofs[i]
+            rotation = d.xmat[body].reshape(3, 3)
+            carried = plate[3:] + np.cross(plate[:3], d.xpos[body] - d.xpos[self._plate])
+            spin = rotation @ d.qvel[dof + 3:dof + 6]
+            d.qvel[dof:dof + 3] = carried + k * (d.qvel[dof:dof + 3] - carried)
+            d.qvel[dof + 3:dof + 6] = rotation.T @ (plate[:3] + k * (spin - plate[:3]))
+        mujoco.mj_forward(m, d)
 
     def _detect_steps(self, step_times: np.ndarray, angles: np.ndarray, dt: float) -> list[Overturn]:
         """Overturns in the steps just taken, which ended at ``step_times`` (steps,) [s] with the bodies at ``angles``
@@ -276,6 +338,37 @@ class SpecimenScene:
     def detections(self) -> list[Overturn]:
         """Every overturn since the last placement, in time order, each specimen at most once."""
         return list(self._detections)
+
+
+class _Impacts:
+    """The rocking impacts of the bodies whose restitution is set (the impact model, module docstring)."""
+
+    def __init__(self, specimens: Sequence[Specimen]) -> None:
+        self.factor = np.array([math.nan if s.restitution is None else s.restitution / s.housner_restitution
+                                for s in specimens])
+        """Velocity factor of each body's impacts: restitution / Housner's (NaN: the contact's own)."""
+        self.bodies = np.flatnonzero(np.isfinite(self.factor))
+        self.active = bool(self.bodies.size)
+        self._side = np.zeros(self.bodies.size)
+        self._lean = np.zeros(self.bodies.size)
+
+    def reset(self, angles: np.ndarray) -> None:
+        """The bodies placed at ``angles`` (n,) [rad]: no impact counted yet."""
+        self._side = np.sign(angles[self.bodies])
+        self._lean = np.abs(angles[self.bodies])
+
+    def first(self, angles: np.ndarray, standing: np.ndarray) -> tuple[int, np.ndarray] | None:
+        """Follow the bodies through the steps' ``angles`` (steps, n) [rad] up to the first step at which a standing
+        body impacts; (that step, the indices of the bodies impacting in it), or None after the last step."""
+        for step, theta in enumerate(angles[:, self.bodies]):
+            side = np.sign(theta)
+            crossed = (side != self._side) & (side != 0)
+            hit = crossed & (self._side != 0) & (self._lean >= IMPACT_LEAN) & standing[self.bodies]
+            self._lean = np.where(crossed, np.abs(theta), np.maximum(self._lean, np.abs(theta)))
+            self._side = np.where(side != 0, side, self._side)
+            if hit.any():
+                return step, self.bodies[hit]
+        return None
 
 
 def _specimen_angles(qpos: np.ndarray, count: int) -> np.ndarray:
