@@ -35,6 +35,8 @@ def specimen_flags(bodies: Iterable[PlacedBody]) -> list[str]:
         options = [f"depth={placed.depth!r}", f"mu={placed.friction!r}"]
         if body.mass is not None:
             options.append(f"mass={body.mass!r}")
+        if placed.restitution is not None:
+            options.append(f"restitution={placed.restitution!r}")
         flags += ["--body", f"{body.b!r}x{body.h!r}@{placed.x!r},{placed.y!r};" + ";".join(options)]
     return flags
 

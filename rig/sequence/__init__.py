@@ -51,6 +51,7 @@ seconds, ``_hz`` Hz. Top-level keys come first: in TOML every key after a ``[sec
     x = 0.0
     y = 0.2
     friction = 0.8                            # μ body–plate, default 0.8
+    restitution = 0.85                        # measured in the lab, optional: the emulated specimen reproduces it
 
 Scale policy (``scale``): ``"table"`` (default) is the largest factor ≤ 1 that keeps the drive inside the
 table's limits, as ``rig prepare``; a number in (0, 1] is a fixed factor, refused if the drive then leaves

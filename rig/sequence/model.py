@@ -48,7 +48,10 @@ class PlacedBody:
 
     ``body_id`` is its 1-based position in the file (stable: the session file's ``body_id``); ``body`` its
     dimensions b (along the fall line), h, depth [m] and mass [kg]; ``x``, ``y`` [m] the centre of its base
-    in the plate frame (x along the fall line, +x downhill); ``friction`` μ [-] between body and plate.
+    in the plate frame (x along the fall line, +x downhill); ``friction`` μ [-] between body and plate;
+    ``restitution`` [-]: its coefficient of restitution as measured in the lab (ratio of angular velocities
+    across a rocking impact), which the emulated specimen's impacts reproduce, or None (the emulator's contact:
+    Housner's 1 − 1.5 sin²α).
     """
 
     body_id: int
@@ -56,6 +59,7 @@ class PlacedBody:
     x: float
     y: float
     friction: float = DEFAULT_FRICTION
+    restitution: float | None = None
 
     @property
     def name(self) -> str:
@@ -91,7 +95,8 @@ class PlacedBody:
     def to_dict(self) -> dict[str, Any]:
         b = self.body
         return {"body_id": self.body_id, "name": b.name, "b": b.b, "h": b.h, "depth": self.depth,
-                "mass": b.mass, "x": self.x, "y": self.y, "friction": self.friction}
+                "mass": b.mass, "x": self.x, "y": self.y, "friction": self.friction,
+                **({} if self.restitution is None else {"restitution": self.restitution})}
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ SCHEMA = "shaketable-rig/sequence/1"
 
 TOP_KEYS = ("name", "description", "table_url", "repetitions", "angles_deg", "records", "records_from", "bodies",
             "rig", "plate", "drive", "operator", "schema", "source")
-BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "x", "y", "friction")
+BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "x", "y", "friction", "restitution")
 DIMENSIONS = ("b", "h", "depth", "mass")
 RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive")
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz")
@@ -215,8 +215,13 @@ class _Reader(TomlChecker):
         friction = DEFAULT_FRICTION
         if "friction" in table:
             friction = self.positive(table["friction"], (*path, "friction"), "")
+        restitution = None
+        if "restitution" in table:
+            restitution = self.number(table["restitution"], (*path, "restitution"), low=0.0, high=1.0,
+                                      what="the body's measured coefficient of restitution, in (0, 1]")
         body = Body(b=dims["b"], h=dims["h"], depth=dims["depth"], mass=dims["mass"], name=name or f"body {body_id}")
-        return PlacedBody(body_id=body_id, body=body, x=place["x"], y=place["y"], friction=friction)
+        return PlacedBody(body_id=body_id, body=body, x=place["x"], y=place["y"], friction=friction,
+                          restitution=restitution)
 
     def placements(self, bodies: tuple[PlacedBody, ...], plate: tuple[float, float]) -> None:
         """Every base inside the plate, no two bases overlapping (touching is allowed)."""

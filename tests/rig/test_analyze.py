@@ -465,6 +465,24 @@ y = 0.3
 
 
 @pytest.mark.integration
+def test_a_tap_on_the_emulator_gives_back_a_restitution_set_in_the_sequence(tmp_path: Path) -> None:
+    """Body 1 given its lab-measured ``restitution = 0.85`` in the sequence (its contact's own is 0.94): the
+    emulated specimen's impacts reproduce it, and ``--restitution fit`` reads it back from the tilt sensors
+    within 5 % (the issue's bar); body 4, not set, keeps its own."""
+    text = TAP.replace("table5 = 1\n", "table5 = 1\nrestitution = 0.85\n")
+    assert text != TAP
+    (tmp_path / "tap.toml").write_text(text)
+    session = tmp_path / "tap.h5"
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "tap.toml", "--emulate", "--speed", "max", "--yes",
+                           "-o", str(session)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr + done.stdout
+    result = analyze_session(session, ("rocking",), restitution="fit", write=False)
+    set_body, free_body = result.fitted_restitution[1], result.fitted_restitution[2]
+    assert set_body.impacts >= 5 and set_body.value == pytest.approx(0.85, rel=0.05), set_body
+    assert free_body.value == pytest.approx(1 - 1.5 * math.sin(TABLE_V[3].alpha) ** 2, rel=0.05), free_body
+
+
+@pytest.mark.integration
 def test_a_tap_on_the_emulator_gives_each_specimens_own_restitution(tmp_path: Path) -> None:
     """The shipped tap record rocks Table V bodies 1 and 4 on the emulated table; ``--restitution fit`` reads
     from their tilts the restitution the emulator's specimen model has (``sim_table.characterise``, the

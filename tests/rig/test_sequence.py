@@ -13,7 +13,9 @@ import pytest
 
 from analysis.body import TABLE_V
 from analysis.table.toml_lines import dotted_path, key_lines
+from rig.emulator import specimen_flags
 from rig.sequence import PlannedRun, Sequence, SequenceError, load_sequence
+from sim_table.scene import parse_body
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 
@@ -147,6 +149,9 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     (22, "x = 1.48", 22, "bodies[2].x: body 2 (B) does not fit on the plate: its base spans x = 1.456 … 1.504 m, "
                          "expected within ±1.5 m"),
     (17, 'name = "T5-4"', 17, "bodies[2].name: the name 'T5-4' is already body 1's"),
+    (23, "y = 0.15\nrestitution = 1.2", 24,
+     "bodies[2].restitution: expected the body's measured coefficient of restitution, in (0, 1], got 1.2"),
+    (23, "y = 0.15\nrestitution = 0", 24, "bodies[2].restitution: expected the body's measured coefficient"),
     # record entries
     (5, '    { record = "fema-nearfield:NORTHR/RRS_032", scale = 1.5 },', 5,
      'records[2].scale: expected "table" or a fixed factor in (0, 1], got 1.5'),
@@ -289,6 +294,18 @@ def test_to_dict_is_json_and_reads_back(name: str) -> None:
     assert again.table == seq.table and again.bodies == seq.bodies and again.records[0].spec == seq.records[0].resolved
     assert data["schema"] == "shaketable-rig/sequence/1"
     assert data["bodies"][0]["body_id"] == 1
+
+
+def test_a_bodys_measured_restitution_is_read_kept_and_given_to_the_emulator(tmp_path: Path) -> None:
+    seq = load_sequence(write(tmp_path, BASE + "restitution = 0.85\n"))
+    assert [b.restitution for b in seq.bodies] == [None, 0.85]
+    data = seq.to_dict()
+    assert "restitution" not in data["bodies"][0] and data["bodies"][1]["restitution"] == 0.85
+    assert Sequence.from_dict(json.loads(json.dumps(data))).bodies == seq.bodies
+    flags = specimen_flags(seq.bodies)
+    assert "restitution" not in flags[1] and flags[3].endswith(";mu=0.8;mass=0.56;restitution=0.85")
+    placed = parse_body(flags[3])
+    assert placed.restitution == 0.85 and (placed.x, placed.y, placed.friction) == (0.0, 0.15, 0.8)
 
 
 def test_from_dict_errors_name_the_key_without_a_line() -> None:
