@@ -9,9 +9,12 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from pathlib import Path
 from typing import Annotated
 
 import typer
+
+from rig.cli._common import fail
 
 
 def register(app: typer.Typer) -> None:
@@ -25,16 +28,28 @@ def register(app: typer.Typer) -> None:
         body: Annotated[list[str] | None, typer.Option(metavar="BxH", help="a body b×h [m], e.g. 0.1x0.5 "
                                                                            "(repeatable)")] = None,
         table5: Annotated[bool, typer.Option("--table5", help="the paper's seven Table V bodies")] = False,
+        sequence: Annotated[Path | None, typer.Option(metavar="SEQUENCE.toml",
+                                                      help="the bodies of a sequence file, with their friction and "
+                                                           "measured restitution")] = None,
         tilt: Annotated[float, typer.Option(help="plate tilt for the uplift accelerations [deg]")] = 5.0,
         friction: Annotated[float, typer.Option(help="friction coefficient μ between body and plate")] = 0.8,
         as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
     ) -> None:
-        """Free-rocking restitution against Housner's 1 − 1.5 sin²α, the quarter period against its closed form,
-        the accelerations that start rocking towards each side at the tilt against Eq. 1, and the sliding onset
-        against μ, measured in the emulator's specimen model (MuJoCo, 1 ms step)."""
+        """Free-rocking restitution against Housner's 1 − 1.5 sin²α (or the body's measured value, set with
+        ``--body "BxH;restitution=E"`` or in the sequence), the quarter period against its closed form, the
+        accelerations that start rocking towards each side at the tilt against Eq. 1, and the sliding onset against
+        μ, measured in the emulator's specimen model (MuJoCo, 1 ms step)."""
         args = [sys.executable, "-m", "sim_table.characterise", "--tilt", repr(tilt), "--friction", repr(friction)]
         for b in body or []:
             args += ["--body", b]
+        if sequence is not None:
+            from rig.emulator import specimen_flags
+            from rig.sequence import SequenceError, load_sequence
+
+            try:
+                args += specimen_flags(load_sequence(sequence).bodies)
+            except SequenceError as exc:
+                fail(str(exc))
         if table5:
             args.append("--table5")
         if as_json:

@@ -168,9 +168,12 @@ def test_rig_specimens_check_prints_json_for_a_body(tmp_path: Path) -> None:
 
 
 @pytest.mark.integration
-def test_rig_specimens_check_measures_a_body_against_its_set_restitution() -> None:
+def test_rig_specimens_check_measures_a_sequence_body_against_its_set_restitution(tmp_path: Path) -> None:
     rig = Path(sys.executable).with_name("rig")
-    done = subprocess.run([str(rig), "specimens", "check", "--body", "0.1x0.5;restitution=0.85", "--json"],
+    sequence = tmp_path / "seq.toml"
+    sequence.write_text('name = "s"\nangles_deg = [0]\nrecords = ["fema:NORTHR/MUL009"]\n\n[[bodies]]\n'
+                        'b = 0.1\nh = 0.5\ndepth = 0.2\nmass = 6\nx = 0.0\ny = 0.0\nrestitution = 0.85\n')
+    done = subprocess.run([str(rig), "specimens", "check", "--sequence", str(sequence), "--json"],
                           capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     (body,) = json.loads(done.stdout)["bodies"]
