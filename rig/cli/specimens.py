@@ -25,8 +25,10 @@ def register(app: typer.Typer) -> None:
 
     @specimens.command("check")
     def check_cmd(
-        body: Annotated[list[str] | None, typer.Option(metavar="BxH", help="a body b×h [m], e.g. 0.1x0.5 "
-                                                                           "(repeatable)")] = None,
+        body: Annotated[list[str] | None, typer.Option(
+            metavar="BxH[;restitution=E]",
+            help="a body b×h [m], e.g. 0.1x0.5, optionally its measured restitution: '0.1x0.5;restitution=0.85' "
+                 "(repeatable)")] = None,
         table5: Annotated[bool, typer.Option("--table5", help="the paper's seven Table V bodies")] = False,
         sequence: Annotated[Path | None, typer.Option(metavar="SEQUENCE.toml",
                                                       help="the bodies of a sequence file, with their friction and "
