@@ -360,15 +360,25 @@ class _Impacts:
     def first(self, angles: np.ndarray, standing: np.ndarray) -> tuple[int, np.ndarray] | None:
         """Follow the bodies through the steps' ``angles`` (steps, n) [rad] up to the first step at which a standing
         body impacts; (that step, the indices of the bodies impacting in it), or None after the last step."""
-        for step, theta in enumerate(angles[:, self.bodies]):
-            side = np.sign(theta)
-            crossed = (side != self._side) & (side != 0)
-            hit = crossed & (self._side != 0) & (self._lean >= IMPACT_LEAN) & standing[self.bodies]
-            self._lean = np.where(crossed, np.abs(theta), np.maximum(self._lean, np.abs(theta)))
-            self._side = np.where(side != 0, side, self._side)
-            if hit.any():
-                return step, self.bodies[hit]
-        return None
+        theta = angles[:, self.bodies]
+        steps = len(theta)
+        side = np.sign(theta)
+        # the side each step leaves a body on (a step exactly at θ = 0 keeps the one before), row 0: before them
+        known = np.vstack([np.ones((1, theta.shape[1]), dtype=bool), side != 0])
+        last = np.maximum.accumulate(np.where(known, np.arange(steps + 1)[:, None], 0), axis=0)
+        sides = np.take_along_axis(np.vstack([self._side[None, :], side]), last, axis=0)
+        crossed = (side != 0) & (side != sides[:-1])
+        # the largest |θ| since the last crossing (a crossing step starts afresh with its own |θ|), row 0: before:
+        # a running maximum that restarts at each crossing, by lifting each stretch above the ones before it
+        # (|θ| < π/2 < 2 per stretch)
+        stretch = np.vstack([np.zeros((1, theta.shape[1])), np.cumsum(crossed, axis=0)])
+        lifted = np.vstack([self._lean[None, :], np.abs(theta)]) + 2.0 * stretch
+        lean = np.maximum.accumulate(lifted, axis=0) - 2.0 * stretch
+        hit = crossed & (sides[:-1] != 0) & (lean[:-1] >= IMPACT_LEAN) & standing[self.bodies]
+        rows = np.flatnonzero(hit.any(axis=1))
+        at = int(rows[0]) if rows.size else steps - 1
+        self._side, self._lean = sides[at + 1], lean[at + 1]
+        return (at, self.bodies[hit[at]]) if rows.size else None
 
 
 def _specimen_angles(qpos: np.ndarray, count: int) -> np.ndarray:
