@@ -1,10 +1,18 @@
 """The emulator's MAVLink 2 side: the controller end of the table link over UDP (``protocols.mavlink``).
 
-Threads: a **receive thread** blocks on the socket (receive buffer enlarged), stamps every datagram with its
-arrival time, verifies signatures (``signed_with_key``) and queues the messages; it answers TIMESYNC at once
-(``tc1`` = controller time at arrival) unless a delay is injected. The emulator's tick thread takes the queued
-messages in arrival order (:meth:`MavlinkEndpoint.take`, each as an action on the :class:`ControllerCore` at its
-arrival time) and sends everything else; sending is serialised by a lock.
+Threads: a **receive thread** waits on the socket (receive buffer enlarged) and drains it: it stamps every
+datagram with its arrival time, verifies signatures (``signed_with_key``) and queues the messages; it answers
+TIMESYNC at once (``tc1`` = controller time at arrival) unless a delay is injected. The emulator's tick thread
+drains the socket too before it takes the queued messages in arrival order (:meth:`MavlinkEndpoint.take`, each as
+an action on the :class:`ControllerCore` at its arrival time), and sends everything else; receiving and sending
+are each serialised by a lock.
+
+**Arrival times are the kernel's** (``SO_TIMESTAMPNS``: the time the datagram reached the socket, converted from
+the real-time clock to the monotonic one), so a datagram read late — the emulator's process not scheduled for a
+while on a loaded machine — still counts at the time it came, and the tick thread, draining before it runs the
+ticks it catches up on, sees every heartbeat and setpoint chunk that came before them. Stamped at the read
+instead (where the platform has no such stamp), a 100 ms stall of the emulator's own process looked to the
+watchdog like 100 ms without heartbeats (HEARTBEAT_LOST) and to the buffer like chunks that never came (UNDERRUN).
 
 Protocol decisions (the host side is ``drivers.mavlink``):
 
@@ -35,6 +43,10 @@ from __future__ import annotations
 import contextlib
 import heapq
 import math
+import select
+import socket
+import struct
+import sys
 import threading
 import time
 from collections import deque
@@ -81,6 +93,11 @@ RECEIVE_BUFFER = 4 << 20
 
 MAX_DATAGRAM = 65535
 
+_SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35) if sys.platform == "linux" else None
+"""Linux's socket option (and control-message type) for a nanosecond kernel receive stamp (struct timespec)."""
+
+_STAMP_SPACE = socket.CMSG_SPACE(struct.calcsize("ll")) if _SO_TIMESTAMPNS is not None else 0
+
 _SIGNED_FRAME = 0x01  # MAVLINK_IFLAG_SIGNED in incompat_flags
 
 
@@ -108,6 +125,17 @@ class LinkCounters:
     status_sent: int = 0
 
 
+def _enable_kernel_stamps(sock: socket.socket) -> bool:
+    """Ask for the kernel's receive stamp on every datagram of ``sock``; whether the platform gives it."""
+    if _SO_TIMESTAMPNS is None:
+        return False
+    try:
+        sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+    except OSError:
+        return False
+    return True
+
+
 class MavlinkEndpoint(BatchedTelemetry):
     """The controller's UDP endpoint at ``local`` (host, port; port 0 = any free one).
 
@@ -133,6 +161,9 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._parser = self.d.MAVLink(None, srcSystem=system, srcComponent=component)
         self._parser.robust_parsing = True
         enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
+        self._kernel_stamps = _enable_kernel_stamps(self._link.sock)
+        """Whether datagrams carry the kernel's receive stamp (else they are stamped when read)."""
+        self._receive_lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._inbox: deque[tuple[int, int, tuple[str, int], Any, bool]] = deque()
         self._inbox_lock = threading.Lock()
@@ -173,21 +204,43 @@ class MavlinkEndpoint(BatchedTelemetry):
 
     def _receive_loop(self) -> None:
         sock = self._link.sock
-        sock.settimeout(0.2)
         while not self._closing:
             try:
-                data, source = sock.recvfrom(MAX_DATAGRAM)
-            except TimeoutError:
-                continue
-            except OSError:
+                readable, _, _ = select.select([sock], [], [], 0.2)
+            except (OSError, ValueError):  # closed
                 return
-            now = time.monotonic_ns()
-            self.counters.packets_received += 1
-            if self.loss and self._rng.random() < self.loss:
-                self.counters.packets_dropped += 1
-                continue
-            for msg in self._parse(data):
-                self._arrived(msg, source, now)
+            if readable:
+                self.drain()
+
+    def drain(self) -> None:
+        """Receive every datagram waiting in the socket, each stamped with its arrival time (module docstring),
+        and queue its messages (either thread; one at a time)."""
+        sock = self._link.sock
+        with self._receive_lock:
+            while not self._closing:
+                try:
+                    if not select.select([sock], [], [], 0)[0]:
+                        return
+                    data, ancillary, _, source = sock.recvmsg(MAX_DATAGRAM, _STAMP_SPACE)
+                except (OSError, ValueError):  # closed
+                    return
+                now = self._arrival(ancillary)
+                self.counters.packets_received += 1
+                if self.loss and self._rng.random() < self.loss:
+                    self.counters.packets_dropped += 1
+                    continue
+                for msg in self._parse(data):
+                    self._arrived(msg, source, now)
+
+    def _arrival(self, ancillary: list[tuple[int, int, bytes]]) -> int:
+        """Host monotonic time [ns] at which a datagram with these control messages reached the socket: the
+        kernel's real-time stamp moved onto the monotonic clock (never later than now), else now."""
+        now = time.monotonic_ns()
+        for level, kind, data in ancillary:
+            if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(data) >= struct.calcsize("ll"):
+                seconds, nanoseconds = struct.unpack_from("ll", data)
+                return min(now, seconds * 1_000_000_000 + nanoseconds - (time.time_ns() - now))
+        return now
 
     def _parse(self, data: bytes) -> list[Any]:
         stamps = self._parser.signing.stream_timestamps
@@ -225,7 +278,9 @@ class MavlinkEndpoint(BatchedTelemetry):
     # ----- the tick thread's side -----------------------------------------------------------------------
 
     def take(self, now: int) -> list[tuple[int, Action]]:
-        """Messages due by host time ``now`` [ns], as (arrival controller time [ns], action on the core)."""
+        """Messages due by host time ``now`` [ns], as (arrival controller time [ns], action on the core), after
+        draining the socket (what came while this thread was not running is not left behind)."""
+        self.drain()
         taken = []
         with self._inbox_lock:
             while self._inbox and self._inbox[0][0] <= now:

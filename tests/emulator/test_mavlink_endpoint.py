@@ -1,0 +1,46 @@
+"""The emulator's MAVLink endpoint: a datagram counts at the time it reached the socket, however late it is read."""
+
+from __future__ import annotations
+
+import secrets
+import time
+
+import pytest
+
+from protocols.mavlink import UdpLink, dialect
+from sim_table.mavlink_endpoint import MavlinkEndpoint
+
+pytestmark = pytest.mark.integration  # opens sockets (tests/conftest.py)
+
+STALL_NS = 150_000_000
+"""How long the endpoint is left unread: longer than the controller's 100 ms heartbeat watchdog."""
+
+
+def test_heartbeats_read_after_a_stall_count_at_the_times_they_came() -> None:
+    """The endpoint's receive thread not started (its process not scheduled, as on a loaded machine): five
+    heartbeats 20 ms apart wait in the socket; 150 ms after the last one the tick thread's ``take`` drains them,
+    each stamped between the moments just before and just after its ``sendto`` (loopback delivers within the
+    call), not at the read, which came 150 ms or more later."""
+    key = secrets.token_bytes(32)
+    endpoint = MavlinkEndpoint(("127.0.0.1", 0), key, clock=lambda ns: ns)  # controller time = host time
+    host = UdpLink.open(peer=endpoint.address, source_system=255, source_component=190, key=key, link_id=1)
+    d = dialect()
+    try:
+        windows = []
+        for _ in range(5):
+            before = time.monotonic_ns()
+            host.send(d.MAVLink_heartbeat_message(d.MAV_TYPE_GCS, d.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                  d.MAV_STATE_ACTIVE, 3))
+            windows.append((before, time.monotonic_ns()))
+            time.sleep(0.02)
+        time.sleep(STALL_NS * 1e-9)
+        read_at = time.monotonic_ns()
+        arrivals = [arrival for arrival, _ in endpoint.take(read_at)]
+    finally:
+        host.sock.close()
+        endpoint.close()
+    assert len(arrivals) == 5
+    slack = 1_000_000  # the real-time to monotonic conversion, read once per datagram
+    for arrival, (before, after) in zip(arrivals, windows, strict=True):
+        assert before - slack <= arrival <= after + slack
+    assert read_at - arrivals[-1] >= STALL_NS
