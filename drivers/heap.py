@@ -12,11 +12,10 @@ While a link is open its process's objects sit in the collector's permanent gene
 full pass then visits only the objects made since, a few milliseconds. Every :class:`HeapHold` that holds keeps
 them there; :func:`refreeze` moves what was made since (a stream calls it as it starts: the session's buffers
 and analysis of the runs before); when the last hold is released they go back to the oldest generation
-(:func:`gc.unfreeze`) and are collected as usual. Each freeze first collects what is not frozen (while a link is
-open that is only what was made since the last freeze: a short pass; before the first link, the whole heap, with
-no link to stall), so no garbage is frozen. The cost: a reference cycle that was live when frozen and became
-garbage afterwards is freed only after the last release; cycles made and dropped while the link is open are
-collected as usual.
+(:func:`gc.unfreeze`) and are collected as usual. The cost: a reference cycle that was frozen and became garbage
+is freed only after the last release (the collector does not look at it before); cycles made and dropped while
+the link is open are collected as usual, and the young generations are collected before each freeze, so only
+garbage that already reached the oldest generation waits.
 """
 
 from __future__ import annotations
@@ -29,9 +28,9 @@ _holds = 0
 
 
 def refreeze() -> None:
-    """Collect what is not frozen, then move every tracked object to the permanent generation (module docstring:
-    while frozen, the pass visits only what was made since the last freeze)."""
-    gc.collect()
+    """Collect the young generations, then move every tracked object to the permanent generation (a few ms: the
+    young generations are small; the oldest is not visited)."""
+    gc.collect(1)
     gc.freeze()
 
 
