@@ -157,8 +157,7 @@ def characterise(specimen: Specimen, tilt: float) -> Characterisation:
     if not 0.0 <= tilt < alpha:
         raise ValueError(f"{body.label()}: the tilt {math.degrees(tilt):g}° must be below its α "
                          f"{math.degrees(alpha):.2f}° (it would not stand)")
-    alone = Specimen(body, friction=specimen.friction, damping_ratio=specimen.damping_ratio,
-                     restitution=specimen.restitution)
+    alone = replace(specimen, x=0.0, y=0.0)
     restitution, quarter = free_rocking(alone)
     low, high = math.tan(alpha - tilt), math.tan(alpha + tilt)
     uplift = {"low": _ramp(alone, tilt, -1.0, "rock", 1.5 * low + 0.05),

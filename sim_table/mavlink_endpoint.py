@@ -125,15 +125,12 @@ class LinkCounters:
     status_sent: int = 0
 
 
-def _enable_kernel_stamps(sock: socket.socket) -> bool:
-    """Ask for the kernel's receive stamp on every datagram of ``sock``; whether the platform gives it."""
-    if _SO_TIMESTAMPNS is None:
-        return False
-    try:
-        sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
-    except OSError:
-        return False
-    return True
+def _enable_kernel_stamps(sock: socket.socket) -> None:
+    """Ask for the kernel's receive stamp on every datagram of ``sock`` where the platform gives one (without it,
+    :meth:`MavlinkEndpoint._arrival` stamps a datagram when it is read)."""
+    if _SO_TIMESTAMPNS is not None:
+        with contextlib.suppress(OSError):
+            sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
 
 
 class MavlinkEndpoint(BatchedTelemetry):
@@ -161,8 +158,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._parser = self.d.MAVLink(None, srcSystem=system, srcComponent=component)
         self._parser.robust_parsing = True
         enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
-        self._kernel_stamps = _enable_kernel_stamps(self._link.sock)
-        """Whether datagrams carry the kernel's receive stamp (else they are stamped when read)."""
+        _enable_kernel_stamps(self._link.sock)
         self._receive_lock = threading.Lock()
         self._send_lock = threading.Lock()
         self._inbox: deque[tuple[int, int, tuple[str, int], Any, bool]] = deque()

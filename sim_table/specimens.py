@@ -173,13 +173,17 @@ class SpecimenScene:
             d.qfrc_applied[:6] = (PLATE_ARMATURE / dt) * (rate - self._plate_rate)
             mujoco.mj_step(m, d)
             mujoco.mj_kinematics(m, d)
+            here, self._plate_rate = there, rate
+            if not (self._impacts.active or self._standing.any()):
+                continue
+            theta = self.specimen_angles()[None, :]  # read once a step: the impact scaling moves no body
             if self._impacts.active:
-                hit = self._impacts.first(self.specimen_angles()[None, :], self._standing)
+                hit = self._impacts.first(theta, self._standing)
                 if hit is not None:
                     self._restitute(hit[1])
-            here, self._plate_rate = there, rate
             if self._standing.any():
-                found.extend(self._detect(dt))
+                found.extend(self._detect_steps(np.array([d.time]), theta, dt))
+                self._theta = theta[0]
         self._sample = (t, pose1, vel1)
         self._detections.extend(found)
         self.sample_angles = self.specimen_angles()[None, :]
@@ -298,7 +302,7 @@ class SpecimenScene:
 
     def _detect_steps(self, step_times: np.ndarray, angles: np.ndarray, dt: float) -> list[Overturn]:
         """Overturns in the steps just taken, which ended at ``step_times`` (steps,) [s] with the bodies at ``angles``
-        (steps, n) [rad], as :meth:`_detect` finds them step by step."""
+        (steps, n) [rad], timed by linear interpolation of |θ| within the step that crossed the threshold."""
         events = []
         previous = np.vstack([self._theta[None, :], angles[:-1]])
         for step in range(len(angles)):
@@ -310,17 +314,6 @@ class SpecimenScene:
                 self._standing[i] = False
             if not self._standing.any():
                 break
-        return sorted(events)
-
-    def _detect(self, dt: float) -> list[Overturn]:
-        """Overturns that happened in the step just taken, timed by linear interpolation of |θ|."""
-        previous, self._theta = self._theta, self.specimen_angles()
-        events = []
-        for i in np.flatnonzero(self._standing & (np.abs(self._theta) >= self.thresholds)):
-            a0, a1 = abs(previous[i]), abs(self._theta[i])
-            fraction = min(1.0, max(0.0, (self.thresholds[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
-            events.append(Overturn(self.time - (1.0 - fraction) * dt, int(i), 1 if self._theta[i] > 0 else -1))
-            self._standing[i] = False
         return sorted(events)
 
     def specimen_angles(self) -> np.ndarray:
