@@ -119,15 +119,21 @@ def test_the_impact_model_steps_a_batch_as_it_steps_each_sample() -> None:
     assert np.abs(np.concatenate(batches) - np.array(singles)).max() < 1e-5
 
 
-def test_a_body_set_above_its_contacts_restitution_still_stands_still_on_a_tilted_plate() -> None:
-    """The factor > 1 of T5-3 set to 0.95 scales impacts only: the contact's jitter of a body at rest (< 1e-5 rad,
-    below IMPACT_LEAN) is never taken for one and amplified."""
+def at_rest_on_the_tilt(specimen: Specimen) -> tuple[SpecimenScene, float]:
+    """``specimen`` placed on a plate held at the 5° tilt for 1.5 s: the scene, and the largest |θ| [rad] seen."""
     pose = np.array([0.0, 0.0, 0.0, 0.0, TILT, 0.0])
-    scene = SpecimenScene([Specimen(TABLE_V[2], friction=0.8, restitution=0.95)], plate_pose=pose)
+    scene = SpecimenScene([specimen], plate_pose=pose)
     largest = 0.0
     for k in range(1, 1501):
         scene.advance(k * 1e-3, pose, np.zeros(6))
         largest = max(largest, abs(float(scene.specimen_angles()[0])))
+    return scene, largest
+
+
+def test_a_body_set_above_its_contacts_restitution_still_stands_still_on_a_tilted_plate() -> None:
+    """The factor > 1 of T5-3 set to 0.95 scales impacts only: the contact's jitter of a body at rest (< 1e-5 rad,
+    below IMPACT_LEAN) is never taken for one and amplified."""
+    _, largest = at_rest_on_the_tilt(Specimen(TABLE_V[2], friction=0.8, restitution=0.95))
     assert largest < 1e-4
 
 
@@ -144,12 +150,7 @@ def test_a_restitution_outside_the_model_is_refused() -> None:
 def test_light_bodies_stand_still_on_a_tilted_plate(index: int) -> None:
     """With MuJoCo's default solver tolerance (1e-8) these bodies chattered on a 5° plate at rest (|θ| up to
     0.03 rad, creeping millimetres downhill): the plate's armature dominated Newton's cost."""
-    pose = np.array([0.0, 0.0, 0.0, 0.0, TILT, 0.0])
-    scene = SpecimenScene([Specimen(TABLE_V[index], friction=0.8)], plate_pose=pose)
-    largest = 0.0
-    for k in range(1, 1501):
-        scene.advance(k * 1e-3, pose, np.zeros(6))
-        largest = max(largest, abs(float(scene.specimen_angles()[0])))
+    scene, largest = at_rest_on_the_tilt(Specimen(TABLE_V[index], friction=0.8))
     assert largest < 1e-4
     assert abs(scene.specimen_places()[0, 0]) < 1e-4
 

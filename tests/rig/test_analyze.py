@@ -36,6 +36,7 @@ from rig.analyze import (
     measured_inputs,
     plate_to_model,
 )
+from rig.analyze.session import SessionAnalysis
 from rig.cli import analyze as cli_analyze
 from rig.drive import prepare_drive
 from rig.records import load_record
@@ -464,6 +465,17 @@ y = 0.3
 """
 
 
+def tap_analysed(tmp_path: Path, sequence: str) -> SessionAnalysis:
+    """``rig run`` of the tap ``sequence`` on the emulator in virtual time, then its analysis with
+    ``--restitution fit`` (not written)."""
+    (tmp_path / "tap.toml").write_text(sequence)
+    session = tmp_path / "tap.h5"
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "tap.toml", "--emulate", "--speed", "max", "--yes",
+                           "-o", str(session)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr + done.stdout
+    return analyze_session(session, ("rocking",), restitution="fit", write=False)
+
+
 @pytest.mark.integration
 def test_a_tap_on_the_emulator_gives_back_a_restitution_set_in_the_sequence(tmp_path: Path) -> None:
     """Body 1 given its lab-measured ``restitution = 0.85`` in the sequence (its contact's own is 0.94): the
@@ -471,12 +483,7 @@ def test_a_tap_on_the_emulator_gives_back_a_restitution_set_in_the_sequence(tmp_
     within 5 % (the issue's bar); body 4, not set, keeps its own."""
     text = TAP.replace("table5 = 1\n", "table5 = 1\nrestitution = 0.85\n")
     assert text != TAP
-    (tmp_path / "tap.toml").write_text(text)
-    session = tmp_path / "tap.h5"
-    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "tap.toml", "--emulate", "--speed", "max", "--yes",
-                           "-o", str(session)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr + done.stdout
-    result = analyze_session(session, ("rocking",), restitution="fit", write=False)
+    result = tap_analysed(tmp_path, text)
     set_body, free_body = result.fitted_restitution[1], result.fitted_restitution[2]
     assert set_body.impacts >= 5 and set_body.value == pytest.approx(0.85, rel=0.05), set_body
     assert free_body.value == pytest.approx(1 - 1.5 * math.sin(TABLE_V[3].alpha) ** 2, rel=0.05), free_body
@@ -490,12 +497,7 @@ def test_a_tap_on_the_emulator_gives_each_specimens_own_restitution(tmp_path: Pa
     from sim_table.characterise import free_rocking
     from sim_table.scene import Specimen
 
-    (tmp_path / "tap.toml").write_text(TAP)
-    session = tmp_path / "tap.h5"
-    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "tap.toml", "--emulate", "--speed", "max", "--yes",
-                           "-o", str(session)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr + done.stdout
-    result = analyze_session(session, ("rocking",), restitution="fit", write=False)
+    result = tap_analysed(tmp_path, TAP)
     for body_id, index in ((1, 0), (2, 3)):
         fitted = result.fitted_restitution[body_id]
         own, _ = free_rocking(Specimen(TABLE_V[index]))
