@@ -47,6 +47,7 @@ import numpy as np
 
 from drivers.clock import ClockSync
 from drivers.controller import (
+    DEFAULT_LEAD,
     STATUS_TIMEOUT,
     STOPPED_STATES,
     TILT_AXES,
@@ -225,7 +226,7 @@ class ChunkedStreamController(TableController):
                 return answer.reached() is not None or (latest is not None and latest.t_ns >= answer.over_from_ns
                                                         and latest.state not in MOTION_STATES)
 
-            if not self.feedback.wait_for(over, timeout):
+            if not self.wait(over, timeout):
                 raise TableTimeoutError(f"{name.upper()}: still moving after {timeout} s")
             if answer.reached() is not None:
                 self.wait_for_status(answer.shows_end, STATUS_TIMEOUT)
@@ -239,7 +240,7 @@ class ChunkedStreamController(TableController):
 
     # ----- streaming
 
-    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = DEFAULT_LEAD,
                on_progress: Callable[[int, int], None] | None = None,
                on_start: Callable[[int], None] | None = None) -> StreamReport:
         poses = finite_poses(poses)
@@ -248,6 +249,12 @@ class ChunkedStreamController(TableController):
             raise ValueError(f"lead must be > 0 s, got {lead!r}")
         lead_ns = round(lead * 1e9)
         per_chunk = self.samples_per_chunk
+        capacity = self.status().buffer_capacity
+        ahead = math.ceil(lead_ns / spacing_ns) + 2 * per_chunk  # the lead's samples and the chunks sent twice
+        if capacity and ahead > capacity:
+            raise ValueError(f"lead {lead:g} s: {ahead} setpoint samples would be buffered ahead, but the "
+                             f"controller's buffer holds {capacity} (at {1e9 / spacing_ns:g} Hz): lower "
+                             "[controller] lead_s or raise the controller's buffer_s")
         self.heap.hold()  # refreeze: what the runs before made is not visited by the stream's collections
         underruns_before = self.status().underruns
         first_seq = self._next_seq
@@ -274,6 +281,7 @@ class ChunkedStreamController(TableController):
             message = self._encode_chunk((first_seq + k) % FIRST_SEQ_LIMIT, chunk_start, spacing_ns,
                                          poses[first:first + per_chunk], k == count - 1)
             lateness[k] = self._wait_to_send(chunk_start - lead_ns, chunk_start - lead_ns - AHEAD_NS)
+            self.check_link()
             latest = self.feedback.latest
             if latest is not None and (latest.state in STOPPED_STATES or _left_stream(latest, t_start)):
                 raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
@@ -315,7 +323,7 @@ class ChunkedStreamController(TableController):
 
         while not ready():
             now = time.monotonic_ns()
-            feedback.wait_for(ready, max(deadline - now if now < deadline else silent_until - now, 0) * 1e-9)
+            self.wait(ready, max(deadline - now if now < deadline else silent_until - now, 0) * 1e-9)
         return max(time.monotonic_ns() - deadline, 0)
 
 

@@ -30,6 +30,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from analysis.table.link import LinkSettings
 from drivers.heap import HeapHold
 
 T = TypeVar("T")
@@ -41,6 +42,17 @@ STATUS_TIMEOUT = 5.0
 """Longest wait [s] for the status that shows what a command did (a controller reports a state change at once
 and a status at least every 50 ms of its time): only a lost link takes this long, and then
 :class:`TableTimeoutError` says so instead of leaving :meth:`TableController.status` behind the command."""
+
+DEFAULT_LEAD = LinkSettings().lead_s
+"""How far ahead of its first sample a setpoint chunk is sent by default [s] (``analysis.table.link``): a host
+stall shorter than this never starves the table."""
+
+LINK_GRACE = 0.2
+"""Before declaring the link lost, wait at most this long [s] for a status: a host that was stalled itself (its
+receive thread too) drains the statuses that queued meanwhile within it; a lost link sends none."""
+
+WAIT_SLICE = 0.1
+"""Waits for a status are cut into slices of this length [s], the link checked between them."""
 
 TILT_AXES = ("pitch", "roll")
 """Axes of :meth:`TableController.set_tilt`: pitch (fall line +x, the study's) or roll (fall line −y)."""
@@ -80,6 +92,10 @@ class CommandFailedError(CommandRefusedError):
     """Refused for invalid parameters, unsupported, or a motion that was cancelled before its end."""
 
 
+class TableLinkLostError(TableError):
+    """No status from the controller for longer than the link timeout: the link, or the controller, is gone."""
+
+
 class StreamAbortedError(TableError):
     """The controller stopped playing a stream before its end; ``report`` says how far it got."""
 
@@ -100,7 +116,9 @@ class TableStatus:
     samples buffered and not yet played; ``last_chunk_seq`` the last setpoint chunk accepted; ``underruns`` dry
     spells of the setpoint buffer since power-up; ``faults`` names of the latched fault bits (e.g. ``"STREAM_SILENT"``);
     ``refused_commands`` commands and chunks refused for their signature since power-up; ``pose`` (6,) the
-    achieved (measured) pose; ``host_ns`` host monotonic time [ns] the report arrived.
+    achieved (measured) pose; ``host_ns`` host monotonic time [ns] the report arrived; ``buffer_capacity`` the
+    setpoint samples the controller's buffer holds (0: not reported); ``samples_late`` setpoint samples that
+    arrived after they were due and were skipped, since power-up.
     """
 
     t_ns: int
@@ -112,6 +130,8 @@ class TableStatus:
     refused_commands: int
     pose: np.ndarray
     host_ns: int
+    buffer_capacity: int = 0
+    samples_late: int = 0
 
 
 @dataclass(frozen=True, eq=False)
@@ -372,6 +392,9 @@ class TableController(ABC):
 
     def __init__(self, url: str) -> None:
         self.url = url
+        self.link_timeout = LinkSettings().link_timeout_s
+        """No status for this long [s] (confirmed after :data:`LINK_GRACE`) and the link is lost
+        (:meth:`check_link`); the rig TOML's ``[controller] link_timeout_s``."""
         self.feedback = Feedback()
         self.heap = HeapHold()
         """Held from ``connect`` to ``close`` and refrozen as a stream starts: the collector's full passes stay
@@ -417,7 +440,7 @@ class TableController(ABC):
         ``wait``, return when it holds the tilt."""
 
     @abstractmethod
-    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = DEFAULT_LEAD,
                on_progress: Callable[[int, int], None] | None = None,
                on_start: Callable[[int], None] | None = None) -> StreamReport:
         """Play a trajectory: ``t`` (N,) evenly spaced sample times [s] (only the spacing matters), ``poses``
@@ -441,6 +464,12 @@ class TableController(ABC):
 
     # --- feedback
 
+    @property
+    def accel_batches_lost(self) -> int:
+        """Accelerometer batches known to be missing since connect (from their sequence numbers); 0 on a transport
+        whose samples carry none."""
+        return 0
+
     def status(self) -> TableStatus:
         """The latest status received (:class:`TableError` before the first)."""
         latest = self.feedback.latest
@@ -448,9 +477,37 @@ class TableController(ABC):
             raise TableError(f"no status received from {self.url} yet")
         return latest
 
+    def check_link(self) -> None:
+        """Raise :class:`TableLinkLostError` when no status has arrived for :attr:`link_timeout` s and none comes
+        within :data:`LINK_GRACE` s more (a host that was stalled itself catches up within it). Cheap while statuses
+        flow."""
+        latest = self.feedback.latest
+        if latest is None or time.monotonic_ns() - latest.host_ns <= self.link_timeout * 1e9:
+            return
+        seen = latest.host_ns
+        if self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.host_ns > seen,
+                                  LINK_GRACE):
+            return
+        silent = (time.monotonic_ns() - seen) * 1e-9
+        raise TableLinkLostError(f"{self.url}: table link lost: no status for {silent:.1f} s "
+                                 f"(link timeout {self.link_timeout:g} s; last: {latest.state})")
+
+    def wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
+        """Wait until ``predicate()`` (evaluated under the feedback lock at every publication) holds, at most
+        ``timeout`` s; whether it held. Checks the link between slices of :data:`WAIT_SLICE` s
+        (:class:`TableLinkLostError`)."""
+        deadline = time.monotonic() + timeout
+        while True:
+            remaining = deadline - time.monotonic()
+            if self.feedback.wait_for(predicate, max(min(remaining, WAIT_SLICE), 0.0)):
+                return True
+            if remaining <= WAIT_SLICE:
+                return False
+            self.check_link()
+
     def wait_for_status(self, predicate: Callable[[TableStatus], bool], timeout: float) -> TableStatus:
         """The first status (the latest one included) for which ``predicate`` holds; :class:`TableTimeoutError`
-        after ``timeout`` s."""
+        after ``timeout`` s, :class:`TableLinkLostError` as soon as the link is lost (:meth:`check_link`)."""
         found: list[TableStatus] = []
 
         def check() -> bool:
@@ -460,7 +517,7 @@ class TableController(ABC):
                 return True
             return False
 
-        if not self.feedback.wait_for(check, timeout):
+        if not self.wait(check, timeout):
             latest = self.feedback.latest
             raise TableTimeoutError(f"{self.url}: no matching status within {timeout} s "
                                f"(last: {latest.state if latest else 'none'})")

@@ -234,7 +234,8 @@ class MavlinkTable(ChunkedStreamController):
         state = self.d.enums["SHAKETABLE_STATE"][msg.state].name.removeprefix("SHAKETABLE_STATE_").lower()
         faults = tuple(name for bit, name in self._fault_bits if msg.faults & bit)
         return TableStatus(msg.t_ns, state, msg.buffer_depth, msg.last_chunk_seq, msg.underruns, faults,
-                           msg.refused_commands, np.array(msg.pose, dtype=np.float64), now)
+                           msg.refused_commands, np.array(msg.pose, dtype=np.float64), now, msg.buffer_capacity,
+                           msg.samples_late)
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)

@@ -233,7 +233,8 @@ class ZenohTable(ChunkedStreamController):
         report = decode_status(payload)
         self.feedback.publish_status(TableStatus(report.t_ns, report.state, report.buffer_depth,
                                                  report.last_chunk_seq, report.underruns, fault_names(report.faults),
-                                                 report.refused_commands, report.pose, now))
+                                                 report.refused_commands, report.pose, now, report.buffer_capacity,
+                                                 report.samples_late))
 
     def _on_answer(self, payload: bytes, now: int) -> None:
         answer = decode_answer(payload)

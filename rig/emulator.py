@@ -4,6 +4,10 @@
 it runs it, as ``rig run --emulate``, the demo, the tests and the benchmarks do. The emulator prints
 ``sim_table: listening on URL`` on stderr once its endpoint is open (port 0 resolved), and its counters as one
 JSON object on stdout when it stops (SIGINT).
+
+The emulator runs in a process group of its own, so the operator's Ctrl-C at the terminal reaches ``rig`` alone
+(``rig run`` pauses on it; the table must not die under the session), and with ``--exit-with-parent``: it ends when
+the process that started it ends, even by ``kill -9``, so no orphaned emulator keeps its port.
 """
 
 from __future__ import annotations
@@ -80,11 +84,11 @@ class EmulatorProcess:
         ``key_file`` is the signing key (else ``$SHAKETABLE_MAVLINK_KEY`` of ``env``/this process);
         ``env`` adds to this process's environment.
         """
-        cmd = [sys.executable, "-m", "sim_table", "--listen", listen, *flags]
+        cmd = [sys.executable, "-m", "sim_table", "--listen", listen, "--exit-with-parent", *flags]
         if key_file is not None:
             cmd += ["--key-file", str(key_file)]
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                env={**os.environ, **(env or {})})
+                                env={**os.environ, **(env or {})}, start_new_session=True)
         assert proc.stderr is not None
         seen = []
         for line in proc.stderr:
@@ -94,6 +98,11 @@ class EmulatorProcess:
                 return cls(proc, found.group(1))
         proc.wait()
         raise EmulatorError(f"the emulator did not start (exit {proc.returncode}): {''.join(seen).strip()}")
+
+    @property
+    def exit_code(self) -> int | None:
+        """None while the emulator runs, else its exit status (negative: killed by that signal)."""
+        return self.proc.poll()
 
     def stop(self, timeout: float = 20.0) -> dict[str, Any]:
         """SIGINT, wait at most ``timeout`` s, and return the counters it printed."""

@@ -13,9 +13,14 @@ Reference generation:
 
 - **Streaming** plays the buffer, interpolating linearly between samples at the tick; it starts from the pose
   held at START_STREAM. Samples due at or before the last tick when they arrive are skipped (late).
-- **Underrun** (the buffer dry before END_OF_STREAM, once a sample has arrived): the reference keeps its
-  velocity and decelerates at the axis limits (Table IV accelerations; the tilt acceleration for rotations) to
-  rest, one underrun counted per dry spell; new samples resume playing from the held pose.
+- **Underrun** (the buffer dry before END_OF_STREAM, once a sample has arrived) ends the stream with a
+  controlled stop: one underrun counted, ``UNDERRUN`` latched, and the table stops as for STOP (the reference
+  keeps its velocity and decelerates at the axis limits — Table IV accelerations, the tilt acceleration for
+  rotations — to rest, then moves home) and ends ``faulted``. Samples arriving after it are not played: a stream
+  never resumes from a held pose (resuming would jump to where the drive has got to meanwhile).
+- **Buffer capacity**: the buffer holds at most ``buffer_capacity`` samples (reported in every status); a chunk
+  that does not fit is refused (``chunks_overflow``), as a host that sends further ahead than the buffer holds
+  is misconfigured (its lead must stay below the capacity).
 - **Moves** (HOME, SET_TILT, the return home of a stop) are quintic profiles ``s = 10τ³ − 15τ⁴ + 6τ⁵`` as in
   ``rig.drive.tilt``, as short as the axis limits allow (velocity and acceleration; for rotations also the tilt
   jerk).
@@ -91,8 +96,11 @@ class Fault(enum.IntFlag):
     UNDERRUN = 128
 
 
-_STOPPING_FAULTS = Fault.DRIVE | Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST
+_STOPPING_FAULTS = Fault.DRIVE | Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST | Fault.UNDERRUN
 """Faults that stop the table; the others only latch."""
+
+DEFAULT_BUFFER_CAPACITY = 4000
+"""Setpoint samples the buffer holds by default (4 s at 1 kHz; ``[controller] buffer_s`` of the rig TOML)."""
 
 
 class Command(enum.Enum):
@@ -150,7 +158,8 @@ class Done:
 @dataclass(frozen=True, eq=False)
 class Snapshot:
     """What one status carries: controller time [ns], state, setpoint samples buffered, the newest chunk accepted,
-    underruns, latched faults, refused commands and the measured pose (6,)."""
+    underruns, latched faults, refused commands, the measured pose (6,), the samples the buffer can hold and the
+    samples that came late (skipped) since power-up."""
 
     t_ns: int
     state: State
@@ -160,6 +169,8 @@ class Snapshot:
     faults: Fault
     refused_commands: int
     pose: np.ndarray
+    buffer_capacity: int = DEFAULT_BUFFER_CAPACITY
+    samples_late: int = 0
 
 
 @dataclass
@@ -178,6 +189,8 @@ class Counters:
     chunks_missing: int = 0
     chunks_after_end: int = 0
     chunks_not_streaming: int = 0
+    chunks_overflow: int = 0
+    """Chunks refused because the buffer could not hold them (the host's lead exceeds the capacity)."""
     samples_late: int = 0
     stops: int = 0
     emergency_stops: int = 0
@@ -198,14 +211,19 @@ class ControllerCore:
 
     ``table`` gives the limits; ``tick_ns`` is the tick period [ns, controller time]; ``watchdog_ns`` the silence
     that stops the table [ns, controller time, or of ``link_clock`` when given: a host-monotonic clock [ns] for
-    the watchdogs in virtual time]; ``pose`` (6,) where the plate rests at power-up (default home).
+    the watchdogs in virtual time]; ``pose`` (6,) where the plate rests at power-up (default home);
+    ``buffer_capacity`` the setpoint samples the buffer holds.
     """
 
     def __init__(self, table: TableModel, *, tick_ns: int = 1_000_000, watchdog_ns: int = 100_000_000,
-                 pose: np.ndarray | None = None, link_clock: Callable[[], int] | None = None) -> None:
+                 pose: np.ndarray | None = None, link_clock: Callable[[], int] | None = None,
+                 buffer_capacity: int = DEFAULT_BUFFER_CAPACITY) -> None:
         self.table = table
         self.tick_ns = int(tick_ns)
         self.watchdog_ns = int(watchdog_ns)
+        if buffer_capacity < 1:
+            raise ValueError(f"buffer_capacity must be >= 1 sample, got {buffer_capacity!r}")
+        self.buffer_capacity = int(buffer_capacity)
         self._link_clock = link_clock
         self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
         self.state = State.IDLE
@@ -290,6 +308,9 @@ class ControllerCore:
         if self._end_seq is not None and (seq - self._end_seq) % SEQ_MODULUS < SEQ_MODULUS // 2:
             self.counters.chunks_after_end += 1
             return False
+        if len(self._buffer) + len(samples) > self.buffer_capacity:
+            self.counters.chunks_overflow += 1
+            return False
         if ahead == 0:
             self._expected = (seq + 1) % SEQ_MODULUS
         elif ahead < SEQ_MODULUS // 2:
@@ -356,7 +377,8 @@ class ControllerCore:
     def snapshot(self, t_ns: int, pose: np.ndarray) -> Snapshot:
         """The status at ``t_ns`` with the measured ``pose`` (6,)."""
         return Snapshot(t_ns, self.state, len(self._buffer), self.last_chunk_seq, self.counters.underruns,
-                        self.faults, self.counters.refused_commands, pose)
+                        self.faults, self.counters.refused_commands, pose, self.buffer_capacity,
+                        self.counters.samples_late)
 
     # ----- commands -------------------------------------------------------------------------------------
 
@@ -444,7 +466,6 @@ class ControllerCore:
         self._end_ns: int | None = None
         self._last_chunk: int | None = None
         self._received_any = False
-        self._dry = False
 
     def _remember(self, seq: int) -> None:
         self._seen.add(seq)
@@ -473,7 +494,6 @@ class ControllerCore:
         assert self._anchor is not None
         ta, pa = self._anchor
         if buffer:
-            self._dry = False
             tb, pb = buffer[0]
             return pa + (pb - pa) * ((t_ns - ta) / (tb - ta))
         end = self._end_ns
@@ -487,13 +507,9 @@ class ControllerCore:
         if not self._received_any:  # nothing due yet: hold, ready to blend into the first sample
             self._anchor = (t_ns, self._p)
             return self._p
-        if not self._dry:
-            self._dry = True
-            self.counters.underruns += 1
-            self._latch(Fault.UNDERRUN)
-        pose = self._decelerate(dt)
-        self._anchor = (t_ns, pose)
-        return pose
+        self.counters.underruns += 1  # dry before the end: a controlled stop (module docstring)
+        self.raise_fault(Fault.UNDERRUN, t_ns)
+        return self._decelerate(dt)
 
     def _decelerate(self, dt: float) -> np.ndarray:
         """The reference one tick on, its velocity reduced by the axis accelerations (exactly zero at rest)."""

@@ -71,9 +71,15 @@ def argument_parser() -> argparse.ArgumentParser:
                    help="leg LEG's actuator (1..6) seizes S s after the first stream start: it brakes to rest and "
                         "stops following its command (CANopen: its drive's following-error supervision trips)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random number (noise, loss)")
-    p.add_argument("--watchdog", type=float, default=0.1, metavar="S",
-                   help="host-heartbeat and setpoint watchdogs [s, controller time] (the real controller's 0.1 s; "
-                        "virtual time uses 1 s of host time)")
+    p.add_argument("--watchdog", type=float, metavar="S",
+                   help="host-heartbeat and setpoint watchdogs [s, controller time] (default: the rig "
+                        "configuration's [controller] watchdog_s, 1 s; virtual time uses 1 s of host time)")
+    p.add_argument("--buffer", type=float, metavar="S",
+                   help="setpoint buffer capacity [s of samples] (default: the rig configuration's [controller] "
+                        "buffer_s, 4 s)")
+    p.add_argument("--exit-with-parent", action="store_true",
+                   help="stop (as on SIGINT) when the process that started this one exits, even by kill -9: "
+                        "no emulator is left holding its port")
     p.add_argument("--key-file", type=Path,
                    help=f"signing key file (default: ${KEY_ENV}); mavlink and zenoh only: canopen does not sign")
     p.add_argument("--rig-config", type=Path, help="rig configuration TOML (default: Table IV, default hexapod)")

@@ -13,8 +13,12 @@ what the batch produced:
 4. a status every 20 ms of controller time and at every state change, accelerometer and tilt batches, final
    command answers, heartbeats.
 
-Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep 100 ms of **real** time at any
-``--speed`` (they guard the link, whose heartbeats keep real time).
+Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep ``--watchdog`` (the rig
+configuration's ``[controller] watchdog_s``, 1 s by default) of **real** time at any ``--speed`` (they guard the
+link, whose heartbeats keep real time). At real time the loop wakes every :data:`WAKE_PERIOD_NS` on the transports
+whose controller buffers setpoints (MAVLink, zenoh: their host sends the lead ahead, 1 s by default) and runs the
+ticks due as one batch, as virtual time does; CANopen's drives answer every SYNC, so there it wakes every
+:data:`CANOPEN_WAKE_PERIOD_NS`.
 
 ``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
 as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a
@@ -41,6 +45,7 @@ zenoh; not on canopen, which has no authentication (the bus is a private cable).
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import itertools
 import json
@@ -68,9 +73,18 @@ from sim_table.options import argument_parser
 from sim_table.scene import Specimen, parse_body
 from sim_table.specimens import SpecimenScene
 
-WAKE_PERIOD_NS = 2_000_000
-"""The loop's wake-up period [ns, real time]: two ticks a wake at speed 1 (a batch shares the per-call cost of
-the vectorised kinematics; one tick a wake would double the emulator's load)."""
+WAKE_PERIOD_NS = 20_000_000
+"""The loop's wake-up period [ns, real time] on MAVLink and zenoh: twenty ticks a wake at speed 1, one batch (the
+per-call cost of the vectorised kinematics and of MuJoCo's rollout shared by twenty ticks: with two ticks a wake
+the emulator spent about three times the CPU a tick). Host messages are still applied at their arrival time between
+the ticks; what the batch produced (statuses, telemetry, answers) goes out at its end, at most this late — well
+inside the host's lead (1 s) and link timeout (0.5 s)."""
+
+CANOPEN_WAKE_PERIOD_NS = 2_000_000
+"""The wake-up period [ns, real time] on CANopen: its drives answer each SYNC with the physics of that instant."""
+
+PARENT_POLL_S = 0.2
+"""How often ``--exit-with-parent`` looks whether the parent process is still there [s]."""
 
 MAX_BATCH = 200
 """Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
@@ -89,8 +103,6 @@ _AT_REST = frozenset({State.IDLE, State.ARMED, State.FAULTED, State.EMERGENCY_ST
 STATUS_PERIOD_NS = 20_000_000
 """Status period [ns, controller time] (50 Hz)."""
 
-WATCHDOG_SECONDS = 0.1
-"""Stream and heartbeat watchdogs [s, real time]."""
 
 VIRTUAL_WATCHDOG_SECONDS = 1.0
 """Stream and heartbeat watchdogs in virtual time [s, host time]: the table waits, still, for setpoints it has not
@@ -118,8 +130,9 @@ class EmulatorConfig:
 
     ``key``: the signing key, required on the transports that sign (:data:`SIGNING_SCHEMES`), unused on CANopen;
     ``leg_stall``: (leg 1..6, seconds after the first START_STREAM) when that leg's actuator seizes.
-    ``watchdog`` [s, controller time]: the host-heartbeat and setpoint watchdogs at 1x and faster (default
-    :data:`WATCHDOG_SECONDS`, the real controller's; virtual time uses :data:`VIRTUAL_WATCHDOG_SECONDS`).
+    ``watchdog`` [s, controller time]: the host-heartbeat and setpoint watchdogs at 1x and faster (None: the
+    table's ``link.watchdog_s``; virtual time uses :data:`VIRTUAL_WATCHDOG_SECONDS`); ``buffer`` [s]: the
+    setpoint buffer's capacity (None: the table's ``link.buffer_s``).
     """
 
     listen: str
@@ -137,13 +150,16 @@ class EmulatorConfig:
     stall_at: float | None = None
     leg_stall: tuple[int, float] | None = None
     seed: int = 0
-    watchdog: float = WATCHDOG_SECONDS
+    watchdog: float | None = None
+    buffer: float | None = None
 
     def __post_init__(self) -> None:
         if not (self.speed > 0):  # math.inf: virtual time (--speed max)
             raise ValueError(f"speed must be > 0 or max, got {self.speed!r}")
-        if not (math.isfinite(self.watchdog) and self.watchdog > 0):
+        if self.watchdog is not None and not (math.isfinite(self.watchdog) and self.watchdog > 0):
             raise ValueError(f"watchdog must be > 0 s, got {self.watchdog!r}")
+        if self.buffer is not None and not (math.isfinite(self.buffer) and 0 < self.buffer <= 120):
+            raise ValueError(f"buffer must be in (0, 120] s, got {self.buffer!r}")
         for name in ("drive_fault_at", "stall_at"):
             value = getattr(self, name)
             if value is not None and not (math.isfinite(value) and value >= 0):
@@ -171,12 +187,16 @@ class Emulator:
         dt = self.tick_ns * 1e-9
         self.virtual = math.isinf(config.speed)
         """Virtual time (``--speed max``, module docstring)."""
+        capacity = math.ceil((table.link.buffer_s if config.buffer is None else config.buffer) * table.controller_rate)
         if self.virtual:
-            self.core = ControllerCore(table, tick_ns=self.tick_ns,
-                                       watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9), link_clock=time.monotonic_ns)
+            self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9),
+                                       link_clock=time.monotonic_ns, buffer_capacity=capacity)
         else:
-            self.core = ControllerCore(table, tick_ns=self.tick_ns,
-                                       watchdog_ns=round(config.watchdog * config.speed * 1e9))
+            watchdog = table.link.watchdog_s if config.watchdog is None else config.watchdog
+            self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(watchdog * config.speed * 1e9),
+                                       buffer_capacity=capacity)
+        self.wake_period_ns = CANOPEN_WAKE_PERIOD_NS if listen_scheme(config.listen) == "canopen" else WAKE_PERIOD_NS
+        """The real-time loop's wake-up period [ns] (module docstring)."""
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
                                         payload=sum(specimen.mass for specimen in config.specimens))
         self.track = PlateTrack(dt)
@@ -226,7 +246,7 @@ class Emulator:
             self._flush()
             return
         while not stop.is_set():
-            deadline += WAKE_PERIOD_NS
+            deadline += self.wake_period_ns
             now = time.monotonic_ns()
             if deadline > now:
                 time.sleep((deadline - now) * 1e-9)
@@ -272,7 +292,7 @@ class Emulator:
             if count == VIRTUAL_BATCH:
                 time.sleep(0)  # let the endpoint's threads take the host's messages
             elif self.core.state in _AT_REST:
-                time.sleep(WAKE_PERIOD_NS * 1e-9)
+                time.sleep(CANOPEN_WAKE_PERIOD_NS * 1e-9)  # at rest in virtual time: ticks at real time, 2 ms a wake
             else:
                 time.sleep(HOLD_POLL_S)
 
@@ -453,8 +473,9 @@ class Emulator:
 # ----- command line -------------------------------------------------------------------------------------
 
 
-def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
-    """The configuration and ``--counters`` path of a command line (argparse errors exit 2)."""
+def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
+    """The configuration, ``--counters`` path and ``--exit-with-parent`` of a command line (argparse errors
+    exit 2)."""
     p = argument_parser()
     args = p.parse_args(argv)
     try:
@@ -467,18 +488,36 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None]:
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
-            stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed, watchdog=args.watchdog)
+            stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed, watchdog=args.watchdog,
+            buffer=args.buffer)
     except ValueError as exc:
         p.error(str(exc))
-    return config, args.counters
+    return config, args.counters, args.exit_with_parent
+
+
+def watch_parent(stop: threading.Event) -> None:
+    """Set ``stop`` once the process that started this one has exited (this one re-parented), checked every
+    :data:`PARENT_POLL_S`: an emulator started by ``rig`` ends with it, even after ``kill -9`` of ``rig``."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while not stop.wait(PARENT_POLL_S):
+            if os.getppid() != parent:
+                stop.set()
+                with contextlib.suppress(OSError):  # its pipes may have gone with it
+                    print(f"sim_table: the parent process {parent} exited: stopping", file=sys.stderr, flush=True)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the emulator in the foreground until SIGINT or SIGTERM; write the counters; exit 0."""
-    config, counters_path = parse_args(sys.argv[1:] if argv is None else argv)
+    config, counters_path, with_parent = parse_args(sys.argv[1:] if argv is None else argv)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
+    if with_parent:
+        watch_parent(stop)
     try:
         emulator = Emulator(config)
     except OSError as exc:
@@ -500,5 +539,6 @@ def main(argv: list[str] | None = None) -> int:
     if counters_path is not None:
         counters_path.write_text(text + "\n")
     else:
-        print(text, flush=True)
+        with contextlib.suppress(OSError):  # a parent gone with its pipe (--exit-with-parent)
+            print(text, flush=True)
     return 0

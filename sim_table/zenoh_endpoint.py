@@ -313,7 +313,8 @@ class ZenohEndpoint(BatchedTelemetry):
         self._count("status_sent")
         self._publish(self._status, encode_status(StatusReport(
             snap.t_ns, snap.state.value, min(snap.buffer_depth, 2**32 - 1), snap.last_chunk_seq, snap.underruns,
-            int(snap.faults), snap.refused_commands, snap.pose)))
+            int(snap.faults), snap.refused_commands, snap.pose, snap.buffer_capacity,
+            min(snap.samples_late, 2**32 - 1))))
 
     def _send_accel(self, batch: Batch) -> None:
         publisher = self._accel_publishers.get(batch.source)

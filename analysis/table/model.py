@@ -53,6 +53,12 @@ left out, which keeps Table IV and the default geometry)::
     [dynamics]                         # the legs' servo-hydraulics (analysis/table/dynamics.py, docs/table-dynamics.md)
     bore_m = 0.04
 
+    [controller]                       # the host link (analysis/table/link.py): every key may be left out
+    lead_s = 1.0                       # setpoints sent this far ahead
+    buffer_s = 4.0                     # the controller's setpoint buffer
+    watchdog_s = 1.0                   # no host heartbeat (or chunk while streaming) this long: controlled stop
+    link_timeout_s = 0.5               # no status this long: the host declares the link lost
+
 Errors in a file raise :class:`TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
 :meth:`TableModel.to_dict` writes the same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit
 joints), so that ``from_dict(to_dict())`` gives back an equal model exactly.
@@ -73,6 +79,8 @@ from numba import njit
 from analysis.body import G
 from analysis.errors import AnalysisInputError
 from analysis.table.dynamics import TableDynamics
+from analysis.table.link import RANGES as LINK_KEYS
+from analysis.table.link import LinkSettings
 from analysis.table.toml_check import TomlChecker, is_number
 from analysis.table.toml_lines import KeyPath, key_lines, syntax_message
 from analysis.table.toml_lines import suggest as _suggest
@@ -427,6 +435,8 @@ class TableModel:
     controller_rate: float = 1000.0
     dynamics: TableDynamics = field(default_factory=TableDynamics)
     """The legs' servo-hydraulic parameters (``[dynamics]``; used by the emulator's ``--dynamics servo``)."""
+    link: LinkSettings = field(default_factory=LinkSettings)
+    """The host link's lead, buffer, watchdog and link timeout (``[controller]``, ``analysis.table.link``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):
@@ -542,6 +552,8 @@ class TableModel:
         out = {"table": {"controller_rate_hz": self.controller_rate}, "limits": limits, "hexapod": hexapod}
         if self.dynamics != TableDynamics():
             out["dynamics"] = self.dynamics.to_dict()
+        if self.link != LinkSettings():
+            out["controller"] = self.link.to_dict()
         return out
 
     @classmethod
@@ -747,7 +759,7 @@ class _Reader(TomlChecker):
         return TableModelError(f"{where}: {'.'.join(map(str, path))}: {problem}" if path else f"{where}: {problem}")
 
     def model(self, data: Mapping[str, Any]) -> TableModel:
-        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics"))
+        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -761,7 +773,21 @@ class _Reader(TomlChecker):
                                ("limits", "tilt"), _TILT_SPEC, vars(TABLE_IV.tilt))
         geometry = self.geometry(top["hexapod"]) if "hexapod" in top else HexapodGeometry.default()
         return TableModel(limits=TableLimits(**axes, tilt=TiltLimits(**tilt)), geometry=geometry,
-                          controller_rate=table["controller_rate"], dynamics=self.dynamics(top.get("dynamics", {})))
+                          controller_rate=table["controller_rate"], dynamics=self.dynamics(top.get("dynamics", {})),
+                          link=self.link(top.get("controller", {})))
+
+    def link(self, value: Any) -> LinkSettings:
+        """The ``[controller]`` section (``analysis.table.link``); errors name its line and key."""
+        table = self.table(value, ("controller",), tuple(LINK_KEYS))
+        for key in table:
+            self.real(table[key], ("controller", key))
+        values = {key: float(table[key]) for key in table}
+        try:
+            return LinkSettings.from_dict(values)
+        except ValueError as exc:
+            key = str(exc).partition(":")[0]
+            raise self.error(("controller", key) if key in table else ("controller",),
+                             str(exc).partition(": ")[2]) from None
 
     def dynamics(self, value: Any) -> TableDynamics:
         """The ``[dynamics]`` section (``analysis.table.dynamics``); errors name its line and key."""

@@ -95,7 +95,7 @@ _ANSWER = struct.Struct("<QBq")
 _CLOCK_REQUEST = struct.Struct("<q")
 _CLOCK_REPLY = struct.Struct("<qq")
 _SETPOINTS = struct.Struct("<IBqqH")
-_STATUS = struct.Struct("<qBIIIII6d")
+_STATUS = struct.Struct("<qBIIIII6dII")
 _ACCEL = struct.Struct("<HIqqI")
 _OVERTURN = struct.Struct("<QIbdq")
 _HEARTBEAT = struct.Struct("<q")
@@ -180,6 +180,10 @@ class StatusReport(NamedTuple):
     faults: int
     refused_commands: int
     pose: np.ndarray
+    buffer_capacity: int = 0
+    """Setpoint samples the controller's buffer holds (0: not reported)."""
+    samples_late: int = 0
+    """Setpoint samples that arrived after they were due (skipped), since power-up."""
 
 
 class AccelSamples(NamedTuple):
@@ -377,13 +381,15 @@ def decode_setpoints(payload: bytes) -> tuple[SetpointChunk, Received]:
 def encode_status(status: StatusReport) -> bytes:
     return _header(TableKind.STATUS) + _STATUS.pack(
         status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
-        status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64))
+        status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64),
+        status.buffer_capacity, status.samples_late)
 
 
 def decode_status(payload: bytes) -> StatusReport:
-    t_ns, state, depth, last, underruns, faults, refused, *pose = _fixed(payload, TableKind.STATUS, _STATUS)
+    t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = _fixed(payload, TableKind.STATUS,
+                                                                                         _STATUS)
     return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
-                        np.array(pose, dtype=np.float64))
+                        np.array(pose, dtype=np.float64), capacity, late)
 
 
 def encode_accel(batch: AccelSamples) -> bytes:

@@ -30,6 +30,8 @@ from .transform import TransformError, measured_inputs
 
 MODELS = ("rocking", "general")
 SOLVERS = ("fast", "reference")
+ANALYSED_STATUSES = frozenset({"completed"})
+"""Run statuses analysed by default (``degraded`` runs only when asked)."""
 
 
 def observed_directions(detections: list[dict[str, Any]]) -> dict[int, tuple[int, float]]:
@@ -85,7 +87,7 @@ def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor:
 
 
 def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solver: str, sensor: str | None,
-             restitution: float | str, written: bool) -> SessionAnalysis:
+             restitution: float | str, written: bool, include_degraded: bool = False) -> SessionAnalysis:
     runs: list[RunAnalysis] = []
     skipped: list[SkippedRun] = []
     fitted: dict[int, BodyRestitution] = {}
@@ -93,10 +95,15 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
     if restitution == "fit":
         fitted = fitted_restitution(session["runs"])
         impact = {body_id: body.value for body_id, body in fitted.items()}
+    analysed = ANALYSED_STATUSES | ({"degraded"} if include_degraded else set())
     for run in session["runs"]:
         status = str(run["status"])
-        if status != "completed":
-            reason = run["attrs"].get("reason") or f"status {status}: only completed runs are analysed"
+        if status not in analysed:
+            if status == "degraded":
+                reason = (f"degraded ({run['attrs'].get('degraded') or 'see its events'}): left out of Fig. 13 "
+                          "(rig analyze --include-degraded takes it)")
+            else:
+                reason = run["attrs"].get("reason") or f"status {status}: only completed runs are analysed"
             skipped.append(SkippedRun(run["name"], status, str(reason)))
             continue
         try:
@@ -116,8 +123,8 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
 
 
 def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS, solver: str = "fast", *,
-                    sensor: str | None = None, restitution: float | str = 0.0, write: bool = True
-                    ) -> SessionAnalysis:
+                    sensor: str | None = None, restitution: float | str = 0.0, write: bool = True,
+                    include_degraded: bool = False) -> SessionAnalysis:
     """Re-run ``models`` (``"rocking"``, ``"general"``) with ``solver`` (``"fast"``/``"reference"``) on every
     completed run of the session file at ``path`` (module docstring) and, with ``write``, store the result in its
     ``analysis`` groups, replacing earlier ones (`rig.analyze.store`; raw data untouched).
@@ -125,8 +132,9 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
     ``sensor``: use that accelerometer only (default: the mean of all). ``restitution``: the models' impact rule,
     0 (plastic, the paper's analysis: default), ``"housner"`` (1 − 1.5 sin²α, a rigid block's no-bounce impact)
     a number in [0, 1], or ``"fit"``: each body's from the session's measured tilts (`rig.analyze.restitution`;
-    a body that hardly rocked gets Housner's). Raises `AnalysisInputError` for a bad model/solver/restitution,
-    `rig.session.SessionError` for a file that cannot be read or (with ``write``) is being
+    a body that hardly rocked gets Housner's). ``include_degraded``: also the runs logged ``degraded`` (left out
+    by default, each listed in ``skipped`` with what degraded it). Raises `AnalysisInputError` for a bad
+    model/solver/restitution, `rig.session.SessionError` for a file that cannot be read or (with ``write``) is being
     written (`rig.analyze.store.SessionBusyError`).
     """
     models = tuple(dict.fromkeys(models))
@@ -138,8 +146,10 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
         resolve_restitution(Body(b=0.1, h=0.5), restitution)  # a bad value fails here, not as skipped bodies
     path = Path(path)
     if not write:
-        return _analyze(read_session(path), path, models, solver, sensor, restitution, written=False)
+        return _analyze(read_session(path), path, models, solver, sensor, restitution, written=False,
+                        include_degraded=include_degraded)
     with store.locked(path) as file:
-        result = _analyze(read_session(path), path, models, solver, sensor, restitution, written=True)
+        result = _analyze(read_session(path), path, models, solver, sensor, restitution, written=True,
+                          include_degraded=include_degraded)
         store.write(file, result)
     return result

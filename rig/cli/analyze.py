@@ -91,6 +91,10 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
         console.print(f"  body {body.body_id}: restitution {body.label()}", highlight=False)
     for skipped in result.skipped:
         console.print(f"  skipped run {skipped.run} ({skipped.status}): {skipped.reason}", highlight=False)
+    degraded = sum(1 for skipped in result.skipped if skipped.status == "degraded")
+    if degraded:
+        console.print(f"  {degraded} degraded run(s) left out of Fig. 13 (--include-degraded takes them)",
+                      highlight=False)
     for run in result.runs:
         for body_id, reason in run.skipped_bodies:
             console.print(f"  run {run.run}: body {body_id} not analysed: {reason}", highlight=False)
@@ -126,10 +130,14 @@ def register(app: typer.Typer) -> None:
                           ] = None,
         write: Annotated[bool, typer.Option("--write/--no-write", help="store the result in the session file")
                          ] = True,
+        include_degraded: Annotated[bool, typer.Option("--include-degraded", help="also analyse the runs logged "
+                                                       "degraded (an underrun, late setpoints, lost samples, a "
+                                                       "fault while the table moved)")] = False,
         as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
     ) -> None:
         """Re-run the models on each completed run's measured plate motion; predicted beside observed overturns
-        and the Fig. 13 comparison (COR per angle and body, analysis against experiment)."""
+        and the Fig. 13 comparison (COR per angle and body, analysis against experiment). Degraded runs are left
+        out (and counted) unless --include-degraded."""
         if model not in MODEL_CHOICES:
             fail(f"--model {model!r}: expected one of {', '.join(MODEL_CHOICES)}")
         try:
@@ -143,7 +151,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             result = analyze_session(path, MODEL_CHOICES[model], solver, sensor=sensor, restitution=impact,
-                                     write=write)
+                                     write=write, include_degraded=include_degraded)
         except (SessionError, AnalysisInputError, OSError) as exc:
             fail(str(exc))
         if as_json:

@@ -3,14 +3,19 @@
 The orchestrator runs in a worker thread; this thread draws the progress (a bar for the run and one for the
 session, a status line: table state, setpoint buffer, peak plate acceleration, detections), asks the operator's
 questions and takes Ctrl-C: the first pauses at the end of the current record (then: resume, or end the
-session there — it stays resumable), the second aborts at once (controlled stop, the run marked ``aborted``).
-Exit codes: 0 all runs done, 1 the session stopped early (resumable with ``--resume``), 2 bad input.
+session there — it stays resumable; unattended, ``--yes``, too: Enter resumes), the second aborts at once
+(controlled stop, the run marked ``aborted``), also at a prompt. An emulator started here runs in its own process
+group (``rig.emulator``): the terminal's Ctrl-C reaches ``rig``, not the table.
+Exit codes: 0 all runs done, 1 the session stopped early or a run is degraded (resumable with ``--resume``),
+2 bad input.
 """
 
 from __future__ import annotations
 
 import queue
+import select
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable
@@ -130,6 +135,7 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
             result.append(exc)
 
     interrupts = [0]
+    prompting = [False]  # this thread waits at a prompt: a second Ctrl-C interrupts it
 
     def on_sigint(signum: int, frame: object) -> None:
         interrupts[0] += 1
@@ -137,6 +143,8 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
             orchestrator.pause()
         else:
             threading.Thread(target=orchestrator.abort, daemon=True).start()
+            if prompting[0]:
+                raise KeyboardInterrupt
 
     worker = threading.Thread(target=work, name="orchestrator")
     previous = signal.signal(signal.SIGINT, on_sigint)
@@ -148,11 +156,21 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
                 asked = _next_question(operator)
                 if asked is not None:
                     live.stop()
-                    _answer(*asked)
+                    prompting[0] = True
+                    try:
+                        _answer(*asked)
+                    finally:
+                        prompting[0] = False
                     live.start()
                 if orchestrator.state is OrchestratorState.PAUSED:
                     live.stop()
-                    _paused(orchestrator, interrupts, yes, console)
+                    prompting[0] = True
+                    try:
+                        _paused(orchestrator, interrupts, yes, console)
+                    except KeyboardInterrupt:
+                        pass  # the second Ctrl-C: the handler has aborted
+                    finally:
+                        prompting[0] = False
                     live.start()
                 time.sleep(1 / REFRESH)
             live.update(screen.render())
@@ -164,6 +182,10 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
         raise outcome
     progress = orchestrator.progress
     console.print(f"\n[bold]{outcome.value}[/]: {progress.message}")
+    degraded = sorted(index + 1 for index, status in progress.outcomes.items() if status == "degraded")
+    if degraded:
+        console.print(f"[bold yellow]degraded[/]: run(s) {', '.join(map(str, degraded))} played, but not cleanly "
+                      "(their events say why): left out of Fig. 13; --resume plays them again")
     return outcome is OrchestratorState.DONE and progress.runs_done == progress.runs_total
 
 
@@ -190,8 +212,7 @@ def _paused(orchestrator: Orchestrator, interrupts: list[int], yes: bool, consol
     if interrupts[0] >= 2:
         return
     if yes:
-        console.print("paused (Ctrl-C): the session ends here; continue it with rig run --resume")
-        orchestrator.abort()
+        _paused_unattended(orchestrator, interrupts, console)
         return
     try:
         go_on = Confirm.ask("Paused at the end of the record. Resume?", default=True)
@@ -202,6 +223,31 @@ def _paused(orchestrator: Orchestrator, interrupts: list[int], yes: bool, consol
         orchestrator.resume()
     else:
         orchestrator.abort()
+
+
+def _paused_unattended(orchestrator: Orchestrator, interrupts: list[int], console: Any) -> None:
+    """``--yes`` and paused: wait — Enter resumes, a second Ctrl-C ends the session here (resumable), and so does
+    a resume or abort from the console or the service. Standard input that is closed is not read again."""
+    from rig.orchestrator import OrchestratorState
+
+    console.print("paused at the end of the record: press Enter to resume, Ctrl-C again to end the session here "
+                  "(rig run --resume continues it)")
+    reading = True
+    while orchestrator.state is OrchestratorState.PAUSED and interrupts[0] < 2:
+        if not reading:
+            time.sleep(0.25)
+            continue
+        try:
+            ready, _, _ = select.select([sys.stdin], [], [], 0.25)
+        except (OSError, ValueError, TypeError):  # no standard input to wait on
+            reading = False
+            continue
+        if ready:
+            if sys.stdin.readline():
+                interrupts[0] = 0
+                orchestrator.resume()
+                return
+            reading = False  # end of input: only Ctrl-C, the console or the service go on from here
 
 
 def register(app: typer.Typer) -> None:

@@ -25,10 +25,11 @@ def run_rows(session: dict[str, Any]) -> list[dict[str, Any]]:
         spans = [float(a[-1, 0] - a[0, 0]) for a in accel.values() if len(a)]
         detections = " ".join(f"{d['body_id']}:{d['direction']:+d}{'*' if d['source'] == 'operator' else ''}"
                               for d in run.get("detections", []))
+        attrs = run.get("attrs", {})
         rows.append({"run": run["name"], "plan": run["plan_index"] + 1, "record": run["record"],
                      "angle_deg": run["angle_deg"], "scale_factor": run["scale_factor"], "status": run["status"],
                      "samples": sum(len(a) for a in accel.values()), "seconds": max(spans, default=0.0),
-                     "overturns": detections or "-"})
+                     "overturns": detections or "-", "why": str(attrs.get("degraded") or attrs.get("reason") or "")})
     return rows
 
 
@@ -67,8 +68,12 @@ def print_session(path: Path, console: Any) -> None:
         scale = row["scale_factor"]
         table.add_row(row["run"], str(row["plan"]), row["record"], f"{row['angle_deg']:g}",
                       "-" if scale is None or math.isnan(scale) else f"{scale:.3f}", row["status"],
-                      str(row["samples"]), f"{row['seconds']:.1f}", row["overturns"])
+                      str(row["samples"]), f"{row['seconds']:.1f}", row["overturns"],
+                      style="yellow" if row["status"] == "degraded" else None)
     console.print(table)
+    for row in run_rows(session):
+        if row["status"] != "completed" and row["why"]:
+            console.print(f"  run {row['run']} {row['status']}: {row['why']}", highlight=False)
 
 
 def register(app: typer.Typer) -> None:

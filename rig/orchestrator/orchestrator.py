@@ -10,7 +10,12 @@
   checked (a run that cannot be played is logged ``refused`` with the reason and skipped), **running**: the run's
   group is opened in the session file with the commanded trajectory, the table's feedback is recorded while the
   drive streams (:class:`~rig.orchestrator.recorder.RunRecorder`), the overturns come from the table's sensors —
-  or from the operator when the sensors report none and the sequence asks — and the run ends ``completed``.
+  or from the operator when the sensors report none and the sequence asks — and the run ends ``completed``, or
+  ``degraded`` when anything went wrong while it moved (:func:`degradations`: an underrun, setpoints that came
+  late, accelerometer batches lost, a fault latched — a clipped setpoint, a stroke limit, a chunk gap): its
+  events say what and how often, ``rig analyze`` leaves it out of Fig. 13 unless asked, and ``--resume``
+  plays it again. A table link lost mid-run (no status for the rig TOML's ``link_timeout_s``) ends the run
+  ``interrupted`` and the session at once.
 - then **stopping** (home, disarm) and **done**.
 
 From any other thread: :meth:`pause` takes effect at the end of the current record (a record is never resumed
@@ -31,7 +36,16 @@ from typing import Any, NoReturn
 
 import numpy as np
 
-from drivers.controller import StreamAbortedError, TableController, TableError, open_table
+from analysis.table.link import BUFFER_MARGIN_S
+from drivers.controller import (
+    StreamAbortedError,
+    StreamReport,
+    TableController,
+    TableError,
+    TableLinkLostError,
+    TableStatus,
+    open_table,
+)
 from rig.orchestrator.live import LiveTap, commanded_fall_line
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.sinks import RunSink, SessionSink
@@ -46,8 +60,9 @@ from rig.orchestrator.states import (
 from rig.sequence import PlannedRun, Sequence, SequenceError
 from rig.session import SessionError
 
-LEAD = 0.075
-"""How far ahead of its first sample each setpoint chunk is sent [s] (docs/table-controller.md: 50–100 ms)."""
+LEAD = 1.0
+"""How far ahead of its first sample each setpoint chunk is sent [s] where no rig configuration says
+(``[controller] lead_s``; ``analysis.table.link``): a host stall shorter than this never starves the table."""
 
 LINGER = 0.5
 """How long the feedback is still recorded after a drive has played [s]: the last accelerometer batches and the
@@ -170,6 +185,7 @@ class Orchestrator:
         self._set(State.CONNECTING, f"connecting to {self.table_url}")
         try:
             with open_table(self.table_url, **self.table_options) as table:
+                table.link_timeout = self.sequence.table.link.link_timeout_s
                 with self._lock:
                     self._table = table
                 try:
@@ -182,6 +198,9 @@ class Orchestrator:
             final = State.FAULTED if exc.faulted else State.DONE
             self._set(final, str(exc))
             return final
+        except TableLinkLostError as exc:
+            self._set(State.FAULTED, f"interrupted: {exc}")
+            return State.FAULTED
         except (TableError, OSError) as exc:
             self._set(State.FAULTED, f"table: {exc}")
             return State.FAULTED
@@ -190,6 +209,7 @@ class Orchestrator:
 
     def _play(self, table: TableController, plan: list[PlannedRun]) -> None:
         self._check_stop()
+        self._check_buffer(table)
         if table.status().state != "armed":
             table.arm()
         for angle_index, group in itertools.groupby(plan, key=lambda run: run.angle_index):
@@ -206,6 +226,19 @@ class Orchestrator:
                 self._play_run(table, run)
         self._set(State.STOPPING, "all runs played: home")
         self._motion(lambda: table.home(timeout=COMMAND_TIMEOUT))
+
+    def _check_buffer(self, table: TableController) -> None:
+        """Refuse (before anything moves) a lead the controller's setpoint buffer cannot hold: the rig
+        configuration's ``lead_s`` and :data:`analysis.table.link.BUFFER_MARGIN_S` more, against the capacity its
+        status reports (a controller that reports none is not checked)."""
+        capacity = table.status().buffer_capacity
+        link, rate = self.sequence.table.link, self.sequence.table.controller_rate
+        needed = math.ceil((link.lead_s + BUFFER_MARGIN_S) * rate)
+        if capacity and needed > capacity:
+            raise SessionStoppedError(
+                f"the table's setpoint buffer holds {capacity} setpoint samples ({capacity / rate:g} s), but the rig "
+                f"configuration's [controller] lead_s = {link.lead_s:g} s needs {needed}: lower lead_s or raise "
+                "the controller's buffer", faulted=True)
 
     def _play_run(self, table: TableController, run: PlannedRun) -> None:
         self.progress.run = run
@@ -241,9 +274,13 @@ class Orchestrator:
         self.progress.samples_sent, self.progress.samples_total = 0, len(drive.t)
         self.progress.peak_accel, self.progress.detections = 0.0, 0
         self._set(State.RUNNING, f"run {run.plan_index + 1}: {entry.label()} at {run.angle_deg:g}°")
+        link = self.sequence.table.link
+        before, lost_before = table.status(), table.accel_batches_lost
         try:
-            report = table.stream(drive.t, drive.poses, lead=LEAD, on_progress=self._streamed,
+            report = table.stream(drive.t, drive.poses, lead=link.lead_s, on_progress=self._streamed,
                                   on_start=recorder.start)
+        except TableLinkLostError as exc:
+            self._end_interrupted(run, recorder, run_log, exc)
         except StreamAbortedError as exc:
             self._end_aborted(table, run, recorder, run_log, f"the table stopped the stream: {exc}")
         except TableError as exc:
@@ -253,8 +290,26 @@ class Orchestrator:
             self._set(State.WAITING, "which bodies fell?")
             for body_id, direction in self._ask(lambda: self.operator.which_fell(run, self.sequence.bodies)):
                 run_log.add_detection(float("nan"), body_id, direction, "operator")
-        run_log.end("completed", underruns=report.underruns, t_start_controller_ns=report.t_start_ns)
-        self._finish(run, "completed", f"run {run.plan_index + 1} completed: {len(recorder.detections)} overturns")
+        problems = degradations(before, report, table.accel_batches_lost - lost_before, recorder.faults_raised)
+        for problem in problems:
+            run_log.add_event(float("nan"), f"degraded: {problem}")
+        status = "degraded" if problems else "completed"
+        run_log.end(status, underruns=report.underruns, t_start_controller_ns=report.t_start_ns,
+                    lead_s=link.lead_s, link_timeout_s=link.link_timeout_s,
+                    buffer_capacity=before.buffer_capacity, degraded="; ".join(problems))
+        note = f": {'; '.join(problems)}" if problems else ""
+        self._finish(run, status, f"run {run.plan_index + 1} {status}: {len(recorder.detections)} overturns{note}")
+
+    def _end_interrupted(self, run: PlannedRun, recorder: RunRecorder, run_log: RunSink,
+                         lost: TableLinkLostError) -> NoReturn:
+        """The table link was lost mid-run: log the run ``interrupted`` and end the session at once (nothing
+        answers to wait for; the controller's own watchdog stops the table)."""
+        recorder.finish()
+        reason = f"table link lost: {lost}"
+        run_log.add_event(float("nan"), f"interrupted: {reason}")
+        run_log.end("interrupted", reason=reason)
+        self._finish(run, "interrupted", f"run {run.plan_index + 1} interrupted: {reason}")
+        raise lost
 
     def _end_aborted(self, table: TableController, run: PlannedRun, recorder: RunRecorder, run_log: RunSink,
                      reason: str) -> NoReturn:
@@ -269,11 +324,14 @@ class Orchestrator:
         raise SessionStoppedError(f"run {run.plan_index + 1} aborted ({why}): {reason}", faulted=why != "abort")
 
     def _settle_after_stop(self, table: TableController) -> None:
-        """After an abort or a table fault: wait until the table is at rest (armed home, or faulted)."""
+        """After an abort or a table fault: wait until the table is at rest (armed home, or faulted); a lost link
+        ends the wait at once (:class:`TableLinkLostError`, raised on)."""
         self._set(State.STOPPING, "the table stops and returns home")
         try:
             table.wait_for_status(lambda s: s.state in ("armed", "faulted", "emergency_stopped", "idle"),
                                   COMMAND_TIMEOUT)
+        except TableLinkLostError:
+            raise
         except TableError as exc:
             self._note(f"the table did not report rest: {exc}")
 
@@ -291,22 +349,44 @@ class Orchestrator:
         self._check_stop()
 
     def _ask(self, step: Callable[[], Any]) -> Any:
+        """An operator's step, as long as it takes (the link's heartbeats go on from its own thread); then the
+        table must still be where it was left: a table that stopped or faulted meanwhile ends the session, saying
+        why."""
         try:
             answer = step()
         except OperatorDeclinedError as exc:
             raise SessionStoppedError(f"the operator declined: {exc}") from None
         self._check_stop()
+        self._check_table("while waiting for the operator")
         return answer
+
+    def _check_table(self, when: str) -> None:
+        """Raise :class:`SessionStoppedError` (faulted) when the table left its armed hold ``when`` (a watchdog or
+        a fault stopped it), :class:`TableLinkLostError` when its link is lost; logged as the next run's event."""
+        table = self._table
+        if table is None:
+            return
+        table.check_link()
+        status = table.status()
+        if status.state != "armed":
+            why = f"the table was {status.state} {when} (faults: {', '.join(status.faults) or 'none'})"
+            self.log_event(why)
+            raise SessionStoppedError(why, faulted=True)
 
     def _wait_while_paused(self) -> None:
         with self._lock:
             if not self._pause_requested:
                 return
         self._set(State.PAUSED, "paused at the end of the record: resume to continue")
-        with self._lock:
-            while self._pause_requested and self._stop_requested is None:
+        while True:
+            with self._lock:
+                if not (self._pause_requested and self._stop_requested is None):
+                    break
                 self._lock.wait(0.5)
+            if self._table is not None:
+                self._table.check_link()  # a table lost while paused ends the session at once
         self._check_stop()
+        self._check_table("while paused")
 
     def _check_stop(self) -> None:
         if self._stop_requested is not None:
@@ -359,6 +439,26 @@ class Orchestrator:
     def _update(self) -> None:
         if self._on_update is not None:
             self._on_update(self.progress)
+
+
+def degradations(before: TableStatus, report: StreamReport, accel_batches_lost: int,
+                 faults: tuple[str, ...]) -> list[str]:
+    """What made a run that played to its end ``degraded``, each with its count (empty: ``completed``):
+    underruns and late setpoints counted by the controller over the stream (``before``: its status at the start,
+    ``report.final`` at the end), accelerometer batches lost on the link, fault bits latched during the run
+    (``faults``: ``SETPOINT_LIMIT``/``STROKE``: a setpoint clipped to the envelope; ``CHUNK_GAP``; any other)."""
+    final = report.final or before
+    problems = []
+    if report.underruns:
+        problems.append(f"{report.underruns} setpoint buffer underrun(s)")
+    late = final.samples_late - before.samples_late
+    if late > 0:
+        problems.append(f"{late} setpoint sample(s) arrived late and were skipped")
+    if accel_batches_lost > 0:
+        problems.append(f"{accel_batches_lost} accelerometer batch(es) lost")
+    if faults:
+        problems.append(f"fault(s) during the motion: {', '.join(faults)}")
+    return problems
 
 
 def _disarm_at_rest(table: TableController) -> None:

@@ -43,6 +43,7 @@ class RunRecorder:
         self.body_ids = body_ids
         self.progress = progress
         self.detections: list[tuple[float, int, int]] = []
+        self._faults_raised: list[str] = []
         self._accel = table.accelerations()
         self._tilts = table.tilts()
         self._statuses = table.statuses()
@@ -140,8 +141,14 @@ class RunRecorder:
             self.live.put("detection", t, body_id, detection.direction)
         self.progress.detections += 1
 
+    @property
+    def faults_raised(self) -> tuple[str, ...]:
+        """The fault bits the table latched while this run was recorded, each once, in order."""
+        return tuple(dict.fromkeys(self._faults_raised))
+
     def _write_fault(self, fault: FaultEvent) -> None:
         t = float(self._seconds(fault.t_ns))
+        self._faults_raised.extend(fault.raised)
         for name in fault.raised:
             self.run_log.add_fault(t, name, f"table {fault.state}; latched: {', '.join(fault.faults)}")
             if self.live is not None:

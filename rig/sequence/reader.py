@@ -42,7 +42,7 @@ BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "x", "y", "
 DIMENSIONS = ("b", "h", "depth", "mass")
 RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive")
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz")
-RIG_KEYS = ("config", "table", "limits", "hexapod")
+RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
 
 

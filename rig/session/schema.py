@@ -10,7 +10,10 @@ Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (floa
 ``sensors`` (JSON list of the accelerometer names), plus any extra attributes given by the caller.
 
 ``status`` is one of `FINAL_STATUSES`, or the transient value ``"running"`` while the run is being
-recorded. A file whose writer died keeps ``"running"`` until `SessionLog.resume` turns it into
+recorded. ``degraded``: the drive played to its end, but something went wrong while the table moved (an underrun,
+late setpoints, lost accelerometer batches, a fault such as a clipped setpoint); its events (``degraded: …``) and
+the attribute ``degraded`` say what, and it is not done: a resumed session plays it again.
+A file whose writer died keeps ``"running"`` until `SessionLog.resume` turns it into
 ``"interrupted"``. While ``"running"``, ``status`` and ``ended`` are stored as fixed-length UTF-8 strings
 (h5py reads them as ``bytes``); the final values are ordinary (variable-length) strings. This lets the final
 values replace them by changing one object-header page (see `rig.session.atomic`); `read_session` returns
@@ -45,7 +48,7 @@ SCHEMA = "shaketable-rig/session/1"
 
 RUNNING = "running"
 #: Statuses a run can end with.
-FINAL_STATUSES = ("completed", "aborted", "interrupted", "refused", "skipped")
+FINAL_STATUSES = ("completed", "degraded", "aborted", "interrupted", "refused", "skipped")
 #: Final statuses whose plan entry is done (not run again when a session resumes).
 DONE_STATUSES = frozenset({"completed", "refused", "skipped"})
 DETECTION_SOURCES = ("sensor", "operator")

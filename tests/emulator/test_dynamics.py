@@ -151,7 +151,7 @@ def test_the_emulator_chooses_its_legs_by_name():
     from sim_table.process import Emulator, parse_args
 
     listen = f"canopen://issue12-{uuid.uuid4().hex[:8]}?interface=virtual"
-    config, _ = parse_args(["--listen", listen, "--dynamics", "servo", "--body", "0.1x0.5@0.3,0;mass=20"])
+    config, _, _ = parse_args(["--listen", listen, "--dynamics", "servo", "--body", "0.1x0.5@0.3,0;mass=20"])
     assert config.dynamics == "servo"
     emulator = Emulator(config)
     try:

@@ -11,8 +11,10 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
+from typing import Any
 
 import h5py
 import numpy as np
@@ -100,13 +102,13 @@ def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp
     np.testing.assert_array_equal(runs[0]["accel"]["0"][: len(cut["accel"]["0"])], cut["accel"]["0"])
 
 
-def start_tiny(tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path, float]:
+def start_tiny(tmp_path: Path, stdin: int | None = None) -> tuple[subprocess.Popen[bytes], Path, float]:
     """``rig run`` of the tiny sequence on the emulator, in its own process group; returned once it is 1 s into
     the first record, with the time [s] of the last sample seen then."""
     (tmp_path / "tiny.toml").write_text(TINY)
     session = tmp_path / "s.h5"
     proc = subprocess.Popen([*RIG, "run", "tiny.toml", "--emulate", "--yes", "-o", str(session)], cwd=tmp_path,
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
+                            stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
     seen, deadline = 0.0, time.monotonic() + 120
     while seen < 1.0:
         assert time.monotonic() < deadline and proc.poll() is None
@@ -118,19 +120,86 @@ def start_tiny(tmp_path: Path) -> tuple[subprocess.Popen[bytes], Path, float]:
     return proc, session, seen
 
 
-@pytest.mark.parametrize("interrupts", [1, 2])
-def test_ctrl_c_pauses_at_the_end_of_the_record_twice_aborts(tmp_path: Path, interrupts: int) -> None:
-    """Unattended, the first Ctrl-C ends the session after the record being played (it completes, the next is not
-    begun); a second one aborts that record at once. Either way the session is resumable: exit code 1."""
+def emulator_of(proc: subprocess.Popen[bytes]) -> int:
+    """The pid of the emulator ``rig`` (``proc``) started (its child ``python -m sim_table``; Linux /proc)."""
+    for child in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split():
+        if b"sim_table" in Path(f"/proc/{child}/cmdline").read_bytes():
+            return int(child)
+    raise AssertionError("no emulator among rig's children")
+
+
+class Output:
+    """A process's standard output, collected by a thread as it comes."""
+
+    def __init__(self, proc: subprocess.Popen[bytes]) -> None:
+        self.text = b""
+        assert proc.stdout is not None
+        self._thread = threading.Thread(target=self._read, args=(proc.stdout,), daemon=True)
+        self._thread.start()
+
+    def _read(self, stream: Any) -> None:
+        for line in iter(stream.readline, b""):
+            self.text += line
+
+    def wait_for(self, needle: bytes, timeout: float = 120) -> None:
+        deadline = time.monotonic() + timeout
+        while needle not in self.text:
+            assert time.monotonic() < deadline, self.text.decode(errors="replace")
+            time.sleep(0.1)
+
+    def join(self) -> bytes:
+        self._thread.join(10)
+        return self.text
+
+
+def test_ctrl_c_pauses_at_the_end_of_the_record_and_enter_resumes_also_unattended(tmp_path: Path) -> None:
+    """``--yes`` too: the first Ctrl-C — sent to the whole process group, as a terminal does — pauses after the
+    record being played (it completes, the next is not begun) and the emulator lives on in its own group; Enter
+    resumes, and the session completes."""
+    proc, session, _ = start_tiny(tmp_path, stdin=subprocess.PIPE)
+    out = Output(proc)
+    emulator = emulator_of(proc)
+    os.killpg(proc.pid, signal.SIGINT)  # the terminal's Ctrl-C reaches rig's whole process group
+    out.wait_for(b"press Enter to resume")
+    time.sleep(1.0)  # paused: nothing begins
+    assert [r["status"] for r in read_session(session)["runs"]] == ["completed"]
+    assert proc.poll() is None and Path(f"/proc/{emulator}").exists()  # the table did not die under the session
+    assert proc.stdin is not None
+    proc.stdin.write(b"\n")
+    proc.stdin.flush()
+    assert proc.wait(timeout=120) == 0, out.join().decode(errors="replace")
+    assert [r["status"] for r in read_session(session)["runs"]] == ["completed", "completed"]
+
+
+@pytest.mark.parametrize("pause_first", [True, False])
+def test_a_second_ctrl_c_ends_the_session_resumably(tmp_path: Path, pause_first: bool) -> None:
+    """Paused (after the first Ctrl-C), the second ends the session there; before the pause took effect, it
+    aborts the record at once. Either way: exit code 1 and the resume hint."""
     proc, session, _ = start_tiny(tmp_path)
-    for _ in range(interrupts):
-        proc.send_signal(signal.SIGINT)  # the rig process only, as a terminal's Ctrl-C reaches the foreground job
+    out = Output(proc)
+    proc.send_signal(signal.SIGINT)
+    if pause_first:
+        out.wait_for(b"press Enter to resume")
+    else:
         time.sleep(0.2)
-    out, _ = proc.communicate(timeout=120)
-    assert proc.returncode == 1, out
+    proc.send_signal(signal.SIGINT)
+    assert proc.wait(timeout=120) == 1, out.join().decode(errors="replace")
     runs = read_session(session)["runs"]
-    assert [r["status"] for r in runs] == (["completed"] if interrupts == 1 else ["aborted"])
-    assert b"rig run --resume" in out
+    assert [r["status"] for r in runs] == (["completed"] if pause_first else ["aborted"])
+    assert b"rig run --resume" in out.join()
+
+
+def test_the_emulator_rig_started_ends_when_rig_is_killed(tmp_path: Path) -> None:
+    """``kill -9`` of rig mid-record: the emulator it started sees its parent gone and stops (within its parent
+    poll and its shutdown), leaving no process holding the port."""
+    proc, _, _ = start_tiny(tmp_path)
+    emulator = emulator_of(proc)
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 30
+    while Path(f"/proc/{emulator}").exists() and b"sim_table" in Path(f"/proc/{emulator}/cmdline").read_bytes():
+        assert time.monotonic() < deadline, "the emulator outlived rig"
+        time.sleep(0.1)
 
 
 @pytest.mark.parametrize(("edit", "where"), [

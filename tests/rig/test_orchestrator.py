@@ -63,10 +63,11 @@ def new_log(sequence: Sequence, path: Path) -> SessionLog:
 
 
 def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None,
-         operator: Any = None) -> tuple[OrchestratorState, dict[str, Any]]:
-    """Run the orchestrator in a thread against a fresh emulator; ``during(orchestrator)`` from this thread."""
+         operator: Any = None, emulator_flags: tuple[str, ...] = ()) -> tuple[OrchestratorState, dict[str, Any]]:
+    """Run the orchestrator in a thread against a fresh emulator (with ``emulator_flags``);
+    ``during(orchestrator)`` from this thread."""
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
-                                     key_file=key_file)  # virtual time: the same session as at 1x
+                                     *emulator_flags, key_file=key_file)  # virtual time: the same session as at 1x
     try:
         states = [OrchestratorState.IDLE]
 

@@ -152,7 +152,7 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
             table.arm()
             progress: list[tuple[int, int]] = []
             started = time.monotonic()
-            report: StreamReport = table.stream(drive.t, drive.poses, lead=0.05,
+            report: StreamReport = table.stream(drive.t, drive.poses,  # the default lead (1 s), as a lab plays
                                                 on_progress=lambda *p: progress.append(p))
             wall = time.monotonic() - started
             time.sleep(0.6)  # the last overturn event's repetitions (3 × 100 ms)

@@ -256,20 +256,24 @@ def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
                                                               key_file=key_file), key_file)
 
 
-def test_stalled_stream_underruns_then_the_watchdog_stops_the_table(key_file: Path) -> None:
+@pytest.mark.parametrize(("lead", "stopped_by"), [(0.2, "UNDERRUN"), (3.0, "STREAM_SILENT")])
+def test_a_stalled_stream_stops_the_table_home(key_file: Path, lead: float, stopped_by: str) -> None:
+    """The emulator drops every chunk from 0.5 s after the stream started (its clock at 2x: its 1 s watchdog is 2 s
+    of controller time). A lead shorter than that: the buffer runs dry first, an underrun, a controlled stop; a
+    longer one: the stream watchdog trips first, with samples still buffered. Either way the table goes home."""
     emulator = start_emulator("--stall-at", "0.5", "--speed", "2", key_file=key_file)
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             table.arm()
-            t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
-            with pytest.raises(StreamAbortedError, match="STREAM_SILENT"):
-                table.stream(t, poses)
+            t, poses = surge(6.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
+            with pytest.raises(StreamAbortedError, match=stopped_by):
+                table.stream(t, poses, lead=lead)
             final = table.wait_for_state("faulted", 10)
     finally:
         counters = emulator.stop()
-    assert set(final.faults) == {"STREAM_SILENT", "UNDERRUN"} and final.underruns == 1
+    assert set(final.faults) == {stopped_by} and final.underruns == (stopped_by == "UNDERRUN")
     np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)
-    assert counters["link"]["chunks_stalled"] > 0 and counters["watchdog_stops"] == 1
+    assert counters["link"]["chunks_stalled"] > 0 and counters["watchdog_stops"] == (stopped_by == "STREAM_SILENT")
 
 
 # ----- telemetry ----------------------------------------------------------------------------------------------
