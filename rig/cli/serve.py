@@ -340,6 +340,27 @@ def register(app: typer.Typer) -> None:
     command("estop", "emergency_stop", "Emergency stop: the table brakes.")
     command("state", "state", "The service's state, progress and session file.")
 
+    @service_app.command("queue")
+    def queue_cmd(
+        sequence: Annotated[Path, typer.Argument(metavar="SEQUENCE.toml", help="the test sequence")],
+        connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
+        table: Annotated[str | None, typer.Option(help="table URL (default: the sequence's table_url)")] = None,
+        emulate: Annotated[bool, typer.Option(help="the service starts the emulated table")] = False,
+        attended: Annotated[bool, typer.Option(help="the operator's steps wait for an answer from the console "
+                                                    "(place the bodies, and per the sequence confirm each run and "
+                                                    "say which bodies fell)")] = False,
+        output: Annotated[Path | None, typer.Option("-o", "--output", help="new session file")] = None,
+    ) -> None:
+        """Queue a session on the service (signed): the operator starts it from the console."""
+        from rig.service import ServiceClient, ServiceError
+
+        try:
+            with ServiceClient(connect, key_file) as client:
+                number = client.queue(sequence, table=table, emulate=emulate, output=output, attended=attended)
+        except ServiceError as exc:
+            fail(str(exc))
+        console.print(f"queued as session {number}: start it from the console", highlight=False)
+
     @service_app.command("token")
     def token_cmd(key_file: KeyOption = None) -> None:
         """Print the operator token the console's controls ask for: HMAC-SHA256(rig key, "operator-console")."""
