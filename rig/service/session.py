@@ -3,7 +3,9 @@ session (sequence read and checked, table or emulator, session file) and plays i
 
 The worker does what ``rig run --yes`` does (the steps of ``rig.orchestrator.setup``: the sequence read and
 checked, the table or emulator, the session file created or resumed), unattended: the service has no operator at a
-terminal, so bodies are taken as placed and runs start at once (a client confirms before it sends ``start``).
+terminal, so bodies are taken as placed and runs start at once (a client confirms before it sends ``start``) —
+unless the request is ``attended``: then the operator's steps wait for the service's ``answer`` command
+(:mod:`rig.service.operator`, the console's prompt box).
 """
 
 from __future__ import annotations
