@@ -4,7 +4,6 @@ session). The sessions run on the emulated table (``"emulate": true``: the servi
 
 from __future__ import annotations
 
-import math
 import os
 import secrets
 import signal
@@ -286,12 +285,16 @@ FORGED_SOURCE = ("console page, browser 127.0.0.1:5 (Firefox/120.0)\n"
 
 def test_a_queued_attended_session_is_started_and_answered_and_logged_as_the_transport_says(
         service: Service, client: ServiceClient, tiny: Path, tmp_path: Path) -> None:
-    """``queue`` (signed) lines a session up without starting it; ``start {"queued": id}`` starts it; an attended
-    session waits at "place the bodies" for ``answer`` (signed, the prompt's id). Every control is in the session's
-    events with the source the transport vouches for: an unsigned request's claimed source is not written, a signed
-    one's is, escaped on one line."""
+    """``queue`` (signed; ``rig service queue``) lines a session up without starting it; ``start {"queued": id}``
+    starts it; an attended session waits at "place the bodies" for ``answer`` (signed, the prompt's id). Every
+    control is in the session's events with the source the transport vouches for: an unsigned request's claimed
+    source is not written, a signed one's is, escaped on one line."""
     output = tmp_path / "attended.h5"
-    number = client.queue(tiny, emulate=True, attended=True, speed=math.inf, output=output)
+    queued = subprocess.run([str(Path(sys.executable).with_name("rig")), "service", "queue", str(tiny), "--connect",
+                             service.endpoint, "--key-file", str(service.key_file), "--emulate", "--attended",
+                             "--speed", "max", "-o", str(output)], capture_output=True, text=True, timeout=120)
+    assert queued.returncode == 0, queued.stdout + queued.stderr
+    number = int(queued.stdout.split("queued as session ")[1].split(":")[0])
     state = client.state()
     assert state["queue"] == [{"id": number, "name": "tiny.toml", "emulate": True, "attended": True}]
     assert not state["active"] and not output.exists()
