@@ -15,7 +15,8 @@ key                                         zenoh entity     payload (:mod:`prot
 ``shaketable/<rig>/alive/<role>``           liveliness token none (the token's presence is the message)
 ==========================================  ===============  =============================================
 
-Commands: ``start``, ``pause``, ``resume``, ``abort``, ``estop``, ``state`` (the last one only asks).
+Commands: ``start``, ``pause``, ``resume``, ``abort``, ``estop``, ``state`` (only asks), ``queue`` (a session to
+start later), ``answer`` (an operator's prompt).
 Names (rig or table, sensor, role) are 1..32 characters from ``a-z``, ``0-9``, ``-`` and ``_``, starting with a letter
 or digit: safe in a key expression (no ``/``, ``*``, ``$``, ``?``, ``#``) and in file names.
 
@@ -45,7 +46,7 @@ from typing import NamedTuple
 ROOT = "shaketable"
 """First chunk of every key."""
 
-SERVICE_COMMANDS = ("start", "pause", "resume", "abort", "estop", "state")
+SERVICE_COMMANDS = ("start", "pause", "resume", "abort", "estop", "state", "queue", "answer")
 """Last chunk of the service queryables' keys."""
 
 TELEMETRY_KINDS = ("status", "accel", "detection", "run")

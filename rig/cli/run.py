@@ -274,6 +274,10 @@ def register(app: typer.Typer) -> None:
             console_at: Annotated[str | None, typer.Option("--console", help="serve the operator's console (live "
                                                            "web page and controls) at HOST:PORT, e.g. "
                                                            "127.0.0.1:8080")] = None,
+            console_linger: Annotated[float | None, typer.Option(
+                "--console-linger", metavar="SECONDS", min=0.0,
+                help="with --console: close the console SECONDS after the session ends (default: it stays up "
+                     "showing the final state and the report until Ctrl-C)")] = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file."""
         if console_at is not None:
@@ -281,7 +285,7 @@ def register(app: typer.Typer) -> None:
 
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
-                                              speed=speed, service=service))
+                                              speed=speed, service=service, linger_s=console_linger))
 
         from rig.emulator import EmulatorError
         from rig.orchestrator.setup import (

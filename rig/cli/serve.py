@@ -282,6 +282,13 @@ def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool,
     say("stopped")
 
 
+def _parse_speed(text: str | float) -> float:
+    """``--speed`` (``rig.emulator.parse_speed``, imported when the option is given)."""
+    from rig.emulator import parse_speed
+
+    return parse_speed(text)
+
+
 def register(app: typer.Typer) -> None:
     """Add ``rig serve`` and the ``rig service`` commands to the ``rig`` application."""
 
@@ -339,6 +346,31 @@ def register(app: typer.Typer) -> None:
     command("abort", "abort", "Stop now: controlled stop, the run logged aborted.")
     command("estop", "emergency_stop", "Emergency stop: the table brakes.")
     command("state", "state", "The service's state, progress and session file.")
+
+    @service_app.command("queue")
+    def queue_cmd(
+        sequence: Annotated[Path, typer.Argument(metavar="SEQUENCE.toml", help="the test sequence")],
+        connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
+        table: Annotated[str | None, typer.Option(help="table URL (default: the sequence's table_url)")] = None,
+        emulate: Annotated[bool, typer.Option(help="the service starts the emulated table")] = False,
+        attended: Annotated[bool, typer.Option(help="the operator's steps wait for an answer from the console "
+                                                    "(place the bodies, and per the sequence confirm each run and "
+                                                    "say which bodies fell)")] = False,
+        output: Annotated[Path | None, typer.Option("-o", "--output", help="new session file")] = None,
+        speed: Annotated[float, typer.Option(parser=_parse_speed, metavar="FACTOR|max",
+                                             help="with --emulate: controller time per real time, or max (virtual "
+                                                  "time)")] = 1.0,
+    ) -> None:
+        """Queue a session on the service (signed): the operator starts it from the console."""
+        from rig.service import ServiceClient, ServiceError
+
+        try:
+            with ServiceClient(connect, key_file) as client:
+                number = client.queue(sequence, table=table, emulate=emulate, output=output, attended=attended,
+                                      speed=speed)
+        except ServiceError as exc:
+            fail(str(exc))
+        console.print(f"queued as session {number}: start it from the console", highlight=False)
 
     @service_app.command("token")
     def token_cmd(key_file: KeyOption = None) -> None:

@@ -8,14 +8,20 @@ status line, Ctrl-C pauses then aborts). Like every service session it runs unat
 placed (confirmed once at the start unless ``--yes``). Without a key (``--key-file`` or ``$SHAKETABLE_MAVLINK_KEY``)
 a one-session key is made, and the operator token printed here. With ``--service ENDPOINT`` too, only the console
 is started here, for that service.
+
+When the session ends the console **stays up** — the page keeps showing the final state, the faults and the link
+to the report, and its controls can start a session queued on the service (``rig service queue``) — until the
+operator presses Ctrl-C, or ``--console-linger SECONDS`` after the end (0: at once). The exit code is the session's.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import secrets
 import socket
 import tempfile
+import time
 from pathlib import Path
 from typing import Any
 
@@ -28,11 +34,29 @@ def _free_endpoint() -> str:
         return f"tcp/127.0.0.1:{probe.getsockname()[1]}"
 
 
+def linger(url: str | None, seconds: float | None, console: Any) -> None:
+    """Keep the console up after the session: until Ctrl-C, or ``seconds`` (None: no limit)."""
+    limit = math.inf if seconds is None else seconds
+    if limit <= 0:
+        return
+    until = "Ctrl-C closes it" if seconds is None else f"it closes in {seconds:g} s (Ctrl-C: now)"
+    console.print(f"the console stays up at {url} with the final state, the faults and the report; {until}",
+                  highlight=False)
+    deadline = time.monotonic() + limit
+    try:
+        while time.monotonic() < deadline:
+            time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
+    except KeyboardInterrupt:
+        pass
+    console.print("console closed", highlight=False)
+
+
 def run_with_console(http: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
                      resume: Path | None, yes: bool, console: Any, key_file: Path | None, speed: float,
-                     service: str | None = None) -> int:
-    """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``
-    (module docstring); the exit code of ``rig run --service`` (0 all runs done, 1 stopped early, 2 refused)."""
+                     service: str | None = None, linger_s: float | None = None) -> int:
+    """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``,
+    which stays up after it for ``linger_s`` s (None: until Ctrl-C) (module docstring); the exit code of ``rig run
+    --service`` (0 all runs done, 1 stopped early, 2 refused)."""
     from protocols.mavlink import KEY_ENV
     from rig.cli.serve import drive_service
     from rig.console.server import ConsoleError, ConsoleProcess
@@ -50,8 +74,10 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             return EXIT_USAGE
         with page:
             console.print(f"operator console: {page.url}", highlight=False)
-            return drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
+            code = drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
                                  yes=yes, console=console, key_file=key_file, speed=speed)
+            linger(page.url, linger_s, console)
+            return code
 
     with tempfile.TemporaryDirectory(prefix="rig-console-") as scratch:
         if key_file is None and not os.environ.get(KEY_ENV):
@@ -73,7 +99,9 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             with page:
                 console.print(f"operator console: {page.url} (operator token {token_from_key_file(key_file)})",
                               highlight=False)
-                return drive_service(endpoint, sequence, table=table, emulate=emulate, output=output, resume=resume,
+                code = drive_service(endpoint, sequence, table=table, emulate=emulate, output=output, resume=resume,
                                      yes=yes, console=console, key_file=key_file, speed=speed)
+                linger(page.url, linger_s, console)
+                return code
         finally:
             service.close()

@@ -5,6 +5,8 @@
 - :mod:`~rig.console.hub` — the connected browsers, one bounded queue each (frames dropped and counted)
 - :mod:`~rig.console.feed` — the rig service's zenoh telemetry, the console's only data path
 - :mod:`~rig.console.token` — the operator token, HMAC-SHA256(rig key, "operator-console")
+- :mod:`~rig.console.browsers` — the browser sessions the token opens (HttpOnly cookie, CSRF token)
+- :mod:`~rig.console.guard` — the HTTP connections bounded (request timeout, per-client and total caps)
 - :mod:`~rig.console.server` — serving it with uvicorn (``rig console``) and as a child process
 """
 

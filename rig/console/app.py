@@ -3,18 +3,30 @@
 ==========================  ====================================================================================
 ``GET /``                   the page (``static/index.html``; uPlot vendored under ``static/vendor/uplot``)
 ``WS /ws``                  ``hello`` (everything known so far), then every ``status`` and ``live`` message
-``GET /api/state``          the ``hello`` message and the browsers' counters (queued, sent, dropped)
-``POST /api/token``         ``{"ok": true}`` when the ``X-Operator-Token`` header holds the operator token
-``POST /api/control/{cmd}`` ``pause``, ``resume``, ``abort``, ``estop``: the service's reply (token required)
+``GET /api/state``          the ``hello`` message, the browsers' counters (queued, sent, dropped) and the
+                            connections' (open, closed as slow, evicted, refused: ``rig.console.guard``)
+``POST /api/token``         the ``X-Operator-Token`` header holds the operator token: a browser session opens
+                            (``rig.console.browsers``: HttpOnly cookie, the CSRF token in the reply)
+``GET /api/session``        ``{"unlocked": bool, "csrf": …}`` of this browser's session (a reloaded page)
+``POST /api/lock``          ends this browser's session
+``POST /api/control/{cmd}`` ``pause``, ``resume``, ``abort``, ``estop``, ``start`` (``{"queued": id}``),
+                            ``answer`` (``{"prompt": id, "reply": …, "fell": …}``): the service's reply
 ``GET /report``             the finished session's HTML report (``rig report``), made on first request
 ==========================  ====================================================================================
 
-**Controls** need the operator token (``rig.console.token``) in the ``X-Operator-Token`` header, a JSON body
-(``Content-Type: application/json``) and a same-origin request: a request whose ``Host`` is not one the console
-serves, or whose ``Origin`` (or ``Sec-Fetch-Site``) says it comes from another site, is refused with 403 before the
-token is looked at; there are no CORS headers, so a foreign page's preflight fails. Every control request that
-reaches the service is logged by it in the running session's events with its source (the browser's address and
-user agent). Without a token the page is read-only. A slow browser's messages are dropped (``rig.console.hub``).
+**Controls** need a JSON body (``Content-Type: application/json``), a same-origin request — a request whose ``Host``
+is not one the console serves, or whose ``Origin`` (or ``Sec-Fetch-Site``) says it comes from another site, is
+refused with 403 before anything else is looked at; there are no CORS headers, so a foreign page's preflight fails —
+and either the browser session's cookie with its CSRF token (``X-Console-CSRF``: the page) or the operator token
+itself (``X-Operator-Token``: a script or ``curl``). Every control that reaches the service is sent signed with the
+rig's key and names its source (the browser session, or the token's user); the service logs it in the running
+session's events. Without a token the page is read-only. A slow browser's messages are dropped
+(``rig.console.hub``).
+
+Every response carries a strict Content-Security-Policy (:data:`PAGE_POLICY`: scripts, styles and connections
+from the console itself only, no inline script, no frames) and ``nosniff``; the report is served sandboxed
+(:data:`REPORT_POLICY`: no script runs in it, and it has no origin to send controls from). Every text the page
+shows from the telemetry is escaped (``static/console.js``).
 """
 
 from __future__ import annotations
@@ -29,12 +41,15 @@ from typing import Any, Protocol
 
 from starlette.applications import Starlette
 from starlette.concurrency import run_in_threadpool
+from starlette.datastructures import MutableHeaders
+from starlette.middleware import Middleware
 from starlette.requests import HTTPConnection, Request
 from starlette.responses import FileResponse, HTMLResponse, JSONResponse, Response
 from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
+from rig.console.browsers import COOKIE, CSRF_HEADER, BrowserSessions
 from rig.console.hub import QUEUE_FRAMES, Hub
 from rig.console.state import ConsoleState
 from rig.console.token import token_matches
@@ -42,17 +57,33 @@ from rig.console.token import token_matches
 STATIC = Path(__file__).with_name("static")
 """The page, its script and style, and the vendored uPlot."""
 
-CONTROLS = ("pause", "resume", "abort", "estop")
+CONTROLS = ("pause", "resume", "abort", "estop", "start", "answer")
 """The commands the page can send."""
 
 FINAL_STATES = ("done", "faulted")
 
+PAGE_POLICY = ("default-src 'none'; script-src 'self'; style-src 'self'; img-src 'self' data:; connect-src 'self'; "
+               "base-uri 'none'; form-action 'self'; frame-ancestors 'none'")
+"""The Content-Security-Policy of every response but the report: nothing inline, nothing from elsewhere."""
+
+REPORT_POLICY = ("sandbox; default-src 'none'; style-src 'unsafe-inline'; img-src data:; base-uri 'none'; "
+                 "frame-ancestors 'none'")
+"""The report's policy: its inline styles and data-URI figures, no script, an opaque origin."""
+
+SECURITY_HEADERS = {"x-content-type-options": "nosniff", "referrer-policy": "no-referrer",
+                    "x-frame-options": "DENY"}
+"""Sent with every response (with the Content-Security-Policy)."""
+
+MAX_BODY = 4096
+"""Longest control request body read [bytes]."""
+
 
 class Controls(Protocol):
-    """Sends a command to the rig: ``command`` one of :data:`CONTROLS`, ``source`` who asked; the reply dict
-    (``ok``, ``message``, …); raises ``rig.service.ServiceError`` when refused. Blocking (called in a thread)."""
+    """Sends a command to the rig: ``command`` one of :data:`CONTROLS`, ``source`` who asked, ``args`` the request
+    body's (``start``: ``queued``; ``answer``: ``prompt``, ``reply``, ``fell``); the reply dict (``ok``,
+    ``message``, …); raises ``rig.service.ServiceError`` when refused. Blocking (called in a thread)."""
 
-    def command(self, command: str, source: str) -> dict[str, Any]: ...
+    def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]: ...
 
 
 class Console:
@@ -66,6 +97,8 @@ class Console:
         self.state = ConsoleState()
         self.hub = Hub(capacity)
         self.report_dir = report_dir
+        self.browsers = BrowserSessions()
+        self.connection_stats: Callable[[], dict[str, int]] = dict  # the server's (rig.console.guard)
         self._reports: dict[tuple[str, float], Path] = {}
 
     @property
@@ -105,14 +138,21 @@ BROWSERS = ("Edg", "OPR", "HeadlessChrome", "Chrome", "Firefox", "Safari")
 also names Safari, Edge's also Chrome)."""
 
 
-def source_of(conn: HTTPConnection) -> str:
-    """Who sent a request: the console page, the browser's address and its name and version from the user agent
-    (e.g. ``console page, browser 127.0.0.1:50412 (HeadlessChrome/131.0.6778.85)``)."""
-    client = f"{conn.client.host}:{conn.client.port}" if conn.client else "unknown address"
+def browser_of(conn: HTTPConnection) -> str:
+    """The browser's name and version from its user agent (e.g. ``HeadlessChrome/131.0.6778.85``)."""
     agent = conn.headers.get("user-agent", "")
-    products = dict(re.findall(r"([A-Za-z]+)/([\w.]+)", agent))
-    name = next((f"{b}/{products[b]}" for b in BROWSERS if b in products), agent[:40] or "no user agent")
-    return f"console page, browser {client} ({name})"
+    products = dict(re.findall(r"([A-Za-z]+)/([\w.]+)", agent[:512]))
+    return next((f"{b}/{products[b]}" for b in BROWSERS if b in products), agent[:40] or "no user agent")
+
+
+def client_of(conn: HTTPConnection) -> str:
+    """The request's peer address (the transport's, not a header's)."""
+    return conn.client.host if conn.client else "unknown address"
+
+
+def source_of(conn: HTTPConnection) -> str:
+    """Who is connected: the console page, the browser's address and its name (the hub's label for a browser)."""
+    return f"console page, browser {client_of(conn)} ({browser_of(conn)})"
 
 
 def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventLoop], None] | None = None,
@@ -124,12 +164,14 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         return HTMLResponse((STATIC / "index.html").read_text(encoding="utf-8"))
 
     async def state(request: Request) -> Response:
-        return JSONResponse({**console.state.hello(console.has_controls), "stats": console.hub.stats()})
+        return JSONResponse({**console.state.hello(console.has_controls), "stats": console.hub.stats(),
+                             "connections": console.connection_stats()})
 
     def refused(status: int, message: str) -> Response:
         return JSONResponse({"ok": False, "message": message}, status_code=status)
 
-    def check_control(request: Request) -> Response | None:
+    def check_request(request: Request) -> Response | None:
+        """Same origin, a JSON body, a console with controls; else the refusal."""
         reason = console.foreign(request)
         if reason is not None:
             return refused(403, f"refused: {reason}")
@@ -137,26 +179,69 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
             return refused(415, "refused: a control request has a JSON body (Content-Type: application/json)")
         if not console.has_controls:
             return refused(403, "refused: this console is read-only (no rig key: no operator token)")
-        if not token_matches(console.token, request.headers.get("x-operator-token")):
-            return refused(403, "refused: the operator token is missing or wrong (rig service token prints it)")
+        return None
+
+    def caller(request: Request) -> str | None:
+        """Who may send this control: the browser session (cookie and CSRF token) or the token's user."""
+        session = console.browsers.check(request.cookies.get(COOKIE), request.headers.get(CSRF_HEADER))
+        if session is not None:
+            return session.source()
+        if token_matches(console.token, request.headers.get("x-operator-token")):
+            return f"operator token from {client_of(request)} ({browser_of(request)})"
         return None
 
     async def token(request: Request) -> Response:
-        problem = check_control(request)
-        return problem or JSONResponse({"ok": True, "message": "operator token accepted"})
+        problem = check_request(request)
+        if problem is not None:
+            return problem
+        if not token_matches(console.token, request.headers.get("x-operator-token")):
+            return refused(403, "refused: the operator token is missing or wrong (rig service token prints it)")
+        session = console.browsers.open(client_of(request), browser_of(request))
+        reply = JSONResponse({"ok": True, "message": "operator token accepted: controls unlocked for this browser",
+                              "csrf": session.csrf, "session": session.number})
+        reply.set_cookie(COOKIE, session.cookie, max_age=int(console.browsers.lifetime), path="/", httponly=True,
+                         samesite="strict", secure=request.url.scheme == "https")
+        return reply
+
+    async def browser_session(request: Request) -> Response:
+        reason = console.foreign(request)
+        if reason is not None:
+            return refused(403, f"refused: {reason}")
+        session = console.browsers.find(request.cookies.get(COOKIE))
+        if session is None or not console.has_controls:
+            return JSONResponse({"unlocked": False})
+        return JSONResponse({"unlocked": True, "csrf": session.csrf, "session": session.number})
+
+    async def lock(request: Request) -> Response:
+        problem = check_request(request)
+        if problem is not None:
+            return problem
+        if console.browsers.check(request.cookies.get(COOKIE), request.headers.get(CSRF_HEADER)) is None:
+            return refused(403, "refused: this browser has no session to end")
+        console.browsers.close(request.cookies.get(COOKIE))
+        reply = JSONResponse({"ok": True, "message": "controls locked for this browser"})
+        reply.delete_cookie(COOKIE, path="/", httponly=True, samesite="strict")
+        return reply
 
     async def control(request: Request) -> Response:
         command = request.path_params["command"]
         if command not in CONTROLS:
             return refused(404, f"unknown control {command!r}; expected one of {', '.join(CONTROLS)}")
-        problem = check_control(request)
+        problem = check_request(request)
         if problem is not None:
             return problem
+        source = caller(request)
+        if source is None:
+            return refused(403, "refused: unlock the controls with the operator token first (rig service token "
+                                "prints it); the browser session is missing, expired or its CSRF token wrong")
+        args = await _json_args(request)
+        if isinstance(args, str):
+            return refused(400, f"refused: {args}")
         from rig.service import ServiceError
 
         assert console.controls is not None
         try:
-            reply = await run_in_threadpool(console.controls.command, command, source_of(request))
+            reply = await run_in_threadpool(console.controls.command, command, source, args)
         except ServiceError as exc:
             return refused(409, str(exc))
         return JSONResponse({"ok": True, "message": reply.get("message", ""), "state": reply.get("state")})
@@ -171,7 +256,7 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
             html = await run_in_threadpool(_report_of, console, session)
         except Exception as exc:  # the report could not be made: say why on the page
             return refused(500, f"the report of {session} could not be made: {type(exc).__name__}: {exc}")
-        return FileResponse(html, media_type="text/html")
+        return FileResponse(html, media_type="text/html", headers={"content-security-policy": REPORT_POLICY})
 
     async def feed(websocket: WebSocket) -> None:
         reason = console.foreign(websocket)
@@ -215,11 +300,51 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         Route("/", page),
         Route("/api/state", state),
         Route("/api/token", token, methods=["POST"]),
+        Route("/api/session", browser_session),
+        Route("/api/lock", lock, methods=["POST"]),
         Route("/api/control/{command}", control, methods=["POST"]),
         Route("/report", report),
         WebSocketRoute("/ws", feed),
         Mount("/static", StaticFiles(directory=STATIC), name="static"),
-    ], lifespan=lifespan)
+    ], lifespan=lifespan, middleware=[Middleware(SecurityHeaders)])
+
+
+class SecurityHeaders:
+    """ASGI middleware: :data:`PAGE_POLICY` (unless the response set its own) and :data:`SECURITY_HEADERS` on every
+    HTTP response."""
+
+    def __init__(self, app: Any) -> None:
+        self.app = app
+
+    async def __call__(self, scope: Any, receive: Any, send: Any) -> None:
+        if scope["type"] != "http":
+            await self.app(scope, receive, send)
+            return
+
+        async def with_headers(message: Any) -> None:
+            if message["type"] == "http.response.start":
+                headers = MutableHeaders(scope=message)
+                if "content-security-policy" not in headers:
+                    headers["content-security-policy"] = PAGE_POLICY
+                for name, value in SECURITY_HEADERS.items():
+                    headers[name] = value
+            await send(message)
+
+        await self.app(scope, receive, with_headers)
+
+
+async def _json_args(request: Request) -> dict[str, Any] | str:
+    """The control request's JSON object (at most :data:`MAX_BODY` bytes), or why it is not one."""
+    body = b""
+    async for chunk in request.stream():
+        body += chunk
+        if len(body) > MAX_BODY:
+            return f"the request body is longer than {MAX_BODY} bytes"
+    try:
+        args = json.loads(body or b"{}")
+    except ValueError:
+        return "the request body is not JSON"
+    return args if isinstance(args, dict) else "the request body is not a JSON object"
 
 
 async def _until_closed(websocket: WebSocket) -> None:

@@ -22,6 +22,7 @@ from typing import Any
 from protocols.mavlink import SigningKeyError
 from rig.console.app import Console, create_app
 from rig.console.feed import TelemetrySubscription
+from rig.console.guard import ConnectionGuard, guarded_protocol
 from rig.console.token import token_from_key_file
 from rig.service import DEFAULT_RIG, ServiceClient
 
@@ -65,19 +66,37 @@ class ServiceControls:
         self.client = client
         self._lock = threading.Lock()
 
-    def command(self, command: str, source: str) -> dict[str, Any]:
-        method = {"pause": self.client.pause, "resume": self.client.resume, "abort": self.client.abort,
-                  "estop": self.client.emergency_stop}[command]
+    def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]:
         with self._lock:
+            if command == "start":
+                session = self.client.start_queued(args.get("queued"))  # type: ignore[arg-type]
+                return {"ok": True, "message": f"session started: {session}", "state": "starting"}
+            if command == "answer":
+                return self.client.answer(args.get("prompt"), args.get("reply"), args.get("fell"),  # type: ignore[arg-type]
+                                          source=source)
+            method = {"pause": self.client.pause, "resume": self.client.resume, "abort": self.client.abort,
+                      "estop": self.client.emergency_stop}[command]
             return method(source=source)
+
+
+def console_server(console: Console, host: str, port: int, *, say: Callable[[str], None] = lambda message: None,
+                   on_startup: Callable[[Any], None] | None = None, on_shutdown: Callable[[], None] | None = None,
+                   guard: ConnectionGuard | None = None) -> Any:
+    """The uvicorn server of ``console`` at ``host``:``port`` (not yet running: ``.run()``), its connections bounded
+    by ``guard`` (:mod:`rig.console.guard`; default: its defaults, logging to ``say``)."""
+    import uvicorn
+
+    guard = guard or ConnectionGuard(say)
+    console.connection_stats = guard.stats
+    app = create_app(console, on_startup=on_startup, on_shutdown=on_shutdown)
+    return uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on",
+                                         loop="asyncio", http=guarded_protocol(guard), timeout_keep_alive=5))
 
 
 def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
                   say: Callable[[str], None] = lambda message: None) -> None:
     """Serve the console at ``http`` (``HOST:PORT``) for the rig service at ``connect`` until SIGINT/SIGTERM.
     Without the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) the page is read-only."""
-    import uvicorn
-
     host, port = parse_http(http)
     try:
         token: str | None = token_from_key_file(key_file)
@@ -100,8 +119,7 @@ def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig:
         for sub in subscription:
             sub.close()
 
-    app = create_app(console, on_startup=startup, on_shutdown=shutdown)
-    server = uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on"))
+    server = console_server(console, host, port, say=say, on_startup=startup, on_shutdown=shutdown)
     announce = threading.Thread(target=_announce, args=(server, say), daemon=True)
     announce.start()
     try:
@@ -123,8 +141,9 @@ def _announce(server: Any, say: Callable[[str], None]) -> None:
 
 
 class ConsoleProcess:
-    """``python -m rig.console`` as a child process (``rig serve --http``, ``rig run --console``): started and
-    waited for until it serves; its stderr forwarded to ``say``; :meth:`stop` ends it (SIGTERM)."""
+    """``python -m rig.console`` as a child process (``rig serve --http``, ``rig run --console``) in a session of its
+    own (the terminal's Ctrl-C is the parent's to handle): started and waited for until it serves; its stderr
+    forwarded to ``say``; :meth:`stop` ends it (SIGTERM)."""
 
     def __init__(self, connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
                  say: Callable[[str], None] = lambda message: None) -> None:
@@ -135,8 +154,9 @@ class ConsoleProcess:
         self.url: str | None = None
         self._say = say
         self._ready = threading.Event()
+        # a session of its own: the terminal's Ctrl-C (which pauses the run) does not reach the console
         self.proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
-                                     env=os.environ.copy())
+                                     env=os.environ.copy(), start_new_session=True)
         self._reader = threading.Thread(target=self._read, daemon=True)
         self._reader.start()
         deadline = time.monotonic() + START_WAIT

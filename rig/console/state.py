@@ -1,6 +1,7 @@
 """What the console knows of the running test, from the service's telemetry: the last status, the current run's
-header, the last :data:`WINDOW_S` seconds of measured fall-line acceleration and pose, the run's detections and
-faults. A browser that connects gets all of it at once (:meth:`ConsoleState.hello`), then every message as it
+header, the last :data:`WINDOW_S` seconds of measured fall-line acceleration and pose, the run's detections, and the
+session's faults, each with the ``plan_index`` of the run it happened in (the service's tag, else the run whose
+header came last). A browser that connects gets all of it at once (:meth:`ConsoleState.hello`), then every message as it
 comes."""
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ class ConsoleState:
     def on_live(self, frame: dict[str, Any]) -> dict[str, Any]:
         """A live frame (``rig.service.telemetry.LivePublisher``); the message for the browsers."""
         header = frame.get("header")
+        if header is not None and frame.get("session") != self.session:
+            self.faults.clear()  # a new session: its faults only
         if header is not None and (self.header is None or frame.get("session") != self.session
                                    or header.get("plan_index") != self.header.get("plan_index")):
             self.accel.clear()
@@ -47,8 +50,10 @@ class ConsoleState:
         self.pose.extend(zip(pose.get("t", []), pose.get("p", []), strict=False))
         self._trim()
         self.detections.extend(frame.get("detections", []))
-        self.faults.extend(frame.get("faults", []))
-        return {"type": "live", **frame}
+        current = None if self.header is None else self.header.get("plan_index")
+        faults = [{**f, "plan_index": f.get("plan_index", current)} for f in frame.get("faults", [])]
+        self.faults.extend(faults)
+        return {"type": "live", **frame, "faults": faults}
 
     def _trim(self) -> None:
         for series in (self.accel, self.pose):

@@ -4,8 +4,8 @@
 
 The rig's key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``) signs the table link and the service's motion
 commands; the token is derived from it so that it changes with the key, and it cannot be turned back into the key
-(HMAC is one-way). ``rig service token`` prints it for the operator, who gives it once on the page; the browser
-keeps it for its session (``sessionStorage``). Compared in constant time.
+(HMAC is one-way). ``rig service token`` prints it for the operator, who gives it once on the page; the page does
+not keep it: the console opens a browser session instead (:mod:`rig.console.browsers`). Compared in constant time.
 """
 
 from __future__ import annotations

@@ -4,6 +4,8 @@
 - :mod:`~rig.service.wire` — requests, replies, signatures and the service's errors
 - :mod:`~rig.service.server` — :class:`OrchestratorService` (one session at a time, in a worker thread)
 - :mod:`~rig.service.session` — the ``start`` request and the session's worker
+- :mod:`~rig.service.operator` — the operator of an attended session, answered by the ``answer`` command
+- :mod:`~rig.service.audit` — a control request's source as the transport vouches for it, escaped
 - :mod:`~rig.service.telemetry` — the throttled status publications
 - :mod:`~rig.service.client` — :class:`ServiceClient` and its :class:`TelemetryFeed`
 """

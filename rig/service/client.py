@@ -7,14 +7,16 @@ telemetry (``rig run --service``, ``rig service …``, other programs).
             for status in feed:            # dicts: state, message, session, active, progress, t_ns, seq
                 ...
         client.pause(); client.resume(); client.abort(); client.emergency_stop(); client.state()
+        number = client.queue(Path("examples/quick.toml"), emulate=True, attended=True)   # started later:
+        client.start_queued(number); client.answer(prompt_id, "done")                    # e.g. from the console
 
 ``pause``/``resume``/``abort``/``emergency_stop`` take an optional ``source`` (who asked: the service logs every
-control request in the running session's events with it, else as "zenoh client").
+control request in the running session's events with it when the request is signed — ``rig.service.audit``).
 
 Every command returns the service's reply (:mod:`rig.service.wire`) or raises :class:`~rig.service.wire.ServiceError`
 with the service's reason; :class:`~rig.service.wire.ServiceUnavailableError` when no service answers.
-``start`` and ``resume`` are signed with the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; unsigned when
-neither is given — a service that checks signatures then refuses them).
+With the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) every command but ``state`` is signed; ``start``,
+``resume``, ``queue`` and ``answer`` must be (without a key a service that checks signatures refuses them).
 """
 
 from __future__ import annotations
@@ -34,7 +36,7 @@ from protocols.mavlink import KEY_ENV, SigningKeyError, load_signing_key
 from protocols.zenoh import EndpointError, session_config
 from protocols.zenoh.auth import Signer
 from protocols.zenoh.payloads import Kind, PayloadError, decode_json
-from rig.service.keys import DEFAULT_RIG, SIGNED_COMMANDS, ServiceKeys
+from rig.service.keys import DEFAULT_RIG, ServiceKeys
 from rig.service.session import StartRequest
 from rig.service.telemetry import IDLE_PERIOD
 from rig.service.wire import ServiceError, ServiceUnavailableError, decode_reply, encode_request, sign
@@ -149,13 +151,30 @@ class ServiceClient:
         :class:`~rig.service.session.StartRequest`); the session file's path on the service's host. Paths are sent
         absolute (this process's working directory); the reply comes once the session runs."""
 
-        def absolute(path: Path | None) -> Path | None:
-            return None if path is None else Path(path).expanduser().absolute()
-
-        request = StartRequest(absolute(sequence), sequence_toml, sequence_name, table, emulate, speed,
-                               absolute(output), absolute(resume))
+        request = StartRequest(_absolute(sequence), sequence_toml, sequence_name, table, emulate, speed,
+                               _absolute(output), _absolute(resume))
         reply = self._command("start", request.to_args(), timeout=timeout, retries=0)
         return reply["session"]
+
+    def queue(self, sequence: Path | None = None, *, table: str | None = None, emulate: bool = False,
+              speed: float = 1.0, output: Path | None = None, resume: Path | None = None,
+              attended: bool = False) -> int:
+        """Queue a session (as :meth:`start`; ``attended``: its operator steps wait for :meth:`answer`) without
+        starting it; its number in the service's queue (the status's ``queue``)."""
+        request = StartRequest(_absolute(sequence), None, "sequence", table, emulate, speed, _absolute(output),
+                               _absolute(resume), attended)
+        return int(self._command("queue", request.to_args(), retries=0)["queued"])
+
+    def start_queued(self, number: int, timeout: float = START_TIMEOUT) -> str:
+        """Start the queued session ``number`` (signed); the session file's path."""
+        return self._command("start", {"queued": number}, timeout=timeout, retries=0)["session"]
+
+    def answer(self, prompt: int, reply: str = "done", fell: list[list[int]] | None = None,
+               source: str | None = None) -> dict[str, Any]:
+        """Answer the attended session's prompt ``prompt`` (``rig.service.operator``): ``"done"`` or
+        ``"decline"``; ``fell`` ``[[body_id, ±1], …]`` for a "which bodies fell" prompt."""
+        return self._command("answer", {"prompt": prompt, "reply": reply, "fell": fell or [], **_source(source)},
+                             retries=0)
 
     def pause(self, source: str | None = None) -> dict[str, Any]:
         """Pause at the end of the current record (the table holds its tilt)."""
@@ -189,7 +208,7 @@ class ServiceClient:
         timeout = self.timeout if timeout is None else timeout
         errors: list[str] = []
         for _ in range(retries + 1):
-            attachment = sign(self._signer, key, payload) if self._signer and command in SIGNED_COMMANDS else None
+            attachment = sign(self._signer, key, payload) if self._signer and command != "state" else None
             try:
                 replies = self._session.get(key, payload=payload, attachment=attachment, timeout=timeout)
             except zenoh.ZError as exc:
@@ -220,6 +239,10 @@ class ServiceClient:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _absolute(path: Path | None) -> Path | None:
+    return None if path is None else Path(path).expanduser().absolute()
 
 
 def _source(source: str | None) -> dict[str, Any]:

@@ -8,6 +8,8 @@ They are the keys of :mod:`protocols.zenoh.keys` for one rig name (default :data
     shaketable/<rig>/service/abort     queryable   controlled stop now (the run logged ``aborted``)
     shaketable/<rig>/service/estop     queryable   emergency stop (brake)
     shaketable/<rig>/service/state     queryable   the current progress and session path
+    shaketable/<rig>/service/queue     queryable   queue a session, started later by ``start`` (signed)
+    shaketable/<rig>/service/answer    queryable   answer the operator's prompt of an attended session (signed)
     shaketable/<rig>/telemetry/status  publication the progress (STATUS payload), ≤ 10 Hz and on every state change
     shaketable/<rig>/telemetry/run     publication a run's outcome (RUN payload) when it is known
     shaketable/<rig>/alive/service     liveliness  present while ``rig serve`` runs
@@ -22,11 +24,12 @@ from protocols.zenoh import SERVICE_COMMANDS, alive_key, service_key, telemetry_
 DEFAULT_RIG = "rig"
 """The rig's name in the key space when none is given."""
 
-SIGNED_COMMANDS = frozenset({"start", "resume"})
-"""Commands that make the table move: accepted only when signed with the rig's key (``rig.service.server``)."""
+SIGNED_COMMANDS = frozenset({"start", "resume", "queue", "answer"})
+"""Commands that make the table move (or line up a session that will): accepted only when signed with the rig's key
+(``rig.service.server``). A client with the key signs the others too, so that the service can name it in its log."""
 
 COMMANDS = SERVICE_COMMANDS
-"""Every service command (``start``, ``pause``, ``resume``, ``abort``, ``estop``, ``state``)."""
+"""Every service command (``start``, ``pause``, ``resume``, ``abort``, ``estop``, ``state``, ``queue``, ``answer``)."""
 
 
 class ServiceKeys(NamedTuple):

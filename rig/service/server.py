@@ -15,9 +15,19 @@ command     args                                                       reply (``
 ``abort``   ``{}``                                                     controlled stop now
 ``estop``   ``{}``                                                     emergency stop (brake) now
 ``state``   ``{}``                                                     the progress and session path
+``queue``   a :class:`~rig.service.session.StartRequest`'s args        ``queued``: its id; started later
+``start``   ``{"queued": id}``: the queued session ``id``              as ``start`` above
+``answer``  ``{"prompt": id, "reply": "done"|"decline", "fell": …}``   the attended session's prompt
+                                                                       answered (:mod:`rig.service.operator`)
 ==========  =========================================================  =================================
 
-Every reply carries ``state``, ``message``, ``session``, ``active``, ``progress`` and ``seq`` (the number of the
+The control requests (``pause``, ``resume``, ``abort``, ``estop``, ``answer``) may carry a ``source`` (who asked,
+e.g. the console's browser session); every one is logged in the running session's events with the source the
+transport vouches for (:mod:`rig.service.audit`: a ``source`` is written only from a request signed with the rig's key).
+
+Every reply (and STATUS publication) carries ``state``, ``message``, ``session``, ``active``, ``progress``, ``queue``
+(the queued sessions: ``id``, ``name``, ``emulate``, ``attended``), ``prompt`` (the attended session's waiting prompt,
+or null) and ``seq`` (the number of the
 last STATUS published before it: a status with a lower one is older than the reply). Refusals (``ok`` false):
 a malformed request, a bad sequence (its ``FILE:LINE: key: problem``), a session file that exists, a table or an
 emulator that cannot be reached, ``start`` while a session is prepared or played, and ``pause``/``resume``/
@@ -26,13 +36,14 @@ emulator that cannot be reached, ``start`` while a session is prepared or played
 One session at a time, played by :class:`~rig.service.session.ServiceSession` in a worker thread; its progress is
 published as telemetry (:mod:`rig.service.telemetry`).
 
-**Authentication.** ``start`` and ``resume`` make the table move: they are accepted only when signed with the rig's
-key (the table link's HMAC-SHA256 scheme, :mod:`protocols.zenoh.auth`, with its replay stamps; the signature is the
-query's attachment). ``pause``, ``abort``, ``estop`` and ``state`` are accepted from anyone on the zenoh network:
-stopping the table must never wait for a key, and the network is loopback only. The key is ``key_file``, else
-``$SHAKETABLE_MAVLINK_KEY``; the same key goes to the table's driver (and the emulator of ``emulate`` sessions).
-``require_auth=False`` (``rig serve --no-auth``) checks no signatures (``key_file`` then only goes to the table), for
-a bench without a table.
+**Authentication.** ``start``, ``resume``, ``queue`` and ``answer`` make the table move (or line up a session that
+will): they are accepted only when signed with the rig's key (the table link's HMAC-SHA256 scheme,
+:mod:`protocols.zenoh.auth`, with its replay stamps; the signature is the query's attachment). ``pause``,
+``abort``, ``estop`` and ``state`` are accepted from anyone on the zenoh network: stopping the table must never wait
+for a key, and the network is loopback only (a client with the key signs them too, to be named in the log). The key
+is ``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; the same key goes to the table's driver (and the emulator of
+``emulate`` sessions). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures (``key_file`` then
+only goes to the table), for a bench without a table.
 """
 
 from __future__ import annotations
@@ -52,16 +63,21 @@ from protocols.zenoh import EndpointError, session_config
 from protocols.zenoh.auth import Verdict, Verifier
 from protocols.zenoh.payloads import PayloadError
 from rig.orchestrator import Progress
+from rig.service.audit import escaped, request_source
 from rig.service.keys import COMMANDS, DEFAULT_RIG, SIGNED_COMMANDS, ServiceKeys
+from rig.service.operator import AnswerRefusedError
 from rig.service.session import ServiceSession, StartRefusedError, StartRequest
-from rig.service.telemetry import LivePublisher, TelemetryPublisher
+from rig.service.telemetry import LivePublisher, TelemetryPublisher, display_limits
 from rig.service.wire import REFUSALS, ServiceError, decode_request, encode_reply, verify
 
 FINISH_WAIT = 30.0
 """How long ``start`` waits for a finished session to let go of its table or emulator [s]."""
 
-LOGGED_CONTROLS = frozenset({"pause", "resume", "abort", "estop"})
+LOGGED_CONTROLS = frozenset({"pause", "resume", "abort", "estop", "answer"})
 """Commands logged in the running session's events with their source."""
+
+MAX_QUEUED = 32
+"""Most sessions waiting in the service's queue."""
 
 SHUTDOWN_WAIT = 150.0
 """How long :meth:`OrchestratorService.close` waits for an aborted session to come to rest [s]."""
@@ -88,6 +104,8 @@ class OrchestratorService:
         self._lock = threading.Lock()
         self._starting: ServiceSession | None = None
         self._current: ServiceSession | None = None
+        self._queue: list[tuple[int, StartRequest]] = []
+        self._queued = 0
         try:
             self.sessions_dir.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
@@ -127,22 +145,26 @@ class OrchestratorService:
         """The status fields of every reply and STATUS publication (:mod:`rig.service.wire`)."""
         with self._lock:
             session = self._starting or self._current
+            queue = [{"id": n, "name": _name_of(r), "emulate": r.emulate, "attended": r.attended}
+                     for n, r in self._queue]
         if session is None:
             return {"state": "idle", "message": "no session yet", "session": None, "active": False,
-                    "progress": _plain(_progress_dict(None))}
+                    "progress": _plain(_progress_dict(None)), "queue": queue, "prompt": None}
         progress = _progress_dict(session)
         starting = session.orchestrator is None and session.alive
+        prompt = session.operator.prompt if session.operator is not None and session.alive else None
         return {"state": "starting" if starting else progress["state"], "message": progress["message"],
                 "session": None if session.path is None else str(session.path), "active": session.alive,
-                "progress": _plain(progress)}
+                "progress": _plain(progress), "queue": queue, "prompt": prompt}
 
-    def _live_tap(self) -> tuple[str | None, Any] | None:
-        """The current session's file and its orchestrator's live tap, or None."""
+    def _live_tap(self) -> tuple[str | None, Any, dict[str, float] | None] | None:
+        """The current session's file, its orchestrator's live tap and its table's display limits, or None."""
         with self._lock:
             session = self._current
         if session is None or session.orchestrator is None:
             return None
-        return (None if session.path is None else str(session.path)), session.orchestrator.live
+        limits = display_limits(session.orchestrator.sequence.table.limits)
+        return (None if session.path is None else str(session.path)), session.orchestrator.live, limits
 
     def _running(self) -> ServiceSession | None:
         """The session being played (not finished), else None."""
@@ -166,14 +188,16 @@ class OrchestratorService:
             except PayloadError as exc:
                 query.reply_err(f"{command}: {exc}".encode())
                 return
+            verdict = self._verdict(command, payload, attachment)
             if asked != command:
                 ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
-            elif (refusal := self._refusal(command, payload, attachment)) is not None:
-                ok, message, extra = False, f"{command} refused: {refusal}", {}
+            elif command in SIGNED_COMMANDS and verdict not in (None, Verdict.SIGNED):
+                ok, message, extra = False, f"{command} refused: {REFUSALS[verdict]}", {}
             else:
-                ok, message, extra = getattr(self, f"_{command}")(args)
+                handler = self._queue_session if command == "queue" else getattr(self, f"_{command}")
+                ok, message, extra = handler(args)
             if command in LOGGED_CONTROLS and asked == command:
-                self._log_control(command, args, ok, message)
+                self._log_control(command, request_source(args.get("source"), verdict, attachment), ok, message)
             if not ok:
                 self._say(f"{command}: {message}")
             status = {**self.snapshot(), "seq": self._telemetry.published, **extra}
@@ -188,12 +212,12 @@ class OrchestratorService:
         finally:
             query.drop()
 
-    def _log_control(self, command: str, args: dict[str, Any], ok: bool, message: str) -> None:
+    def _log_control(self, command: str, source: str, ok: bool, message: str) -> None:
         """A control request into the running session's events (``Orchestrator.log_event``) and to ``say``, with
-        its source (the request's ``source`` argument, e.g. the console's browser; else "zenoh client")."""
-        source = args.get("source") if isinstance(args.get("source"), str) else "zenoh client"
+        its source as the transport vouches for it (:func:`rig.service.audit.request_source`, escaped there); the
+        message escaped too: one request, one line."""
         stamp = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime())
-        text = f"{stamp} control {command} from {source}: {'accepted' if ok else 'refused: ' + message}"
+        text = f"{stamp} control {command} from {source}: {'accepted' if ok else 'refused: ' + escaped(message)}"
         self._say(text)
         with self._lock:
             session = self._starting or self._current
@@ -201,18 +225,65 @@ class OrchestratorService:
         if orchestrator is not None:
             orchestrator.log_event(text)
 
-    def _refusal(self, command: str, payload: bytes, attachment: bytes | None) -> str | None:
-        if command not in SIGNED_COMMANDS or self._verifier is None:
+    def _verdict(self, command: str, payload: bytes, attachment: bytes | None) -> Verdict | None:
+        """The request's signature checked (None: the service checks none). A signed ``pause`` is checked too, so
+        that its source can be trusted; ``state`` is never logged and not checked."""
+        if self._verifier is None or command == "state":
             return None
         with self._verify_lock:
-            verdict = verify(self._verifier, self.keys.commands[command], payload, attachment)
-        return None if verdict is Verdict.SIGNED else REFUSALS[verdict]
+            return verify(self._verifier, self.keys.commands[command], payload, attachment)
+
+    def _queue_session(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        try:
+            request = StartRequest.from_args(args, self.sessions_dir)
+        except StartRefusedError as exc:
+            return False, str(exc).replace("start:", "queue:", 1), {}
+        with self._lock:
+            if len(self._queue) >= MAX_QUEUED:
+                return False, f"the queue is full ({MAX_QUEUED} sessions): start or wait for one first", {}
+            self._queued += 1
+            self._queue.append((self._queued, request))
+            number = self._queued
+        self._telemetry.changed()
+        return True, f"queued as session {number}: {_name_of(request)}", {"queued": number}
 
     def _start(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        if "queued" in args:
+            return self._start_queued(args)
         try:
             request = StartRequest.from_args(args, self.sessions_dir)
         except StartRefusedError as exc:
             return False, str(exc), {}
+        return self._start_request(request)
+
+    def _start_queued(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        """``start`` of the queued session ``args["queued"]``: taken off the queue only when it starts."""
+        number = args.get("queued")
+        if set(args) != {"queued"} or isinstance(number, bool) or not isinstance(number, int):
+            return False, "start: give {\"queued\": ID} alone to start a queued session", {}
+        with self._lock:
+            request = next((r for n, r in self._queue if n == number), None)
+        if request is None:
+            return False, f"start: no session {number} in the queue", {}
+        ok, message, extra = self._start_request(request)
+        if ok:
+            with self._lock:
+                self._queue = [(n, r) for n, r in self._queue if n != number]
+            self._telemetry.changed()
+        return ok, message, extra
+
+    def _answer(self, args: dict[str, Any]) -> tuple[bool, str, dict[str, Any]]:
+        with self._lock:
+            session = self._current
+        operator = None if session is None or not session.alive else session.operator
+        if operator is None:
+            return False, "answer: no attended session is running (nothing asks the operator)", {}
+        try:
+            return True, operator.answer(args.get("prompt"), args.get("reply"), args.get("fell")), {}
+        except AnswerRefusedError as exc:
+            return False, f"answer: {exc}", {}
+
+    def _start_request(self, request: StartRequest) -> tuple[bool, str, dict[str, Any]]:
         deadline = time.monotonic() + FINISH_WAIT
         while True:
             with self._lock:
@@ -323,6 +394,13 @@ class OrchestratorService:
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def _name_of(request: StartRequest) -> str:
+    """A queued session's name: its sequence's (or resumed file's) name."""
+    if request.resume is not None:
+        return f"resume {request.resume.name}"
+    return request.sequence.name if request.sequence is not None else f"{request.sequence_name}.toml"
 
 
 def _progress_dict(session: ServiceSession | None) -> dict[str, Any]:

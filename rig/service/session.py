@@ -3,7 +3,9 @@ session (sequence read and checked, table or emulator, session file) and plays i
 
 The worker does what ``rig run --yes`` does (the steps of ``rig.orchestrator.setup``: the sequence read and
 checked, the table or emulator, the session file created or resumed), unattended: the service has no operator at a
-terminal, so bodies are taken as placed and runs start at once (a client confirms before it sends ``start``).
+terminal, so bodies are taken as placed and runs start at once (a client confirms before it sends ``start``) —
+unless the request is ``attended``: then the operator's steps wait for the service's ``answer`` command
+(:mod:`rig.service.operator`, the console's prompt box).
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from rig.emulator import EmulatorError
 from rig.orchestrator import Orchestrator, OrchestratorState, Progress
 from rig.orchestrator.setup import NoTableError, create_log, default_session_path, load_checked, table_for
 from rig.sequence import Sequence, SequenceError
+from rig.service.operator import RemoteOperator
 from rig.session import SessionError, SessionLog
 
 _SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.-]{0,63}")
@@ -42,7 +45,9 @@ class StartRequest:
     (``speed``: its controller time per real time, math.inf for virtual time: ``"max"`` in the request's
     ``args``); ``output``: the new session file (default
     ``session-DATE-TIME-NAME.h5`` in the service's sessions directory); ``resume``: continue that session file
-    instead (no sequence then). Relative paths are taken from the sessions directory.
+    instead (no sequence then); ``attended``: the operator's steps (place the bodies, and per the sequence confirm
+    each run and say which bodies fell) wait for the service's ``answer`` command (:mod:`rig.service.operator`),
+    else the session runs unattended. Relative paths are taken from the sessions directory.
     """
 
     sequence: Path | None = None
@@ -53,6 +58,7 @@ class StartRequest:
     speed: float = 1.0
     output: Path | None = None
     resume: Path | None = None
+    attended: bool = False
 
     def to_args(self) -> dict[str, Any]:
         """The request's ``args`` (paths as given: make them absolute on the client)."""
@@ -60,7 +66,7 @@ class StartRequest:
                 "sequence_toml": self.sequence_toml, "sequence_name": self.sequence_name, "table": self.table,
                 "emulate": self.emulate, "speed": "max" if math.isinf(self.speed) else self.speed,
                 "output": None if self.output is None else str(self.output),
-                "resume": None if self.resume is None else str(self.resume)}
+                "resume": None if self.resume is None else str(self.resume), "attended": self.attended}
 
     @classmethod
     def from_args(cls, args: dict[str, Any], base: Path) -> StartRequest:
@@ -84,9 +90,10 @@ class StartRequest:
                 raise StartRefusedError(f"start: {name} must be a string, got {type(value).__name__}")
             return value
 
-        emulate, speed = args.get("emulate", False), args.get("speed", 1.0)
-        if not isinstance(emulate, bool):
-            raise StartRefusedError(f"start: emulate must be true or false, got {emulate!r}")
+        emulate, speed, attended = args.get("emulate", False), args.get("speed", 1.0), args.get("attended", False)
+        for name, flag in (("emulate", emulate), ("attended", attended)):
+            if not isinstance(flag, bool):
+                raise StartRefusedError(f"start: {name} must be true or false, got {flag!r}")
         if speed == "max":
             speed = math.inf
         elif isinstance(speed, bool) or not isinstance(speed, int | float) or not (math.isfinite(speed) and speed > 0):
@@ -95,7 +102,7 @@ class StartRequest:
         if not _SAFE_NAME.fullmatch(name):
             raise StartRefusedError(f"start: sequence_name {name!r} must be 1..64 letters, digits, '.', '-', '_'")
         request = cls(path("sequence"), text("sequence_toml", None), name, text("table", None), emulate,
-                      float(speed), path("output"), path("resume"))
+                      float(speed), path("output"), path("resume"), attended)
         given = sum(x is not None for x in (request.sequence, request.sequence_toml, request.resume))
         if given != 1:
             raise StartRefusedError("start: give exactly one of sequence (a file), sequence_toml (its text) or "
@@ -110,7 +117,7 @@ class ServiceSession:
 
     ``on_update()`` is called (from the worker's and the orchestrator's threads) whenever :attr:`progress` changes;
     ``say(message)`` reports to the service's log. After :meth:`wait_started`, :attr:`error` tells why it did not
-    start (None: it runs, its file at :attr:`path`).
+    start (None: it runs, its file at :attr:`path`). An attended request's steps wait for :attr:`operator`.
     """
 
     def __init__(self, request: StartRequest, *, sessions_dir: Path, key_file: Path | None,
@@ -129,6 +136,7 @@ class ServiceSession:
         self._done = threading.Event()
         self._lock = threading.Lock()
         self._pending_stop: str | None = None  # "abort" | "emergency stop" asked before the orchestrator existed
+        self.operator = RemoteOperator(on_change=on_update) if request.attended else None
         self.thread = threading.Thread(target=self._work, name="service-session", daemon=True)
 
     # ----- from the service's threads -------------------------------------------------------------------
@@ -159,6 +167,8 @@ class ServiceSession:
                 self._pending_stop = kind
                 return
         orchestrator.abort() if kind == "abort" else orchestrator.emergency_stop()
+        if self.operator is not None:  # a prompt waiting: the orchestrator stops instead of waiting on
+            self.operator.cancel()
 
     # ----- the worker -------------------------------------------------------------------------------------
 
@@ -188,7 +198,7 @@ class ServiceSession:
                 self._started.set()
                 return
             orchestrator = Orchestrator(sequence, self._url, log, table_options=self._options,
-                                        on_update=lambda progress: self._on_update())
+                                        operator=self.operator, on_update=lambda progress: self._on_update())
             with self._lock:
                 self.orchestrator, self.progress = orchestrator, orchestrator.progress
                 pending = self._pending_stop

@@ -10,10 +10,11 @@ does (so that a monitor that subscribed late, or a client waiting on a paused se
 at :data:`LIVE_RATE` frames a second: STATUS-kind JSON payloads with ``state`` ``"live"``, ``t_ns``, ``seq``,
 ``session`` and what arrived since the last frame — ``accel`` (``t``, ``a``: measured fall-line acceleration
 [s, m/s²], 50 Hz block means), ``pose`` (``t``, ``p``: surge, sway, heave [m], roll, pitch, yaw [rad]),
-``detections`` (``t``, ``body_id``, ``direction``), ``faults`` (``t``, ``name``, ``detail``) — and ``header`` (the
-run's header: record, angle, scale factor, duration, plan, bodies, commanded fall-line acceleration) when a run
-begins and every :data:`HEADER_PERIOD` s during it, so that a console that subscribes late has it. A frame holds
-at most what the bounded tap holds; a frame that cannot be published is dropped (``LivePublisher.dropped``).
+``detections`` (``t``, ``body_id``, ``direction``), ``faults`` (``t``, ``name``, ``detail``, ``plan_index``: the
+run it happened in) — and ``header`` (the run's header: record, angle, scale factor, duration, plan, bodies,
+commanded fall-line acceleration, and ``limits``: the table's, for the display's scales) when a run begins and
+every :data:`HEADER_PERIOD` s during it, so that a console that subscribes late has it. A frame holds at most what
+the bounded tap holds; a frame that cannot be published is dropped (``LivePublisher.dropped``).
 """
 
 from __future__ import annotations
@@ -131,12 +132,20 @@ class TelemetryPublisher:
             pass
 
 
+def display_limits(limits: Any) -> dict[str, float]:
+    """The table's limits (``analysis.table.TableLimits``) a display scales its plots by: the translations'
+    displacement limits [m] and the tilt's angle limit [deg]."""
+    return {"surge_m": limits.surge.displacement, "sway_m": limits.lateral.displacement,
+            "heave_m": limits.heave.displacement, "tilt_deg": math.degrees(limits.tilt.angle)}
+
+
 class LivePublisher:
-    """Publishes the live tap of ``tap_of()`` (the running session's ``(session path, LiveTap)``, or None) on
-    :func:`live_key` (module docstring), from its own thread."""
+    """Publishes the live tap of ``tap_of()`` (the running session's ``(session path, LiveTap, limits)``, or None;
+    ``limits``: :func:`display_limits` of its table, or None) on :func:`live_key` (module docstring), from its own
+    thread."""
 
     def __init__(self, session: zenoh.Session, keys: ServiceKeys,
-                 tap_of: Callable[[], tuple[str | None, Any] | None]) -> None:
+                 tap_of: Callable[[], tuple[str | None, Any, dict[str, float] | None] | None]) -> None:
         self._publisher = session.declare_publisher(live_key(keys))
         self._tap_of = tap_of
         self._stop = threading.Event()
@@ -144,6 +153,7 @@ class LivePublisher:
         self.dropped = 0
         self._header_sent: tuple[int, Any] | None = None
         self._header_time = 0.0
+        self._run_of: tuple[int, Any] = (0, None)  # (id of the tap, plan_index of the run its items belong to)
         self._thread = threading.Thread(target=self._loop, name="service-live", daemon=True)
         self._thread.start()
 
@@ -159,16 +169,21 @@ class LivePublisher:
             if current is not None:
                 self._frame(*current)
 
-    def _frame(self, session: str | None, tap: Any) -> None:
+    def _frame(self, session: str | None, tap: Any, limits: dict[str, float] | None = None) -> None:
         """Publish what the tap holds: one frame, or one per run when a run began since the last frame (a run's
         tail and the next run's beginning never share a frame: a display clears its plots at a new header)."""
         frame = _empty_frame(session)
-        for item in tap.drain():
+        items = tap.drain()
+        if self._run_of[0] != id(tap):  # a new session's tap: its items before a run's header are the header's run
+            begun = any(item[0] == "run" for item in items)
+            self._run_of = (id(tap), None if begun or tap.header is None else tap.header.get("plan_index"))
+        for item in items:
             kind = item[0]
             if kind == "run":
                 self._publish(frame)
                 frame = _empty_frame(session)
-                frame["header"] = item[1]
+                frame["header"] = {**item[1], "limits": limits}
+                self._run_of = (id(tap), item[1].get("plan_index"))
                 self._header_sent, self._header_time = (id(tap), id(item[1])), time.monotonic()
             elif kind == "accel":
                 frame["accel"]["t"].extend(item[1])
@@ -179,12 +194,13 @@ class LivePublisher:
             elif kind == "detection":
                 frame["detections"].append({"t": item[1], "body_id": item[2], "direction": item[3]})
             elif kind == "fault":
-                frame["faults"].append({"t": item[1], "name": item[2], "detail": item[3]})
+                frame["faults"].append({"t": item[1], "name": item[2], "detail": item[3],
+                                        "plan_index": self._run_of[1]})
         header = tap.header
         now = time.monotonic()
         if "header" not in frame and header is not None and (
                 self._header_sent != (id(tap), id(header)) or now - self._header_time > HEADER_PERIOD):
-            frame["header"] = header
+            frame["header"] = {**header, "limits": limits}
             self._header_sent, self._header_time = (id(tap), id(header)), now
         self._publish(frame)
 

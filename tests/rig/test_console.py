@@ -53,10 +53,12 @@ class RecordingControls:
 
     def __init__(self, refuse: tuple[str, ...] = ()) -> None:
         self.calls: list[tuple[str, str]] = []
+        self.args: list[dict[str, Any]] = []
         self.refuse = refuse
 
-    def command(self, command: str, source: str) -> dict[str, Any]:
+    def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]:
         self.calls.append((command, source))
+        self.args.append(args)
         if command in self.refuse:
             raise ServiceError(f"cannot {command}: no session is running")
         return {"ok": True, "state": "running", "message": f"{command} requested"}
@@ -109,7 +111,7 @@ def test_controls_need_the_token_a_json_body_and_the_same_origin(key: bytes) -> 
             assert ok.status_code == 200 and ok.json() == {"ok": True, "message": f"{command} requested",
                                                            "state": "running"}
         assert [c for c, _ in controls.calls] == ["pause", "resume", "abort", "estop"]
-        assert all(source.startswith("console page, browser testclient") for _, source in controls.calls)
+        assert all(source.startswith("operator token from testclient") for _, source in controls.calls)
         assert client.post("/api/token", headers={**SAME, "X-Operator-Token": token}).json()["ok"]
         # no CORS: a foreign page's preflight gets no Access-Control-Allow-Origin
         preflight = client.options("/api/control/pause", headers={"Origin": "http://evil.example",
@@ -240,7 +242,7 @@ def published_frames(keys: ServiceKeys, tap: LiveTap, enough: int) -> list[dict[
         probe.undeclare()
         time.sleep(0.2)
         frames.clear()
-        publisher = LivePublisher(publisher_session, keys, lambda: ("s.h5", tap))
+        publisher = LivePublisher(publisher_session, keys, lambda: ("s.h5", tap, None))
         try:
             deadline = time.monotonic() + 30
             while len(frames) < enough and time.monotonic() < deadline:

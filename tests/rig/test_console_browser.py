@@ -100,7 +100,7 @@ def test_the_console_follows_a_session_and_controls_it(service: ServiceWithConso
                                                        tmp_path: Path) -> None:
     page = browser.new_page()
     page.goto(service.url)
-    page.wait_for_function("window.consoleStats && window.consoleStats.hello >= 1")
+    page.wait_for_function("() => window.consoleStats && window.consoleStats.hello >= 1")
     assert page.get_attribute("#pause", "disabled") is not None  # read-only until the token is given
     assert page.is_visible("#estop")
 
@@ -110,7 +110,7 @@ def test_the_console_follows_a_session_and_controls_it(service: ServiceWithConso
         session = Path(client.start(sequence, emulate=True))
 
         # the plots update: live frames arrive and are drawn
-        page.wait_for_function("window.consoleStats.draws >= 5", timeout=60_000)
+        page.wait_for_function("() => window.consoleStats.draws >= 5", timeout=60_000)
         before = page.evaluate("[window.consoleStats.frames, window.consoleStats.draws]")
         page.wait_for_timeout(1000)
         after = page.evaluate("[window.consoleStats.frames, window.consoleStats.draws]")
@@ -136,18 +136,20 @@ def test_the_console_follows_a_session_and_controls_it(service: ServiceWithConso
         # the operator gives the token once; pause at the end of the record
         page.fill("#token", token)
         page.click("#unlock")
-        page.wait_for_function("!document.getElementById('pause').disabled")
+        page.wait_for_function("() => !document.getElementById('pause').disabled")
         assert "unlocked" in page.inner_text("#control-mode")
         page.click("#pause")
-        page.wait_for_function("document.getElementById('state').dataset.state === 'paused'", timeout=60_000)
+        page.wait_for_function("() => document.getElementById('state').dataset.state === 'paused'",
+                               timeout=60_000)
         assert client.state()["state"] == "paused"
         # the first record overturned the body (the emulator's specimen): the detection is on the plate
-        page.wait_for_function("window.consoleStats.detections >= 1", timeout=10_000)
+        page.wait_for_function("() => window.consoleStats.detections >= 1", timeout=10_000)
         assert "fell to the" in page.inner_text("#detections")
 
         page.click("#resume")
-        page.wait_for_function("document.getElementById('state').dataset.state === 'running'", timeout=60_000)
-        page.wait_for_function("window.consoleStats.planIndex === 1 && window.consoleStats.lastT > 4.5",
+        page.wait_for_function("() => document.getElementById('state').dataset.state === 'running'",
+                               timeout=60_000)
+        page.wait_for_function("() => window.consoleStats.planIndex === 1 && window.consoleStats.lastT > 4.5",
                                timeout=60_000)  # most of the second record
         shown = page.evaluate("[document.getElementById('table-state').textContent, "
                               "JSON.stringify(window.consoleStats), document.getElementById('message').textContent]")
@@ -158,13 +160,15 @@ def test_the_console_follows_a_session_and_controls_it(service: ServiceWithConso
         if os.environ.get("RIG_CONSOLE_SCREENSHOT"):
             Path(os.environ["RIG_CONSOLE_SCREENSHOT"]).write_bytes(screenshot.read_bytes())
         wait_until(lambda: not client.state()["active"], 120)
-    page.wait_for_function("['done', 'faulted'].includes(document.getElementById('state').dataset.state)")
+    page.wait_for_function("() => ['done', 'faulted'].includes(document.getElementById('state').dataset.state)")
     assert page.is_visible("#report")
 
     with h5py.File(session, "r", swmr=True) as h5:
         events = [text.decode() for run in h5["runs"].values() for _, text in run["events"][:]]
     controls = [e for e in events if " control " in e]
     assert len(controls) == 2, events
-    assert " control pause from console page, browser 127.0.0.1:" in controls[0] and controls[0].endswith("accepted")
-    assert " control resume from console page, browser 127.0.0.1:" in controls[1]
-    assert "HeadlessChrome" in controls[0]
+    # the source as the console's signed request names it: the browser session that unlocked the controls
+    assert " control pause from console browser session 1, unlocked " in controls[0]
+    assert controls[0].endswith("accepted") and " from 127.0.0.1 (HeadlessChrome/" in controls[0]
+    assert "(signed: rig key holder " in controls[0]
+    assert " control resume from console browser session 1, unlocked " in controls[1]

@@ -1,6 +1,7 @@
 """``rig run … --console HOST:PORT`` without a separate service: the console serves the run's state from the
 in-process service's telemetry while the emulated table plays the tiny sequence, and the run ends as ``rig run
---service`` does (exit code 0 when every run is done)."""
+--service`` does (exit code 0 when every run is done) — at once with ``--console-linger 0``, else once the operator
+closes the console that outlived the run."""
 
 from __future__ import annotations
 
@@ -36,7 +37,8 @@ def test_rig_run_with_a_console(tmp_path: Path) -> None:
     url = f"http://127.0.0.1:{free_port()}/"
     env = {k: v for k, v in os.environ.items() if k != "SHAKETABLE_MAVLINK_KEY"}
     run = subprocess.Popen([str(Path(sys.executable).with_name("rig")), "run", str(sequence), "--emulate", "--yes",
-                            "--console", url.removeprefix("http://").rstrip("/")], cwd=tmp_path, env=env,
+                            "--console", url.removeprefix("http://").rstrip("/"), "--console-linger", "0"],
+                           cwd=tmp_path, env=env,
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     seen: set[str] = set()
     frames = 0
@@ -60,3 +62,44 @@ def test_rig_run_with_a_console(tmp_path: Path) -> None:
     assert run.returncode in (0, 1), output  # 1: the emulator faulted under load (the message says so)
     if run.returncode == 0:
         assert "done: 2 of 2 runs done" in output
+
+
+@pytest.mark.slow  # a whole session (virtual time) through an in-process service and the console
+def test_the_console_outlives_the_run_until_ctrl_c(tmp_path: Path) -> None:
+    """After the session the console still answers: the final state, the report (sandboxed); Ctrl-C (SIGINT to the
+    process group, as a terminal sends it) closes it and ``rig run`` exits with the session's code."""
+    import signal
+
+    sequence = tmp_path / "tiny.toml"
+    sequence.write_text(TINY)
+    url = f"http://127.0.0.1:{free_port()}/"
+    env = {k: v for k, v in os.environ.items() if k != "SHAKETABLE_MAVLINK_KEY"}
+    log = tmp_path / "run.log"
+    with log.open("w") as out:
+        run = subprocess.Popen([str(Path(sys.executable).with_name("rig")), "run", str(sequence), "--emulate",
+                                "--yes", "--speed", "max", "--console", url.removeprefix("http://").rstrip("/")],
+                               cwd=tmp_path, env=env, stdout=out, stderr=subprocess.STDOUT, text=True,
+                               start_new_session=True)
+    try:
+        deadline = time.monotonic() + 180
+        while "the console stays up" not in log.read_text():
+            assert run.poll() is None, log.read_text()
+            assert time.monotonic() < deadline, log.read_text()
+            time.sleep(0.2)
+        time.sleep(2.0)  # the session is over: the page still answers, with its final state
+        final = state(url)
+        assert final is not None and final["status"]["state"] == "done" and not final["status"]["active"]
+        assert final["status"]["progress"]["outcomes"] == {"0": "completed", "1": "completed"}
+        with urllib.request.urlopen(f"{url}report", timeout=120) as response:
+            assert response.status == 200 and response.headers["Content-Security-Policy"].startswith("sandbox;")
+            assert b"<html" in response.read(2000).lower()
+        assert run.poll() is None  # still up
+        os.killpg(run.pid, signal.SIGINT)  # the operator's Ctrl-C
+        assert run.wait(60) == 0, log.read_text()
+    finally:
+        if run.poll() is None:
+            os.killpg(run.pid, signal.SIGKILL)
+            run.wait()
+    output = log.read_text()
+    assert "console closed" in output and "done: 2 of 2 runs done" in output
+    assert state(url) is None  # closed

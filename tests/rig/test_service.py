@@ -15,6 +15,7 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
+import h5py
 import pytest
 import zenoh
 from test_orchestrator import TINY
@@ -275,3 +276,67 @@ def test_the_start_request_carries_a_speed_or_max(tmp_path: Path, speed: object,
     request = StartRequest.from_args(args, tmp_path)
     assert request.speed == (math.inf if speed == "max" else speed)
     assert StartRequest.from_args(request.to_args(), tmp_path) == request
+
+
+FORGED_SOURCE = ("console page, browser 127.0.0.1:5 (Firefox/120.0)\n"
+                 "2026-11-27T09:00:00Z control estop from console page: accepted")
+"""What a local process without the key claimed to be (issue 25.9): a newline and a fake line after it."""
+
+
+def test_a_queued_attended_session_is_started_and_answered_and_logged_as_the_transport_says(
+        service: Service, client: ServiceClient, tiny: Path, tmp_path: Path) -> None:
+    """``queue`` (signed; ``rig service queue``) lines a session up without starting it; ``start {"queued": id}``
+    starts it; an attended session waits at "place the bodies" for ``answer`` (signed, the prompt's id). Every
+    control is in the session's events with the source the transport vouches for: an unsigned request's claimed
+    source is not written, a signed one's is, escaped on one line."""
+    output = tmp_path / "attended.h5"
+    queued = subprocess.run([str(Path(sys.executable).with_name("rig")), "service", "queue", str(tiny), "--connect",
+                             service.endpoint, "--key-file", str(service.key_file), "--emulate", "--attended",
+                             "--speed", "max", "-o", str(output)], capture_output=True, text=True, timeout=120)
+    assert queued.returncode == 0, queued.stdout + queued.stderr
+    number = int(queued.stdout.split("queued as session ")[1].split(":")[0])
+    state = client.state()
+    assert state["queue"] == [{"id": number, "name": "tiny.toml", "emulate": True, "attended": True}]
+    assert not state["active"] and not output.exists()
+    with ServiceClient(service.endpoint) as unsigned:
+        with pytest.raises(ServiceError, match="queue refused: not signed"):
+            unsigned.queue(tiny, emulate=True)
+        with pytest.raises(ServiceError, match="start refused: not signed"):
+            unsigned.start_queued(number)
+        with pytest.raises(ServiceError, match="answer refused: not signed"):
+            unsigned.answer(1)
+    with pytest.raises(ServiceError, match="no session 999 in the queue"):
+        client.start_queued(999)
+    with client.telemetry() as feed:
+        assert client.start_queued(number) == str(output)
+        waiting = wait_status(feed, lambda s: s["session"] == str(output) and s.get("prompt") is not None)
+        prompt = waiting["prompt"]
+        assert waiting["state"] == "waiting for the operator" and prompt["kind"] == "place_bodies"
+        assert waiting["queue"] == []
+        time.sleep(0.5)
+        assert client.state()["state"] == "waiting for the operator"  # it waits: nothing answered yet
+
+        peer = zenoh.open(session_config(connect=[service.endpoint]))  # a local process without the key
+        try:
+            key = ServiceKeys.for_rig().commands["pause"]
+            replies = list(peer.get(key, payload=encode_request("pause", {"source": FORGED_SOURCE}), timeout=5))
+            assert decode_reply(replies[0].ok.payload.to_bytes())["ok"]  # stopping never waits for a key
+        finally:
+            peer.close()
+        client.resume(source="test: cancel the pause")
+        with pytest.raises(ServiceError, match="not the one waiting"):
+            client.answer(prompt["id"] + 1)
+        assert "answered: done" in client.answer(prompt["id"], "done", source="test operator")["message"]
+        done = wait_status(feed, lambda s: s["session"] == str(output) and s["state"] in ("done", "faulted"), 120)
+    assert done["state"] == "done", done
+    wait_until(lambda: not client.state()["active"], 30)
+    with h5py.File(output, "r") as h5:
+        events = [text.decode() for run in h5["runs"].values() for _, text in run["events"][:]]
+    controls = [e for e in events if " control " in e]
+    assert len(controls) == 4, events
+    assert controls[0].endswith(" control pause from unsigned zenoh client: accepted"), controls
+    assert " control resume from test: cancel the pause (signed: rig key holder " in controls[1]
+    assert " control answer from rig key holder " in controls[2] and " refused: answer: prompt " in controls[2]
+    assert " control answer from test operator (signed: rig key holder " in controls[3]
+    assert controls[3].endswith("accepted")
+    assert not any("Firefox" in e or "estop" in e or "\n" in e for e in events)

@@ -54,7 +54,8 @@ WAIT = 5.0
 
 def test_keys() -> None:
     assert [service_key(RIG, c) for c in SERVICE_COMMANDS] == [
-        f"shaketable/lab-a/service/{c}" for c in ("start", "pause", "resume", "abort", "estop", "state")]
+        f"shaketable/lab-a/service/{c}" for c in ("start", "pause", "resume", "abort", "estop", "state", "queue",
+                                                      "answer")]
     assert telemetry_key(RIG, "status") == "shaketable/lab-a/telemetry/status"
     assert telemetry_key(RIG, "accel", "plate_1") == "shaketable/lab-a/telemetry/accel/plate_1"
     assert telemetry_key(RIG, "detection") == "shaketable/lab-a/telemetry/detection"

@@ -1,12 +1,29 @@
 // The operator console's page: the WebSocket feed (/ws) drawn with uPlot, the plate plan in SVG, the controls.
-// window.consoleStats is read by the tests and the benchmark: live frames received and plot redraws.
+// window.consoleStats is read by the tests and the benchmark: live frames received and plot redraws;
+// window.consolePlots the two uPlot instances (their scales: the tests).
+// Every text from the telemetry is escaped (esc) or set as textContent, every number put in markup goes through
+// num; the operator token is never kept: the browser session is an HttpOnly cookie, its CSRF token lives in `csrf`.
 "use strict";
 (function () {
   const WINDOW_S = 15;            // seconds shown in the plots
   const $ = (id) => document.getElementById(id);
   const stats = window.consoleStats = { frames: 0, draws: 0, statuses: 0, detections: 0, lastT: null, hello: 0, planIndex: null, dropped: 0 };
   const live = { header: null, session: null, at: [], aa: [], pt: [], pp: [], detections: [], faults: [] };
-  let status = null, controls = false, token = sessionStorage.getItem("operatorToken") || "";
+  let status = null, controls = false, csrf = "";
+  // The table's limits when the run's header has none (Table IV, tilt 10°); each pose axis spans at least
+  // MIN_SPAN of them, so that noise at rest is not drawn as violent motion.
+  const DEFAULT_LIMITS = { surge_m: 0.25, sway_m: 0.25, heave_m: 0.18, tilt_deg: 10 };
+  const MIN_SPAN = 0.02;
+  const limits = () => (live.header && live.header.limits) || DEFAULT_LIMITS;
+  const halfSpan = { mm: () => MIN_SPAN * 1000 * Math.max(limits().surge_m, limits().sway_m, limits().heave_m),
+                     deg: () => MIN_SPAN * limits().tilt_deg };
+  function atLeast(half) {         // a uPlot range: the data's, widened about its middle to ±half() at least
+    return (u, lo, hi) => {
+      if (lo === null || hi === null || !isFinite(lo) || !isFinite(hi)) return [-half(), half()];
+      const mid = (lo + hi) / 2, h = Math.max(0.55 * (hi - lo), half());
+      return [mid - h, mid + h];
+    };
+  }
   let dirty = false, framesThisSecond = 0;
 
   // ----- plots (uPlot) -----------------------------------------------------------------------------
@@ -21,7 +38,8 @@
     axes: [{ ...axis, label: "run time [s]" }, { ...axis, label: "m/s²" }],
   }, [[], [], []], accelEl);
   const posePlot = new uPlot({
-    ...plotSize(poseEl), scales: { x: { time: false }, mm: {}, deg: {} }, legend: { live: false },
+    ...plotSize(poseEl), scales: { x: { time: false }, mm: { range: atLeast(halfSpan.mm) },
+                                   deg: { range: atLeast(halfSpan.deg) } }, legend: { live: false },
     series: [{ label: "t [s]" },
              { label: "surge [mm]", stroke: "#4aa8ff", width: 1.5, scale: "mm" },
              { label: "sway [mm]", stroke: "#3ddc84", width: 1.5, scale: "mm" },
@@ -32,6 +50,7 @@
            { ...axis, scale: "deg", side: 1, label: "degrees", grid: { show: false },
              values: (u, ticks) => ticks.map((v) => v.toFixed(Math.max(0, Math.min(4, 1 - Math.floor(Math.log10(Math.abs(ticks[1] - ticks[0]) || 1)))))) }],
   }, [[], [], [], [], [], []], poseEl);
+  window.consolePlots = { accel: accelPlot, pose: posePlot };
   window.addEventListener("resize", () => { accelPlot.setSize(plotSize(accelEl)); posePlot.setSize(plotSize(poseEl)); });
 
   function interp(xs, ys, x) {       // commanded acceleration at time x (linear; null outside the drive)
@@ -86,33 +105,60 @@
     const active = status.active && !["done", "faulted"].includes(status.state);
     $("run-left").textContent = active && runLeft !== null ? duration(runLeft) : "–";
     $("session-left").textContent = active && h && runLeft !== null ? duration(runLeft + h.table_seconds_after) : "–";
-    const waiting = status.state === "waiting for the operator";
-    $("prompt").hidden = !waiting; if (waiting) $("prompt").textContent = status.message;
     $("report").hidden = !(status.session && ["done", "faulted"].includes(status.state) && !status.active);
-    showRuns();
+    showPrompt(); showQueue(); showRuns(); showControls();
   }
 
   function showRuns() {
     const h = live.header, p = status ? status.progress || {} : {}, outcomes = p.outcomes || {};
-    const plan = h ? h.plan : [];
+    const plan = h && Array.isArray(h.plan) ? h.plan : [];
     const current = p.run ? p.run.plan_index : null;
     $("runs").innerHTML = plan.map((r) => {
-      let s = outcomes[String(r.plan_index)] || (r.plan_index === current && status && status.state === "running" ? "running" : "pending");
-      return `<tr class="${r.plan_index === current ? "current" : ""}"><td>${r.plan_index + 1}</td><td>${esc(r.record)}</td>` +
-             `<td>${fmt(r.angle_deg, 1)}°</td><td class="st-${s}">${s}</td></tr>`;
+      const s = String(outcomes[String(r.plan_index)] || (r.plan_index === current && status && status.state === "running" ? "running" : "pending"));
+      const faults = live.faults.filter((f) => f.plan_index === r.plan_index).length;
+      return `<tr class="${r.plan_index === current ? "current" : ""}"><td>${num(r.plan_index) + 1}</td><td>${esc(r.record)}</td>` +
+             `<td>${fmt(r.angle_deg, 1)}°</td><td class="st-${cls(s)}">${esc(s)}</td><td>${faults || ""}</td></tr>`;
     }).join("");
   }
 
-  function esc(s) { return String(s).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" }[c])); }
+  // The operator's prompt (an attended session waiting): its text, for "which fell" a choice per body, the answers.
+  let promptShown = null;
+  function showPrompt() {
+    const prompt = status && status.state === "waiting for the operator" ? status.prompt || null : null;
+    const waiting = status && status.state === "waiting for the operator";
+    $("prompt-box").hidden = !waiting;
+    if (!waiting) { promptShown = null; return; }
+    $("prompt").textContent = prompt ? prompt.text : status.message;
+    const id = prompt ? prompt.id : null;
+    if (id !== promptShown) {      // redrawn only for a new prompt: the operator's choices stay as set
+      promptShown = id;
+      const bodies = prompt && prompt.kind === "which_fell" && Array.isArray(prompt.bodies) ? prompt.bodies : [];
+      $("prompt-bodies").innerHTML = bodies.map((b) => `<label for="fell-${num(b.body_id)}">${esc(b.name)} (body ${num(b.body_id)})</label>` +
+        `<select id="fell-${num(b.body_id)}" data-body="${num(b.body_id)}"><option value="0">standing</option>` +
+        `<option value="1">fell to the low side</option><option value="-1">fell to the high side</option></select>`).join("");
+    }
+  }
+
+  function showQueue() {
+    const queue = status && Array.isArray(status.queue) ? status.queue : [];
+    const idle = !status || !status.active;
+    $("queue").innerHTML = queue.length ? queue.map((q) => `<li><button class="start" data-queued="${num(q.id)}"` +
+      `${idle && unlocked() ? "" : " disabled"}>Start</button> ${num(q.id)} · ${esc(q.name)}` +
+      `${q.emulate ? " · emulated table" : ""}${q.attended ? " · attended" : ""}</li>`).join("") : `<li class="none">none</li>`;
+  }
+
+  function esc(s) { return String(s).replace(/[&<>"'`]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;", "'": "&#39;", "`": "&#96;" }[c])); }
+  function num(x) { const n = Number(x); return isFinite(n) ? n : 0; }          // a number for markup, never text
+  function cls(s) { return String(s).replace(/[^a-z-]/g, ""); }                  // a class name: letters and '-' only
 
   function showPlate() {
     const svg = $("plate"), h = live.header;
     if (!h) { svg.innerHTML = ""; return; }
-    const bodies = h.bodies;
+    const bodies = (Array.isArray(h.bodies) ? h.bodies : []).map((b) => ({ body_id: num(b.body_id), name: b.name, x: num(b.x), y: num(b.y), b: num(b.b), h: num(b.h), depth: num(b.depth) }));
     const ext = Math.max(0.4, ...bodies.map((b) => Math.max(Math.abs(b.x) + b.b, Math.abs(b.y) + b.depth))) * 1.35;
     svg.setAttribute("viewBox", `${-ext} ${-ext} ${2 * ext} ${2 * ext}`);
     const fell = {};
-    for (const d of live.detections) fell[d.body_id] = d;
+    for (const d of live.detections) fell[num(d.body_id)] = { direction: Math.sign(num(d.direction)), t: d.t };
     // plan view: x (fall line, +downhill) to the right, y up; the low side is on the right
     let out = `<rect x="${-ext * 0.92}" y="${-ext * 0.8}" width="${ext * 1.84}" height="${ext * 1.6}" rx="${ext * 0.03}" fill="#16212c" stroke="#3b5068" stroke-width="${ext * 0.01}"/>`;
     out += `<text x="${ext * 0.88}" y="${-ext * 0.85}" text-anchor="end" font-size="${ext * 0.08}" fill="#3d9bff">low side ▶ (+x downhill)</text>`;
@@ -133,18 +179,23 @@
       out += `<text x="${cx}" y="${cy + b.depth / 2 + ext * 0.09}" text-anchor="middle" font-size="${ext * 0.07}" fill="#d8e2ec">${label}</text></g>`;
     }
     svg.innerHTML = out;
-    $("detections").innerHTML = live.detections.map((d) => `<li class="detection">body ${d.body_id} fell to the ` +
+    $("detections").innerHTML = live.detections.map((d) => `<li class="detection">body ${num(d.body_id)} fell to the ` +
       `${d.direction > 0 ? "low" : d.direction < 0 ? "high" : "no"} side at ${fmt(d.t, 2)} s</li>`).join("");
   }
 
+  // The session's faults, each under the run it happened in (newest last).
   function showFaults() {
     $("faults").innerHTML = live.faults.length ? live.faults.slice(-20).map((f) =>
-      `<li>${fmt(f.t, 2)} s · ${esc(f.name)} · ${esc(f.detail)}</li>`).join("") : `<li class="none">none</li>`;
+      `<li data-run="${f.plan_index === null || f.plan_index === undefined ? "" : num(f.plan_index)}">` +
+      `${f.plan_index === null || f.plan_index === undefined ? "between runs" : `run ${num(f.plan_index) + 1}`} · ` +
+      `${fmt(f.t, 2)} s · ${esc(f.name)} · ${esc(f.detail)}</li>`).join("") : `<li class="none">none</li>`;
+    showRuns();
   }
 
   // ----- the feed ------------------------------------------------------------------------------------
   function newRun(header, session) {
     const changed = !live.header || session !== live.session || header.plan_index !== live.header.plan_index;
+    if (session !== live.session) live.faults = [];       // a new session: its own faults only
     live.header = header; live.session = session; stats.planIndex = header.plan_index;
     if (changed) { live.at = []; live.aa = []; live.pt = []; live.pp = []; live.detections = []; stats.lastT = null; }
   }
@@ -168,8 +219,8 @@
       const m = JSON.parse(event.data);
       if (m.type === "hello") {
         stats.hello++; controls = m.controls;
+        if (m.header) { live.header = null; live.session = m.session; newRun(m.header, m.session); }
         live.faults = m.faults || [];
-        if (m.header) { live.header = null; newRun(m.header, m.session); }
         live.at = m.accel.t; live.aa = m.accel.a; live.pt = m.pose.t; live.pp = m.pose.p;
         live.detections = m.detections || [];
         status = m.status; dirty = true; showPlate(); showFaults(); showStatus(); showControls();
@@ -184,41 +235,88 @@
   }
 
   // ----- controls ------------------------------------------------------------------------------------
+  const unlocked = () => controls && !!csrf;
+
+  // What each button does in each state: a button that would do nothing is disabled. Pause: while a session
+  // plays (not yet paused); resume: while paused; abort: while a session is prepared or played; the emergency stop
+  // is never disabled (it brakes whatever moves; with nothing running the service says so).
+  function enabled(state, active) {
+    const playing = active && !["done", "faulted", "idle"].includes(state);
+    return { pause: playing && !["paused", "stopping", "starting"].includes(state),
+             resume: playing && state === "paused",
+             abort: playing && state !== "stopping",
+             answer: state === "waiting for the operator" && !!(status && status.prompt) };
+  }
+
   function showControls() {
-    const unlocked = controls && !!token;
-    for (const id of ["pause", "resume", "abort"]) $(id).disabled = !unlocked;
-    $("estop").classList.toggle("locked", !unlocked);
+    const on = unlocked(), state = status ? status.state : "idle", can = enabled(state, !!(status && status.active));
+    for (const id of ["pause", "resume", "abort"]) $(id).disabled = !(on && can[id]);
+    for (const id of ["answer-done", "answer-decline"]) $(id).disabled = !(on && can.answer);
+    $("estop").classList.toggle("locked", !on);
+    $("lock").hidden = !on; $("token").hidden = on; $("unlock").hidden = on;
     const mode = $("control-mode");
-    mode.textContent = !controls ? "read-only: this console has no rig key" : unlocked ? "controls unlocked (this browser session)" : "read-only: enter the operator token";
-    mode.className = "mode" + (unlocked ? " unlocked" : "");
+    mode.textContent = !controls ? "read-only: this console has no rig key" : on ? "controls unlocked (this browser session)" : "read-only: enter the operator token";
+    mode.className = "mode" + (on ? " unlocked" : "");
   }
 
   function reply(text, ok) { const r = $("control-reply"); r.textContent = text; r.className = "reply " + (ok ? "ok" : "bad"); }
 
-  async function post(path) {
-    const response = await fetch(path, { method: "POST", headers: { "Content-Type": "application/json", "X-Operator-Token": token }, body: "{}" });
-    let body; try { body = await response.json(); } catch (e) { body = { ok: false, message: `HTTP ${response.status}` }; }
-    return { ok: response.ok && body.ok, message: body.message };
+  async function post(path, body, headers) {
+    const response = await fetch(path, { method: "POST", credentials: "same-origin",
+      headers: { "Content-Type": "application/json", ...headers }, body: JSON.stringify(body || {}) });
+    let answer; try { answer = await response.json(); } catch (e) { answer = { ok: false, message: `HTTP ${response.status}` }; }
+    return { ok: response.ok && answer.ok, message: answer.message, body: answer, status: response.status };
   }
 
-  async function send(command) {
-    if (!token) { reply("enter the operator token first (rig service token prints it)", false); $("token").focus(); return; }
-    const r = await post(`/api/control/${command}`);
+  async function send(command, body) {
+    if (!csrf) { reply("enter the operator token first (rig service token prints it)", false); $("token").focus(); return; }
+    const r = await post(`/api/control/${command}`, body, { "X-Console-CSRF": csrf });
+    if (r.status === 403 && !r.ok) { csrf = ""; showControls(); }   // the session expired or was ended elsewhere
     reply(r.message, r.ok);
+  }
+
+  async function restoreSession() {     // a reloaded page: the browser session's cookie is still there
+    try {
+      const response = await fetch("/api/session", { credentials: "same-origin" });
+      const body = await response.json();
+      csrf = body.unlocked ? body.csrf : "";
+    } catch (e) { csrf = ""; }
+    showControls(); showQueue();
   }
 
   $("token-form").addEventListener("submit", async (event) => {
     event.preventDefault();
-    token = $("token").value.trim();
-    const r = await post("/api/token");
-    if (r.ok) { sessionStorage.setItem("operatorToken", token); $("token").value = ""; }
-    else { token = ""; sessionStorage.removeItem("operatorToken"); }
-    reply(r.message, r.ok); showControls();
+    const given = $("token").value.trim();
+    $("token").value = "";
+    const r = await post("/api/token", {}, { "X-Operator-Token": given });
+    csrf = r.ok ? r.body.csrf : "";
+    reply(r.message, r.ok); showControls(); showQueue();
+  });
+  $("lock").addEventListener("click", async () => {
+    const r = await post("/api/lock", {}, { "X-Console-CSRF": csrf });
+    csrf = ""; reply(r.message, r.ok); showControls(); showQueue();
   });
   $("pause").addEventListener("click", () => send("pause"));
   $("resume").addEventListener("click", () => send("resume"));
   $("abort").addEventListener("click", () => send("abort"));
   $("estop").addEventListener("click", () => send("estop"));
+  $("queue").addEventListener("click", (event) => {
+    const button = event.target.closest("button.start");
+    if (button && !button.disabled) send("start", { queued: Number(button.dataset.queued) });
+  });
+  function answer(reply) {
+    const prompt = status && status.prompt;
+    if (!prompt) return;
+    const fell = [];
+    for (const select of document.querySelectorAll("#prompt-bodies select")) {
+      const direction = Number(select.value);
+      if (direction !== 0) fell.push([Number(select.dataset.body), direction]);
+    }
+    send("answer", { prompt: prompt.id, reply, fell: reply === "done" ? fell : [] });
+  }
+  $("answer-done").addEventListener("click", () => answer("done"));
+  $("answer-decline").addEventListener("click", () => answer("decline"));
   showControls();
+  restoreSession();
   connect();
 })();
