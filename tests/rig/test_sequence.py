@@ -91,9 +91,12 @@ def test_paper_campaign_loads_with_table_v_and_25_strongest_components() -> None
     assert seq.angles_deg == (0.0, 4.0, 4.5, 5.0, 5.5)
     tap, records = seq.records[0], seq.records[1:]
     assert tap.key == "records[1]" and tap.spec.endswith("records/tap-10hz.csv")  # first at every angle
-    assert len(records) == 25 and len({e.spec for e in records}) == 25
+    assert tap.polarity == 1  # the tap as recorded only
+    assert len(records) == 50 and len({e.spec for e in records}) == 25  # each record in both polarities
+    assert [e.polarity for e in records] == [1, -1] * 25 and all(
+        a.spec == b.spec for a, b in zip(records[::2], records[1::2], strict=True))
     assert all(e.spec.startswith(("fema-farfield:", "fema-nearfield:")) and e.scale is None for e in records)
-    assert len(seq.plan()) == 130
+    assert len(seq.plan()) == 255
     # every Table V body stands at 5.5°: α = atan(b/h) ≥ 11.0°
     assert min(math.degrees(b.body.alpha) for b in seq.bodies) > 11.0
     seq.check(prepare_drives=False)
@@ -103,17 +106,17 @@ def test_records_from_takes_the_largest_pga_first() -> None:
     from rig.records import load_record, load_records
 
     seq = load_sequence(EXAMPLES / "paper-campaign.toml")
-    taken = [e for e in seq.records if e.key == "records_from"]
+    taken = [e for e in seq.records if e.key == "records_from" and e.polarity == 1]
     pgas = [load_record(e.spec).pga for e in taken]
     assert pgas == sorted(pgas, reverse=True)
     weakest_taken = pgas[-1]
     assert sum(m.pga > weakest_taken for m in load_records("fema")) <= 24
-    assert all(e.line == 15 for e in taken)
+    assert all(e.line == 17 for e in taken)
 
 
 def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     seq = load_sequence(EXAMPLES / "paper-campaign.toml")
-    seq.check()  # 130 drives, about 2-5 s
+    seq.check()  # 255 drives, about 4-10 s
 
 
 # ----- refusals: key and line ------------------------------------------------------------------------------
@@ -280,7 +283,7 @@ def test_plan_order_and_indices(tmp_path: Path) -> None:
     assert plan == seq.plan()  # stable
     assert json.loads(json.dumps([run.to_dict() for run in plan]))[7] == {
         "plan_index": 7, "angle_index": 1, "angle_deg": 5.0, "record_index": 1,
-        "record": "fema-nearfield:NORTHR/RRS_032", "scale": "table", "repetition": 1}
+        "record": "fema-nearfield:NORTHR/RRS_032", "polarity": 1, "scale": "table", "repetition": 1}
 
 
 @pytest.mark.parametrize("name", ["quick.toml", "paper-campaign.toml"])
