@@ -123,14 +123,6 @@ class Verdict:
     cases: int = 0
     cases_to_resolve: int | None = None
 
-    def words(self) -> str:
-        """The verdict in the lab's words, e.g. ``not resolved with 26 cases (about 410 would resolve it)``."""
-        if self.verdict != NOT_RESOLVED:
-            return self.verdict
-        more = ("no number of cases would" if self.cases_to_resolve is None
-                else f"about {self.cases_to_resolve} would")
-        return f"not resolved with {self.cases} cases ({more} resolve it)"
-
 
 def _one_sided(k1: float, n1: float, k2: float, n2: float, margin: float) -> tuple[float, float, float]:
     """(p of H0 d ≤ −δ, p of H0 d ≥ +δ, p of "within δ on the observed side")."""

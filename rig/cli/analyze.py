@@ -118,7 +118,8 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
         console.print(
             f"{model}: max |COR difference| of a body at an angle "
             f"{'undefined (no overturn on both sides)' if diff is None else f'{100 * diff:.1f} points'} "
-            f"(the paper: ≤ 5); body-angle rates within ±{100 * result.margin:g} points: {verdicts or 'none'}; "
+            f"(the paper: ≤ 5); equivalence within ±{100 * result.margin:g} points per body and angle: "
+            f"{verdicts or 'no rate'}; "
             f"case by case {a.agree}/{a.cases} agree — overturned in both {a.overturned_both} "
             f"(same side {a.same_direction}), analysis only {a.overturned_analysis_only}, experiment only "
             f"{a.overturned_experiment_only}, neither {a.overturned_neither}", highlight=False)
