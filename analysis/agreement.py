@@ -142,7 +142,8 @@ def _classify(p_low: float, p_high: float, p_beyond: float, alpha: float) -> str
     return NOT_RESOLVED
 
 
-def score_interval(k1: int, n1: int, k2: int, n2: int, confidence: float = 1.0 - 2.0 * ALPHA) -> tuple[float, float]:
+def score_interval(k1: float, n1: int, k2: float, n2: int, confidence: float = 1.0 - 2.0 * ALPHA
+                   ) -> tuple[float, float]:
     """The Miettinen–Nurminen score interval of p₁ − p₂ at ``confidence`` (two-sided), by inverting
     :func:`score_statistic`; (NaN, NaN) when either ``n`` is 0."""
     if n1 == 0 or n2 == 0:
@@ -159,9 +160,10 @@ def score_interval(k1: int, n1: int, k2: int, n2: int, confidence: float = 1.0 -
     return float(low), float(high)
 
 
-def equivalence(k1: int, n1: int, k2: int, n2: int, margin: float = MARGIN, alpha: float = ALPHA,
+def equivalence(k1: float, n1: int, k2: float, n2: int, margin: float = MARGIN, alpha: float = ALPHA,
                 cases: int | None = None, overturn_fractions: tuple[float, float] | None = None) -> Verdict:
-    """TOST of rate ``k1``/``n1`` against ``k2``/``n2`` within ``margin`` (module docstring).
+    """TOST of rate ``k1``/``n1`` against ``k2``/``n2`` within ``margin`` (module docstring); the counts may be
+    fractional (a rate times a number of records).
 
     ``cases``: the cases the rates were counted among (default ``max(n1, n2)``); ``overturn_fractions``: the
     fraction of those cases that enters each rate (default ``n1/cases``, ``n2/cases``) — a search for the cases

@@ -35,9 +35,10 @@ BOOTSTRAP_SEED = 20260101
 """The bootstrap's default seed (a fixed one: the same cases give the same interval)."""
 
 
-def wilson_interval(k: int, n: int, confidence: float = CONFIDENCE) -> tuple[float, float]:
+def wilson_interval(k: float, n: float, confidence: float = CONFIDENCE) -> tuple[float, float]:
     """The Wilson score interval (low, high) of the proportion ``k``/``n`` at ``confidence``; (NaN, NaN) when
-    ``n`` is 0 (no rate). ValueError unless 0 ≤ k ≤ n and 0 < confidence < 1."""
+    ``n`` is 0 (no rate). ``k`` may be fractional (a rate times a number of records). ValueError unless
+    0 ≤ k ≤ n and 0 < confidence < 1."""
     if not (0 <= k <= n):
         raise ValueError(f"wilson_interval: expected 0 ≤ k ≤ n, got k={k}, n={n}")
     if not 0.0 < confidence < 1.0:
@@ -117,5 +118,5 @@ def clustered_rate_interval(towards_low: np.ndarray, overturned: np.ndarray, con
     samples = mean_rate(low_counts[None, :], over_counts[None, :], cluster_resamples(over_counts.size, draws, seed))
     if degenerate(samples):
         records = int(np.count_nonzero(over_counts))
-        return wilson_interval(round(k / n * records), records, confidence)
+        return wilson_interval(k / n * records, records, confidence)
     return percentile_interval(samples, confidence)

@@ -255,10 +255,11 @@ def _row(angle: float, body_id: int, model: str, counts: _Counts, members: Itera
         only_a, only_e, mcnemar_exact(only_a, only_e) if paired else math.nan)
 
 
-def _records_once(rate: float, over: np.ndarray) -> tuple[int, int]:
-    """(k, n) with each record that had an overturn counted as one case at ``rate``."""
+def _records_once(rate: float, over: np.ndarray) -> tuple[float, int]:
+    """(k, n): each record that had an overturn counted as one case, k = ``rate`` · n (fractional where the rate
+    is, e.g. a record whose two polarities fell to either side)."""
     n = int(np.count_nonzero(over.sum(axis=0)))
-    return round(rate * n), n
+    return rate * n, n
 
 
 def _interval(samples: np.ndarray, rate: float, over: np.ndarray) -> tuple[float, float]:

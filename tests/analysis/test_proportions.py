@@ -119,3 +119,16 @@ def test_fig13_average_row_is_the_mean_of_the_bodies_with_a_clustered_interval()
     assert average_width > pooled[1] - pooled[0] and abs(average_width - body_width) < 0.08
     assert rows[1].verdict == rows[0].verdict == "not resolved"  # identical rates, but 30 runs cannot show 5 points
     assert math.isnan(rows[0].p_direction) and rows[1].p_direction == 1.0
+
+
+def test_fig13_a_record_whose_polarities_fall_either_way_keeps_its_rate() -> None:
+    """One body, three records each in both polarities on a level plate: the analysis overturns it only on the
+    first record, once each way (rate ½); the specimen on every record, once each way. Every resample gives a
+    difference of 0 (or none), so each record counts once — at its rate ½, not rounded to 0 or 1."""
+    cases = [Case(0.0, 1, "rocking", d if k == 0 else 0, d, f"r{k}") for k in range(3) for d in (1, -1)]
+    row = next(r for r in fig13_rows(cases) if r.body_id == 1)
+    assert (row.cor_analysis, row.cor_experiment, row.difference) == (0.5, 0.5, 0.0)
+    assert (row.cor_analysis_low, row.cor_analysis_high) == pytest.approx(wilson_interval(0.5, 1))
+    expected = equivalence(0.5, 1, 1.5, 3, 0.05, cases=6, overturn_fractions=(1 / 6, 3 / 6))
+    assert (row.difference_low, row.difference_high) == pytest.approx((expected.low, expected.high))
+    assert row.difference_low < 0 < row.difference_high and row.verdict == "not resolved"
