@@ -14,8 +14,8 @@ paper's) its sampling error is tens of percentage points. These functions say ho
   — a record that overturns one body towards the high side tends to do it to the others. Resampling whole records
   (clusters) with replacement keeps that dependence; an interval from pooled counts treats them as independent and
   is too narrow. Seeded (the same session gives the same interval).
-- :func:`clustered_rate_interval`: one rate's interval from its cases and their records — Wilson where no record
-  enters twice, the cluster bootstrap otherwise.
+- :func:`degenerate`: whether the resamples hold a single value (every record gave the same outcome), where the
+  percentile interval would be a point however few the records.
 """
 
 from __future__ import annotations
@@ -33,6 +33,10 @@ BOOTSTRAP_DRAWS = 4000
 
 BOOTSTRAP_SEED = 20260101
 """The bootstrap's default seed (a fixed one: the same cases give the same interval)."""
+
+MIN_BOOTSTRAP_RECORDS = 10
+"""Below this many records the percentile bootstrap is too narrow (it resamples from the few records seen; with
+three, a difference takes a handful of values): callers count each record once instead."""
 
 
 def wilson_interval(k: float, n: float, confidence: float = CONFIDENCE) -> tuple[float, float]:
@@ -97,26 +101,3 @@ def degenerate(samples: np.ndarray) -> bool:
     finite = np.asarray(samples, dtype=float)
     finite = finite[np.isfinite(finite)]
     return finite.size == 0 or bool(np.ptp(finite) == 0.0)
-
-
-def clustered_rate_interval(towards_low: np.ndarray, overturned: np.ndarray, confidence: float = CONFIDENCE,
-                            draws: int = BOOTSTRAP_DRAWS, seed: int = BOOTSTRAP_SEED) -> tuple[float, float]:
-    """The interval of one rate Σ towards_low / Σ overturned from per-record counts (1-D, one entry per record).
-
-    Wilson's when every record contributes at most one overturn (independent cases); otherwise the percentile
-    interval of the cluster bootstrap over records — and where every resample gives the same rate (all the
-    records' overturns on one side), Wilson's with each record counted as one case, the bound for records
-    whose cases are perfectly dependent. (NaN, NaN) without an overturn.
-    """
-    low_counts = np.asarray(towards_low, dtype=float)
-    over_counts = np.asarray(overturned, dtype=float)
-    k, n = int(low_counts.sum()), int(over_counts.sum())
-    if n == 0:
-        return math.nan, math.nan
-    if over_counts.max() <= 1:
-        return wilson_interval(k, n, confidence)
-    samples = mean_rate(low_counts[None, :], over_counts[None, :], cluster_resamples(over_counts.size, draws, seed))
-    if degenerate(samples):
-        records = int(np.count_nonzero(over_counts))
-        return wilson_interval(k / n * records, records, confidence)
-    return percentile_interval(samples, confidence)

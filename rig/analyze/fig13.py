@@ -24,8 +24,10 @@ results for all the bodies"): counts and ``runs`` summed over the bodies (body-r
 one angle are clustered by record (``Case.record``: a record in both polarities and its repetitions are one
 cluster). Beside every COR its 95 % interval (``*_low``, ``*_high``): Wilson's for a body whose records enter
 once each, else the cluster bootstrap over records (seeded); the **average** row is one estimator — the mean of the
-bodies' defined CORs — with the cluster-bootstrap interval of that mean (where every resample gives the same value,
-Wilson's with each record counted once).
+bodies' defined CORs — with the cluster-bootstrap interval of that mean. Where every resample gives the same value,
+or there are fewer than ten records (`analysis.proportions.MIN_BOOTSTRAP_RECORDS`: the percentile bootstrap is too
+narrow there), each record counts as one case at the rate observed (Wilson's interval, the score test below) — the
+bound for records whose cases are perfectly dependent.
 
 Per row the **equivalence** of analysis and experiment within ``margin`` (default 5 points, the paper's bound):
 ``verdict`` ``equivalent`` / ``different`` / ``not resolved`` (``runs_to_resolve``: the runs at this angle at which
@@ -65,6 +67,7 @@ from analysis.agreement import (
 )
 from analysis.proportions import (
     BOOTSTRAP_SEED,
+    MIN_BOOTSTRAP_RECORDS,
     cluster_resamples,
     degenerate,
     mean_rate,
@@ -235,9 +238,10 @@ def _row(angle: float, body_id: int, model: str, counts: _Counts, members: Itera
         ones = np.ones((1, counts.records))
         cor_a, cor_e = float(mean_rate(low_a, over_a, ones)[0]), float(mean_rate(low_e, over_e, ones)[0])
         boot_a, boot_e = mean_rate(low_a, over_a, weights), mean_rate(low_e, over_e, weights)
-        interval_a = _interval(boot_a, cor_a, over_a)
-        interval_e = _interval(boot_e, cor_e, over_e)
-        verdict = _bootstrap_verdict(cor_a, cor_e, boot_a - boot_e, over_a, over_e, runs, margin)
+        few = records < MIN_BOOTSTRAP_RECORDS
+        interval_a = _interval(boot_a, cor_a, over_a, few)
+        interval_e = _interval(boot_e, cor_e, over_e, few)
+        verdict = _bootstrap_verdict(cor_a, cor_e, boot_a - boot_e, over_a, over_e, runs, margin, few)
     pairs = [c for j in sel for c in counts.pairs[j]]
     both = [c for c in pairs if c.predicted and c.observed]
     low_high = sum(1 for c in both if c.predicted == 1 and c.observed == -1)
@@ -262,23 +266,24 @@ def _records_once(rate: float, over: np.ndarray) -> tuple[float, int]:
     return rate * n, n
 
 
-def _interval(samples: np.ndarray, rate: float, over: np.ndarray) -> tuple[float, float]:
-    """The 95 % percentile interval of the resampled rate; Wilson's with each record once if degenerate."""
+def _interval(samples: np.ndarray, rate: float, over: np.ndarray, few: bool) -> tuple[float, float]:
+    """The 95 % percentile interval of the resampled rate; Wilson's with each record once if the resamples do not
+    vary or the records are ``few``."""
     if math.isnan(rate):
         return math.nan, math.nan
-    if degenerate(samples):
+    if few or degenerate(samples):
         return wilson_interval(*_records_once(rate, over))
     return percentile_interval(samples)
 
 
 def _bootstrap_verdict(cor_a: float, cor_e: float, samples: np.ndarray, over_a: np.ndarray, over_e: np.ndarray,
-                       runs: int, margin: float) -> Verdict:
+                       runs: int, margin: float, few: bool) -> Verdict:
     """TOST on the cluster-bootstrap distribution of the difference (module docstring); the score TOST with each
-    record counted once where the resamples do not vary."""
+    record counted once where the resamples do not vary or the records are ``few``."""
     if math.isnan(cor_a) or math.isnan(cor_e):
         return Verdict(UNDEFINED, math.nan, math.nan, math.nan, math.nan, math.nan, margin, runs)
     d = cor_a - cor_e
-    if degenerate(samples):
+    if few or degenerate(samples):
         (k1, n1), (k2, n2) = _records_once(cor_a, over_a), _records_once(cor_e, over_e)
         return equivalence(k1, n1, k2, n2, margin, cases=runs, overturn_fractions=(n1 / runs, n2 / runs))
     finite = samples[np.isfinite(samples)]

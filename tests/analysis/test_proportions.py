@@ -15,7 +15,6 @@ from scipy.stats import binomtest, bootstrap
 from analysis.agreement import equivalence, mcnemar_exact
 from analysis.proportions import (
     cluster_resamples,
-    clustered_rate_interval,
     mean_rate,
     percentile_interval,
     wilson_interval,
@@ -61,7 +60,6 @@ def test_cluster_bootstrap_matches_scipy_s_bootstrap_of_the_records() -> None:
     theirs = bootstrap((low, over), lambda lo, ov, axis=-1: lo.sum(axis=axis) / ov.sum(axis=axis), paired=True,
                        vectorized=True, n_resamples=20000, method="percentile", random_state=2).confidence_interval
     assert ours == pytest.approx((theirs.low, theirs.high), abs=0.01)
-    assert clustered_rate_interval(low, over) == pytest.approx(ours, abs=0.01)
 
 
 def test_shared_records_give_no_narrower_interval_than_one_body() -> None:
