@@ -275,6 +275,21 @@ def test_rig_analyze_gives_the_paired_tests_and_the_verdicts_within_its_margin(t
     assert "not resolved with 2" in text.stdout and "±5 points" in text.stdout and "Fisher" not in text.stdout
 
 
+def test_a_record_and_its_negation_are_one_record_of_the_comparison(tmp_path: Path) -> None:
+    """Runs labelled ``R`` and ``R (negated)`` (a sequence's ``polarity = "both"``) are one record: one cluster of
+    the bootstrap, counted once in ``records``; a different record is another."""
+    bodies = [body_row(1, TABLE_V[3]), body_row(2, TABLE_V[4])]
+    runs = [pulse_run(0.0, -0.5, bodies, [(0.9, 1, 1, "sensor"), (1.0, 2, 1, "sensor")]),
+            pulse_run(0.0, +0.5, bodies, [(0.9, 1, -1, "sensor"), (1.0, 2, -1, "sensor")]),
+            pulse_run(0.0, -0.5, bodies, [(0.9, 1, 1, "sensor"), (1.0, 2, 1, "sensor")])]
+    for run, label in zip(runs, ("pulse", "pulse (negated)", "other"), strict=True):
+        run["record"] = label
+    result = analyze_session(write_session(tmp_path / "both.h5", runs), models=("rocking",), write=False)
+    rows = {r.body_id: r for r in result.fig13}
+    assert rows[0].records == rows[1].records == 2 and rows[0].runs == 6 and rows[1].runs == 3
+    assert (rows[1].cor_analysis, rows[1].cor_experiment) == (pytest.approx(2 / 3), pytest.approx(2 / 3))
+
+
 # ---------------------------------------------------------------------- (b) raw data untouched, re-run replaces
 def test_raw_data_untouched_and_a_rerun_replaces_the_analysis(tmp_path: Path) -> None:
     path = hand_made_session(tmp_path / "s.h5")
