@@ -14,16 +14,34 @@ it will overturn" — so a body that overturned in the analysis but not on the t
 in the analysis's COR only (or the experiment's only); the counts beside every rate show it. A COR with no
 overturn is undefined (NaN here, ``null`` in JSON), and so is a difference involving one.
 
-**Rows.** Per model, angle and body (``body_id`` ≥ 1): ``runs`` = completed runs with that body at that angle;
-the counts; ``difference = cor_analysis − cor_experiment`` (signed, fraction, not percent). Per model and angle
-an **average** row (``body_id = 0``, the paper's "average results for all the bodies"): counts and ``runs``
-summed over the bodies (body-runs), ``cor_analysis`` and ``cor_experiment`` the mean of the bodies' defined
-CORs, ``difference`` theirs.
+**Rows.** Per model, angle and body (``body_id`` ≥ 1): ``runs`` = completed runs with that body at that
+angle, ``records`` the distinct records among them; the counts; ``difference = cor_analysis − cor_experiment``
+(signed, fraction, not percent). Per model and angle an **average** row (``body_id = 0``, the paper's "average
+results for all the bodies"): counts and ``runs`` summed over the bodies (body-runs), ``cor_analysis`` and
+``cor_experiment`` the mean of the bodies' defined CORs, ``difference`` theirs.
 
-**Statistics.** Beside every COR its 95 % Wilson interval (``*_low``, ``*_high``, from the counts: for the average
-row the pooled counts of its bodies), and per row ``p_value``: Fisher's exact test that analysis and experiment
-share one rate (``analysis.proportions``; NaN where a COR is undefined). A difference is **beyond chance** when
-p < 0.05: with three cases one overturn moves a rate by 33 points, which alone says nothing.
+**Statistics** (`analysis.proportions`, `analysis.agreement`). Every body sees the same records, so the cases of
+one angle are clustered by record (``Case.record``: a record in both polarities and its repetitions are one
+cluster). Beside every COR its 95 % interval (``*_low``, ``*_high``): Wilson's for a body whose records enter
+once each, else the cluster bootstrap over records (seeded); the **average** row is one estimator — the mean of the
+bodies' defined CORs — with the cluster-bootstrap interval of that mean. Where every resample gives the same value,
+or there are fewer than ten records (`analysis.proportions.MIN_BOOTSTRAP_RECORDS`: the percentile bootstrap is too
+narrow there), each record counts as one case at the rate observed (Wilson's interval, the score test below) — the
+bound for records whose cases are perfectly dependent.
+
+Per row the **equivalence** of analysis and experiment within ``margin`` (default 5 points, the paper's bound):
+``verdict`` ``equivalent`` / ``different`` / ``not resolved`` (``runs_to_resolve``: the runs at this angle at which
+the same rates would resolve it, −1 if none would) / ``undefined``; ``difference_low``/``difference_high`` the 90 %
+interval of the difference (TOST at 5 % is that interval inside ±margin), ``p_equivalent`` the TOST p-value and
+``p_different`` that of "within the margin" on the observed side. A body row whose records enter once each uses the
+Miettinen–Nurminen score TOST; the average row and a body with repeated records the cluster bootstrap of the
+difference (p-values: the resamples' fractions beyond the margin).
+
+Per body row the **paired** cases (McNemar's exact test, `analysis.agreement.mcnemar_exact`): ``both_overturned``
+cases, of which ``low_high`` the analysis put to the low side and the specimen to the high side and ``high_low`` the
+reverse, ``p_direction`` McNemar's p on those two; ``analysis_only``/``experiment_only`` cases only one side
+overturned, ``p_overturn`` McNemar's p on those two. The average row sums the counts; its McNemar p-values are NaN
+(pairs of different bodies share records: not independent).
 **max_difference** per model: the largest |difference| over the per-body rows
 (the paper: "a maximum of 5 % difference … for a given angle and specific body"), None if none is defined.
 """
@@ -36,40 +54,69 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from analysis.proportions import SIGNIFICANCE, exact_two_proportions, wilson_interval
+from analysis.agreement import (
+    ALPHA,
+    DIFFERENT,
+    EQUIVALENT,
+    MARGIN,
+    NOT_RESOLVED,
+    UNDEFINED,
+    Verdict,
+    equivalence,
+    mcnemar_exact,
+)
+from analysis.proportions import (
+    BOOTSTRAP_SEED,
+    MIN_BOOTSTRAP_RECORDS,
+    cluster_resamples,
+    degenerate,
+    mean_rate,
+    percentile_interval,
+    wilson_interval,
+)
 
 #: Compound layout of the ``/analysis/fig13`` dataset.
 FIG13_DTYPE = np.dtype([
-    ("angle_deg", "<f8"), ("body_id", "<i4"), ("model", "S16"), ("runs", "<i4"),
+    ("angle_deg", "<f8"), ("body_id", "<i4"), ("model", "S16"), ("runs", "<i4"), ("records", "<i4"),
     ("overturned_analysis", "<i4"), ("towards_low_analysis", "<i4"), ("cor_analysis", "<f8"),
     ("overturned_experiment", "<i4"), ("towards_low_experiment", "<i4"), ("cor_experiment", "<f8"),
     ("difference", "<f8"), ("cor_analysis_low", "<f8"), ("cor_analysis_high", "<f8"),
-    ("cor_experiment_low", "<f8"), ("cor_experiment_high", "<f8"), ("p_value", "<f8"),
+    ("cor_experiment_low", "<f8"), ("cor_experiment_high", "<f8"),
+    ("difference_low", "<f8"), ("difference_high", "<f8"), ("verdict", "S16"), ("p_equivalent", "<f8"),
+    ("p_different", "<f8"), ("runs_to_resolve", "<i4"), ("margin", "<f8"),
+    ("both_overturned", "<i4"), ("low_high", "<i4"), ("high_low", "<i4"), ("p_direction", "<f8"),
+    ("analysis_only", "<i4"), ("experiment_only", "<i4"), ("p_overturn", "<f8"),
 ])
 
 ANGLE_DIGITS = 6
 """Angles are grouped after rounding to this many decimals of a degree."""
 
+VERDICTS = (EQUIVALENT, DIFFERENT, NOT_RESOLVED, UNDEFINED)
+"""The equivalence verdicts, in the order they are counted."""
+
 
 @dataclass(frozen=True)
 class Case:
-    """One body in one run for one model: angle [deg], body, model, predicted and observed direction."""
+    """One body in one run for one model: angle [deg], body, model, predicted and observed direction, and the
+    record played (its name without polarity: the cluster of the bootstrap; empty: a record of its own)."""
 
     angle_deg: float
     body_id: int
     model: str
     predicted: int
     observed: int
+    record: str = ""
 
 
 @dataclass(frozen=True)
 class Fig13Row:
-    """One row of the comparison (module docstring); rates are fractions in [0, 1] or NaN."""
+    """One row of the comparison (module docstring); rates and differences are fractions, NaN when undefined."""
 
     angle_deg: float
     body_id: int
     model: str
     runs: int
+    records: int
     overturned_analysis: int
     towards_low_analysis: int
     cor_analysis: float
@@ -77,21 +124,43 @@ class Fig13Row:
     towards_low_experiment: int
     cor_experiment: float
     difference: float
-    cor_analysis_low: float = math.nan
-    cor_analysis_high: float = math.nan
-    cor_experiment_low: float = math.nan
-    cor_experiment_high: float = math.nan
-    p_value: float = math.nan
-    """Fisher's exact test of equal rates (module docstring); NaN where a COR is undefined."""
+    cor_analysis_low: float
+    cor_analysis_high: float
+    cor_experiment_low: float
+    cor_experiment_high: float
+    difference_low: float
+    difference_high: float
+    verdict: str
+    p_equivalent: float
+    p_different: float
+    runs_to_resolve: int
+    """With ``not resolved``: the ``runs`` (for the average row body-runs) at which the same rates would resolve it;
+    −1 none would; 0 for another verdict."""
+    margin: float
+    both_overturned: int
+    low_high: int
+    high_low: int
+    p_direction: float
+    analysis_only: int
+    experiment_only: int
+    p_overturn: float
 
-    @property
-    def beyond_chance(self) -> bool:
-        """Whether analysis and experiment differ beyond chance (p < :data:`analysis.proportions.SIGNIFICANCE`)."""
-        return not math.isnan(self.p_value) and self.p_value < SIGNIFICANCE
+    def verdict_words(self) -> str:
+        """The verdict as `rig analyze` and the report print it (`verdict_words`)."""
+        return verdict_words(self.verdict, self.body_id, self.runs, self.runs_to_resolve)
 
     def to_json(self) -> dict:
         """JSON-ready (NaN → None)."""
         return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(self).items()}
+
+
+def verdict_words(verdict: str, body_id: int, runs: int, runs_to_resolve: int) -> str:
+    """A row's verdict in words, e.g. ``not resolved with 26 runs (about 410 would)``."""
+    if verdict != NOT_RESOLVED:
+        return verdict
+    unit = "body-runs" if body_id == 0 else "runs"
+    more = f"no number of {unit} would" if runs_to_resolve < 0 else f"about {runs_to_resolve} would"
+    return f"not resolved with {runs} {unit} ({more})"
 
 
 def cor(towards_low: int, overturned: int) -> float:
@@ -99,53 +168,148 @@ def cor(towards_low: int, overturned: int) -> float:
     return towards_low / overturned if overturned else math.nan
 
 
-def _nanmean(values: list[float]) -> float:
-    defined = [v for v in values if not math.isnan(v)]
-    return sum(defined) / len(defined) if defined else math.nan
+@dataclass(frozen=True)
+class _Counts:
+    """One model at one angle: per body (rows) and record (columns) the four counts, and the pairs per body."""
+
+    bodies: list[int]
+    records: int
+    low_a: np.ndarray
+    over_a: np.ndarray
+    low_e: np.ndarray
+    over_e: np.ndarray
+    runs: np.ndarray
+    pairs: list[list[Case]]
 
 
-def fig13_rows(cases: Iterable[Case]) -> list[Fig13Row]:
-    """The comparison rows, ordered by model (first seen), angle, then body (average row first)."""
-    groups: dict[tuple[str, float, int], list[Case]] = {}
-    models: list[str] = []
+def _counts(cases: list[Case]) -> _Counts:
+    bodies = sorted({c.body_id for c in cases})
+    keys: dict[str, int] = {}
+    for k, c in enumerate(cases):
+        keys.setdefault(c.record or f"\x00case {k}", len(keys))
+    shape = (len(bodies), len(keys))
+    low_a, over_a, low_e, over_e, runs = (np.zeros(shape, dtype=np.int64) for _ in range(5))
+    pairs: list[list[Case]] = [[] for _ in bodies]
+    for k, c in enumerate(cases):
+        j, r = bodies.index(c.body_id), keys[c.record or f"\x00case {k}"]
+        runs[j, r] += 1
+        over_a[j, r] += c.predicted != 0
+        low_a[j, r] += c.predicted == 1
+        over_e[j, r] += c.observed != 0
+        low_e[j, r] += c.observed == 1
+        pairs[j].append(c)
+    return _Counts(bodies, len(keys), low_a, over_a, low_e, over_e, runs, pairs)
+
+
+def fig13_rows(cases: Iterable[Case], margin: float = MARGIN, seed: int = BOOTSTRAP_SEED) -> list[Fig13Row]:
+    """The comparison rows, ordered by model (first seen), angle, then body (average row first); ``margin``
+    [fraction] of the equivalence test, ``seed`` of the cluster bootstrap."""
+    groups: dict[tuple[str, float], list[Case]] = {}
     for case in cases:
-        if case.model not in models:
-            models.append(case.model)
-        key = (case.model, round(case.angle_deg, ANGLE_DIGITS), case.body_id)
-        groups.setdefault(key, []).append(case)
+        groups.setdefault((case.model, round(case.angle_deg, ANGLE_DIGITS)), []).append(case)
+    models = list(dict.fromkeys(model for model, _ in groups))
     rows: list[Fig13Row] = []
     for model in models:
-        for angle in sorted({a for m, a, _ in groups if m == model}):
-            bodies = sorted(b for m, a, b in groups if m == model and a == angle)
-            per_body = [_row(angle, body, model, groups[(model, angle, body)]) for body in bodies]
-            rows.append(_average(angle, model, per_body))
-            rows.extend(per_body)
+        for angle in sorted(a for m, a in groups if m == model):
+            counts = _counts(groups[(model, angle)])
+            weights = cluster_resamples(counts.records, seed=seed)
+            rows.append(_row(angle, 0, model, counts, range(len(counts.bodies)), weights, margin))
+            rows.extend(_row(angle, body, model, counts, [j], weights, margin)
+                        for j, body in enumerate(counts.bodies))
     return rows
 
 
-def _row(angle: float, body_id: int, model: str, cases: list[Case]) -> Fig13Row:
-    over_a = sum(1 for c in cases if c.predicted != 0)
-    low_a = sum(1 for c in cases if c.predicted == 1)
-    over_e = sum(1 for c in cases if c.observed != 0)
-    low_e = sum(1 for c in cases if c.observed == 1)
-    cor_a, cor_e = cor(low_a, over_a), cor(low_e, over_e)
-    return Fig13Row(angle, body_id, model, len(cases), over_a, low_a, cor_a, over_e, low_e, cor_e, cor_a - cor_e,
-                    *_statistics(low_a, over_a, low_e, over_e))
+def _row(angle: float, body_id: int, model: str, counts: _Counts, members: Iterable[int], weights: np.ndarray,
+         margin: float) -> Fig13Row:
+    """The average row (``body_id`` 0, over ``members``) or one body's row."""
+    sel = list(members)
+    low_a, over_a = counts.low_a[sel], counts.over_a[sel]
+    low_e, over_e = counts.low_e[sel], counts.over_e[sel]
+    runs = int(counts.runs[sel].sum())
+    records = int(np.count_nonzero(counts.runs[sel].sum(axis=0)))
+    independent = body_id != 0 and int(over_a.max(initial=0)) <= 1 and int(over_e.max(initial=0)) <= 1
+    if independent:
+        cor_a, cor_e = cor(int(low_a.sum()), int(over_a.sum())), cor(int(low_e.sum()), int(over_e.sum()))
+        interval_a = wilson_interval(int(low_a.sum()), int(over_a.sum()))
+        interval_e = wilson_interval(int(low_e.sum()), int(over_e.sum()))
+        verdict = equivalence(int(low_a.sum()), int(over_a.sum()), int(low_e.sum()), int(over_e.sum()), margin,
+                              cases=runs)
+    else:
+        ones = np.ones((1, counts.records))
+        cor_a, cor_e = float(mean_rate(low_a, over_a, ones)[0]), float(mean_rate(low_e, over_e, ones)[0])
+        boot_a, boot_e = mean_rate(low_a, over_a, weights), mean_rate(low_e, over_e, weights)
+        few = records < MIN_BOOTSTRAP_RECORDS
+        interval_a = _interval(boot_a, cor_a, over_a, few)
+        interval_e = _interval(boot_e, cor_e, over_e, few)
+        verdict = _bootstrap_verdict(cor_a, cor_e, boot_a - boot_e, over_a, over_e, runs, margin, few)
+    pairs = [c for j in sel for c in counts.pairs[j]]
+    both = [c for c in pairs if c.predicted and c.observed]
+    low_high = sum(1 for c in both if c.predicted == 1 and c.observed == -1)
+    high_low = sum(1 for c in both if c.predicted == -1 and c.observed == 1)
+    only_a = sum(1 for c in pairs if c.predicted and not c.observed)
+    only_e = sum(1 for c in pairs if c.observed and not c.predicted)
+    paired = body_id != 0
+    return Fig13Row(
+        angle, body_id, model, runs, records, int(over_a.sum()), int(low_a.sum()), cor_a, int(over_e.sum()),
+        int(low_e.sum()), cor_e, cor_a - cor_e, *interval_a, *interval_e, verdict.low, verdict.high,
+        verdict.verdict, verdict.p_equivalent, verdict.p_different,
+        (-1 if verdict.cases_to_resolve is None else verdict.cases_to_resolve)
+        if verdict.verdict == NOT_RESOLVED else 0, margin,
+        len(both), low_high, high_low, mcnemar_exact(low_high, high_low) if paired else math.nan,
+        only_a, only_e, mcnemar_exact(only_a, only_e) if paired else math.nan)
 
 
-def _statistics(low_a: int, over_a: int, low_e: int, over_e: int) -> tuple[float, float, float, float, float]:
-    """The Wilson intervals of both rates and the exact test's p-value (module docstring)."""
-    return (*wilson_interval(low_a, over_a), *wilson_interval(low_e, over_e),
-            exact_two_proportions(low_a, over_a, low_e, over_e))
+def _records_once(rate: float, over: np.ndarray) -> tuple[float, int]:
+    """(k, n): each record that had an overturn counted as one case, k = ``rate`` · n (fractional where the rate
+    is, e.g. a record whose two polarities fell to either side)."""
+    n = int(np.count_nonzero(over.sum(axis=0)))
+    return rate * n, n
 
 
-def _average(angle: float, model: str, rows: list[Fig13Row]) -> Fig13Row:
-    cor_a = _nanmean([r.cor_analysis for r in rows])
-    cor_e = _nanmean([r.cor_experiment for r in rows])
-    over_a, low_a = sum(r.overturned_analysis for r in rows), sum(r.towards_low_analysis for r in rows)
-    over_e, low_e = sum(r.overturned_experiment for r in rows), sum(r.towards_low_experiment for r in rows)
-    return Fig13Row(angle, 0, model, sum(r.runs for r in rows), over_a, low_a, cor_a, over_e, low_e, cor_e,
-                    cor_a - cor_e, *_statistics(low_a, over_a, low_e, over_e))
+def _interval(samples: np.ndarray, rate: float, over: np.ndarray, few: bool) -> tuple[float, float]:
+    """The 95 % percentile interval of the resampled rate; Wilson's with each record once if the resamples do not
+    vary or the records are ``few``."""
+    if math.isnan(rate):
+        return math.nan, math.nan
+    if few or degenerate(samples):
+        return wilson_interval(*_records_once(rate, over))
+    return percentile_interval(samples)
+
+
+def _bootstrap_verdict(cor_a: float, cor_e: float, samples: np.ndarray, over_a: np.ndarray, over_e: np.ndarray,
+                       runs: int, margin: float, few: bool) -> Verdict:
+    """TOST on the cluster-bootstrap distribution of the difference (module docstring); the score TOST with each
+    record counted once where the resamples do not vary or the records are ``few``."""
+    if math.isnan(cor_a) or math.isnan(cor_e):
+        return Verdict(UNDEFINED, math.nan, math.nan, math.nan, math.nan, math.nan, margin, runs)
+    d = cor_a - cor_e
+    if few or degenerate(samples):
+        (k1, n1), (k2, n2) = _records_once(cor_a, over_a), _records_once(cor_e, over_e)
+        return equivalence(k1, n1, k2, n2, margin, cases=runs, overturn_fractions=(n1 / runs, n2 / runs))
+    finite = samples[np.isfinite(samples)]
+    low, high = percentile_interval(finite, 1.0 - 2.0 * ALPHA)
+    p_low, p_high = float(np.mean(finite <= -margin)), float(np.mean(finite >= margin))
+    p_beyond = float(np.mean(finite <= margin)) if d >= 0 else float(np.mean(finite >= -margin))
+    if max(p_low, p_high) < ALPHA:
+        kind = EQUIVALENT
+    elif p_beyond < ALPHA:
+        kind = DIFFERENT
+    else:
+        kind = NOT_RESOLVED
+    needed = _runs_to_resolve(d, low, high, margin, runs) if kind == NOT_RESOLVED else None
+    return Verdict(kind, d, low, high, max(p_low, p_high), p_beyond, margin, runs, needed)
+
+
+def _runs_to_resolve(d: float, low: float, high: float, margin: float, runs: int) -> int | None:
+    """The runs at which the bootstrap interval, narrowing as 1/√runs about ``d``, would lie inside ±margin (|d| <
+    margin) or beyond it; None for a difference at the margin."""
+    if abs(d) < margin:
+        factor = max(((high - d) / (margin - d)) ** 2, ((d - low) / (margin + d)) ** 2)
+    elif abs(d) > margin:
+        factor = ((d - low) / (d - margin)) ** 2 if d > 0 else ((high - d) / (-margin - d)) ** 2
+    else:
+        return None
+    return max(runs + 1, math.ceil(runs * factor))
 
 
 def max_difference(rows: Iterable[Fig13Row]) -> dict[str, float | None]:
@@ -160,14 +324,13 @@ def max_difference(rows: Iterable[Fig13Row]) -> dict[str, float | None]:
     return out
 
 
-def beyond_chance(rows: Iterable[Fig13Row]) -> dict[str, tuple[int, int]]:
-    """Per model, (per-body rows that differ beyond chance, per-body rows where both CORs are defined)."""
-    out: dict[str, tuple[int, int]] = {}
+def verdict_counts(rows: Iterable[Fig13Row]) -> dict[str, dict[str, int]]:
+    """Per model, how many per-body rows got each verdict (:data:`VERDICTS`)."""
+    out: dict[str, dict[str, int]] = {}
     for row in rows:
-        differ, tested = out.get(row.model, (0, 0))
-        if row.body_id != 0 and not math.isnan(row.p_value):
-            differ, tested = differ + row.beyond_chance, tested + 1
-        out[row.model] = (differ, tested)
+        counts = out.setdefault(row.model, dict.fromkeys(VERDICTS, 0))
+        if row.body_id != 0:
+            counts[row.verdict] += 1
     return out
 
 
@@ -177,5 +340,6 @@ def to_array(rows: list[Fig13Row]) -> np.ndarray:
     for i, row in enumerate(rows):
         values = asdict(row)
         values["model"] = row.model.encode("utf-8")
+        values["verdict"] = row.verdict.encode("utf-8")
         out[i] = tuple(values[name] for name in FIG13_DTYPE.names)
     return out

@@ -11,7 +11,7 @@ import math
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
-from .fig13 import Fig13Row, beyond_chance
+from .fig13 import Fig13Row, verdict_counts
 from .restitution import BodyRestitution
 from .transform import ModelInput
 
@@ -145,15 +145,17 @@ class SessionAnalysis:
     """With ``"fit"``: each body's restitution and where it came from (empty otherwise)."""
     runs: list[RunAnalysis]
     skipped: list[SkippedRun]
+    margin: float
+    """The equivalence margin of the Fig. 13 verdicts [fraction]."""
     fig13: list[Fig13Row]
     max_difference: dict[str, float | None]
     agreement: dict[str, Agreement]
     written: bool
 
     @property
-    def beyond_chance(self) -> dict[str, tuple[int, int]]:
-        """Per model, (body-angle rows whose COR differs beyond chance, rows where both CORs are defined)."""
-        return beyond_chance(self.fig13)
+    def verdicts(self) -> dict[str, dict[str, int]]:
+        """Per model, how many body-angle rows got each equivalence verdict (`rig.analyze.fig13.VERDICTS`)."""
+        return verdict_counts(self.fig13)
 
     @property
     def predictions(self) -> list[Prediction]:
@@ -169,5 +171,5 @@ class SessionAnalysis:
             "runs": [r.to_json() for r in self.runs], "skipped": [s.to_json() for s in self.skipped],
             "fig13": [r.to_json() for r in self.fig13], "max_difference": self.max_difference,
             "agreement": {m: a.to_json() for m, a in self.agreement.items()},
-            "beyond_chance": {m: {"differ": d, "tested": t} for m, (d, t) in self.beyond_chance.items()},
+            "margin": self.margin, "verdicts": self.verdicts,
         })

@@ -20,7 +20,9 @@ from pathlib import Path
 from typing import Any
 
 from analysis import AnalysisInputError, Body, simulate
+from analysis.agreement import MARGIN
 from analysis.simulate import resolve_restitution
+from rig.sequence import record_of_label
 from rig.session import read_session
 
 from . import fig13, store
@@ -87,7 +89,8 @@ def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor:
 
 
 def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solver: str, sensor: str | None,
-             restitution: float | str, written: bool, include_degraded: bool = False) -> SessionAnalysis:
+             restitution: float | str, margin: float, written: bool, include_degraded: bool = False
+             ) -> SessionAnalysis:
     runs: list[RunAnalysis] = []
     skipped: list[SkippedRun] = []
     fitted: dict[int, BodyRestitution] = {}
@@ -112,19 +115,21 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
             skipped.append(SkippedRun(run["name"], status, str(exc)))
     predictions = [p for r in runs for p in r.predictions]
     angle = {r.run: r.angle_deg for r in runs}
-    cases = [fig13.Case(angle[p.run], p.body_id, p.model, p.direction, p.observed) for p in predictions]
-    rows = fig13.fig13_rows(cases)
+    record = {r.run: record_of_label(r.record)[0] for r in runs}  # both polarities of a record: one cluster
+    cases = [fig13.Case(angle[p.run], p.body_id, p.model, p.direction, p.observed, record[p.run])
+             for p in predictions]
+    rows = fig13.fig13_rows(cases, margin)
     diff = fig13.max_difference(rows)
     return SessionAnalysis(
         path=str(path), models=models, solver=solver, restitution=str(restitution), fitted_restitution=fitted,
-        runs=runs, skipped=skipped,
+        runs=runs, skipped=skipped, margin=margin,
         fig13=rows, max_difference={m: diff.get(m) for m in models},
         agreement={m: Agreement.of(m, predictions) for m in models}, written=written)
 
 
 def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS, solver: str = "fast", *,
-                    sensor: str | None = None, restitution: float | str = 0.0, write: bool = True,
-                    include_degraded: bool = False) -> SessionAnalysis:
+                    sensor: str | None = None, restitution: float | str = 0.0, margin: float = MARGIN,
+                    write: bool = True, include_degraded: bool = False) -> SessionAnalysis:
     """Re-run ``models`` (``"rocking"``, ``"general"``) with ``solver`` (``"fast"``/``"reference"``) on every
     completed run of the session file at ``path`` (module docstring) and, with ``write``, store the result in its
     ``analysis`` groups, replacing earlier ones (`rig.analyze.store`; raw data untouched).
@@ -132,8 +137,9 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
     ``sensor``: use that accelerometer only (default: the mean of all). ``restitution``: the models' impact rule,
     0 (plastic, the paper's analysis: default), ``"housner"`` (1 − 1.5 sin²α, a rigid block's no-bounce impact)
     a number in [0, 1], or ``"fit"``: each body's from the session's measured tilts (`rig.analyze.restitution`;
-    a body that hardly rocked gets Housner's). ``include_degraded``: also the runs logged ``degraded`` (left out
-    by default, each listed in ``skipped`` with what degraded it). Raises `AnalysisInputError` for a bad
+    a body that hardly rocked gets Housner's). ``margin``: the equivalence margin of the Fig. 13 verdicts
+    [fraction, 0.05 = 5 points]. ``include_degraded``: also the runs logged ``degraded`` (left out by default,
+    each listed in ``skipped`` with what degraded it). Raises `AnalysisInputError` for a bad
     model/solver/restitution, `rig.session.SessionError` for a file that cannot be read or (with ``write``) is being
     written (`rig.analyze.store.SessionBusyError`).
     """
@@ -142,14 +148,16 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
         raise AnalysisInputError(f"models {list(models)!r}: expected one or both of {list(MODELS)}")
     if solver not in SOLVERS:
         raise AnalysisInputError(f"solver {solver!r}: expected one of {list(SOLVERS)}")
+    if not 0.0 < margin < 1.0:
+        raise AnalysisInputError(f"margin {margin!r}: expected a fraction in (0, 1) (0.05 = 5 points)")
     if restitution != "fit":
         resolve_restitution(Body(b=0.1, h=0.5), restitution)  # a bad value fails here, not as skipped bodies
     path = Path(path)
     if not write:
-        return _analyze(read_session(path), path, models, solver, sensor, restitution, written=False,
+        return _analyze(read_session(path), path, models, solver, sensor, restitution, margin, written=False,
                         include_degraded=include_degraded)
     with store.locked(path) as file:
-        result = _analyze(read_session(path), path, models, solver, sensor, restitution, written=True,
+        result = _analyze(read_session(path), path, models, solver, sensor, restitution, margin, written=True,
                           include_degraded=include_degraded)
         store.write(file, result)
     return result

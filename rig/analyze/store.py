@@ -12,7 +12,8 @@ Layout (schema ``shaketable-rig/analysis/1``):
   then t_observed [s, NaN if none] and status (the model's end state).
 * ``/analysis/``: the same provenance attributes plus ``runs`` and ``skipped_runs`` (JSON), ``max_difference``
   (JSON {model: value or null}) and ``max_difference_<model>`` (float, NaN if undefined), ``agreement`` (JSON),
-  ``cor_definition`` (text); dataset ``fig13`` (`rig.analyze.fig13.FIG13_DTYPE`).
+  ``margin`` (the equivalence margin of the verdicts, fraction), ``cor_definition`` (text); dataset ``fig13``
+  (`rig.analyze.fig13.FIG13_DTYPE`).
 
 How: the writer's own locks (`rig.session.locks.open_locked`: refused at once while a `SessionLog` holds the
 file) and one crash-atomic transaction (`rig.session.atomic.SessionFile.transaction`: the file is the old one or
@@ -130,6 +131,7 @@ def _write_root(group: h5py.Group, analysis: SessionAnalysis, created: str) -> N
         "runs": json.dumps([r.run for r in analysis.runs]),
         "skipped_runs": json.dumps([s.to_json() for s in analysis.skipped]),
         "max_difference": json.dumps(clean),
+        "margin": float(analysis.margin),
         "agreement": json.dumps({m: a.to_json() for m, a in analysis.agreement.items()}),
         "cor_definition": (fig13.__doc__ or "").strip(),
     })

@@ -22,6 +22,7 @@ from rig.cli import (
     design,
     emulate,
     iterate,
+    plan,
     prepare,
     records,
     report,
@@ -36,7 +37,7 @@ app = typer.Typer(help="Shake-table rig: records, analysis, studies and design o
                   no_args_is_help=True, add_completion=False)
 
 for command in (study, demo, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report,
-                iterate):
+                iterate, plan):
     command.register(app)
 
 

@@ -58,23 +58,36 @@ def predictions_table(result: SessionAnalysis) -> Table:
 
 
 def fig13_table(result: SessionAnalysis) -> Table:
-    """The Fig. 13 comparison: per model, angle and body (and the body average), counts and COR [%]."""
+    """The Fig. 13 comparison: per model, angle and body (and the body average), counts, COR [%], the paired test
+    and the equivalence verdict."""
+    margin = 100 * result.margin
     table = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — controlled overturning rate, analysis vs experiment",
-                  caption="COR = overturns towards the low side / overturns (%), [95 % Wilson interval]; n = cases, "
-                          "ovt = overturned, low = towards the low side; diff = analysis − experiment (percentage "
-                          "points); p = Fisher's exact test of one rate for both (* below 0.05: beyond chance)")
-    for name in ("model", "β°", "body", "n", "ovt A", "low A", "COR A", "ovt E", "low E", "COR E", "diff", "p"):
-        table.add_column(name, justify="left" if name in ("model", "body") else "right")
+                  caption=f"COR = overturns towards the low side / overturns (%), [95 % interval: Wilson's, or the "
+                          f"cluster bootstrap over records where records are shared]; n = runs (average: body-runs), "
+                          f"ovt = overturned, low = towards the low side; diff = analysis − experiment (percentage "
+                          f"points) [90 % interval]; McNemar = exact p of the paired cases on the side (low/high "
+                          f"vs high/low) and on overturning (analysis only vs experiment only); verdict: "
+                          f"equivalence within ±{margin:g} points (two one-sided tests at 5 %)")
+    for name in ("model", "β°", "body", "n", "ovt A", "low A", "COR A", "ovt E", "low E", "COR E", "diff",
+                 "McNemar side", "McNemar ovt", "verdict"):
+        table.add_column(name, justify="left" if name in ("model", "body", "verdict") else "right")
     for row in result.fig13:
-        diff = "–" if math.isnan(row.difference) else f"{100 * row.difference:+.0f}"
-        p = "–" if math.isnan(row.p_value) else f"{row.p_value:.2f}{'*' if row.beyond_chance else ''}"
+        diff = "–" if math.isnan(row.difference) else (
+            f"{100 * row.difference:+.0f} [{100 * row.difference_low:+.0f}, {100 * row.difference_high:+.0f}]")
         table.add_row(row.model, f"{row.angle_deg:g}", "average" if row.body_id == 0 else str(row.body_id),
                       str(row.runs), str(row.overturned_analysis), str(row.towards_low_analysis),
                       _rate(row.cor_analysis, row.cor_analysis_low, row.cor_analysis_high),
                       str(row.overturned_experiment), str(row.towards_low_experiment),
-                      _rate(row.cor_experiment, row.cor_experiment_low, row.cor_experiment_high), diff, p,
+                      _rate(row.cor_experiment, row.cor_experiment_low, row.cor_experiment_high), diff,
+                      _mcnemar(row.low_high, row.high_low, row.p_direction),
+                      _mcnemar(row.analysis_only, row.experiment_only, row.p_overturn), row.verdict_words(),
                       style="bold" if row.body_id == 0 else None)
     return table
+
+
+def _mcnemar(b: int, c: int, p: float) -> str:
+    """Discordant counts and McNemar's exact p, ``–`` on the average row."""
+    return "–" if math.isnan(p) else f"{b}/{c} p={p:.2f}"
 
 
 def _rate(value: float, low: float, high: float) -> str:
@@ -105,11 +118,12 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
     for model in result.models:
         a = result.agreement[model]
         diff = result.max_difference.get(model)
-        differ, tested = result.beyond_chance.get(model, (0, 0))
+        verdicts = ", ".join(f"{v} {n}" for v, n in result.verdicts.get(model, {}).items() if n)
         console.print(
             f"{model}: max |COR difference| of a body at an angle "
             f"{'undefined (no overturn on both sides)' if diff is None else f'{100 * diff:.1f} points'} "
-            f"(the paper: ≤ 5); beyond chance (Fisher's exact p < 0.05) in {differ} of {tested} body-angle rates; "
+            f"(the paper: ≤ 5); equivalence within ±{100 * result.margin:g} points per body and angle: "
+            f"{verdicts or 'no rate'}; "
             f"case by case {a.agree}/{a.cases} agree — overturned in both {a.overturned_both} "
             f"(same side {a.same_direction}), analysis only {a.overturned_analysis_only}, experiment only "
             f"{a.overturned_experiment_only}, neither {a.overturned_neither}", highlight=False)
@@ -128,6 +142,8 @@ def register(app: typer.Typer) -> None:
                                                       "from its measured tilts)")] = "0",
         sensor: Annotated[str | None, typer.Option(help="use this accelerometer only (default: the mean of all)")
                           ] = None,
+        margin: Annotated[float, typer.Option(help="equivalence margin of the Fig. 13 verdicts [percentage "
+                                                   "points]")] = 5.0,
         write: Annotated[bool, typer.Option("--write/--no-write", help="store the result in the session file")
                          ] = True,
         include_degraded: Annotated[bool, typer.Option("--include-degraded", help="also analyse the runs logged "
@@ -151,7 +167,7 @@ def register(app: typer.Typer) -> None:
 
         try:
             result = analyze_session(path, MODEL_CHOICES[model], solver, sensor=sensor, restitution=impact,
-                                     write=write, include_degraded=include_degraded)
+                                     margin=margin / 100.0, write=write, include_degraded=include_degraded)
         except (SessionError, AnalysisInputError, OSError) as exc:
             fail(str(exc))
         if as_json:

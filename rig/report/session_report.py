@@ -19,8 +19,8 @@ from typing import Any
 import numpy as np
 
 from analysis.body import G
-from analysis.proportions import SIGNIFICANCE
 from analysis.spectrum import DAMPING, DEFAULT_PERIODS, pseudo_acceleration_spectrum, uniform
+from rig.analyze.fig13 import verdict_words
 from rig.analyze.store import fitted_restitution
 
 from . import figures
@@ -336,26 +336,34 @@ def _fig13_section(header: SessionData, names: dict[int, str]) -> str:
         "points], dashed ±5 pp (the paper's largest difference)."), alt="Fig. 13 analysis against experiment"))
     maxima = [(f"largest |difference|, {k.removeprefix('max_difference_')}", f"{num(v, '.1f', 100)} pp")
               for k, v in sorted(header.analysis_attrs.items()) if k.startswith("max_difference_")]
-    parts.append(key_values(_impact_model(header.analysis_attrs) + maxima))
+    margin = header.analysis_attrs.get("margin")
+    margin_pp = f"{100 * float(margin):g}" if margin is not None else "5"
+    parts.append(key_values(_impact_model(header.analysis_attrs) + maxima
+                            + [("equivalence margin", f"±{margin_pp} pp")]))
     ordered = sorted(rows, key=lambda r: (str(r["model"]), float(r["angle_deg"]), int(r["body_id"])))
     parts.append(table(
-        ["model", "β [°]", "body", "runs", "overturned (analysis)", "towards low (analysis)", "COR analysis [%]",
-         "overturned (exp.)", "towards low (exp.)", "COR exp. [%]", "difference [pp]", "p (Fisher's exact)"],
+        ["model", "β [°]", "body", "runs", "analysis: low / overturned, COR [%]",
+         "experiment: low / overturned, COR [%]", "difference [pp]", "McNemar p: side; overturn", "verdict"],
         [[r["model"], num(r["angle_deg"], "g"),
           "average" if int(r["body_id"]) == 0 else f"{r['body_id']} {names.get(int(r['body_id']), '')}".strip(),
-          r["runs"], r["overturned_analysis"], r["towards_low_analysis"],
-          _rate(r, "cor_analysis"), r["overturned_experiment"], r["towards_low_experiment"],
-          _rate(r, "cor_experiment"), num(r["difference"], "+.0f", 100), _p_value(r)] for r in ordered],
-        caption="Fig. 13 data: per model, angle and body (average: over the bodies; its interval from their pooled "
-                "counts); each COR with its 95 % Wilson interval; p: Fisher's exact test that analysis and "
-                "experiment share one rate, * below 0.05 (a difference beyond chance). With a few cases per body "
-                "one overturn moves a rate by tens of points: read a difference with its interval and p.",
+          r["runs"], f"{r['towards_low_analysis']}/{r['overturned_analysis']}: {_rate(r, 'cor_analysis')}",
+          f"{r['towards_low_experiment']}/{r['overturned_experiment']}: {_rate(r, 'cor_experiment')}",
+          _difference(r), _mcnemar(r), _verdict(r)] for r in ordered],
+        caption="Fig. 13 data: per model, angle and body. The models were re-run on each run's measured plate "
+                "motion and their overturns compared case by case with the specimens'. COR with its 95 % interval "
+                "(Wilson's where a body's records enter once; the cluster bootstrap over records where they are "
+                "shared — the average row, one estimator, the mean of the bodies' CORs, with its own interval). "
+                "Difference with its 90 % interval. McNemar: exact p of the paired cases that disagree, on the side "
+                "(analysis low and specimen high against the reverse, counts in brackets) and on overturning "
+                "(analysis only against experiment only). Verdict: equivalence of the two rates within "
+                f"±{margin_pp} points by two one-sided tests at 5 % — equivalent, different (beyond the margin), or "
+                "not resolved with the runs at hand (and how many would resolve it at the same rates).",
         left=3, row_classes=["avg" if int(r["body_id"]) == 0 else "" for r in ordered]))
     return "\n".join(parts)
 
 
 def _rate(row: dict[str, Any], name: str) -> str:
-    """A COR [%] with its Wilson interval when the file has it (analysed before the intervals: the rate alone)."""
+    """A COR [%] with its interval when the file has it (analysed before the intervals: the rate alone)."""
     rate = num(row[name], ".0f", 100)
     low, high = row.get(f"{name}_low"), row.get(f"{name}_high")
     if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
@@ -363,11 +371,31 @@ def _rate(row: dict[str, Any], name: str) -> str:
     return f"{rate} [{100 * low:.0f}–{100 * high:.0f}]"
 
 
-def _p_value(row: dict[str, Any]) -> str:
-    p = row.get("p_value")
-    if p is None or not math.isfinite(p):
+def _difference(row: dict[str, Any]) -> str:
+    """The difference [pp] with its 90 % interval when the file has it."""
+    text = num(row["difference"], "+.0f", 100)
+    low, high = row.get("difference_low"), row.get("difference_high")
+    if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
+        return text
+    return f"{text} [{100 * low:+.0f}, {100 * high:+.0f}]"
+
+
+def _mcnemar(row: dict[str, Any]) -> str:
+    """McNemar's exact p on the side and on overturning, with the discordant counts; ``–`` on the average row or an
+    analysis stored before the paired tests."""
+    side, overturn = row.get("p_direction"), row.get("p_overturn")
+    if side is None or overturn is None or not (math.isfinite(side) and math.isfinite(overturn)):
         return "–"
-    return f"{p:.2f}{' *' if p < SIGNIFICANCE else ''}"
+    return (f"{side:.2f} ({row['low_high']}/{row['high_low']}); "
+            f"{overturn:.2f} ({row['analysis_only']}/{row['experiment_only']})")
+
+
+def _verdict(row: dict[str, Any]) -> str:
+    """The equivalence verdict in words (``–`` for an analysis stored before the verdicts)."""
+    verdict = row.get("verdict")
+    if not verdict:
+        return "–"
+    return verdict_words(str(verdict), int(row["body_id"]), int(row["runs"]), int(row.get("runs_to_resolve", -1)))
 
 
 def session_body(path: str, progress: Progress | None = None) -> tuple[str, str, int]:

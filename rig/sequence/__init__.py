@@ -14,6 +14,8 @@ seconds, ``_hz`` Hz. Top-level keys come first: in TOML every key after a ``[sec
     description = "demo and CI"
     table_url = "mavlink://127.0.0.1:14600"   # optional: the table controller (else given at run time)
     repetitions = 1                           # runs of each record at each angle
+    polarity = "both"                         # "as recorded" (default), "negated", or "both": each record
+                                              # also played negated (its fall-line component × −1)
     angles_deg = [0, 4]                       # plate tilts β, run in this order; 0 ≤ β ≤ the tilt limit
     records = [                               # at every angle, in this order
         "fema-farfield:KOBE/NIS000",          # SUITE:NAME, library:NAME, a record file or H1+H2[+UP]
@@ -67,21 +69,30 @@ by PGA (`rig.sequence.records`). Bases must lie inside the plate and must not ov
 """
 
 from .model import (
+    AS_RECORDED,
+    BOTH,
     DEFAULT_FRICTION,
     DEFAULT_PLATE,
+    NEGATED,
+    POLARITIES,
     DriveOptions,
     OperatorSteps,
     PlacedBody,
     PlannedRun,
     RecordEntry,
     SequenceError,
+    record_of_label,
 )
 from .reader import SCHEMA
 from .sequence import Sequence, load_sequence
 
 __all__ = [
+    "AS_RECORDED",
+    "BOTH",
     "DEFAULT_FRICTION",
     "DEFAULT_PLATE",
+    "NEGATED",
+    "POLARITIES",
     "SCHEMA",
     "DriveOptions",
     "OperatorSteps",
@@ -91,4 +102,5 @@ __all__ = [
     "Sequence",
     "SequenceError",
     "load_sequence",
+    "record_of_label",
 ]

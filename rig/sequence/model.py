@@ -99,6 +99,23 @@ class PlacedBody:
                 **({} if self.restitution is None else {"restitution": self.restitution})}
 
 
+AS_RECORDED = "as recorded"
+NEGATED = "negated"
+BOTH = "both"
+POLARITIES = (AS_RECORDED, NEGATED, BOTH)
+"""A sequence's ``polarity`` values: the record as recorded, negated, or both (each record played twice)."""
+
+NEGATED_LABEL = " (negated)"
+"""What a negated record's label (the session's run ``record``) ends with."""
+
+
+def record_of_label(label: str) -> tuple[str, int]:
+    """(the record's label without its polarity, polarity +1 or −1) from a run's ``record`` label."""
+    if label.endswith(NEGATED_LABEL):
+        return label.removesuffix(NEGATED_LABEL), -1
+    return label, 1
+
+
 @dataclass(frozen=True)
 class RecordEntry:
     """One record of the sequence and how to play it.
@@ -110,6 +127,9 @@ class RecordEntry:
     preparation tapers its ends and brings the table to rest). ``corner`` [Hz] fixes the high-pass corner
     (None: the ``[drive]`` option, else automatic). ``dt`` [s] and ``units`` are for record files that do not
     state them. ``key``/``line`` say where the entry is in the file (``records[2]``, ``records_from``).
+    ``polarity``: +1 plays the record as recorded, −1 negated — its fall-line component (``acc_h``, surge) times
+    −1, the second horizontal and the vertical component as recorded: the mirror image of the motion across the
+    plane normal to the fall line, which the paper's analysis plays beside every record (``polarity = "both"``).
     """
 
     spec: str
@@ -123,6 +143,7 @@ class RecordEntry:
     line: int | None = None
     drive: str | None = None
     """A drive file to play instead of preparing the record (``rig iterate``'s compensated drive), absolute path."""
+    polarity: int = 1
 
     @property
     def scale_policy(self) -> str | float:
@@ -130,11 +151,14 @@ class RecordEntry:
         return "table" if self.scale is None else self.scale
 
     def label(self) -> str:
-        """The spec with its window, e.g. ``fema:KOBE/NIS000 [5-10 s]``."""
-        return self.spec if self.window is None else f"{self.spec} [{self.window[0]:g}-{self.window[1]:g} s]"
+        """The spec with its window and polarity, e.g. ``fema:KOBE/NIS000 [5-10 s] (negated)`` (the session's run
+        ``record``; `record_of_label` splits it again)."""
+        label = self.spec if self.window is None else f"{self.spec} [{self.window[0]:g}-{self.window[1]:g} s]"
+        return label + (NEGATED_LABEL if self.polarity < 0 else "")
 
     def to_dict(self) -> dict[str, Any]:
-        out: dict[str, Any] = {"record": self.resolved, "scale": self.scale_policy}
+        out: dict[str, Any] = {"record": self.resolved, "scale": self.scale_policy,
+                               "polarity": NEGATED if self.polarity < 0 else AS_RECORDED}
         for key, value in (("window_s", self.window), ("corner_hz", self.corner), ("dt_s", self.dt),
                            ("units", self.units), ("drive", self.drive)):
             if value is not None:
@@ -205,4 +229,4 @@ class PlannedRun:
     def to_dict(self) -> dict[str, Any]:
         return {"plan_index": self.plan_index, "angle_index": self.angle_index, "angle_deg": self.angle_deg,
                 "record_index": self.record_index, "record": self.record.resolved,
-                "scale": self.record.scale_policy, "repetition": self.repetition}
+                "polarity": self.record.polarity, "scale": self.record.scale_policy, "repetition": self.repetition}

@@ -12,6 +12,7 @@ import re
 import tomllib
 from collections.abc import Mapping
 from collections.abc import Sequence as Seq
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
@@ -22,8 +23,11 @@ from analysis.table.toml_check import TomlChecker
 from analysis.table.toml_lines import KeyPath, dotted_path, key_lines, suggest, syntax_message
 
 from .model import (
+    AS_RECORDED,
     DEFAULT_FRICTION,
     DEFAULT_PLATE,
+    NEGATED,
+    POLARITIES,
     PROMPT_FIELDS,
     DriveOptions,
     OperatorSteps,
@@ -36,12 +40,12 @@ from .records import expand_records_from, resolve_spec
 SCHEMA = "shaketable-rig/sequence/1"
 """The ``schema`` written by ``Sequence.to_dict`` (a file may give it; it must then be this)."""
 
-TOP_KEYS = ("name", "description", "table_url", "repetitions", "angles_deg", "records", "records_from", "bodies",
-            "rig", "plate", "drive", "operator", "schema", "source")
+TOP_KEYS = ("name", "description", "table_url", "repetitions", "angles_deg", "polarity", "records", "records_from",
+            "bodies", "rig", "plate", "drive", "operator", "schema", "source")
 BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "x", "y", "friction", "restitution")
 DIMENSIONS = ("b", "h", "depth", "mass")
-RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive")
-RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz")
+RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive", "polarity")
+RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz", "polarity")
 RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
 
@@ -52,6 +56,7 @@ class _Reader(TomlChecker):
     def __init__(self, source: str, lines: Mapping[KeyPath, int], base_dir: Path) -> None:
         super().__init__(source, lines)
         self.base_dir = base_dir
+        self.default_polarity = AS_RECORDED
 
     def error(self, path: KeyPath, problem: str) -> SequenceError:
         line = self.line(path) if path else None
@@ -257,13 +262,32 @@ class _Reader(TomlChecker):
             angles.append(angle)
         return tuple(angles)
 
+    def polarity(self, value: Any, path: KeyPath) -> str:
+        if value not in POLARITIES:
+            raise self.error(path, f"expected one of {', '.join(repr(p) for p in POLARITIES)} (\"both\": each "
+                             f"record also played negated), got {value!r}")
+        return str(value)
+
+    def with_polarity(self, entry: RecordEntry, polarity: str, path: KeyPath) -> list[RecordEntry]:
+        """The entry as recorded, negated, or both in turn (``polarity``)."""
+        if polarity == AS_RECORDED:
+            return [entry]
+        if entry.drive is not None:
+            raise self.error(path, f"{entry.label()} plays a compensated drive file as it was iterated; expected "
+                             "polarity = \"as recorded\" for it (iterate the negated record for the other sign)")
+        negated = replace(entry, polarity=-1)
+        return [negated] if polarity == NEGATED else [entry, negated]
+
     def records(self, top: Mapping[str, Any]) -> tuple[RecordEntry, ...]:
+        if "polarity" in top:
+            self.default_polarity = self.polarity(top["polarity"], ("polarity",))
         entries: list[RecordEntry] = []
         if "records" in top:
             value = top["records"]
             if not isinstance(value, list):
                 raise self.error(("records",), f"expected a list of records, got {value!r}")
-            entries.extend(self.record(item, ("records", i)) for i, item in enumerate(value))
+            for i, item in enumerate(value):
+                entries.extend(self.record(item, ("records", i)))
         if "records_from" in top:
             entries.extend(self.records_from(top["records_from"]))
         if not entries:
@@ -271,18 +295,20 @@ class _Reader(TomlChecker):
                              "{ suite = \"fema\", strongest = 25 }")
         seen: dict[tuple[Any, ...], str] = {}
         for entry in entries:
-            key = (entry.resolved, entry.scale, entry.window, entry.corner, entry.drive)
+            key = (entry.resolved, entry.scale, entry.window, entry.corner, entry.drive, entry.polarity)
             if key in seen:
                 raise SequenceError(self.source, entry.line, entry.key, f"{entry.label()} is already {seen[key]} "
                                     "with the same options; expected each record once (use repetitions)")
             seen[key] = entry.key
         return tuple(entries)
 
-    def record(self, value: Any, path: KeyPath) -> RecordEntry:
+    def record(self, value: Any, path: KeyPath) -> list[RecordEntry]:
+        """The entry, twice with polarity \"both\" (as recorded, then negated)."""
         where = {"key": dotted_path(path), "line": self.line(path)}
         if isinstance(value, str):
             spec = self.string(value, path)
-            return RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **where)
+            entry = RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **where)
+            return self.with_polarity(entry, self.default_polarity, path)
         table = self.table(value, path, RECORD_KEYS)
         spec = self.string(self.require(table, path, "record", '"SUITE:NAME", "library:NAME" or a record file'),
                            (*path, "record"))
@@ -305,7 +331,11 @@ class _Reader(TomlChecker):
             drive = self.string(table["drive"], (*path, "drive"))
             if drive != "prepared":
                 options["drive"] = str((self.base_dir / drive).resolve())
-        return RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **options, **where)
+        polarity = self.default_polarity
+        if "polarity" in table:
+            polarity = self.polarity(table["polarity"], (*path, "polarity"))
+        entry = RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **options, **where)
+        return self.with_polarity(entry, polarity, (*path, "polarity") if "polarity" in table else path)
 
     def records_from(self, value: Any) -> list[RecordEntry]:
         path: KeyPath = ("records_from",)
@@ -320,9 +350,13 @@ class _Reader(TomlChecker):
         except ValueError as exc:
             key = "strongest" if "strongest" in str(exc) and "strongest" in table else "suite"
             raise self.error((*path, key), str(exc)) from None
+        polarity = self.default_polarity
+        if "polarity" in table:
+            polarity = self.polarity(table["polarity"], (*path, "polarity"))
         line = self.line(path)
-        return [RecordEntry(spec=spec, resolved=spec, scale=scale, corner=corner, key="records_from", line=line)
-                for spec in specs]
+        return [expanded for spec in specs for expanded in self.with_polarity(
+            RecordEntry(spec=spec, resolved=spec, scale=scale, corner=corner, key="records_from", line=line),
+            polarity, path)]
 
     def table_url(self, value: Any) -> str:
         url = self.string(value, ("table_url",))

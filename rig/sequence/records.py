@@ -15,7 +15,7 @@ from rig.records import LIBRARY, SUITES, GroundMotion, RecordError, expand_suite
 from rig.records.motion import array_sha256
 from rig.records.pairs import SEPARATOR
 
-from .model import RecordEntry
+from .model import NEGATED_LABEL, RecordEntry
 
 
 def is_named(spec: str) -> bool:
@@ -61,11 +61,26 @@ def expand_records_from(suite: str, strongest: int | None) -> list[str]:
 
 
 def load_entry(entry: RecordEntry) -> GroundMotion:
-    """The entry's record, cut to its window (``window`` [s] from the record's first sample).
+    """The entry's record, cut to its window (``window`` [s] from the record's first sample), in its polarity
+    (`negated`).
 
     Raises `RecordError` when the record does not resolve or the window is not inside the record.
     """
-    motion = load_record(entry.resolved, dt=entry.dt, units=entry.units)
+    motion = _window(entry, load_record(entry.resolved, dt=entry.dt, units=entry.units))
+    return negated(motion) if entry.polarity < 0 else motion
+
+
+def negated(motion: GroundMotion) -> GroundMotion:
+    """The record with its fall-line component (``acc_h``) negated, the second horizontal and the vertical as
+    recorded (`RecordEntry.polarity`); named ``NAME (negated)``, ``polarity`` −1 in its provenance."""
+    acc_h = -motion.acc_h
+    provenance = {**motion.provenance, "polarity": -1, "sha256": array_sha256(acc_h)}
+    return GroundMotion(name=f"{motion.name}{NEGATED_LABEL}", dt=motion.dt, acc_h=acc_h, acc_v=motion.acc_v,
+                        acc_h2=motion.acc_h2, provenance=provenance)
+
+
+def _window(entry: RecordEntry, motion: GroundMotion) -> GroundMotion:
+    """The part of ``motion`` inside the entry's window (all of it without one)."""
     if entry.window is None:
         return motion
     t0, t1 = entry.window

@@ -251,6 +251,45 @@ def test_fig13_on_a_hand_made_session(tmp_path: Path) -> None:
         assert "analysis" not in h5["runs/0005"]
 
 
+def test_rig_analyze_gives_the_paired_tests_and_the_verdicts_within_its_margin(tmp_path: Path) -> None:
+    """The hand-made session through the command line: at 0° body 1 was predicted +1, −1 and seen +1, −1 (no pair
+    disagreeing), body 2 predicted +1, −1 and seen −1, none (one pair disagreeing on the side, one overturn of the
+    analysis only: McNemar's exact p = 1 on one discordant pair); two runs resolve no equivalence, and the verdicts
+    use the margin given."""
+    path = hand_made_session(tmp_path / "hand.h5")
+    out = CliRunner().invoke(analyze_app(), ["analyze", str(path), "--model", "rocking", "--margin", "10", "--json",
+                                             "--no-write"])
+    assert out.exit_code == 0, out.output
+    result = json.loads(out.stdout)
+    assert result["margin"] == pytest.approx(0.1)
+    rows = {(r["angle_deg"], r["body_id"]): r for r in result["fig13"]}
+    body1, body2 = rows[(0.0, 1)], rows[(0.0, 2)]
+    assert (body1["both_overturned"], body1["low_high"], body1["high_low"], body1["p_direction"]) == (2, 0, 0, 1.0)
+    assert (body2["both_overturned"], body2["low_high"], body2["high_low"], body2["p_direction"]) == (1, 1, 0, 1.0)
+    assert (body2["analysis_only"], body2["experiment_only"], body2["p_overturn"]) == (1, 0, 1.0)
+    assert rows[(0.0, 0)]["p_direction"] is None  # the average row: bodies share the records
+    assert all(r["margin"] == pytest.approx(0.1) for r in result["fig13"])
+    assert body1["verdict"] == "not resolved" and body1["runs_to_resolve"] > 2
+    assert sum(result["verdicts"]["rocking"].values()) == 4
+    text = CliRunner().invoke(analyze_app(), ["analyze", str(path), "--model", "rocking", "--no-write"])
+    assert "not resolved with 2" in text.stdout and "±5 points" in text.stdout and "Fisher" not in text.stdout
+
+
+def test_a_record_and_its_negation_are_one_record_of_the_comparison(tmp_path: Path) -> None:
+    """Runs labelled ``R`` and ``R (negated)`` (a sequence's ``polarity = "both"``) are one record: one cluster of
+    the bootstrap, counted once in ``records``; a different record is another."""
+    bodies = [body_row(1, TABLE_V[3]), body_row(2, TABLE_V[4])]
+    runs = [pulse_run(0.0, -0.5, bodies, [(0.9, 1, 1, "sensor"), (1.0, 2, 1, "sensor")]),
+            pulse_run(0.0, +0.5, bodies, [(0.9, 1, -1, "sensor"), (1.0, 2, -1, "sensor")]),
+            pulse_run(0.0, -0.5, bodies, [(0.9, 1, 1, "sensor"), (1.0, 2, 1, "sensor")])]
+    for run, label in zip(runs, ("pulse", "pulse (negated)", "other"), strict=True):
+        run["record"] = label
+    result = analyze_session(write_session(tmp_path / "both.h5", runs), models=("rocking",), write=False)
+    rows = {r.body_id: r for r in result.fig13}
+    assert rows[0].records == rows[1].records == 2 and rows[0].runs == 6 and rows[1].runs == 3
+    assert (rows[1].cor_analysis, rows[1].cor_experiment) == (pytest.approx(2 / 3), pytest.approx(2 / 3))
+
+
 # ---------------------------------------------------------------------- (b) raw data untouched, re-run replaces
 def test_raw_data_untouched_and_a_rerun_replaces_the_analysis(tmp_path: Path) -> None:
     path = hand_made_session(tmp_path / "s.h5")

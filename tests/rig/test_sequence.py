@@ -14,7 +14,7 @@ import pytest
 from analysis.body import TABLE_V
 from analysis.table.toml_lines import dotted_path, key_lines
 from rig.emulator import specimen_flags
-from rig.sequence import PlannedRun, Sequence, SequenceError, load_sequence
+from rig.sequence import PlannedRun, Sequence, SequenceError, load_sequence, record_of_label
 from sim_table.scene import parse_body
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
@@ -91,9 +91,12 @@ def test_paper_campaign_loads_with_table_v_and_25_strongest_components() -> None
     assert seq.angles_deg == (0.0, 4.0, 4.5, 5.0, 5.5)
     tap, records = seq.records[0], seq.records[1:]
     assert tap.key == "records[1]" and tap.spec.endswith("records/tap-10hz.csv")  # first at every angle
-    assert len(records) == 25 and len({e.spec for e in records}) == 25
+    assert tap.polarity == 1  # the tap as recorded only
+    assert len(records) == 50 and len({e.spec for e in records}) == 25  # each record in both polarities
+    assert [e.polarity for e in records] == [1, -1] * 25 and all(
+        a.spec == b.spec for a, b in zip(records[::2], records[1::2], strict=True))
     assert all(e.spec.startswith(("fema-farfield:", "fema-nearfield:")) and e.scale is None for e in records)
-    assert len(seq.plan()) == 130
+    assert len(seq.plan()) == 255
     # every Table V body stands at 5.5°: α = atan(b/h) ≥ 11.0°
     assert min(math.degrees(b.body.alpha) for b in seq.bodies) > 11.0
     seq.check(prepare_drives=False)
@@ -103,17 +106,17 @@ def test_records_from_takes_the_largest_pga_first() -> None:
     from rig.records import load_record, load_records
 
     seq = load_sequence(EXAMPLES / "paper-campaign.toml")
-    taken = [e for e in seq.records if e.key == "records_from"]
+    taken = [e for e in seq.records if e.key == "records_from" and e.polarity == 1]
     pgas = [load_record(e.spec).pga for e in taken]
     assert pgas == sorted(pgas, reverse=True)
     weakest_taken = pgas[-1]
     assert sum(m.pga > weakest_taken for m in load_records("fema")) <= 24
-    assert all(e.line == 15 for e in taken)
+    assert all(e.line == 17 for e in taken)
 
 
 def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     seq = load_sequence(EXAMPLES / "paper-campaign.toml")
-    seq.check()  # 130 drives, about 2-5 s
+    seq.check()  # 255 drives, about 4-10 s
 
 
 # ----- refusals: key and line ------------------------------------------------------------------------------
@@ -280,7 +283,7 @@ def test_plan_order_and_indices(tmp_path: Path) -> None:
     assert plan == seq.plan()  # stable
     assert json.loads(json.dumps([run.to_dict() for run in plan]))[7] == {
         "plan_index": 7, "angle_index": 1, "angle_deg": 5.0, "record_index": 1,
-        "record": "fema-nearfield:NORTHR/RRS_032", "scale": "table", "repetition": 1}
+        "record": "fema-nearfield:NORTHR/RRS_032", "polarity": 1, "scale": "table", "repetition": 1}
 
 
 @pytest.mark.parametrize("name", ["quick.toml", "paper-campaign.toml"])
@@ -323,3 +326,52 @@ def test_key_lines_follow_arrays_of_tables_and_inline_values() -> None:
     assert lines[("a", 1, "k")] == 2 and lines[("t", 1)] == 6 and lines[("t", 1, "w")] == 10
     assert lines[("t", 1, "sub", "z")] == 12 and lines[("t", 0, "v")] == 5 and lines[("t", 1, "q.k")] == 7
     assert dotted_path(("t", 1, "sub")) == "t[2].sub"
+
+
+# ----- polarity ----------------------------------------------------------------------------------------------
+
+
+def test_polarity_both_plays_each_record_as_recorded_then_negated(tmp_path: Path) -> None:
+    seq = load_sequence(write(tmp_path, 'polarity = "both"\n' + BASE))
+    assert [(e.spec, e.polarity) for e in seq.records] == [
+        ("fema-farfield:KOBE/NIS000", 1), ("fema-farfield:KOBE/NIS000", -1),
+        ("fema-nearfield:NORTHR/RRS_032", 1), ("fema-nearfield:NORTHR/RRS_032", -1)]
+    assert len(seq.plan()) == 2 * 4
+    # the label is the session's run `record`: the polarity is kept with every run, and splits off again
+    labels = [run.record.label() for run in seq.plan()[:4]]
+    assert labels[1] == "fema-farfield:KOBE/NIS000 (negated)"
+    assert [record_of_label(label) for label in labels[:2]] == [("fema-farfield:KOBE/NIS000", 1),
+                                                                ("fema-farfield:KOBE/NIS000", -1)]
+    assert [run.to_dict()["polarity"] for run in seq.plan()[:4]] == [1, -1, 1, -1]
+    # the negated record: its fall-line component × −1, the vertical and second horizontal as recorded
+    as_recorded, negated = seq.motion(2), seq.motion(3)
+    np.testing.assert_array_equal(negated.acc_h, -as_recorded.acc_h)
+    assert negated.name.endswith(" (negated)") and negated.provenance["polarity"] == -1
+    assert negated.provenance["sha256"] != as_recorded.provenance["sha256"]
+    # its drive: the same scale factor inside the table's symmetric limits, surge mirrored
+    runs = seq.plan()
+    plus, minus = seq.prepare(runs[6]), seq.prepare(runs[7])
+    assert minus.scale_factor == pytest.approx(plus.scale_factor)
+    np.testing.assert_allclose(minus.poses[:, 0], -plus.poses[:, 0], atol=1e-12)
+    # the session's copy reads back with the polarity of each entry
+    again = Sequence.from_dict(json.loads(json.dumps(seq.to_dict())))
+    assert [e.polarity for e in again.records] == [1, -1, 1, -1] and again.to_dict() == seq.to_dict()
+
+
+def test_polarity_of_one_record_and_of_records_from(tmp_path: Path) -> None:
+    text = BASE.replace('"fema-farfield:KOBE/NIS000",',
+                        '{ record = "fema-farfield:KOBE/NIS000", polarity = "negated" },')
+    seq = load_sequence(write(tmp_path, 'polarity = "both"\nrecords_from = { suite = "fema", strongest = 2, '
+                                        'polarity = "as recorded" }\n' + text))
+    assert [e.polarity for e in seq.records] == [-1, 1, -1, 1, 1]
+
+
+@pytest.mark.parametrize(("text", "line", "message"), [
+    ('polarity = "mirrored"\n', 1, "polarity: expected one of 'as recorded', 'negated', 'both'"),
+    ('polarity = "both"\n', 6, "records[2]: fema-nearfield:NORTHR/RRS_032 [0.5-5.5 s] plays a compensated drive"),
+])
+def test_bad_polarity_is_refused_at_its_line(tmp_path: Path, text: str, line: int, message: str) -> None:
+    base = BASE.replace('window_s = [0.5, 5.5] }', f'window_s = [0.5, 5.5], drive = "{tmp_path / "d.h5"}" }}')
+    with pytest.raises(SequenceError, match=message.replace("[", r"\[").replace("]", r"\]")) as err:
+        load_sequence(write(tmp_path, text + base))
+    assert err.value.line == line
