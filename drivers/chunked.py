@@ -22,11 +22,14 @@ Pacing follows the controller's clock: a chunk goes out when the clock estimate 
 ``lead`` away, or earlier when a status already shows the controller there (a clock running faster than
 estimated), and never before a status shows the controller within :data:`AHEAD_NS` + ``lead`` of the chunk (a
 clock that holds for setpoints: an emulator in virtual time, ``--speed max``, runs as fast as it computes but
-never past the setpoints it has; the host keeps it supplied and at most that far ahead). At real time the clock
-estimate rules and the bound never bites (statuses come every 20 ms). The first sample is due ``lead`` after the
-later of the clock estimate and the latest status (a controller holding its clock has reported where), but no
-later than ``lead`` + :data:`AHEAD_NS` after that status (a clock that ran fast and now holds makes the estimate
-overshoot).
+never past the setpoints it has; the host keeps it supplied and at most that far ahead, well inside the buffer's
+capacity). A controller that falls silent holds the stream back until the link is declared lost
+(:class:`~drivers.controller.TableLinkLostError`): chunks never go out on the clock estimate alone.
+At real time the clock estimate rules and the bound seldom bites (statuses come every 20 ms, at most a batch late;
+an emulator that lags behind real time on a loaded machine holds its host back with it). The first sample is
+due ``lead`` after the later of the clock estimate and the latest status (a controller holding its clock has
+reported where), but no later than ``lead`` + :data:`AHEAD_NS` after that status (a clock that ran fast and now
+holds makes the estimate overshoot).
 
 Every chunk is **sent twice**: again right after the next chunk, one chunk period later and still
 ``lead`` minus a chunk period ahead (the last one just after itself). The controller drops the copy it already
@@ -70,9 +73,9 @@ AHEAD_NS = 250_000_000
 """A chunk waits until a status shows the controller within ``lead`` + this [ns, controller time] of its first
 sample (module docstring): statuses may be this late before the bound delays a real-time stream."""
 
-SILENCE_NS = 1_000_000_000
-"""With no status for this long [ns, host time] past a chunk's deadline, it is sent by the clock estimate alone
-(a lost link: the controller's watchdog decides)."""
+
+WAIT_SLICE_NS = 100_000_000
+"""A chunk held back by the status bound waits in slices of this [ns], the link checked between them."""
 
 MOTION_STATES = frozenset({"homing", "tilting"})
 """The controller's states while a HOME or SET_TILT moves the table."""
@@ -312,18 +315,16 @@ class ChunkedStreamController(TableController):
         it, once a status shows ``seen_after`` [ns] or later); how late [ns, host time, ≥ 0] against the clock
         estimate's deadline."""
         deadline = self.clock.to_host(due)
-        silent_until = deadline + SILENCE_NS
         feedback = self.feedback
 
         def ready() -> bool:
-            now = time.monotonic_ns()
-            if not _shown(feedback.latest, seen_after) and now < silent_until:
+            if not _shown(feedback.latest, seen_after):
                 return False
-            return _shown(feedback.latest, due) or now >= deadline
+            return _shown(feedback.latest, due) or time.monotonic_ns() >= deadline
 
-        while not ready():
+        while not ready():  # a silent controller: the waits' link check raises TableLinkLostError
             now = time.monotonic_ns()
-            self.wait(ready, max(deadline - now if now < deadline else silent_until - now, 0) * 1e-9)
+            self.wait(ready, max(deadline - now, WAIT_SLICE_NS) * 1e-9)
         return max(time.monotonic_ns() - deadline, 0)
 
 
