@@ -62,7 +62,7 @@ from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
-from sim_table.dynamics import make_actuators
+from sim_table.dynamics import make_actuators, specimen_loads
 from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.options import argument_parser
 from sim_table.scene import Specimen, parse_body
@@ -178,7 +178,7 @@ class Emulator:
             self.core = ControllerCore(table, tick_ns=self.tick_ns,
                                        watchdog_ns=round(config.watchdog * config.speed * 1e9))
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
-                                        payload=sum(specimen.mass for specimen in config.specimens))
+                                        loads=specimen_loads(config.specimens))
         self.track = PlateTrack(dt)
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
                                              seed=config.seed + 1)
