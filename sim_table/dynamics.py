@@ -13,7 +13,7 @@ the valves' flows written as piston speeds w [m/s]:
 M_L = J⁻ᵀ M J⁻¹ + m_p I is the plate's mass matrix M (pose coordinates, ``TableDynamics.mass_matrix``) seen by the
 legs through the hexapod's Jacobian J (``TableModel.leg_jacobian``), plus each leg's piston and rod. The legs being
 equal (K = k_h I, the same valve and loop on each), the eigenvectors U of M_L (M_L = U diag(μ_j) Uᵀ) decouple the
-system into six **modes**, each today's single leg with its own oil-column frequency ω_j = sqrt(k_h / μ_j) — the
+system into six **modes**, each a single leg's model with its own oil-column frequency ω_j = sqrt(k_h / μ_j) — the
 plate's modal frequencies, the generalised eigenproblem Jᵀ K J φ = ω² (M + m_p JᵀJ) φ
 (``analysis.table.dynamics.plate_modes``). The damping C = U diag(2 ζ ω_j μ_j) Uᵀ gives every mode the damping ratio
 ζ (modal damping; ``docs/table-dynamics.md`` says why). Per tick (sampled, the valve commands w held over the tick)
