@@ -40,7 +40,8 @@ at rest (its first and last pose, both at rest) up to S s, so send timing is mea
 ``--body`` default), in a row along y with :data:`BODY_GAP` between them.
 
 Usage: ``python benchmarks/stream.py [--transport mavlink|zenoh|canopen] [--record fema:NORTHR/MUL009] [--angle 5]
-[--lead 0.05] [--speed 1|max] [--no-1x] [--duration S] [--bodies default|table5|none] [--no-bodies]``.
+[--lead 0.05] [--speed 1|max] [--no-1x] [--duration S] [--bodies default|table5|none] [--no-bodies]
+[--dynamics lag|servo]`` (the emulator's legs, docs/table-dynamics.md).
 """
 
 from __future__ import annotations
