@@ -33,8 +33,9 @@ coordinates, J⁻¹ U diag(H_j) Uᵀ J (:meth:`ServoActuators.frequency_response
 (:meth:`ServoActuators.discrete_closed_loops`) and their stability margins (:meth:`ServoActuators.loop_margins`) are
 what the emulator runs.
 
-M_L and J depend on the plate's pose: they are evaluated at the achieved pose where a batch of ticks starts, again
-whenever it has moved more than :data:`RELINEARISE_M` or :data:`RELINEARISE_RAD` from where they last were. The
+M_L and J depend on the plate's pose: they are evaluated where the plate starts, and again at the start of a batch
+of ticks when the achieved pose has moved more than :data:`RELINEARISE_M` or :data:`RELINEARISE_RAD` from where they
+last were. The
 velocity-product terms of the rigid body (Coriolis, J̇ q̇) are left out: at Table IV's 0.5 m/s they stay below
 v²/L ≈ 0.1 m/s². Gravity is carried by the columns' static pressure: y, the forces and the plate's motion are
 deviations from the static load.
