@@ -34,6 +34,7 @@ from collections.abc import Callable
 from pathlib import Path
 
 from analysis.body import TABLE_V
+from analysis.table.dynamics import PlateLoad, plate_modes
 from analysis.table.model import TableModel
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate
@@ -158,7 +159,6 @@ def main() -> None:
 
 def _report(cases: list[dict], table: TableModel, payload: float, specs: list[str], angles: tuple[float, ...],
             iterations: int, identification: dict, mode: str) -> None:
-    g = table.geometry
     played = [c for c in cases if "rms_error_pct" in c]
     hard = [c for c in played if c["rms_error_pct"][0] >= UNCOMPENSATED_PCT]
     met = [c for c in hard if c["iterations_to_target"] is not None and c["iterations_to_target"] <= 5]
@@ -168,8 +168,8 @@ def _report(cases: list[dict], table: TableModel, payload: float, specs: list[st
         "benchmark": "drive compensation, servo-hydraulic table, seven Table V bodies",
         "mode": mode,
         "machine_note": "2 shared cores under other helpers' load: times are indicative",
-        "table": {"oil_column_hz_with_bodies": table.dynamics.oil_column_frequency(g.leg_max - g.leg_min, payload)
-                  / (2 * math.pi), "payload_kg": payload, "dynamics": table.dynamics.to_dict()},
+        "table": {"plate_modes_hz_with_bodies": plate_modes(table, loads=(PlateLoad(payload, (0.0, 0.0, 0.0)),))
+                  .frequencies.round(2).tolist(), "payload_kg": payload, "dynamics": table.dynamics.to_dict()},
         "records": specs, "angles_deg": list(angles), "iterations_max": iterations,
         "identification": identification,
         "summary": {

@@ -40,7 +40,8 @@ at rest (its first and last pose, both at rest) up to S s, so send timing is mea
 ``--body`` default), in a row along y with :data:`BODY_GAP` between them.
 
 Usage: ``python benchmarks/stream.py [--transport mavlink|zenoh|canopen] [--record fema:NORTHR/MUL009] [--angle 5]
-[--lead 0.05] [--speed 1|max] [--no-1x] [--duration S] [--bodies default|table5|none] [--no-bodies]``.
+[--lead 0.05] [--speed 1|max] [--no-1x] [--duration S] [--bodies default|table5|none] [--no-bodies]
+[--dynamics lag|servo]`` (the emulator's legs, docs/table-dynamics.md).
 """
 
 from __future__ import annotations
@@ -65,6 +66,7 @@ from drivers.controller import StreamAbortedError, open_table
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess, parse_speed, speed_flags
 from rig.records import load_record
+from sim_table.options import DYNAMICS
 from sim_table.process import Emulator, EmulatorConfig, parse_body
 
 BODIES = ("0.05x0.50@0.4,0", "0.15x0.45@-0.4,0")
@@ -126,9 +128,9 @@ def best_lag(t_ns: np.ndarray, achieved: np.ndarray, t_start_ns: int, spacing_ns
 class _Thread:
     """The emulator in a thread of this process (CANopen on the virtual bus)."""
 
-    def __init__(self, url: str, bodies: tuple[str, ...], speed: float) -> None:
+    def __init__(self, url: str, bodies: tuple[str, ...], speed: float, dynamics: str) -> None:
         self.emulator = Emulator(EmulatorConfig(listen=url, key=secrets.token_bytes(32), speed=speed,
-                                                specimens=tuple(parse_body(b) for b in bodies)))
+                                                specimens=tuple(parse_body(b) for b in bodies), dynamics=dynamics))
         self.stop_event = threading.Event()
         self.thread = threading.Thread(target=self.emulator.run, args=(self.stop_event,), name="emulator",
                                        daemon=True)
@@ -145,11 +147,11 @@ class _Thread:
 
 
 @contextmanager
-def _started(transport: str, bodies: tuple[str, ...], speed: float, key_file: Path) -> Iterator[Any]:
+def _started(transport: str, bodies: tuple[str, ...], speed: float, key_file: Path, dynamics: str) -> Iterator[Any]:
     if transport == "canopen":
-        yield _Thread(LISTEN[transport].format(f"bench-{uuid.uuid4().hex}"), bodies, speed)
+        yield _Thread(LISTEN[transport].format(f"bench-{uuid.uuid4().hex}"), bodies, speed, dynamics)
     else:
-        flags = speed_flags(speed) + [arg for body in bodies for arg in ("--body", body)]
+        flags = speed_flags(speed) + [arg for body in bodies for arg in ("--body", body)] + ["--dynamics", dynamics]
         yield EmulatorProcess.start(LISTEN[transport], *flags, key_file=key_file)
 
 
@@ -162,7 +164,7 @@ def _percentiles(values: np.ndarray, scale: float) -> dict[str, float]:
 
 
 def run(transport: str, record: str, angle_deg: float, lead: float, speed: float, bodies: bool | tuple[str, ...],
-        duration: float | None = None) -> dict[str, Any]:
+        duration: float | None = None, dynamics: str = "lag") -> dict[str, Any]:
     placed = (BODIES if bodies else ()) if isinstance(bodies, bool) else tuple(bodies)
     drive = prepare_drive(load_record(record), angle=math.radians(angle_deg))
     t, poses = lengthen(drive.t, drive.poses, duration) if duration else (drive.t, drive.poses)
@@ -170,7 +172,7 @@ def run(transport: str, record: str, angle_deg: float, lead: float, speed: float
     with tempfile.TemporaryDirectory(prefix="stream-bench-") as scratch:
         key_file = Path(scratch) / "rig.key"
         key_file.write_text(secrets.token_hex(32))
-        with _started(transport, placed, speed, key_file) as emulator:
+        with _started(transport, placed, speed, key_file, dynamics) as emulator:
             try:
                 options = {} if canopen else {"key_file": str(key_file)}
                 table: Any = open_table(emulator.url, **options)  # every driver has link_stats()
@@ -285,12 +287,14 @@ def main() -> None:
     p.add_argument("--bodies", choices=("default", "table5", "none"), default="default",
                    help="specimens: two default bodies, the seven of Table V, or none")
     p.add_argument("--no-bodies", action="store_true", help="no specimens on the plate (= --bodies none)")
+    p.add_argument("--dynamics", choices=DYNAMICS, default="lag", help="the emulator's legs (docs/table-dynamics.md)")
     args = p.parse_args()
     bodies = () if args.no_bodies or args.bodies == "none" else table5_bodies() if args.bodies == "table5" else BODIES
     lead = args.lead if args.lead is not None else 0.075 if args.transport == "canopen" else 0.05
-    result = run(args.transport, args.record, args.angle, lead, args.speed, bodies, args.duration)
+    result = run(args.transport, args.record, args.angle, lead, args.speed, bodies, args.duration, args.dynamics)
+    result["dynamics"] = args.dynamics
     if math.isinf(args.speed) and not args.no_1x:
-        at_1x = run(args.transport, args.record, args.angle, lead, 1.0, bodies, args.duration)
+        at_1x = run(args.transport, args.record, args.angle, lead, 1.0, bodies, args.duration, args.dynamics)
         result["at_1x"] = {key: at_1x[key] for key in ("drive", "real_time_factor", "messages_lost", "emulator",
                                                          "send_lateness_ms", "tracking")}
     print(json.dumps(result, indent=1))

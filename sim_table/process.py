@@ -67,7 +67,7 @@ from protocols.mavlink import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
-from sim_table.dynamics import make_actuators
+from sim_table.dynamics import make_actuators, specimen_loads
 from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.options import argument_parser
 from sim_table.scene import Specimen, parse_body
@@ -198,7 +198,7 @@ class Emulator:
         self.wake_period_ns = CANOPEN_WAKE_PERIOD_NS if listen_scheme(config.listen) == "canopen" else WAKE_PERIOD_NS
         """The real-time loop's wake-up period [ns] (module docstring)."""
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
-                                        payload=sum(specimen.mass for specimen in config.specimens))
+                                        loads=specimen_loads(config.specimens))
         self.track = PlateTrack(dt)
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
                                              seed=config.seed + 1)

@@ -506,3 +506,28 @@ def test_missing_file_and_dict_errors(tmp_path: Path) -> None:
                                  "got -1.0")
     with pytest.raises(TableModelError, match=r"^<dict>: limits: expected a table, got 3$"):
         TableModel.from_dict({"limits": 3})
+
+
+def test_the_plate_s_mass_inertia_and_centre_of_gravity_from_the_rig_toml(tmp_path):
+    """``[dynamics]`` gives the rigid plate; values outside a rigid body's physics are errors naming file, line, key."""
+    from analysis.table.dynamics import TableDynamics
+
+    path = tmp_path / "rig.toml"
+    path.write_text("[dynamics]\nplate_mass_kg = 1200\nplate_inertia_x_kg_m2 = 800\nplate_inertia_y_kg_m2 = 900\n"
+                    "plate_inertia_z_kg_m2 = 1600\nplate_cg_x_m = 0.02\nplate_cg_z_m = -0.2\n")
+    model = TableModel.from_toml(path)
+    assert model.dynamics == TableDynamics(plate_mass=1200.0, plate_inertia_x=800.0, plate_inertia_y=900.0,
+                                           plate_inertia_z=1600.0, plate_cg_x=0.02, plate_cg_z=-0.2)
+    assert TableModel.from_dict(model.to_dict()) == model
+    bad = {
+        "plate_inertia_z_kg_m2 = 5000": r"rig.toml:2: dynamics.plate_inertia_z_kg_m2: a rigid body's principal moment "
+                                        r"is at most the sum of the other two \(2272.5 kg·m²\), got 5000",
+        "plate_cg_z_m = 0.1": r"rig.toml:2: dynamics.plate_cg_z_m: the plate lies below its top surface .* got 0.1",
+        "plate_cg_y_m = -2.5": r"rig.toml:2: dynamics.plate_cg_y_m: the centre of gravity is 2.5 m from .* within 2",
+        "plate_mass_kg = 0": r"rig.toml:2: dynamics.plate_mass_kg: must be > 0, got 0",
+        "plate_inertia_x_kg_m2 = -1": r"rig.toml:2: dynamics.plate_inertia_x_kg_m2: must be > 0",
+    }
+    for line, message in bad.items():
+        path.write_text(f"[dynamics]\n{line}\n")
+        with pytest.raises(TableModelError, match=message):
+            TableModel.from_toml(path)
