@@ -69,7 +69,7 @@ import numpy as np
 
 from .component import HORIZONTAL, UNKNOWN, VERTICAL, component, warn
 from .motion import GroundMotion, array_sha256
-from .source import DT_RTOL, TextSource, given_dt, located, matching_dt, matching_unit, read_source
+from .source import DT_RTOL, TextSource, dt_problem, given_dt, located, matching_dt, matching_unit, read_source
 from .units import TO_G, given_unit, parse_unit
 
 _T = TypeVar("_T")
@@ -537,8 +537,9 @@ def _dt(src: TextSource, block: _Block) -> float:
     label = f"the sampling interval (real-header value {REAL_DT_MS})"
     if value == block.unknown_real:
         raise src.error(line, f"{label} is unknown ({value:g}); expected the interval in milliseconds, e.g. 10.0")
-    if value <= 0.0:
-        raise src.error(line, f"{label} is {value:g} ms; expected an interval > 0 ms, e.g. 10.0")
+    problem = dt_problem(value / 1000.0)
+    if problem:
+        raise src.error(line, f"{label}, {value:g} ms, {problem} (given in ms, e.g. 10.0)")
     return value / 1000.0
 
 
