@@ -764,7 +764,7 @@ DYNAMICS_RANGES: dict[str, tuple[float, float, str]] = {
     "line_volume_m3": (0.0, 1.0, "from 0 m³ to 1 m³"),
     "plate_mass_kg": (1.0, 1e5, "from 1 kg to 1e5 kg"),
     "piston_mass_kg": (0.1, 1e4, "from 0.1 kg to 1e4 kg"),
-    "damping_ratio": (0.001, 0.999, "from 0.001 to 0.999 (an underdamped oil column)"),
+    "damping_ratio": (0.001, 0.999, "from 0.001 to 0.999 (< 1: an underdamped oil column)"),
     "valve_bandwidth_hz": (1.0, 1e4, "from 1 Hz to 1e4 Hz"),
     "loop_gain_per_s": (0.01, 1000.0, "from 0.01 /s to 1000 /s"),
     "velocity_feedforward": (0.0, 1.5, "from 0 to 1.5"),

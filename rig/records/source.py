@@ -150,11 +150,19 @@ def read_source(path: Path, expected: str) -> TextSource:
     return TextSource(path=path, lines=lines, sha256=sha)
 
 
+def _as_float(value: float) -> float:
+    """``value`` as a float; an int too large for one is infinite."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
+
+
 def given_dt(dt: float | None) -> float | None:
     """The time step the user gave (``--dt``) [s], checked finite and > 0; None if none was given."""
     if dt is None:
         return None
-    if isinstance(dt, bool) or not isinstance(dt, int | float) or dt_problem(min(float(dt), math.inf)):
+    if isinstance(dt, bool) or not isinstance(dt, int | float) or dt_problem(_as_float(dt)):
         raise RecordError(
             f"the given dt must be a number of seconds from {DT_MIN_S:g} to {DT_MAX_S:g}, got {dt!r}"
         )

@@ -618,7 +618,7 @@ def test_byte_mutated_rig_files_raise_only_table_model_errors_deep(tmp_path: Pat
     (HEXAPOD.replace("leg_max_m = 2.85", "leg_max_m = 9.2e18"),
      "rig.toml:8: hexapod.leg_max_m: must be from 0.05 m to 20 m, got 9.2e+18"),
     ("[dynamics]\ndamping_ratio = 1e-300\n", "rig.toml:2: dynamics.damping_ratio: expected a number from 0.001 "
-     "to 0.999 (an underdamped oil column), got 1e-300"),
+     "to 0.999 (< 1: an underdamped oil column), got 1e-300"),
     ("x = " + "[" * 5000 + "\n", "rig.toml: TOML syntax error: arrays or tables nested too deeply to parse; "
      "expected at most a few levels"),
 ])
