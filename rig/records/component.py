@@ -11,7 +11,8 @@ Sources, by format:
 
 * COSMOS: the orientation code (integer-header value 54) of the channel: azimuth 1-360 → horizontal,
   400 Up / 401 Down / 402 vertical → vertical, 500/501/600/601/700/701 → horizontal, 2000 "Other", 0 or
-  the file's unknown marker → unknown, with a warning;
+  the file's unknown marker → unknown: then the file name of a one-channel file (``NP.7010.00.HNZ.V2``),
+  else a warning;
 * PEER ``.AT2``: the component after the last comma of header line 2 (``230``, ``UP``, ``DWN``, ``V``, a
   SEED channel code with or without its location code, ``HNZ``, ``HN1``, ``BHZ00``, ``HNZ.10``, ``00.HNZ``),
   and the file name (``…-UP.AT2``, ``…DWN.AT2``, ``…HNZ.AT2``, ``….BHZ.00.AT2``);

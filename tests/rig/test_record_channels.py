@@ -372,3 +372,17 @@ def test_an_h5_record_of_an_unknown_component_warns_at_every_read(tmp_path: Path
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert read_h5(write_record(read_at2(H1), tmp_path / "h1.h5")).provenance["component"]["kind"] == "horizontal"
+
+
+def test_a_cosmos_channel_of_unknown_orientation_takes_its_seed_file_name(tmp_path: Path) -> None:
+    vertical = variant(tmp_path, SINE, "NP.7010.00.HNZ.V2", ("     360", "    2000", 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        entry = read_cosmos(vertical).provenance["component"]
+    assert entry["kind"] == "vertical" and entry["said_by"].startswith("the file name 'NP.7010.00.HNZ.V2'")
+    clash = variant(tmp_path, SINE, "NP.7010.00.HNZ.V2C", ("     360", "      90", 1))
+    assert error_of(read_cosmos, clash) == (
+        f"{clash}:20: the COSMOS orientation code 90: 90 deg, chan 1 is horizontal but the file name "
+        "'NP.7010.00.HNZ.V2C', SEED channel HNZ location 00: orientation Z, vertical says vertical; expected the two "
+        "to agree (rename the file)"
+    )
