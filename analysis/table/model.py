@@ -565,7 +565,7 @@ class TableModel:
         Only a regular file of at most 1 MiB is read (`analysis.table.toml_check.read_toml`)."""
         source = str(path)
         try:
-            _, data, lines = read_toml(path, "a rig configuration file")
+            data, lines = read_toml(path, "a rig configuration file")
         except TomlFileError as exc:
             if exc.line is None and exc.problem == "no such file":
                 raise TableModelError(f"{source}: no such rig configuration file") from None

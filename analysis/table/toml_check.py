@@ -48,8 +48,8 @@ class TomlFileError(ValueError):
         self.line, self.problem = line, problem
 
 
-def read_toml(path: str | Path, expected: str) -> tuple[str, dict[str, Any], dict[KeyPath, int]]:
-    """The text, the parsed mapping and the key lines (`key_lines`) of a TOML file.
+def read_toml(path: str | Path, expected: str) -> tuple[dict[str, Any], dict[KeyPath, int]]:
+    """The parsed mapping and the key lines (`key_lines`) of a TOML file.
 
     Raises:
         TomlFileError: not a regular file of at most `MAX_TOML_BYTES`, not UTF-8, or a TOML syntax error
@@ -78,7 +78,7 @@ def read_toml(path: str | Path, expected: str) -> tuple[str, dict[str, Any], dic
         if line.isdigit():
             raise TomlFileError(int(line), problem) from None
         raise TomlFileError(None, message.removeprefix(": ")) from None
-    return text, data, lines
+    return data, lines
 
 
 def is_number(value: object) -> bool:
@@ -125,11 +125,10 @@ class TomlChecker:
         except OverflowError:
             raise self.error(path, f"expected {what}, got {shown(value)}") from None
 
-    def ranged(self, value: Any, path: KeyPath, low: float, high: float, what: str, *,
-               low_open: bool = False) -> float:
-        """A number in its physical range ``[low, high]`` (``(low, high]`` if ``low_open``); ``what`` says the
-        range in words with the unit, e.g. ``"a time from 0 s to 60 s"``."""
+    def ranged(self, value: Any, path: KeyPath, low: float, high: float, what: str) -> float:
+        """A number in its physical range ``[low, high]``; ``what`` says the range in words with the unit, e.g.
+        ``"a time from 0 s to 60 s"``."""
         x = self.real(value, path, what)
-        if not (math.isfinite(x) and (x > low if low_open else x >= low) and x <= high):
+        if not (math.isfinite(x) and low <= x <= high):
             raise self.error(path, f"expected {what}, got {shown(value)}")
         return x

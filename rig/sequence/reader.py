@@ -110,9 +110,6 @@ class _Reader(TomlChecker):
             raise self.error(path, f"expected {what}, got {shown(value)}")
         return x
 
-    def positive(self, value: Any, path: KeyPath, unit: str) -> float:
-        return self.number(value, path, low=0.0, what=f"a finite number > 0 {unit}".rstrip())
-
     def quantity(self, value: Any, path: KeyPath, key: str) -> float:
         """A number in the physical range of ``key`` (`RANGES`)."""
         low, high, what = RANGES[key]
@@ -426,7 +423,7 @@ def read_file(path: str | Path) -> tuple[dict[str, Any], dict[KeyPath, int]]:
     read: `analysis.table.toml_check.read_toml`)."""
     source = str(path)
     try:
-        _, data, lines = read_toml(path, "a sequence file")
+        data, lines = read_toml(path, "a sequence file")
     except TomlFileError as exc:
         problem = "no such sequence file" if exc.problem == "no such file" else exc.problem
         raise SequenceError(source, exc.line, "", problem) from None
