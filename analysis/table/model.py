@@ -19,39 +19,48 @@ Legs are numbered 1..6 in messages (index 0..5 in arrays); leg k joins ``base_jo
 to ``platform_joints[k]`` (platform frame), and its length is the joint-to-joint distance.
 
 The rig configuration file (TOML; every section and every key of ``[table]`` and ``[limits.*]`` may be
-left out, which keeps Table IV and the default geometry)::
+left out, which keeps Table IV and the default geometry). Every number has a physical range, given beside
+its key; a value outside it is refused with the range (``FILE:LINE: key: must be from … to …, got …``)::
 
     [table]
-    controller_rate_hz = 1000          # the rate setpoints are played at
+    controller_rate_hz = 1000          # the rate setpoints are played at; 10 … 5000 Hz
 
-    [limits.surge]                     # also [limits.lateral] and [limits.heave]; all values > 0, read as ±
-    displacement_m = 0.25
-    velocity_m_s = 0.5
-    acceleration_g = 0.6               # or acceleration_m_s2
+    [limits.surge]                     # also [limits.lateral] and [limits.heave]; read as ±
+    displacement_m = 0.25              # 0.001 … 2 m
+    velocity_m_s = 0.5                 # 0.001 … 5 m/s
+    acceleration_g = 0.6               # 0.001 … 10 g, or acceleration_m_s2 (0.00981 … 98.1 m/s²)
 
     [limits.tilt]                      # each also in rad: angle_rad, rate_rad_s, ...
-    angle_deg = 10                     # largest |roll|, |pitch|
-    rate_deg_s = 2
-    acceleration_deg_s2 = 2
-    jerk_deg_s3 = 4
+    angle_deg = 10                     # largest |roll|, |pitch|; 0.1 … 45°
+    rate_deg_s = 2                     # 0.01 … 90 °/s
+    acceleration_deg_s2 = 2            # 0.01 … 360 °/s²
+    jerk_deg_s3 = 4                    # 0.01 … 3600 °/s³
 
     [hexapod]                          # either the symmetric 6-6 layout (HexapodGeometry.symmetric) ...
-    base_radius_m = 1.6
-    platform_radius_m = 1.1
+    base_radius_m = 1.6                # 0.05 … 20 m
+    platform_radius_m = 1.1            # 0.05 … 20 m
     base_half_angle_deg = 10           # or base_half_angle_rad; in [0, 60) degrees
     platform_half_angle_deg = 10
-    platform_joint_depth_m = 0.15      # optional, default 0: joint centres below the plate's top surface
-    home_height_m = 2.1
-    leg_min_m = 1.6
-    leg_max_m = 2.85
-    leg_speed_m_s = 0.9
+    platform_joint_depth_m = 0.15      # optional, default 0: joint centres below the plate's top surface; 0 … 2 m
+    home_height_m = 2.1                # 0.05 … 20 m
+    leg_min_m = 1.6                    # 0.05 … 20 m
+    leg_max_m = 2.85                   # 0.05 … 20 m, above leg_min_m
+    leg_speed_m_s = 0.9                # 0.001 … 5 m/s
     # ... or explicit joints instead of the five layout keys:
-    # base_joints_m = [[x, y, z], ...]       6 rows, base frame
-    # platform_joints_m = [[x, y, z], ...]   6 rows, platform frame
+    # base_joints_m = [[x, y, z], ...]       6 rows, base frame, each coordinate within ±20 m
+    # platform_joints_m = [[x, y, z], ...]   6 rows, platform frame, each coordinate within ±20 m
     # with home_height_m, leg_min_m, leg_max_m, leg_speed_m_s
 
     [dynamics]                         # the legs' servo-hydraulics (analysis/table/dynamics.py, docs/table-dynamics.md)
-    bore_m = 0.04
+    bore_m = 0.04                      # 0.005 … 1 m
+    bulk_modulus_pa = 1.0e9            # 1e7 … 1e10 Pa
+    line_volume_m3 = 0.002             # 0 … 1 m³
+    plate_mass_kg = 1500               # 1 … 1e5 kg
+    piston_mass_kg = 30                # 0.1 … 1e4 kg
+    damping_ratio = 0.3                # 0.001 … 0.999
+    valve_bandwidth_hz = 100           # 1 … 1e4 Hz
+    loop_gain_per_s = 12               # 0.01 … 1000 /s
+    velocity_feedforward = 1.0         # 0 … 1.5
 
     [controller]                       # the host link (analysis/table/link.py): every key may be left out
     lead_s = 1.0                       # setpoints sent this far ahead
@@ -59,6 +68,7 @@ left out, which keeps Table IV and the default geometry)::
     watchdog_s = 1.0                   # no host heartbeat (or chunk while streaming) this long: controlled stop
     link_timeout_s = 0.5               # no status this long: the host declares the link lost
 
+Only a regular file of at most 1 MiB is read (a FIFO, a device or a symlink to one is refused unread).
 Errors in a file raise :class:`TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
 :meth:`TableModel.to_dict` writes the same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit
 joints), so that ``from_dict(to_dict())`` gives back an equal model exactly.
@@ -67,7 +77,6 @@ joints), so that ``from_dict(to_dict())`` gives back an equal model exactly.
 from __future__ import annotations
 
 import math
-import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -81,8 +90,8 @@ from analysis.errors import AnalysisInputError
 from analysis.table.dynamics import TableDynamics
 from analysis.table.link import RANGES as LINK_KEYS
 from analysis.table.link import LinkSettings
-from analysis.table.toml_check import TomlChecker, is_number
-from analysis.table.toml_lines import KeyPath, key_lines, syntax_message
+from analysis.table.toml_check import TomlChecker, TomlFileError, is_number, read_toml, shown
+from analysis.table.toml_lines import KeyPath
 from analysis.table.toml_lines import suggest as _suggest
 
 _DEG = math.pi / 180.0
@@ -559,23 +568,22 @@ class TableModel:
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TableModel:
         """The model of a configuration mapping (the TOML file's layout); errors name ``source`` and the key."""
-        return _Reader(source, None).model(data)
+        return _Reader(source, {}).model(data)
 
     @classmethod
     def from_toml(cls, path: str | Path) -> TableModel:
-        """The model of a rig configuration file; Table IV and the default geometry for what it leaves out."""
+        """The model of a rig configuration file; Table IV and the default geometry for what it leaves out.
+
+        Only a regular file of at most 1 MiB is read (`analysis.table.toml_check.read_toml`)."""
         source = str(path)
         try:
-            text = Path(path).read_bytes().decode("utf-8")
-        except FileNotFoundError:
-            raise TableModelError(f"{source}: no such rig configuration file") from None
-        except (OSError, UnicodeDecodeError) as exc:
-            raise TableModelError(f"{source}: cannot read the rig configuration: {exc}") from None
-        try:
-            data = tomllib.loads(text)
-        except tomllib.TOMLDecodeError as exc:
-            raise TableModelError(syntax_message(source, text, str(exc))) from None
-        return _Reader(source, text).model(data)
+            data, lines = read_toml(path, "a rig configuration file")
+        except TomlFileError as exc:
+            if exc.line is None and exc.problem == "no such file":
+                raise TableModelError(f"{source}: no such rig configuration file") from None
+            where = f"{source}:{exc.line}" if exc.line else source
+            raise TableModelError(f"{where}: {exc.problem}") from None
+        return _Reader(source, lines).model(data)
 
 
 # ----- input arrays -------------------------------------------------------------------------------------
@@ -715,28 +723,63 @@ def _first_violation(poses, velocities, accelerations, leg_rates, base, platform
 
 _Spec = dict[str, tuple[dict[str, float], _Check]]  # field -> ({key: factor to SI}, validator)
 
+def _within(low: float, high: float, text: str) -> _Check:
+    """A validator of the physical range ``[low, high]`` in SI; ``text`` states it for people, with units."""
+
+    def check(value: float, given: float) -> str | None:
+        return None if math.isfinite(value) and low <= value <= high else f"must be {text}, got {shown(given)}"
+
+    return check
+
+
+#: Physical ranges of the rig configuration's numbers (SI inside; the text as the module docstring states them).
+_DISPLACEMENT = _within(0.001, 2.0, "from 0.001 m to 2 m")
+_VELOCITY = _within(0.001, 5.0, "from 0.001 m/s to 5 m/s")
+_ACCELERATION = _within(0.001 * G, 10.0 * G, "from 0.001 g to 10 g (0.00981 m/s² to 98.1 m/s²)")
+_TILT_RANGES = {
+    "angle": _within(0.1 * _DEG, 45 * _DEG, "from 0.1° to 45° (0.001745 rad to 0.7854 rad)"),
+    "rate": _within(0.01 * _DEG, 90 * _DEG, "from 0.01°/s to 90°/s (0.0001745 rad/s to 1.571 rad/s)"),
+    "acceleration": _within(0.01 * _DEG, 360 * _DEG, "from 0.01°/s² to 360°/s² (0.0001745 to 6.283 rad/s²)"),
+    "jerk": _within(0.01 * _DEG, 3600 * _DEG, "from 0.01°/s³ to 3600°/s³ (0.0001745 to 62.83 rad/s³)"),
+}
+_LENGTH = _within(0.05, 20.0, "from 0.05 m to 20 m")
+MAX_JOINT_M = 20.0
+"""Largest |coordinate| of an explicit joint [m]."""
+
 _AXIS_SPEC: _Spec = {
-    "displacement": ({"displacement_m": 1.0}, _positive),
-    "velocity": ({"velocity_m_s": 1.0}, _positive),
-    "acceleration": ({"acceleration_g": G, "acceleration_m_s2": 1.0}, _positive),
+    "displacement": ({"displacement_m": 1.0}, _DISPLACEMENT),
+    "velocity": ({"velocity_m_s": 1.0}, _VELOCITY),
+    "acceleration": ({"acceleration_g": G, "acceleration_m_s2": 1.0}, _ACCELERATION),
 }
 _TILT_SPEC: _Spec = {
-    name: ({f"{name}_deg{suffix}": _DEG, f"{name}_rad{suffix}": 1.0}, _positive)
+    name: ({f"{name}_deg{suffix}": _DEG, f"{name}_rad{suffix}": 1.0}, _TILT_RANGES[name])
     for name, suffix in (("angle", ""), ("rate", "_s"), ("acceleration", "_s2"), ("jerk", "_s3"))
 }
-_TABLE_SPEC: _Spec = {"controller_rate": ({"controller_rate_hz": 1.0}, _positive)}
+_TABLE_SPEC: _Spec = {"controller_rate": ({"controller_rate_hz": 1.0}, _within(10.0, 5000.0, "from 10 Hz to 5000 Hz"))}
 _LEG_SPEC: _Spec = {
-    "home_height": ({"home_height_m": 1.0}, _positive),
-    "leg_min": ({"leg_min_m": 1.0}, _positive),
-    "leg_max": ({"leg_max_m": 1.0}, _positive),
-    "leg_speed": ({"leg_speed_m_s": 1.0}, _positive),
+    "home_height": ({"home_height_m": 1.0}, _LENGTH),
+    "leg_min": ({"leg_min_m": 1.0}, _LENGTH),
+    "leg_max": ({"leg_max_m": 1.0}, _LENGTH),
+    "leg_speed": ({"leg_speed_m_s": 1.0}, _VELOCITY),
 }
 _LAYOUT_SPEC: _Spec = {
-    "base_radius": ({"base_radius_m": 1.0}, _positive),
-    "platform_radius": ({"platform_radius_m": 1.0}, _positive),
+    "base_radius": ({"base_radius_m": 1.0}, _LENGTH),
+    "platform_radius": ({"platform_radius_m": 1.0}, _LENGTH),
     "base_half_angle": ({"base_half_angle_deg": _DEG, "base_half_angle_rad": 1.0}, _half_angle),
     "platform_half_angle": ({"platform_half_angle_deg": _DEG, "platform_half_angle_rad": 1.0}, _half_angle),
-    "platform_joint_depth": ({"platform_joint_depth_m": 1.0}, _non_negative),
+    "platform_joint_depth": ({"platform_joint_depth_m": 1.0}, _within(0.0, 2.0, "from 0 m to 2 m")),
+}
+#: Physical ranges of the ``[dynamics]`` keys (low, high, as stated), checked before `TableDynamics` is built.
+DYNAMICS_RANGES: dict[str, tuple[float, float, str]] = {
+    "bore_m": (0.005, 1.0, "from 0.005 m to 1 m"),
+    "bulk_modulus_pa": (1e7, 1e10, "from 1e7 Pa to 1e10 Pa"),
+    "line_volume_m3": (0.0, 1.0, "from 0 m³ to 1 m³"),
+    "plate_mass_kg": (1.0, 1e5, "from 1 kg to 1e5 kg"),
+    "piston_mass_kg": (0.1, 1e4, "from 0.1 kg to 1e4 kg"),
+    "damping_ratio": (0.001, 0.999, "from 0.001 to 0.999 (< 1: an underdamped oil column)"),
+    "valve_bandwidth_hz": (1.0, 1e4, "from 1 Hz to 1e4 Hz"),
+    "loop_gain_per_s": (0.01, 1000.0, "from 0.01 /s to 1000 /s"),
+    "velocity_feedforward": (0.0, 1.5, "from 0 to 1.5"),
 }
 _JOINT_KEYS = ("base_joints_m", "platform_joints_m")
 DYNAMICS_KEYS = tuple(TableDynamics().to_dict())
@@ -748,10 +791,11 @@ def _keys(spec: _Spec) -> list[str]:
 
 
 class _Reader(TomlChecker):
-    """Reads a configuration mapping; ``text`` (the TOML source) gives the line numbers of keys."""
+    """Reads a configuration mapping; ``lines`` (`key_lines` of the TOML text, empty without one) give the line
+    numbers of keys."""
 
-    def __init__(self, source: str, text: str | None) -> None:
-        super().__init__(source, key_lines(text) if text is not None else {})
+    def __init__(self, source: str, lines: Mapping[KeyPath, int]) -> None:
+        super().__init__(source, lines)
 
     def error(self, path: KeyPath, problem: str) -> TableModelError:
         line = self.line(path)
@@ -792,6 +836,10 @@ class _Reader(TomlChecker):
     def dynamics(self, value: Any) -> TableDynamics:
         """The ``[dynamics]`` section (``analysis.table.dynamics``); errors name its line and key."""
         table = self.table(value, ("dynamics",), tuple(DYNAMICS_KEYS))
+        for key, given in table.items():
+            if key in DYNAMICS_RANGES:
+                low, high, text = DYNAMICS_RANGES[key]
+                self.ranged(given, ("dynamics", key), low, high, f"a number {text}")
         try:
             return TableDynamics.from_dict(dict(table))
         except ValueError as exc:
@@ -845,11 +893,12 @@ class _Reader(TomlChecker):
             raise self.error(path[:-1], f"missing {path[-1]}")
         rows = table[path[-1]]
         if not isinstance(rows, list) or len(rows) != 6:
-            raise self.error(path, f"expected 6 joints [[x, y, z], ...] in metres, got {rows!r}")
+            raise self.error(path, f"expected 6 joints [[x, y, z], ...] in metres, got {shown(rows)}")
         for k, row in enumerate(rows, start=1):
             if not isinstance(row, list) or len(row) != 3:
-                raise self.error(path, f"joint {k}: expected [x, y, z] in metres, got {row!r}")
+                raise self.error(path, f"joint {k}: expected [x, y, z] in metres, got {shown(row)}")
             for coordinate in row:
-                if not math.isfinite(self.real(coordinate, path)):
-                    raise self.error(path, f"joint {k}: coordinates must be finite, got {row!r}")
+                if not abs(self.real(coordinate, path)) <= MAX_JOINT_M:
+                    raise self.error(path, f"joint {k}: coordinates must be finite and within ±{MAX_JOINT_M:g} m, "
+                                           f"got {shown(row)}")
         return np.array(rows, dtype=float)

@@ -18,8 +18,13 @@ A record spec is one of:
 
 A record file's component must fit its place (`component`): a file that holds a vertical component is
 refused as a horizontal one (alone or in ``H1+H2``) unless ``accept_vertical`` (``--accept-vertical``) says
-that it is meant to drive surge alone; a horizontal one is refused in the ``UP`` place. An unknown
-orientation (COSMOS "Other") is read with a `RecordWarning`.
+that it is meant to drive surge alone; a horizontal one is refused in the ``UP`` place. SEED channel codes
+with their location codes (``BHZ00``, ``….BHZ.00.AT2``, CSV columns ``HN1``/``HN2``/``HNZ``) name it in every
+format; an unknown component (COSMOS "Other", a plain text file, a bare ``acc`` column, a PEER line 2 that names
+none) is read with a `RecordWarning`.
+
+Only a regular file of at most 64 MiB is read (FIFOs and devices, also behind a symlink, are refused unread),
+with a time step of 10 µs to 1 s and at most 1200 s long (`source`).
 
 ``dt`` [s] and ``units`` (``--dt``, ``--units`` on the CLI) are for record files that do not say them;
 where a file does, they must agree with it; suites and library records refuse them. Every record comes

@@ -44,8 +44,10 @@ longitudinal/tangential, 700/701 horizontal of unknown azimuth, 2000 other; 0, o
 unknown marker are "unknown orientation"):
 
 * one acceleration channel → ``acc_h``; ``provenance["component"]`` says whether it is horizontal, vertical
-  or unknown (`component`): a lone vertical is refused by `load_record` unless accepted, an unknown one is
-  read with a `RecordWarning`;
+  or unknown (`component`): a lone vertical is refused by `load_record` unless accepted. For an unknown
+  orientation the file name's SEED channel code is read (``NP.7010.HNZ.V2``, ``….HN1.10.V2C``, see
+  `component`), else the record is read with a `RecordWarning`; a name that contradicts a known orientation
+  is refused;
 * two horizontal, or two horizontal and one vertical (CESMD free-field files) → one bidirectional record:
   the first horizontal in file order → ``acc_h``, the second → ``acc_h2``, the vertical → ``acc_v``. They
   must share dt and the number of samples;
@@ -67,9 +69,9 @@ from typing import Any, TypeVar
 
 import numpy as np
 
-from .component import HORIZONTAL, UNKNOWN, VERTICAL, component, warn
+from .component import HORIZONTAL, UNKNOWN, VERTICAL, component, name_component, warn
 from .motion import GroundMotion, array_sha256
-from .source import DT_RTOL, TextSource, given_dt, located, matching_dt, matching_unit, read_source
+from .source import DT_RTOL, TextSource, dt_problem, given_dt, located, matching_dt, matching_unit, read_source
 from .units import TO_G, given_unit, parse_unit
 
 _T = TypeVar("_T")
@@ -537,8 +539,9 @@ def _dt(src: TextSource, block: _Block) -> float:
     label = f"the sampling interval (real-header value {REAL_DT_MS})"
     if value == block.unknown_real:
         raise src.error(line, f"{label} is unknown ({value:g}); expected the interval in milliseconds, e.g. 10.0")
-    if value <= 0.0:
-        raise src.error(line, f"{label} is {value:g} ms; expected an interval > 0 ms, e.g. 10.0")
+    problem = dt_problem(value / 1000.0)
+    if problem:
+        raise src.error(line, f"{label}, {value:g} ms, {problem} (given in ms, e.g. 10.0)")
     return value / 1000.0
 
 
@@ -631,12 +634,19 @@ def _roles(src: TextSource, channels: list[_Channel]) -> dict[str, _Channel]:
     return roles
 
 
-def _component(channel: _Channel) -> dict[str, Any]:
-    """The provenance entry ``component`` (`component`) of a one-channel file."""
+def _component(src: TextSource, channel: _Channel, named: tuple[str, str] | None) -> dict[str, Any]:
+    """The provenance entry ``component`` (`component`) of a one-channel file: its orientation code, or for an
+    unknown one the file name's SEED channel or ``-UP`` (`component.name_component`); the two must agree."""
     kind = {"horizontal": HORIZONTAL, "vertical": VERTICAL}.get(channel.kind, UNKNOWN)
     code = channel.block.ints.values[INT_ORIENTATION - 1]
     said_by = f"COSMOS orientation code {code}: {channel.orientation}, chan {channel.number}"
-    return component(kind, said_by, channel.block.ints.line_of(INT_ORIENTATION))
+    line = channel.block.ints.line_of(INT_ORIENTATION)
+    if named is not None and kind == UNKNOWN:
+        return component(named[0], named[1])
+    if named is not None and named[0] != kind:
+        raise src.error(line, f"the {said_by} is {kind} but {named[1]} says {named[0]}; expected the two to agree "
+                              "(rename the file)")
+    return component(kind, said_by, line)
 
 
 def _check_same_grid(src: TextSource, first: _Channel, others: list[_Channel]) -> None:
@@ -680,8 +690,9 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
         raise src.error(blocks[0].line, f"no acceleration block (found {found}); expected at least one "
                                         "acceleration block (a V1 or V2 acceleration file)")
     channels = [_channel(src, b, given, units) for b in accelerations]
+    named = name_component(path) if len(channels) == 1 else None
     for channel in channels:
-        if channel.kind == "other":
+        if channel.kind == "other" and named is None:
             warn(
                 f"{path}:{channel.block.ints.line_of(INT_ORIENTATION)}: chan {channel.number} has orientation "
                 f"{channel.orientation} (integer-header value {INT_ORIENTATION}); its direction is unknown, check it "
@@ -701,7 +712,7 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
             for b in blocks
         ],
         "channels": {role: channel.provenance() for role, channel in roles.items()},
-        **({"component": _component(first)} if len(roles) == 1 else {}),
+        **({"component": _component(src, first, named)} if len(roles) == 1 else {}),
         "npts": first.block.npts,
         "dt": first.dt,
         "sha256": array_sha256(first.acc),

@@ -15,7 +15,10 @@ Column names (case-insensitive; spaces and ``-`` count as ``_``):
 * first horizontal acceleration (required): ``acc``, ``accel``, ``acceleration``, ``h``, ``h1``, or
   ``acc_h``/``acc_h1`` (prefix ``acc_``, ``accel_`` or ``acceleration_``);
 * second horizontal acceleration: ``h2`` or ``acc_h2`` (same prefixes);
-* vertical acceleration: ``v``, ``up``, ``acc_v``, ``acc_up`` (same prefixes).
+* vertical acceleration: ``v``, ``up``, ``acc_v``, ``acc_up`` (same prefixes);
+* or SEED channel codes, with or without a location code (`component`): ``HN1``, ``HN2``, ``HNZ``,
+  ``HNE.00``: the horizontal ones are the first and second horizontal in column order, ``Z`` (or ``3``) the
+  vertical; one of another orientation (``HNA``) is refused.
 
 A name may carry its unit in brackets, ``t [s]``, ``acceleration [cm/s2]``, ``acc_v (g)``, or as an
 underscore suffix, ``time_s``, ``acc_g``, ``acc_h2_cm_s2``, ``acc_gal`` (units in `units`; the time unit
@@ -24,6 +27,10 @@ caller (``--units``); where several say it, they must agree. With a time column,
 spaced within 1 % of dt, see `grid`); without one, from a ``# dt = …`` setting or the caller (``--dt``).
 Any other column name is an error (a column is never silently ignored). A ``# npts = …`` setting is
 checked against the rows, which catches a file cut off at the end of a line.
+
+A one-component file's component comes from its column name (``acc_h``, ``h1``, ``HN1`` say horizontal); a
+bare ``acc`` column says nothing, so the file name is read (``….HNZ.csv``), else a `RecordWarning` says the
+component is unknown.
 """
 
 from __future__ import annotations
@@ -35,10 +42,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .component import HORIZONTAL, VERTICAL, component, from_name, name_component, seed_word
 from .grid import time_step
 from .motion import GroundMotion, array_sha256
 from .settings import Settings, check_npts, is_comment, read_settings
-from .source import TextSource, agreed_dt, agreed_unit, given_dt, matching_dt, read_source
+from .source import TextSource, agreed_dt, agreed_unit, given_dt, located, matching_dt, read_source
 from .units import TO_G, given_unit, parse_unit
 
 _EXPECTED = "a CSV record: a header row such as 'time_s,acc_g' and one sample a row"
@@ -52,6 +60,7 @@ _SUFFIXES = {"h": "h", "h1": "h", "h2": "h2", "v": "v", "up": "v"}
 _PREFIXES = ("acc_", "accel_", "acceleration_")
 _BRACKET_RE = re.compile(r"(?P<name>[^\[\(]*?)\s*[\[\(](?P<unit>[^\]\)]*)[\]\)]")
 _TIME_UNITS = ("s", "sec", "second", "seconds")
+_PREFIX_PARTS = 2
 
 
 @dataclass(frozen=True)
@@ -60,12 +69,17 @@ class _Column:
 
     channel: str
     unit_text: str | None
+    said_by: str | None = None
+    """How the name states its component (``CSV column 'HN1', SEED channel …``), None for a bare ``acc``."""
 
 
 def _channel(name: str) -> str | None:
     """The channel a column name (normalised, without unit) stands for, or None."""
     if name in _BARE:
         return _BARE[name]
+    seed = seed_word(name)
+    if seed is not None:
+        return {HORIZONTAL: "seed_h", VERTICAL: "v"}.get(seed[0], "seed_unknown")
     for prefix in _PREFIXES:
         if name.startswith(prefix):
             name = name.removeprefix(prefix)
@@ -83,22 +97,29 @@ def _column(src: TextSource, line: int, index: int, cell: str) -> _Column:
     bracket = _BRACKET_RE.fullmatch(cell.strip())
     name, unit_text = (bracket["name"], bracket["unit"].strip()) if bracket else (cell, None)
     name = re.sub(r"[\s\-]+", "_", name.strip().lower())
-    channel = _channel(name)
+    channel, matched = _channel(name), name
     if channel is None and unit_text is None:
-        parts = name.split("_")
+        parts = name.split("_", _PREFIX_PARTS)  # a channel name has at most 2 parts (acc_h2): linear in the cell
         for cut in range(1, len(parts)):
             prefix, suffix = "_".join(parts[:cut]), "_".join(parts[cut:])
             channel = _channel(prefix)
             if channel is not None and _is_unit(channel, suffix):
-                unit_text = suffix
+                unit_text, matched = suffix, prefix
                 break
             channel = None
     if channel is None:
         raise src.error(line, f"column {index + 1}, {cell!r}, is not a record column; {_COLUMN_HELP}")
+    seed = seed_word(matched)
+    if channel == "seed_unknown":
+        raise src.error(line, f"column {index + 1}, {cell!r}, is {seed[1] if seed else 'a SEED channel'}; expected a "
+                              "horizontal (N, E, 1, 2) or vertical (Z, 3) channel")
     if unit_text is not None and not _is_unit(channel, unit_text):
         wanted = "s" if channel == "t" else "an acceleration unit"
         raise src.error(line, f"column {index + 1}, {cell!r}: unknown unit {unit_text!r}; expected {wanted}")
-    return _Column(channel, unit_text)
+    said_by = None
+    if channel != "t" and matched not in _BARE:
+        said_by = f"CSV column {cell!r}" + (f", {seed[1]}" if seed else "")
+    return _Column(channel, unit_text, said_by)
 
 
 def _cells(src: TextSource, line: int) -> list[str]:
@@ -119,6 +140,12 @@ def _header(src: TextSource) -> tuple[int, list[str], list[_Column]]:
         raise src.error(len(src.lines), f"no header row; expected {_EXPECTED}")
     cells = [c.strip() for c in _cells(src, line)]
     columns = [_column(src, line, i, cell) for i, cell in enumerate(cells)]
+    taken = {c.channel for c in columns}
+    for i, column in enumerate(columns):
+        if column.channel == "seed_h":  # SEED horizontals: the first and second horizontal in column order
+            channel = "h" if "h" not in taken else "h2"
+            taken.add(channel)
+            columns[i] = _Column(channel, column.unit_text, column.said_by)
     seen: dict[str, int] = {}
     for i, column in enumerate(columns):
         if column.channel in seen:
@@ -195,6 +222,7 @@ def read_csv(path: str | Path, *, dt: float | None = None, units: str | None = N
         "file": path.name,
         "format": "CSV",
         "columns": cells,
+        **({"component": _component(path, header_line, columns)} if len(acc) == 1 else {}),
         "lines": len(src.lines),
         "units_in_file": unit_text or unit,
         "units_from": "given" if file_unit is None else "file",
@@ -208,6 +236,18 @@ def read_csv(path: str | Path, *, dt: float | None = None, units: str | None = N
     return GroundMotion(
         name=path.stem, dt=dt, acc_h=acc["h"], acc_h2=acc.get("h2"), acc_v=acc.get("v"), provenance=provenance
     )
+
+
+def _component(path: Path, line: int, columns: list[_Column]) -> dict[str, object]:
+    """The component of a one-channel CSV file: its column name, else its file name (`component.from_name`)."""
+    column = next(c for c in columns if c.channel == "h")
+    named = name_component(path)
+    if column.said_by is None:
+        return from_name(path, "the CSV column names no component (a bare 'acc')")
+    if named is not None and named[0] != HORIZONTAL:
+        raise located(path, line, f"{column.said_by} is a horizontal channel but {named[1]} says {named[0]}; "
+                                  "expected the two to agree (rename the file or the column)")
+    return component(HORIZONTAL, column.said_by, line)
 
 
 def _rows(src: TextSource, header_line: int, width: int) -> list[tuple[int, list[str]]]:

@@ -9,6 +9,10 @@
   (`cosmos.read_cosmos`).
 
 ``dt`` [s] and ``units`` are for files that do not say them; where a file does, they must agree with it.
+
+Every reader reads only a regular file of at most `source.MAX_FILE_BYTES` (a FIFO, a device or a symlink to
+one is refused before a byte is read), accepts a time step from `source.DT_MIN_S` to `source.DT_MAX_S` and
+accelerations up to `source.MAX_ABS_G`; a record longer than `source.MAX_DURATION_S` is refused here.
 """
 
 from __future__ import annotations
@@ -21,7 +25,7 @@ from .csvfile import read_csv
 from .h5record import read_h5
 from .motion import GroundMotion
 from .peer import read_at2
-from .source import located
+from .source import MAX_DURATION_S, located
 from .text import read_text
 
 _Reader = Callable[..., GroundMotion]
@@ -52,4 +56,10 @@ def read_record_file(path: str | Path, *, dt: float | None = None, units: str | 
     if reader is None:
         readable = ", ".join(FILE_SUFFIXES)
         raise located(path, None, f"unsupported record file type {path.suffix!r}; expected one of {readable}")
-    return reader(path, dt=dt, units=units)
+    motion = reader(path, dt=dt, units=units)
+    if motion.duration > MAX_DURATION_S:
+        raise located(
+            path, None, f"the record lasts {motion.duration:.6g} s ({motion.npts} samples at dt = {motion.dt:g} s); "
+            f"expected at most {MAX_DURATION_S:g} s (is dt right?)",
+        )
+    return motion

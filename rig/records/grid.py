@@ -14,7 +14,7 @@ import math
 import numpy as np
 
 from .settings import Settings
-from .source import DT_RTOL, TextSource
+from .source import DT_RTOL, TextSource, dt_problem
 
 #: Largest distance of a time from the even grid, as a fraction of dt.
 GRID_TOLERANCE = 0.01
@@ -54,6 +54,9 @@ def time_step(src: TextSource, times: np.ndarray, lines: list[int], settings: Se
                 f"(t0 + {i} x {spacing:g} s, within {GRID_TOLERANCE:.0%} of dt)",
             )
     dt = float(f"{spacing:.12g}")
+    problem = dt_problem(dt)
+    if problem:
+        raise src.error(lines[1], f"the time column's step {dt:g} s {problem}")
     if settings.dt is not None and not math.isclose(settings.dt, dt, rel_tol=DT_RTOL):
         raise src.error(
             settings.dt_line, f"dt = {settings.dt:g} s but the time column is spaced {dt:g} s; expected the same dt"

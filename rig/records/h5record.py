@@ -6,6 +6,8 @@ Layout (readable with any HDF5 tool; h5py example: ``h5py.File(path)["acc_h"][()
   ``units = "g"``, ``provenance`` (JSON text of an object: source files, checksums, units, …);
 * datasets ``acc_h`` (float64, g, 1-D: first horizontal component) and, when the record has them,
   ``acc_h2`` (second horizontal) and ``acc_v`` (vertical), of the same length; each with ``units = "g"``;
+* the component of a one-channel record (horizontal, vertical or unknown) is the one its source file gave,
+  in ``provenance["component"]`` (`component`); an unknown one is read with a `RecordWarning`;
 * a 512-byte HDF5 user block at the start of the file (HDF5 tools skip it) holding the ASCII text
   ``shaketable-rig/record/1\\nsha256 <64 hex digits>\\n`` padded with NUL bytes: the SHA-256 of every byte
   after the user block. The reader checks it before HDF5 parses anything, because the HDF5 library may
@@ -29,8 +31,9 @@ from typing import Any
 
 import numpy as np
 
+from .component import UNKNOWN, kind_of_provenance, unknown_component
 from .motion import GroundMotion, RecordError
-from .source import given_dt, located, matching_dt, matching_unit
+from .source import dt_problem, given_dt, located, matching_dt, matching_unit, read_record_bytes
 from .units import given_unit
 
 SCHEMA = "shaketable-rig/record/1"
@@ -129,12 +132,7 @@ def write_record(motion: GroundMotion, path: str | Path, *, replace: bool = Fals
 
 def _checked_bytes(path: Path) -> tuple[bytes, str]:
     """The file's bytes and SHA-256, after checking the user block's schema and checksum."""
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise located(path, None, "no such file") from None
-    except OSError as exc:
-        raise located(path, None, f"cannot read ({exc.strerror or exc})") from None
+    raw = read_record_bytes(path, "a record file")
     head = f"{SCHEMA}\nsha256 ".encode("ascii")  # then 64 hex digits, as `_userblock` writes them
     if raw[: len(head)] != head or len(raw) < USERBLOCK + len(_HDF5_SIGNATURE):
         raise located(path, None, f"no '{SCHEMA}' user block at byte 0; expected {_EXPECTED}")
@@ -195,8 +193,11 @@ def read_h5(path: str | Path, *, dt: float | None = None, units: str | None = No
             if stored_units != "g":
                 raise located(path, None, f"units is {stored_units!r}; expected 'g'")
             file_dt = h5.attrs.get("dt")
-            if not isinstance(file_dt, float | np.floating):
-                raise located(path, None, f"root attribute 'dt' is {file_dt!r}; expected a float64 time step [s]")
+            if not isinstance(file_dt, float | np.floating) or dt_problem(float(file_dt)):
+                raise located(
+                    path, None, f"root attribute 'dt' is {file_dt!r}; expected a float64 time step [s] "
+                    f"({dt_problem(float(file_dt)) if isinstance(file_dt, float | np.floating) else 'not a float'})",
+                )
             provenance = json.loads(_text(path, h5, "provenance"), parse_constant=_reject_constant)
             if not isinstance(provenance, dict):
                 raise located(path, None, "root attribute 'provenance' is not a JSON object; expected one")
@@ -210,6 +211,12 @@ def read_h5(path: str | Path, *, dt: float | None = None, units: str | None = No
     matching_unit(path, None, "g", units)
     matching_dt(path, None, float(file_dt), dt)
     provenance["stored_in"] = {"path": str(path.resolve()), "schema": SCHEMA, "file_sha256": sha}
+    if channels["acc_h2"] is None and channels["acc_v"] is None and kind_of_provenance(provenance) == UNKNOWN:
+        entry = provenance.get("component")
+        said = entry.get("said_by") if isinstance(entry, dict) else None
+        provenance["component"] = unknown_component(
+            path, None, f"its source file did not say ({said})" if said else "its provenance names no component"
+        )
     try:
         return GroundMotion(
             name=name, dt=float(file_dt), acc_h=channels["acc_h"], acc_h2=channels["acc_h2"],

@@ -8,10 +8,11 @@ The files, in this order, are the first horizontal (``acc_h``, drives surge), th
 (``acc_h2``, drives sway) and, optionally, the vertical component (``acc_v``, positive up as in PEER's
 ``-UP`` files). Each is read by its format's reader (`files`) and must hold one component, in its place
 (`component.check_place`): a file that says it holds a vertical component (COSMOS orientation code, PEER line
-2, a name ending in ``-UP``, ``UP``, ``-V``, ``DWN``, ``-DN``, ``.HNZ``) is refused in a horizontal place, one
-that says it holds a horizontal component is refused in the vertical place. All components must have the
-same dt (relative tolerance 1e-6) and the same number of samples: otherwise the error names both files and
-both values. The record's name joins the file stems with ``+``.
+2, a name ending in ``-UP``, ``UP``, ``-V``, ``DWN``, ``-DN``, or a SEED channel such as ``.HNZ``, ``.BHZ.00``,
+``.00.HNZ``: see `component`) is refused in a horizontal place, one that says it holds a horizontal
+component is refused in the vertical place. All components must have the same dt (relative tolerance 1e-6)
+and the same number of samples: otherwise the error names both files and both values.
+The record's name joins the file stems with ``+``.
 
 A spec is a component set when it contains ``+`` and is not itself the path of an existing file.
 """
@@ -22,7 +23,7 @@ import math
 from collections.abc import Sequence
 from pathlib import Path
 
-from .component import check_place, stem_says_vertical
+from .component import VERTICAL, check_place, name_component
 from .files import read_record_file
 from .motion import GroundMotion, RecordError, array_sha256
 from .source import DT_RTOL
@@ -48,9 +49,10 @@ def read_components(
     if len(paths) not in (2, 3):
         raise RecordError(f"expected 2 or 3 component files (H1+H2[+UP]), got {len(paths)}")
     for place, path in enumerate(paths[:2], start=1):
-        if stem_says_vertical(path):
+        named = name_component(path)
+        if named is not None and named[0] == VERTICAL:
             raise RecordError(
-                f"{path}: horizontal component {place} is named like a vertical one; "
+                f"{path}: horizontal component {place} is named like a vertical one ({named[1]}); "
                 "expected H1+H2+UP with the vertical component last"
             )
     motions = [read_record_file(path, dt=dt, units=units) for path in paths]

@@ -14,7 +14,22 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+from analysis.input_file import MIB, InputFileError, read_regular_file
+
 from .motion import RecordError
+
+#: Largest record file read [bytes]: 64 MiB holds 10 minutes of three channels at 1 kHz several times over.
+MAX_FILE_BYTES = 64 * MIB
+
+#: Longest line of a text record [characters]: record lines are tens of characters; the bound keeps every
+#: per-line pattern linear in the file's size.
+MAX_LINE_CHARS = 1000
+
+#: Time steps [s] a record may have: 10 µs (100 kHz) to 1 s; outside, the file or the given dt is wrong.
+DT_MIN_S, DT_MAX_S = 1e-5, 1.0
+
+#: Longest record [s] (npts · dt): 20 minutes, beyond the longest strong-motion recordings (about 10 min).
+MAX_DURATION_S = 1200.0
 
 #: Largest acceleration magnitude a reader accepts [g]: beyond it the unit is wrong or the file is damaged.
 MAX_ABS_G = 100.0
@@ -83,22 +98,31 @@ class TextSource:
         return value
 
     def check_dt(self, line: int, dt: float, text: str, label: str = "dt") -> float:
-        """``dt`` [s] as read from ``text``: finite and > 0, else an error located at ``line``."""
-        if not math.isfinite(dt) or dt <= 0.0:
-            raise self.error(line, f"{label} must be > 0 s, got {text!r}; expected a time step such as 0.01 s")
+        """``dt`` [s] as read from ``text``: within [`DT_MIN_S`, `DT_MAX_S`], else an error located at ``line``."""
+        problem = dt_problem(dt)
+        if problem:
+            raise self.error(line, f"{label} = {text!r} {problem}")
         return dt
+
+
+def dt_problem(dt: float) -> str | None:
+    """What is wrong with a record's time step [s] (outside [`DT_MIN_S`, `DT_MAX_S`]), or None."""
+    if math.isfinite(dt) and DT_MIN_S <= dt <= DT_MAX_S:
+        return None
+    return f"is not a record's time step; expected {DT_MIN_S:g} s to {DT_MAX_S:g} s, such as 0.01 s"
+
+
+def read_record_bytes(path: Path, expected: str) -> bytes:
+    """The bytes of a record file: a regular file of at most `MAX_FILE_BYTES` (FIFOs, devices refused)."""
+    try:
+        return read_regular_file(path, MAX_FILE_BYTES, expected)
+    except InputFileError as exc:
+        raise located(path, None, str(exc)) from None
 
 
 def read_source(path: Path, expected: str) -> TextSource:
     """Read ``path`` as a text record file; ``expected`` describes its content for the empty-file error."""
-    try:
-        raw = path.read_bytes()
-    except FileNotFoundError:
-        raise located(path, None, "no such file") from None
-    except IsADirectoryError:
-        raise located(path, None, "is a directory; expected a record file") from None
-    except OSError as exc:
-        raise located(path, None, f"cannot read ({exc.strerror or exc})") from None
+    raw = read_record_bytes(path, "a record file")
     sha = hashlib.sha256(raw).hexdigest()
     body = raw.removeprefix(_BOM)
     if not body.strip():
@@ -117,15 +141,31 @@ def read_source(path: Path, expected: str) -> TextSource:
     lines = _LINE_BREAK_RE.split(text)
     if lines[-1] == "":
         lines.pop()
+    longest = max(range(len(lines)), key=lambda i: len(lines[i]))
+    if len(lines[longest]) > MAX_LINE_CHARS:
+        raise located(
+            path, longest + 1, f"the line is {len(lines[longest]):,} characters long; expected lines of at most "
+            f"{MAX_LINE_CHARS} characters ({expected})",
+        )
     return TextSource(path=path, lines=lines, sha256=sha)
+
+
+def _as_float(value: float) -> float:
+    """``value`` as a float; an int too large for one is infinite."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf
 
 
 def given_dt(dt: float | None) -> float | None:
     """The time step the user gave (``--dt``) [s], checked finite and > 0; None if none was given."""
     if dt is None:
         return None
-    if isinstance(dt, bool) or not isinstance(dt, int | float) or not math.isfinite(dt) or dt <= 0.0:
-        raise RecordError(f"the given dt must be a number of seconds > 0, got {dt!r}")
+    if isinstance(dt, bool) or not isinstance(dt, int | float) or dt_problem(_as_float(dt)):
+        raise RecordError(
+            f"the given dt must be a number of seconds from {DT_MIN_S:g} to {DT_MAX_S:g}, got {dt!r}"
+        )
     return float(dt)
 
 

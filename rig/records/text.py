@@ -16,6 +16,8 @@
 * Blank lines and ``#`` comments may stand anywhere; every other line holds the same number of columns.
 * A file cut off at the end of a line looks like a shorter record: give ``# npts = …`` and the reader
   checks the count.
+* The component (horizontal or vertical) comes from the file name only (``….HNZ.txt``, ``…-UP.txt``, see
+  `component`); a name that does not say gives a `RecordWarning`.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .component import from_name
 from .grid import time_step
 from .motion import GroundMotion, array_sha256
 from .settings import check_npts, is_comment, read_settings
@@ -74,6 +77,7 @@ def read_text(path: str | Path, *, dt: float | None = None, units: str | None = 
         "path": str(path.resolve()),
         "file": path.name,
         "format": "plain text, " + ("acceleration" if columns == 1 else "time and acceleration"),
+        "component": from_name(path, "a plain text file names no component"),
         "lines": len(src.lines),
         "units_in_file": settings.unit_text or unit,
         "units_from": "given" if settings.unit is None else "file",

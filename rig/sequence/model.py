@@ -8,6 +8,8 @@ own layout (plain JSON types), so that a sequence's ``to_dict`` reads back with 
 from __future__ import annotations
 
 import math
+import re
+import string
 from dataclasses import dataclass
 from typing import Any
 
@@ -40,6 +42,69 @@ DEFAULT_PROMPT = "Place the bodies at their marks on the plate ({angle_deg:g}°)
 
 PROMPT_FIELDS = ("angle_deg", "bodies", "sequence")
 """The placeholders a ``place_bodies`` prompt may use."""
+
+MAX_PROMPT_CHARS = 500
+"""Longest ``place_bodies`` prompt as written [characters]."""
+
+MAX_FIELD_WIDTH = 80
+"""Largest width and precision of a placeholder's format spec (``{angle_deg:>8.2f}``) [characters]."""
+
+#: A simple format spec: fill and align, sign, ``#``, ``0``, width, grouping, precision, type; no nested fields.
+_SPEC_RE = re.compile(
+    r"(?:[^{}]?[<>^=])?[-+ ]?#?0?(?P<width>\d{1,3})?[,_]?(?:\.(?P<precision>\d{1,3}))?[bcdeEfFgGnosxX%]?"
+)
+
+_SAMPLE = {"angle_deg": 4.5, "bodies": "1: T5-1 at (0, 0) m", "sequence": "quick"}
+
+
+def _prompt_parts(template: str) -> list[tuple[str, str | None, str]]:
+    """(literal text, field, format spec) of a prompt; ValueError saying what is wrong with it.
+
+    A restricted formatter: a field is one of `PROMPT_FIELDS` by its plain name (no attribute or index
+    access such as ``{bodies.__class__}`` or ``{bodies[0]}``, no conversion ``!r``), its spec a simple one of
+    bounded width (`MAX_FIELD_WIDTH`); user text is never handed to ``str.format``.
+    """
+    if len(template) > MAX_PROMPT_CHARS:
+        raise ValueError(f"the prompt is {len(template):,} characters; expected at most {MAX_PROMPT_CHARS}")
+    try:
+        parsed = list(string.Formatter().parse(template))
+    except ValueError as exc:
+        raise ValueError(f"{exc} (write {{{{ and }}}} for a literal brace)") from None
+    parts: list[tuple[str, str | None, str]] = []
+    fields = ", ".join("{" + f + "}" for f in PROMPT_FIELDS)
+    for literal, field, spec, conversion in parsed:
+        if field is not None and field not in PROMPT_FIELDS:
+            raise ValueError(f"placeholder {{{field}}} is not one of {fields} (plain names only: no attributes, "
+                             "indices or positions)")
+        if conversion is not None:
+            raise ValueError(f"placeholder {{{field}!{conversion}}}: conversions are not allowed; expected {fields}")
+        spec = spec or ""
+        found = _SPEC_RE.fullmatch(spec)
+        if found is None:
+            raise ValueError(f"placeholder {{{field}:{spec}}}: expected a simple format spec such as :g, :.1f or :>8")
+        for part in ("width", "precision"):
+            if found[part] is not None and int(found[part]) > MAX_FIELD_WIDTH:
+                raise ValueError(f"placeholder {{{field}:{spec}}}: {part} {int(found[part])} is over "
+                                 f"{MAX_FIELD_WIDTH} characters")
+        if field is not None:
+            try:
+                format(_SAMPLE[field], spec)
+            except ValueError as exc:
+                raise ValueError(f"placeholder {{{field}:{spec}}}: {exc}") from None
+        parts.append((literal, field, spec))
+    return parts
+
+
+def check_prompt(template: str) -> None:
+    """Raise ValueError saying what is wrong with a ``place_bodies`` prompt (see `_prompt_parts`)."""
+    _prompt_parts(template)
+
+
+def format_prompt(template: str, values: dict[str, Any]) -> str:
+    """The prompt with its placeholders filled from ``values`` (keys `PROMPT_FIELDS`), restricted as
+    `_prompt_parts` says."""
+    return "".join(literal + ("" if field is None else format(values[field], spec))
+                   for literal, field, spec in _prompt_parts(template))
 
 
 @dataclass(frozen=True)
@@ -183,7 +248,7 @@ class OperatorSteps:
     def place_prompt(self, angle_deg: float, bodies: tuple[PlacedBody, ...] = (), sequence: str = "") -> str:
         """The placement prompt for one angle [deg]."""
         names = ", ".join(f"{b.body_id}: {b.name} at ({b.x:g}, {b.y:g}) m" for b in bodies)
-        return self.place_bodies.format(angle_deg=angle_deg, bodies=names, sequence=sequence)
+        return format_prompt(self.place_bodies, {"angle_deg": angle_deg, "bodies": names, "sequence": sequence})
 
     def to_dict(self) -> dict[str, Any]:
         return {"place_bodies": self.place_bodies, "confirm_before_run": self.confirm_before_run,

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 import re
-import tomllib
 from collections.abc import Mapping
 from collections.abc import Sequence as Seq
 from dataclasses import replace
@@ -19,8 +18,10 @@ from urllib.parse import urlsplit
 
 from analysis.body import TABLE_V, Body
 from analysis.table.model import TableModel, TableModelError
-from analysis.table.toml_check import TomlChecker
-from analysis.table.toml_lines import KeyPath, dotted_path, key_lines, suggest, syntax_message
+from analysis.table.toml_check import TomlChecker, TomlFileError, read_toml, shown
+from analysis.table.toml_lines import KeyPath, dotted_path, suggest
+from rig.drive.prepare import FC_MAX, FC_MIN
+from rig.records.source import DT_MAX_S, DT_MIN_S, MAX_DURATION_S
 
 from .model import (
     AS_RECORDED,
@@ -28,12 +29,12 @@ from .model import (
     DEFAULT_PLATE,
     NEGATED,
     POLARITIES,
-    PROMPT_FIELDS,
     DriveOptions,
     OperatorSteps,
     PlacedBody,
     RecordEntry,
     SequenceError,
+    check_prompt,
 )
 from .records import expand_records_from, resolve_spec
 
@@ -48,6 +49,33 @@ RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "dri
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz", "polarity")
 RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
+TABLE_SCHEMES = ("mavlink", "zenoh", "canopen")
+"""The table controllers' URL schemes (``drivers.open_table``)."""
+
+#: Physical ranges of the sequence file's numbers: key → (low, high, the range in words). Bodies stand on a
+#: plate of a few metres; a drive holds its tilt at most a minute; the high-pass corner is the drive
+#: preparation's (``rig.drive.prepare.FC_MIN`` … ``FC_MAX``); record time steps and windows are the readers'.
+RANGES: dict[str, tuple[float, float, str]] = {
+    "b": (0.001, 3.0, "a base width from 0.001 m to 3 m"),
+    "h": (0.001, 5.0, "a height from 0.001 m to 5 m"),
+    "depth": (0.001, 3.0, "a depth from 0.001 m to 3 m"),
+    "mass": (0.001, 2000.0, "a mass from 0.001 kg to 2000 kg"),
+    "friction": (0.01, 2.0, "a friction coefficient μ from 0.01 to 2"),
+    "size_m": (0.1, 10.0, "[x, y] in metres, each from 0.1 m to 10 m"),
+    "settle_s": (0.0, 60.0, "a time from 0 s to 60 s"),
+    "corner_hz": (FC_MIN, FC_MAX, f"a high-pass corner from {FC_MIN:g} Hz to {FC_MAX:g} Hz"),
+    "scale": (0.001, 1.0, '"table" or a fixed factor from 0.001 to 1'),
+    "dt_s": (DT_MIN_S, DT_MAX_S, f"a record time step from {DT_MIN_S:g} s to {DT_MAX_S:g} s"),
+    "window_s": (0.0, MAX_DURATION_S, f"[t0, t1] in seconds of the record, 0 ≤ t0 < t1 ≤ {MAX_DURATION_S:g}"),
+}
+MAX_REPETITIONS = 100
+"""Largest ``repetitions``."""
+MAX_ITEMS = {"bodies": 100, "angles_deg": 100, "records": 1000}
+"""Longest lists of a sequence file."""
+MAX_RUNS = 10_000
+"""Largest plan (angles x records x repetitions); the paper's campaign is 130 runs."""
+MAX_TEXT = {"description": 10_000}
+"""Longest strings [characters]: the description, else 1000."""
 
 
 class _Reader(TomlChecker):
@@ -84,23 +112,37 @@ class _Reader(TomlChecker):
         bad = not math.isfinite(x) or (low is not None and (x <= low if low_open else x < low)) \
             or (high is not None and x > high)
         if bad:
-            raise self.error(path, f"expected {what}, got {value!r}")
+            raise self.error(path, f"expected {what}, got {shown(value)}")
         return x
 
-    def positive(self, value: Any, path: KeyPath, unit: str) -> float:
-        return self.number(value, path, low=0.0, what=f"a finite number > 0 {unit}".rstrip())
+    def quantity(self, value: Any, path: KeyPath, key: str) -> float:
+        """A number in the physical range of ``key`` (`RANGES`)."""
+        low, high, what = RANGES[key]
+        return self.ranged(value, path, low, high, what)
+
+    def items(self, value: Any, path: KeyPath, what: str) -> list[Any]:
+        """A non-empty list of at most `MAX_ITEMS` items."""
+        key = str(path[-1])
+        if not isinstance(value, list) or not value:
+            raise self.error(path, f"expected {what}, got {shown(value)}")
+        if len(value) > MAX_ITEMS[key]:
+            raise self.error(path, f"{len(value)} items; expected at most {MAX_ITEMS[key]}")
+        return value
 
     def integer(self, value: Any, path: KeyPath, low: int, high: int | None = None) -> int:
         ok = isinstance(value, int) and not isinstance(value, bool) and value >= low \
             and (high is None or value <= high)
         if not ok:
             span = f"from {low} to {high}" if high is not None else f"≥ {low}"
-            raise self.error(path, f"expected a whole number {span}, got {value!r}")
+            raise self.error(path, f"expected a whole number {span}, got {shown(value)}")
         return value
 
     def string(self, value: Any, path: KeyPath, *, empty: bool = False) -> str:
         if not isinstance(value, str) or (not empty and not value.strip()):
-            raise self.error(path, f"expected a {'' if empty else 'non-empty '}string, got {value!r}")
+            raise self.error(path, f"expected a {'' if empty else 'non-empty '}string, got {shown(value)}")
+        longest = MAX_TEXT.get(str(path[-1]) if path else "", 1000)
+        if len(value) > longest:
+            raise self.error(path, f"the text is {len(value):,} characters; expected at most {longest:,}")
         return value
 
     def boolean(self, value: Any, path: KeyPath) -> bool:
@@ -110,15 +152,15 @@ class _Reader(TomlChecker):
 
     def pair(self, value: Any, path: KeyPath, what: str) -> tuple[float, float]:
         if not isinstance(value, list) or len(value) != 2:
-            raise self.error(path, f"expected {what}, got {value!r}")
+            raise self.error(path, f"expected {what}, got {shown(value)}")
         return (self.number(value[0], (*path, 0), what=what), self.number(value[1], (*path, 1), what=what))
 
     def scale(self, value: Any, path: KeyPath) -> float | None:
         if value == "table":
             return None
         if isinstance(value, str):
-            raise self.error(path, f"expected \"table\" or a fixed factor in (0, 1], got {value!r}")
-        return self.number(value, path, low=0.0, high=1.0, what='"table" or a fixed factor in (0, 1]')
+            raise self.error(path, f"expected {RANGES['scale'][2]}, got {shown(value)}")
+        return self.quantity(value, path, "scale")
 
     # ----- sections --------------------------------------------------------------------------------
 
@@ -149,11 +191,10 @@ class _Reader(TomlChecker):
         plate = self.table(value, path, ("size_m",))
         if "size_m" not in plate:
             return DEFAULT_PLATE
-        size = self.pair(plate["size_m"], (*path, "size_m"), "[x, y] in metres, each > 0")
-        for k, side in enumerate(size):
-            if side <= 0:
-                raise self.error((*path, "size_m", k), f"expected [x, y] in metres, each > 0, got {side!r}")
-        return size
+        what = RANGES["size_m"][2]
+        size = self.pair(plate["size_m"], (*path, "size_m"), what)
+        return (self.quantity(size[0], (*path, "size_m", 0), "size_m"),
+                self.quantity(size[1], (*path, "size_m", 1), "size_m"))
 
     def drive(self, value: Any) -> DriveOptions:
         path: KeyPath = ("drive",)
@@ -161,11 +202,10 @@ class _Reader(TomlChecker):
         options = DriveOptions()
         settle = options.settle
         if "settle_s" in drive:
-            settle = self.number(drive["settle_s"], (*path, "settle_s"), low=0.0, low_open=False,
-                                 what="a number of seconds ≥ 0")
+            settle = self.quantity(drive["settle_s"], (*path, "settle_s"), "settle_s")
         corner = None
         if "corner_hz" in drive:
-            corner = self.positive(drive["corner_hz"], (*path, "corner_hz"), "Hz")
+            corner = self.quantity(drive["corner_hz"], (*path, "corner_hz"), "corner_hz")
         return DriveOptions(settle=settle, corner=corner)
 
     def operator(self, value: Any) -> OperatorSteps:
@@ -176,18 +216,16 @@ class _Reader(TomlChecker):
         if "place_bodies" in steps:
             prompt = self.string(steps["place_bodies"], (*path, "place_bodies"))
             try:
-                prompt.format(**dict.fromkeys(PROMPT_FIELDS, 0))
-            except (KeyError, IndexError, ValueError) as exc:
-                raise self.error((*path, "place_bodies"), f"bad placeholder {exc}; the prompt may use "
-                                 f"{', '.join('{' + f + '}' for f in PROMPT_FIELDS)}") from None
+                check_prompt(prompt)
+            except ValueError as exc:
+                raise self.error((*path, "place_bodies"), str(exc)) from None
         flags = {key: self.boolean(steps[key], (*path, key)) if key in steps else getattr(defaults, key)
                  for key in ("confirm_before_run", "ask_detections")}
         return OperatorSteps(place_bodies=prompt, **flags)
 
     def bodies(self, value: Any, plate: tuple[float, float]) -> tuple[PlacedBody, ...]:
         path: KeyPath = ("bodies",)
-        if not isinstance(value, list) or not value:
-            raise self.error(path, f"expected at least one [[bodies]] table, got {value!r}")
+        value = self.items(value, path, "at least one [[bodies]] table")
         placed = tuple(self.body(item, (*path, i), i + 1) for i, item in enumerate(value))
         names: dict[str, int] = {}
         for i, body in enumerate(placed):
@@ -212,14 +250,13 @@ class _Reader(TomlChecker):
             dims = {"b": paper.b, "h": paper.h, "depth": paper.depth, "mass": paper.mass}
             name = name or paper.name
         else:
-            units = {"b": "m", "h": "m", "depth": "m", "mass": "kg"}
-            dims = {key: self.positive(self.require(table, path, key, f"a number > 0 {units[key]} (or table5 = N)"),
-                                       (*path, key), units[key]) for key in DIMENSIONS}
+            dims = {key: self.quantity(self.require(table, path, key, f"{RANGES[key][2]} (or table5 = N)"),
+                                       (*path, key), key) for key in DIMENSIONS}
         place = {key: self.number(self.require(table, path, key, "a number in metres (plate frame, +x downhill)"),
                                   (*path, key), what="a finite number in metres") for key in ("x", "y")}
         friction = DEFAULT_FRICTION
         if "friction" in table:
-            friction = self.positive(table["friction"], (*path, "friction"), "")
+            friction = self.quantity(table["friction"], (*path, "friction"), "friction")
         restitution = None
         if "restitution" in table:
             restitution = self.number(table["restitution"], (*path, "restitution"), low=0.0, high=1.0,
@@ -249,8 +286,7 @@ class _Reader(TomlChecker):
 
     def angles(self, value: Any, table: TableModel) -> tuple[float, ...]:
         path: KeyPath = ("angles_deg",)
-        if not isinstance(value, list) or not value:
-            raise self.error(path, f"expected a non-empty list of plate angles in degrees, e.g. [0, 5], got {value!r}")
+        value = self.items(value, path, "a non-empty list of plate angles in degrees, e.g. [0, 5]")
         limit = math.degrees(table.limits.tilt.angle)
         angles: list[float] = []
         for i, item in enumerate(value):
@@ -285,7 +321,9 @@ class _Reader(TomlChecker):
         if "records" in top:
             value = top["records"]
             if not isinstance(value, list):
-                raise self.error(("records",), f"expected a list of records, got {value!r}")
+                raise self.error(("records",), f"expected a list of records, got {shown(value)}")
+            if len(value) > MAX_ITEMS["records"]:
+                raise self.error(("records",), f"{len(value)} records; expected at most {MAX_ITEMS['records']}")
             for i, item in enumerate(value):
                 entries.extend(self.record(item, ("records", i)))
         if "records_from" in top:
@@ -316,15 +354,15 @@ class _Reader(TomlChecker):
         if "scale" in table:
             options["scale"] = self.scale(table["scale"], (*path, "scale"))
         if "window_s" in table:
-            what = "[t0, t1] in seconds of the record, 0 ≤ t0 < t1"
+            what = RANGES["window_s"][2]
             t0, t1 = self.pair(table["window_s"], (*path, "window_s"), what)
-            if not 0.0 <= t0 < t1:
-                raise self.error((*path, "window_s"), f"expected {what}, got {table['window_s']!r}")
+            if not 0.0 <= t0 < t1 <= MAX_DURATION_S:
+                raise self.error((*path, "window_s"), f"expected {what}, got {shown(table['window_s'])}")
             options["window"] = (t0, t1)
         if "corner_hz" in table:
-            options["corner"] = self.positive(table["corner_hz"], (*path, "corner_hz"), "Hz")
+            options["corner"] = self.quantity(table["corner_hz"], (*path, "corner_hz"), "corner_hz")
         if "dt_s" in table:
-            options["dt"] = self.positive(table["dt_s"], (*path, "dt_s"), "s")
+            options["dt"] = self.quantity(table["dt_s"], (*path, "dt_s"), "dt_s")
         if "units" in table:
             options["units"] = self.string(table["units"], (*path, "units"))
         if "drive" in table:
@@ -344,7 +382,7 @@ class _Reader(TomlChecker):
                                          '"library"'), (*path, "suite"))
         strongest = self.integer(table["strongest"], (*path, "strongest"), 1) if "strongest" in table else None
         scale = self.scale(table["scale"], (*path, "scale")) if "scale" in table else None
-        corner = self.positive(table["corner_hz"], (*path, "corner_hz"), "Hz") if "corner_hz" in table else None
+        corner = self.quantity(table["corner_hz"], (*path, "corner_hz"), "corner_hz") if "corner_hz" in table else None
         try:
             specs = expand_records_from(suite, strongest)
         except ValueError as exc:
@@ -359,10 +397,23 @@ class _Reader(TomlChecker):
             polarity, path)]
 
     def table_url(self, value: Any) -> str:
+        """``mavlink://HOST:PORT``, ``zenoh://HOST:PORT/TABLE`` or ``canopen://CHANNEL?interface=NAME``."""
         url = self.string(value, ("table_url",))
-        if "://" not in url or not urlsplit(url).scheme:
-            raise self.error(("table_url",), f"expected a table URL scheme://…, e.g. mavlink://127.0.0.1:14600, "
-                             f"got {url!r}")
+        expected = ("expected mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE or canopen://CHANNEL?interface=NAME, "
+                    "e.g. mavlink://127.0.0.1:14600")
+        try:
+            parts = urlsplit(url)
+            port = parts.port if parts.scheme in ("mavlink", "zenoh") else None
+        except ValueError:
+            raise self.error(("table_url",), f"{expected}; got {shown(url)} (a bad port)") from None
+        if "://" not in url or parts.scheme not in TABLE_SCHEMES:
+            raise self.error(("table_url",), f"{expected}; got {shown(url)} (schemes: {', '.join(TABLE_SCHEMES)})")
+        if parts.scheme in ("mavlink", "zenoh") and (port is None or not parts.hostname):
+            raise self.error(("table_url",), f"{expected}; got {shown(url)} (no HOST:PORT)")
+        if parts.scheme == "mavlink" and parts.path not in ("", "/"):
+            raise self.error(("table_url",), f"{expected}; got {shown(url)} (a mavlink URL has no path)")
+        if parts.scheme == "canopen" and (not parts.netloc or "interface=" not in parts.query):
+            raise self.error(("table_url",), f"{expected}; got {shown(url)} (no CHANNEL or interface)")
         return url
 
 
@@ -390,28 +441,25 @@ def read_mapping(data: Mapping[str, Any], source: str, lines: Mapping[KeyPath, i
         "angles_deg": reader.angles(reader.require(top, (), "angles_deg", "a list of plate angles in degrees, "
                                                    "e.g. angles_deg = [0, 5]"), table),
         "records": reader.records(top),
-        "repetitions": reader.integer(top["repetitions"], ("repetitions",), 1) if "repetitions" in top else 1,
+        "repetitions": reader.integer(top["repetitions"], ("repetitions",), 1, MAX_REPETITIONS)
+        if "repetitions" in top else 1,
     }
+    runs = len(fields["angles_deg"]) * len(fields["records"]) * fields["repetitions"]
+    if runs > MAX_RUNS:
+        raise reader.error(("repetitions",) if "repetitions" in top else ("records",), (
+            f"the plan has {runs:,} runs ({len(fields['angles_deg'])} angles x {len(fields['records'])} records x "
+            f"{fields['repetitions']} repetitions); expected at most {MAX_RUNS:,}"))
     return fields
 
 
 def read_file(path: str | Path) -> tuple[dict[str, Any], dict[KeyPath, int]]:
-    """The checked fields of a sequence file and the lines of its keys."""
+    """The checked fields of a sequence file and the lines of its keys (only a regular file of at most 1 MiB is
+    read: `analysis.table.toml_check.read_toml`)."""
     source = str(path)
     try:
-        text = Path(path).read_bytes().decode("utf-8")
-    except FileNotFoundError:
-        raise SequenceError(source, None, "", "no such sequence file") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise SequenceError(source, None, "", f"cannot read the sequence file: {exc}") from None
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        message = syntax_message(source, text, str(exc))
-        found = re.match(rf"{re.escape(source)}:(\d+): (.*)$", message, re.S)
-        if found:
-            raise SequenceError(source, int(found.group(1)), "", found.group(2)) from None
-        raise SequenceError(source, None, "", message.removeprefix(f"{source}: ")) from None
-    lines = key_lines(text)
+        data, lines = read_toml(path, "a sequence file")
+    except TomlFileError as exc:
+        problem = "no such sequence file" if exc.problem == "no such file" else exc.problem
+        raise SequenceError(source, exc.line, "", problem) from None
     base_dir = Path(path).expanduser().resolve().parent
     return read_mapping(data, source, lines, base_dir, Path(path).stem), lines

@@ -226,7 +226,8 @@ def test_error_counts_disagreeing_with_the_lines_word_for_word(
          "the sampling interval (real-header value 62) is unknown (-999); expected the interval in milliseconds, "
          "e.g. 10.0"),
         ("    -999.000000       5.000000", "    -999.000000       0.000000", 38,
-         "the sampling interval (real-header value 62) is 0 ms; expected an interval > 0 ms, e.g. 10.0"),
+         "the sampling interval (real-header value 62), 0 ms, is not a record's time step; expected 1e-05 s to 1 s, "
+         "such as 0.01 s (given in ms, e.g. 10.0)"),
         ("units=cm/sec2(04)", "units=cm/sec2(14)", 49,
          "the data header gives unit code 14 but integer-header value 3 (line 15) is 4; expected the same unit "
          "code"),

@@ -4,8 +4,9 @@ Each case takes a file in one of the real layouts (tests/data/records, an own .h
 variants with CSMIP end lines, CR CR LF line ends and a vertical PEER component named on line 2),
 applies a few mutations (delete, duplicate or replace a line, flip a bit, insert a token, truncate) and
 reads the result. Either the reader raises `RecordError` naming the file, or the mutated file was still
-valid and gives a valid `GroundMotion`: dt finite and > 0, every channel finite with the same length as
-``acc_h``, the provenance's npts and dt equal to the motion's, and JSON-serialisable provenance.
+valid and gives a valid `GroundMotion`: dt within the readers' range, at most `MAX_DURATION_S` long, every
+channel finite, within `MAX_ABS_G` and with the same length as ``acc_h``, the provenance's npts and dt
+equal to the motion's, and JSON-serialisable provenance.
 
 The fast test runs a modest, derandomised number of cases per format; ``-m slow`` runs a deeper one.
 """
@@ -13,7 +14,6 @@ The fast test runs a modest, derandomised number of cases per format; ``-m slow`
 from __future__ import annotations
 
 import json
-import math
 import shutil
 from collections.abc import Callable
 from pathlib import Path
@@ -24,6 +24,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from rig.records import GroundMotion, RecordError, read_components, read_record_file, write_record
+from rig.records.source import DT_MAX_S, DT_MIN_S, MAX_ABS_G, MAX_DURATION_S
 
 DATA = Path(__file__).parents[1] / "data" / "records"
 PAIR = ("RSN6_IMPVALL.I_I-ELC180.AT2", "RSN6_IMPVALL.I_I-ELC270.AT2", "RSN6_IMPVALL.I_I-ELC-UP.AT2")
@@ -56,6 +57,8 @@ TOKENS = [
     b"with 14 text lines", b"velocity", b"|", b"-123.456-234.567",
     b"/&  ----------  End of data for channel  1  ----------", b"\r\r\n", b"\r\r", b"     0", b"    2000",
     b"CORRECTED ACCELEROGRAM DATA", b"UNCORRECTED ACCELEROGRAM DATA", b", UP", b", HNZ", b", 090", b"-UP",
+    b"DT= 1e-300 SEC", b"DT= 1e300 SEC", b"# dt = 1e-300", b"# dt = 1e300 s", b"1e300", b"1e-300", b" " * 1200,
+    b"_x" * 600, b", BHZ00", b", HN1.10", b", HNA", b"HNZ_g", b"time_s,HN1_g,HN2_g,HNZ_g", b"  1000000000   1.0",
 ]
 
 _offset = st.floats(min_value=0.0, max_value=1.0, allow_nan=False, exclude_max=True)
@@ -95,13 +98,13 @@ def mutate(data: bytes, mutations: list[tuple]) -> bytes:
 
 
 def assert_valid(motion: GroundMotion) -> None:
-    """What every motion a reader returns must satisfy."""
-    assert math.isfinite(motion.dt) and motion.dt > 0
+    """What every motion a reader returns must satisfy: dt, length and accelerations in their physical ranges."""
+    assert DT_MIN_S <= motion.dt <= DT_MAX_S and motion.duration <= MAX_DURATION_S
     assert motion.npts >= 1 and motion.units == "g"
     for channel in (motion.acc_h, motion.acc_h2, motion.acc_v):
         if channel is not None:
             assert channel.shape == (motion.npts,)
-            assert np.all(np.isfinite(channel))
+            assert np.all(np.isfinite(channel)) and np.all(np.abs(channel) <= MAX_ABS_G)
     provenance = motion.provenance
     json.dumps(provenance, allow_nan=False)
     if "npts" in provenance:

@@ -273,8 +273,10 @@ def test_time_column_rounded_within_tolerance(tmp_path: Path) -> None:
 @pytest.mark.parametrize(
     ("text", "line", "message"),
     [
-        ("# dt = -0.01 s\n0.1\n", 1, "dt must be > 0 s, got '-0.01 s'; expected a time step such as 0.01 s"),
-        ("# units = g\n# dt = 0 s\n0.1\n", 2, "dt must be > 0 s, got '0 s'; expected a time step such as 0.01 s"),
+        ("# dt = -0.01 s\n0.1\n", 1,
+         "dt = '-0.01 s' is not a record's time step; expected 1e-05 s to 1 s, such as 0.01 s"),
+        ("# units = g\n# dt = 0 s\n0.1\n", 2,
+         "dt = '0 s' is not a record's time step; expected 1e-05 s to 1 s, such as 0.01 s"),
         ("# dt = 10 min\n0.1\n", 1, "dt '10 min' is not a time in seconds; expected e.g. '# dt = 0.01 s'"),
         ("# units = furlong/s2\n0.1\n", 1,
          "unknown acceleration unit 'furlong/s2'; expected one of g, cm/s/s (= gal, cm/s^2), m/s/s (m/s^2), mm/s/s"),
@@ -501,8 +503,8 @@ def test_pair_errors_name_both_files(tmp_path: Path) -> None:
         f"{ELC180} has dt = 0.01 s but {coarse} has dt = 0.02 s; expected the components of one record to share dt"
     )
     assert error_of(load_record, f"{ELC_UP}+{ELC180}") == (
-        f"{ELC_UP}: horizontal component 1 is named like a vertical one; "
-        "expected H1+H2+UP with the vertical component last"
+        f"{ELC_UP}: horizontal component 1 is named like a vertical one (the file name "
+        "'RSN6_IMPVALL.I_I-ELC-UP.AT2'); expected H1+H2+UP with the vertical component last"
     )
     three = DATA / "three_components.csv"
     assert error_of(read_components, [three, ELC180]) == (
@@ -540,7 +542,9 @@ def test_dispatch_errors(tmp_path: Path) -> None:
     assert error_of(load_record, "fema-farfield:NORTHR/MUL009", dt=0.01) == (
         "'fema-farfield:NORTHR/MUL009' has its own dt and units; expected dt/units only with a record file"
     )
-    assert error_of(load_record, str(ELC180), dt=-0.01) == "the given dt must be a number of seconds > 0, got -0.01"
+    assert error_of(load_record, str(ELC180), dt=-0.01) == (
+        "the given dt must be a number of seconds from 1e-05 to 1, got -0.01"
+    )
     assert error_of(load_record, str(ELC180), units="furlong") == (
         "unknown acceleration unit 'furlong'; expected one of g, cm/s/s (= gal, cm/s^2), m/s/s (m/s^2), mm/s/s"
     )

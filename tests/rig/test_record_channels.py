@@ -101,7 +101,7 @@ def test_a_known_orientation_gives_no_warning() -> None:
 def test_a_peer_vertical_named_only_on_line_2_is_refused_in_a_horizontal_place(tmp_path: Path, word: str) -> None:
     path = variant(tmp_path, UP, "RSN6_IMPVALL.I_I-ELC.AT2", ("Array #9, UP", f"Array #9, {word}", 1))
     message = error_of(read_components, [path, H2])
-    assert message.startswith(f"{path}:2: holds a vertical component (PEER line 2 component {word!r})")
+    assert message.startswith(f"{path}:2: holds a vertical component (PEER line 2 component {word!r}")
     message = error_of(load_record, str(path))
     assert "expected a horizontal record to drive surge" in message
     assert load_record(str(path), accept_vertical=True).provenance["component"]["kind"] == "vertical"
@@ -109,7 +109,8 @@ def test_a_peer_vertical_named_only_on_line_2_is_refused_in_a_horizontal_place(t
 
 def test_an_nga_east_channel_name_in_the_file_name_is_read(tmp_path: Path) -> None:
     path = variant(tmp_path, H1, "NGA_East_0001_ST01.HNZ.AT2", ("Array #9, 180", "Array #9, X", 1))
-    assert read_at2(path).provenance["component"]["said_by"] == "the file name 'NGA_East_0001_ST01.HNZ.AT2'"
+    assert read_at2(path).provenance["component"]["said_by"] == ("the file name 'NGA_East_0001_ST01.HNZ.AT2', SEED "
+                                                                 "channel HNZ: orientation Z, vertical")
     assert error_of(load_record, str(path)).startswith(f"{path}: holds a vertical component (the file name")
     east = variant(tmp_path, H1, "NGA_East_0001_ST01.HNE.AT2", ("Array #9, 180", "Array #9, HNE", 1))
     assert read_at2(east).provenance["component"]["kind"] == "horizontal"
@@ -239,3 +240,149 @@ def test_the_library_imports_a_lone_vertical_only_when_accepted(tmp_path: Path) 
     assert not library.exists() or not list(library.iterdir())  # nothing stored
     (entry,) = import_records([str(UP)], directory=library, accept_vertical=True)
     assert load_library_record(entry.name, library).provenance["component"]["kind"] == "vertical"
+
+
+# ---------------------------------------------------------------------------------------------------------
+# SEED channel codes with location codes (issue 25): band, instrument, orientation Z/N/E/1/2/3, every format
+# ---------------------------------------------------------------------------------------------------------
+
+CSV3 = DATA / "three_components.csv"
+TEXT = DATA / "ELC180_gal.txt"
+
+
+@pytest.mark.parametrize("word", ["BHZ00", "BHZ.00", "00.BHZ", "HNZ-10", "HNZ --", "HN3", "hnz"])
+def test_a_seed_vertical_with_its_location_on_line_2_is_a_vertical(tmp_path: Path, word: str) -> None:
+    path = variant(tmp_path, H1, "RSN6-ELC.AT2", ("Array #9, 180", f"Array #9, {word}", 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        entry = read_at2(path).provenance["component"]
+    assert (entry["kind"], entry["line"]) == ("vertical", 2)
+    assert entry["said_by"].startswith(f"PEER line 2 component {word!r}, SEED channel ")
+    assert error_of(load_record, str(path)).startswith(f"{path}:2: holds a vertical component")
+    assert error_of(read_components, [path, H2]).startswith(f"{path}:2: holds a vertical component")
+
+
+@pytest.mark.parametrize("word", ["HN1", "HN2.00", "HNE", "BHN10", "00.HHE", "HNT"])
+def test_a_seed_horizontal_with_its_location_on_line_2_is_a_horizontal(tmp_path: Path, word: str) -> None:
+    path = variant(tmp_path, H1, "RSN6-ELC.AT2", ("Array #9, 180", f"Array #9, {word}", 1))
+    assert read_at2(path).provenance["component"]["kind"] == "horizontal"
+    assert error_of(read_components, [H1, H2, path]).startswith(f"{path}:2: holds a horizontal component")
+
+
+def test_a_file_name_ending_in_channel_and_location_names_a_vertical(tmp_path: Path) -> None:
+    path = variant(tmp_path, H1, "NGA_East_0001_ST01.BHZ.00.AT2", ("Array #9, 180", "Array #9, BHZ00", 1))
+    assert read_at2(path).provenance["component"]["kind"] == "vertical"
+    unnamed = variant(tmp_path, H1, "ST02.BHZ.00.AT2", ("Array #9, 180", "Array #9, X", 1))
+    entry = read_at2(unnamed).provenance["component"]
+    assert entry == {"kind": "vertical", "line": None, "said_by": "the file name 'ST02.BHZ.00.AT2', SEED channel "
+                     "BHZ location 00: orientation Z, vertical"}
+    contradicted = variant(tmp_path, H1, "ST03.BHZ.00.AT2", ("Array #9, 180", "Array #9, HN1", 1))
+    assert error_of(read_at2, contradicted) == (
+        f"{contradicted}:2: line 2 gives the horizontal component 'HN1' but the file name 'ST03.BHZ.00.AT2' names a "
+        "vertical one; expected the two to agree (rename the file or fix line 2)"
+    )
+
+
+@pytest.mark.parametrize("word", ["HNA", "HNU", "X", "BHZ0"])
+def test_an_unknown_peer_component_is_read_with_a_warning(tmp_path: Path, word: str) -> None:
+    path = variant(tmp_path, H1, "RSN6-ELC.AT2", ("Array #9, 180", f"Array #9, {word}", 1))
+    with pytest.warns(RecordWarning) as caught:
+        motion = read_at2(path)
+    assert len(caught) == 1
+    assert str(caught[0].message).startswith(
+        f"{path}:2: the component (horizontal or vertical) is unknown: line 2 gives {word!r}, not a component and "
+        "the file name does not say; it is played as a horizontal one"
+    )
+    assert motion.provenance["component"]["kind"] == "unknown"
+
+
+def test_a_plain_text_file_named_by_its_seed_channel_is_read_as_that_component(tmp_path: Path) -> None:
+    vertical = tmp_path / "CI.PAS.00.HNZ.txt"
+    vertical.write_bytes(TEXT.read_bytes())
+    assert load_record(str(vertical), accept_vertical=True).provenance["component"]["kind"] == "vertical"
+    assert error_of(read_components, [vertical, H2]).startswith(
+        f"{vertical}: horizontal component 1 is named like a vertical one (the file name 'CI.PAS.00.HNZ.txt', SEED "
+        "channel HNZ location 00"
+    )
+    north = tmp_path / "CI.PAS.00.HNN.txt"
+    north.write_bytes(TEXT.read_bytes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert load_record(str(north)).provenance["component"]["kind"] == "horizontal"
+
+
+def test_a_plain_text_file_that_names_no_component_is_read_with_a_warning() -> None:
+    with pytest.warns(RecordWarning) as caught:
+        motion = load_record(str(TEXT))
+    assert [str(w.message) for w in caught] == [
+        f"{TEXT}: the component (horizontal or vertical) is unknown: a plain text file names no component and the "
+        "file name does not say; it is played as a horizontal one, check it before playing it"
+    ]
+    assert motion.provenance["component"]["kind"] == "unknown"
+
+
+def test_csv_columns_named_by_seed_channels_are_the_components(tmp_path: Path) -> None:
+    path = variant(tmp_path, CSV3, "seed.csv", ("time_s,acc_h_g,acc_h2_g,acc_v_g", "time_s,HN2_g,HNZ.00 [g],HN1_g", 1))
+    named = load_record(str(CSV3))
+    seed = load_record(str(path))
+    np.testing.assert_array_equal(seed.acc_h, named.acc_h)  # HN2: the first horizontal in column order
+    np.testing.assert_array_equal(seed.acc_v, named.acc_h2)  # HNZ.00: the vertical
+    np.testing.assert_array_equal(seed.acc_h2, named.acc_v)  # HN1: the second horizontal
+    odd = variant(tmp_path, CSV3, "odd.csv", ("time_s,acc_h_g,acc_h2_g,acc_v_g", "time_s,HNA_g,acc_h2_g,acc_v_g", 1))
+    assert error_of(load_record, str(odd)) == (
+        f"{odd}:1: column 2, 'HNA_g', is SEED channel HNA: orientation A, not a horizontal or vertical orientation; "
+        "expected a horizontal (N, E, 1, 2) or vertical (Z, 3) channel"
+    )
+
+
+def test_a_one_column_csv_says_its_component_by_column_or_file_name(tmp_path: Path) -> None:
+    rows = "time_s,{}\n0.00,0.1\n0.01,-0.2\n0.02,0.05\n"
+    seed = tmp_path / "seed.csv"
+    seed.write_text(rows.format("HNE_g"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        entry = load_record(str(seed)).provenance["component"]
+    assert entry == {"kind": "horizontal", "line": 1,
+                     "said_by": "CSV column 'HNE_g', SEED channel HNE: orientation E, east"}
+    bare = tmp_path / "bare.csv"
+    bare.write_text(rows.format("acc_g"))
+    unknown = r"bare.csv: the component \(horizontal or vertical\) is unknown: the CSV column names no component"
+    with pytest.warns(RecordWarning, match=unknown + r" \(a bare 'acc'\) and the file name does not say"):
+        load_record(str(bare))
+    named = tmp_path / "ST01.HNZ.csv"
+    named.write_text(rows.format("acc_g"))
+    assert "holds a vertical component (the file name 'ST01.HNZ.csv'" in error_of(load_record, str(named))
+    clash = tmp_path / "ST02.HNZ.csv"
+    clash.write_text(rows.format("acc_h_g"))
+    assert error_of(load_record, str(clash)).startswith(
+        f"{clash}:1: CSV column 'acc_h_g' is a horizontal channel but the file name 'ST02.HNZ.csv', SEED channel HNZ: "
+        "orientation Z, vertical says vertical"
+    )
+
+
+def test_an_h5_record_of_an_unknown_component_warns_at_every_read(tmp_path: Path) -> None:
+    from rig.records import read_h5, write_record
+
+    with pytest.warns(RecordWarning):
+        motion = load_record(str(TEXT))
+    path = write_record(motion, tmp_path / "elc.h5")
+    with pytest.warns(RecordWarning, match=r"elc.h5: the component \(horizontal or vertical\) is unknown: its source "
+                                           r"file did not say"):
+        read_h5(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert read_h5(write_record(read_at2(H1), tmp_path / "h1.h5")).provenance["component"]["kind"] == "horizontal"
+
+
+def test_a_cosmos_channel_of_unknown_orientation_takes_its_seed_file_name(tmp_path: Path) -> None:
+    vertical = variant(tmp_path, SINE, "NP.7010.00.HNZ.V2", ("     360", "    2000", 1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        entry = read_cosmos(vertical).provenance["component"]
+    assert entry["kind"] == "vertical" and entry["said_by"].startswith("the file name 'NP.7010.00.HNZ.V2'")
+    clash = variant(tmp_path, SINE, "NP.7010.00.HNZ.V2C", ("     360", "      90", 1))
+    assert error_of(read_cosmos, clash) == (
+        f"{clash}:20: the COSMOS orientation code 90: 90 deg, chan 1 is horizontal but the file name "
+        "'NP.7010.00.HNZ.V2C', SEED channel HNZ location 00: orientation Z, vertical says vertical; expected the two "
+        "to agree (rename the file)"
+    )

@@ -288,7 +288,8 @@ def test_cli_show_file_with_dt_and_units(app: typer.Typer, tmp_path: Path) -> No
         (["show", "{bad}", "--json"], "error: {bad}:4: expected 'NPTS= <n>, DT= <dt> SEC' (NGA-West2)"),
         (["import", "{bad}", "--json"], "error: {bad}:4: expected 'NPTS= <n>, DT= <dt> SEC' (NGA-West2)"),
         (["show", "{bare}", "--units", "g"], "error: {bare}: no time step: a one-column file needs"),
-        (["show", "{bare}", "--dt", "-1", "--units", "g"], "error: the given dt must be a number of seconds > 0"),
+        (["show", "{bare}", "--dt", "-1", "--units", "g"],
+         "error: the given dt must be a number of seconds from 1e-05 to 1"),
         (["show", "library:missing"], "error: no record 'missing' in the library"),
     ],
 )

@@ -124,12 +124,12 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
 
 @pytest.mark.parametrize(("line", "new", "at", "message"), [
     # missing key: reported at the [[bodies]] header of that body
-    (19, "", 16, "bodies[2].h: missing; expected a number > 0 m (or table5 = N)"),
+    (19, "", 16, "bodies[2].h: missing; expected a height from 0.001 m to 5 m (or table5 = N)"),
     # wrong types
-    (19, 'h = "0.2"', 19, "bodies[2].h: expected a finite number > 0 m, got '0.2'"),
+    (19, 'h = "0.2"', 19, "bodies[2].h: expected a height from 0.001 m to 5 m, got '0.2'"),
     (13, "x = true", 13, "bodies[1].x: expected a finite number in metres, got True"),
     (2, 'angles_deg = "0, 5"', 2, "angles_deg: expected a non-empty list of plate angles in degrees"),
-    (1, 'name = "t"\nrepetitions = 1.5', 2, "repetitions: expected a whole number ≥ 1, got 1.5"),
+    (1, 'name = "t"\nrepetitions = 1.5', 2, "repetitions: expected a whole number from 1 to 100, got 1.5"),
     # unknown keys (typos) are refused, with a suggestion
     (20, "dpeth = 0.109", 20, "bodies[2].dpeth: unknown key (did you mean 'depth'?); expected one of"),
     (2, "angels_deg = [0, 5]", 2, "angels_deg: unknown key (did you mean 'angles_deg'?)"),
@@ -138,8 +138,8 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     (23, "y = 0.15\nrepetitions = 2", 24, "bodies[2].repetitions: unknown key (a top-level key: in TOML every key "
                                           "after a [section] header belongs to that section"),
     # zero and negative dimensions
-    (18, "b = 0", 18, "bodies[2].b: expected a finite number > 0 m, got 0"),
-    (21, "mass = -0.56", 21, "bodies[2].mass: expected a finite number > 0 kg, got -0.56"),
+    (18, "b = 0", 18, "bodies[2].b: expected a base width from 0.001 m to 3 m, got 0"),
+    (21, "mass = -0.56", 21, "bodies[2].mass: expected a mass from 0.001 kg to 2000 kg, got -0.56"),
     (12, "table5 = 8", 12, "bodies[1].table5: expected a whole number from 1 to 7, got 8"),
     (12, "table5 = 4\nb = 0.04", 13, "bodies[1].b: give either table5 = N or the dimensions"),
     # empty, duplicated and out-of-range angles
@@ -157,9 +157,9 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     (23, "y = 0.15\nrestitution = 0", 24, "bodies[2].restitution: expected the body's measured coefficient"),
     # record entries
     (5, '    { record = "fema-nearfield:NORTHR/RRS_032", scale = 1.5 },', 5,
-     'records[2].scale: expected "table" or a fixed factor in (0, 1], got 1.5'),
+     'records[2].scale: expected "table" or a fixed factor from 0.001 to 1, got 1.5'),
     (5, '    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [5, 1] },', 5,
-     "records[2].window_s: expected [t0, t1] in seconds of the record, 0 ≤ t0 < t1, got [5, 1]"),
+     "records[2].window_s: expected [t0, t1] in seconds of the record, 0 ≤ t0 < t1 ≤ 1200, got [5, 1]"),
     (5, '    { scale = 0.5 },', 5, "records[2].record: missing; expected"),
     (4, '    "fema-farfield:KOBE/NIS000",\n    "fema-farfield:KOBE/NIS000",', 5,
      "records[2]: fema-farfield:KOBE/NIS000 is already records[1] with the same options"),
@@ -167,14 +167,16 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     (6, ']\nrecords_from = { suite = "fema", strongest = 101 }', 7,
      "records_from.strongest: strongest = 101 but suite 'fema' has 100 components"),
     # the rest of the file
-    (1, 'name = "t"\ntable_url = "127.0.0.1:14600"', 2, "table_url: expected a table URL scheme://…"),
+    (1, 'name = "t"\ntable_url = "127.0.0.1:14600"', 2,
+     "table_url: expected mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE or canopen://CHANNEL?interface=NAME"),
     (9, 'corner_hz = 1.0\n[operator]\nplace_bodies = "at {angle}"', 11,
-     "operator.place_bodies: bad placeholder 'angle'"),
+     "operator.place_bodies: placeholder {angle} is not one of {angle_deg}, {bodies}, {sequence}"),
     (9, "corner_hz = 1.0\n[rig]\nconfig = \"nowhere.toml\"", 11,
      "rig.config: the rig configuration is refused:"),
     (9, "corner_hz = 1.0\n[rig.limits.surge]\n\nvelocity_m_s = -0.5", 12,
-     "rig.limits.surge.velocity_m_s: must be a finite number > 0, got -0.5"),
-    (9, "corner_hz = 1.0\n[plate]\nsize_m = [3, 0]", 11, "plate.size_m[2]: expected [x, y] in metres, each > 0"),
+     "rig.limits.surge.velocity_m_s: must be from 0.001 m/s to 5 m/s, got -0.5"),
+    (9, "corner_hz = 1.0\n[plate]\nsize_m = [3, 0]", 11, "plate.size_m[2]: expected [x, y] in metres, "
+                                                           "each from 0.1 m to 10 m"),
     # a missing top-level key is reported at line 1, where top-level keys belong
     (2, "", 1, "angles_deg: missing; expected a list of plate angles in degrees"),
     # TOML syntax
@@ -316,7 +318,7 @@ def test_from_dict_errors_name_the_key_without_a_line() -> None:
     data["bodies"][1]["h"] = -1.0
     with pytest.raises(SequenceError) as caught:
         Sequence.from_dict(data, source="session.h5")
-    assert str(caught.value) == "session.h5: bodies[2].h: expected a finite number > 0 m, got -1.0"
+    assert str(caught.value) == "session.h5: bodies[2].h: expected a height from 0.001 m to 5 m, got -1.0"
     assert caught.value.line is None and caught.value.key == "bodies[2].h"
 
 
