@@ -497,6 +497,28 @@ def test_energy_never_grows_in_free_motion(e: float) -> None:
     assert {ST_ROCK, ST_ROCKSLIDE, ST_FLIGHT} <= seen  # the cases do exercise slipping and flying
 
 
+ENERGY_BOUND = 1e-4
+"""Relative energy the fast engine may add over 60 s of free rocking with e = 1 at the default step
+(p·h = 0.05); benchmarks/engine.py measures it (largest 4.5e-5 on these bodies, on 2026-11-27)."""
+
+
+def test_free_rocking_with_e1_gains_less_energy_than_the_stated_bound() -> None:
+    """e = 1 free rocking for 60 s: RK4 adds energy (it is not symplectic, and every impact restarts it
+    at a Hermite-located θ = 0). Over Table I's extremes, a 0.05 m cube and a 5 m slab, released at
+    0.1–0.9 α, the gain stays below ENERGY_BOUND at the default step, and on the worst of them it falls
+    at least 16-fold with a step four times smaller (the method is order 4; 4⁴ = 256)."""
+    from analysis.body import TABLE_I
+    from analysis.verification import free_rocking_energy_growth
+
+    bodies = [TABLE_I[0], TABLE_I[-1], Body(b=0.05, h=0.05), Body(b=0.0025, h=0.05), Body(b=1.0, h=5.0)]
+    worst = max(free_rocking_energy_growth(body, frac * body.alpha, step=0.05)
+                for body in bodies for frac in (0.1, 0.3, 0.6, 0.9))
+    assert 0.0 < worst <= ENERGY_BOUND
+    cube = bodies[2]  # the largest gain of the set, at 0.1 α
+    coarse = free_rocking_energy_growth(cube, 0.1 * cube.alpha, step=0.05)
+    assert free_rocking_energy_growth(cube, 0.1 * cube.alpha, step=0.0125) <= coarse / 16
+
+
 # --------------------------------------------------------------------------------------------------
 # fast against reference on random records with vertical input
 
