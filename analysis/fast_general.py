@@ -45,12 +45,7 @@ from analysis.equations import (
 from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4, step_window
 from analysis.general_stages import (
     DEN_MIN,
-    EXIT_FLIGHT,
     EXIT_NONE,
-    EXIT_ROCK_MINUS,
-    EXIT_ROCK_PLUS,
-    EXIT_SLIDE_MINUS,
-    EXIT_SLIDE_PLUS,
     FLAT,
     MAX_INSTANT,
     ST_FLIGHT,
@@ -63,9 +58,12 @@ from analysis.general_stages import (
     corner_impact_velocity,
     enter_stage,
     flight_entry,
+    friction_tips,
     landing_omega,
+    lean_offset,
     leave_rest,
     rest_exit,
+    rest_leave,
     rest_margins,
     rock_margin,
     rs_denominator,
@@ -90,53 +88,34 @@ def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, s
                mu: float, has_vertical: bool) -> tuple[float, int]:
     """Earliest time ≥ t at which the resting block leaves rest, and how (EXIT_*); (inf, 0) if never.
 
-    The five margins (uplift ±, slide ±, lift-off) are linear in t inside a sample interval; after
-    the record the input is zero and they are constant.
+    The margins (uplift ±, slide ±, lift-off) are linear in t inside a sample interval; after the
+    record the input is zero and they are constant. The scan reads the samples; the interval where a
+    margin turns positive is resolved by :func:`analysis.general_stages.rest_leave` (the tie rule) on
+    the line the integration uses there (``fast_rocking.step_window``).
     """
     n = ax.shape[0]
     ca, sa = math.cos(alpha), math.sin(alpha)
-    slide_first = mu < math.tan(alpha)
+    tips = friction_tips(mu, math.tan(alpha))
     i = int(t / dt)
+    if i < n - 1 and (i + 1) * dt - t <= 1e-12 * dt:  # as step_window: the next interval's line
+        i += 1
     if i >= n - 1:
         m1, m2, m3, m4, m5 = rest_margins(0.0, 0.0, cb, sb, ca, sa, mu)
-        kind = rest_exit(m1, m2, m3, m4, m5, slide_first)
+        kind = rest_exit(m1, m2, m3, m4, m5, tips)
         return (t, kind) if kind != EXIT_NONE else (math.inf, EXIT_NONE)
-    frac = t / dt - i
-    ax_a = ax[i] + (ax[i + 1] - ax[i]) * frac
-    ay_a = ay[i] + (ay[i + 1] - ay[i]) * frac if has_vertical else 0.0
-    a1, a2, a3, a4, a5 = rest_margins(ax_a, ay_a, cb, sb, ca, sa, mu)
-    kind = rest_exit(a1, a2, a3, a4, a5, slide_first)
-    if kind != EXIT_NONE:
-        return t, kind
-    t_a = t
+    t0 = t
     while i < n - 1:
-        b1, b2, b3, b4, b5 = rest_margins(ax[i + 1], ay[i + 1] if has_vertical else 0.0, cb, sb, ca, sa, mu)
-        if b1 > 0.0 or b2 > 0.0 or b3 > 0.0 or b4 > 0.0 or b5 > 0.0:
-            t_b = (i + 1) * dt
-            best_t = math.inf
-            best = EXIT_NONE
-            # candidates in priority order; a later one wins only if strictly earlier
-            order = (EXIT_FLIGHT, EXIT_SLIDE_PLUS, EXIT_SLIDE_MINUS, EXIT_ROCK_PLUS, EXIT_ROCK_MINUS) \
-                if slide_first else (EXIT_FLIGHT, EXIT_ROCK_PLUS, EXIT_ROCK_MINUS, EXIT_SLIDE_PLUS, EXIT_SLIDE_MINUS)
-            tol = 1e-12 * dt
-            for kind in order:
-                if kind == EXIT_FLIGHT:
-                    ma, mb = a5, b5
-                elif kind == EXIT_ROCK_PLUS:
-                    ma, mb = a1, b1
-                elif kind == EXIT_ROCK_MINUS:
-                    ma, mb = a2, b2
-                elif kind == EXIT_SLIDE_PLUS:
-                    ma, mb = a3, b3
-                else:
-                    ma, mb = a4, b4
-                if mb > 0.0:
-                    tc = t_a + (t_b - t_a) * ma / (ma - mb)
-                    if tc < best_t - tol:
-                        best_t, best = tc, kind
-            return max(best_t, t_a), best
-        a1, a2, a3, a4, a5, t_a = b1, b2, b3, b4, b5, (i + 1) * dt
+        a1y = ay[i + 1] if has_vertical else 0.0
+        b1, b2, b3, b4, b5 = rest_margins(ax[i + 1], a1y, cb, sb, ca, sa, mu)
+        if t0 == t or rest_exit(b1, b2, b3, b4, b5, tips) != EXIT_NONE:
+            sx = (ax[i + 1] - ax[i]) / dt
+            a0y, sy = (ay[i], (a1y - ay[i]) / dt) if has_vertical else (0.0, 0.0)
+            t_x, kind = rest_leave(t0, (i + 1) * dt, i * dt, ax[i], sx, a0y, sy, ax[i + 1], a1y, cb, sb, ca,
+                                   sa, mu, tips)
+            if kind != EXIT_NONE:
+                return t_x, kind
         i += 1
+        t0 = i * dt
     return math.inf, EXIT_NONE
 
 
@@ -331,6 +310,31 @@ def _locate_landing(lo: float, hi: float, theta: float, omega: float, v: float, 
 
 
 # --------------------------------------------------------------------------------------------------
+# slide displacement u (docs/general-model.md, *Slide displacement*)
+
+
+@njit(cache=True, inline="always")
+def _flight_shift(tau: float, theta: float, omega: float, v: float, gx0: float, gx1: float, alpha: float,
+                  r: float) -> float:
+    """Change of u over τ of flight: the centre of mass's (v' = gx0 + gx1 τ) plus the lean offset's."""
+    return (v * tau + (0.5 * gx0 + gx1 * tau / 6.0) * tau * tau + lean_offset(theta + omega * tau, alpha, r)
+            - lean_offset(theta, alpha, r))
+
+
+@njit(cache=True)
+def _rs_shift(theta: float, omega: float, v: float, theta1: float, omega1: float, v1: float, t: float, H: float,
+              ti: float, a0x: float, sx: float, a0y: float, sy: float, s: float, slip: float, alpha: float,
+              r: float, ig2: float, mu: float, cb: float, sb: float) -> float:
+    """∫ v dt over a ROCKSLIDE step of length H from its two ends (cubic Hermite quadrature, the order of
+    the RK4 step): the sliding pivot's displacement."""
+    if H <= 0.0:
+        return 0.0
+    _, x0 = _rs_deriv(theta, omega, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu, cb, sb)
+    _, x1 = _rs_deriv(theta1, omega1, t + H, ti, a0x, sx, a0y, sy, s, slip, alpha, r, ig2, mu, cb, sb)
+    return 0.5 * H * (v + v1) + H * H * (x0 - x1) / 12.0
+
+
+# --------------------------------------------------------------------------------------------------
 # SLIDE (exact: v' = gx − μ slip gz is linear in t inside a sample interval)
 
 
@@ -365,11 +369,13 @@ def simulate_general(
     ax: np.ndarray, ay: np.ndarray, dt: float, alpha: float, r: float, ig2: float, beta: float, e: float,
     mu: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float, theta0: float, omega0: float,
     has_vertical: bool,
-) -> tuple[int, float, float, int, float, int, int, bool]:
+) -> tuple[int, float, float, int, float, int, int, bool, float, float, float]:
     """Run one scene of the general model. Returns (direction, t_overturn, theta_max, impacts, t_end,
-    status, steps, settled_by_prescreen) as :func:`analysis.fast_rocking.simulate_rocking`; impacts
-    counts corner impacts and landings. ``r`` half-diagonal [m], ``ig2`` i_g² [m²], ``mu`` friction,
-    ``has_vertical``: ``ay`` is not all zero (else the scan does not read it)."""
+    status, steps, settled_by_prescreen) as :func:`analysis.fast_rocking.simulate_rocking`, then the
+    slide (u_peak, u_end, t_slide): the largest |u| [m], u at the end [m] and the time the base or
+    the pivot slid [s], u the slide displacement along +x (see ``docs/general-model.md``,
+    *Slide displacement*); impacts counts corner impacts and landings. ``r`` half-diagonal [m],
+    ``ig2`` i_g² [m²], ``mu`` friction, ``has_vertical``: ``ay`` is not all zero (else the scan does not read it)."""
     n = ax.shape[0]
     t_rec = (n - 1) * dt
     t_stop = t_rec + t_after
@@ -384,6 +390,7 @@ def simulate_general(
     slip = 1.0
     stage = ST_REST if (theta0 == 0.0 and omega0 == 0.0) else ST_ROCK
     theta_max = abs(theta0)
+    u = u_peak = t_slide = 0.0  # slide displacement [m], its largest |u| [m], time sliding [s]
     impacts = 0
     steps = 0
     first_scan = True
@@ -398,11 +405,11 @@ def simulate_general(
     while True:
         it += 1
         if it > it_max:
-            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
+            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False, u_peak, u, t_slide
         if stage == ST_REST:
             t_x, kind = _next_exit(ax, ay, dt, t, cb, sb, alpha, mu, has_vertical)
             if kind == EXIT_NONE:
-                return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan
+                return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan, u_peak, u, t_slide
             first_scan = False
             t = t_x
             theta = omega = v = w = 0.0
@@ -415,7 +422,7 @@ def simulate_general(
             continue
         first_scan = False
         if t >= t_stop:
-            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
+            return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False, u_peak, u, t_slide
         ti, te, t_b, a0x, sx, a0y, sy = step_window(ax, ay, dt, h, n_sub, t, t_rec, t_stop)
         te = min(te, t_stop) if t_stop > t else te
         H = te - t
@@ -424,12 +431,13 @@ def simulate_general(
         # ---- a chain of transitions that take no time: hold the pivot for one step
         if fresh and instant > MAX_INSTANT:
             instant = 0
-            stage, s = break_instant_chain(stage, theta, omega, s)
+            stage, s = break_instant_chain(stage, theta, omega, v, s)
             if stage == ST_ROCK:
                 hold, fresh, v = True, False, 0.0
-            elif stage == ST_REST:
-                v = 0.0
+            elif stage == ST_REST:  # it rests for one step before its next exit
+                theta = omega = v = w = 0.0
                 t_rest = t
+                t = min(t + h, t_stop)
                 continue
 
         # ---- entry conditions (instant transitions)
@@ -459,14 +467,19 @@ def simulate_general(
                 c1 = 0.0
             tau_v = _first_root(slip * v, c1, 0.5 * slip * a1, Hs)
             tau_z = -gz0 / gz1 if gz1 < 0.0 else math.inf
-            if not (0.0 < tau_z <= Hs):
+            if not (0.0 <= tau_z <= Hs):
                 tau_z = math.inf
             steps += 1
             if tau_v == math.inf and tau_z == math.inf:
+                u += v * Hs + (0.5 * a0 + a1 * Hs / 6.0) * Hs * Hs
+                u_peak, t_slide = max(u_peak, abs(u)), t_slide + Hs
                 v += a0 * Hs + 0.5 * a1 * Hs * Hs
                 t = te_s
                 instant = 0
                 continue
+            tau_s = min(tau_v, tau_z)
+            u += v * tau_s + (0.5 * a0 + a1 * tau_s / 6.0) * tau_s * tau_s
+            u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_s
             if tau_v <= tau_z:
                 t += tau_v
                 v = 0.0
@@ -517,9 +530,14 @@ def simulate_general(
             if event == 1:
                 d = 1 if omega > 0.0 else -1
                 fall = fall_plus if d > 0 else fall_minus
-                return d, t + tau, max(theta_max, fall), impacts, t + tau, OVERTURNED, steps, False
+                u += _flight_shift(tau, theta, omega, v, gx0, gx1, alpha, r)
+                u_peak = max(u_peak, abs(u))
+                return (d, t + tau, max(theta_max, fall), impacts, t + tau, OVERTURNED, steps, False, u_peak, u,
+                        t_slide)
             if tau > 0.0:
                 instant = 0
+            u += _flight_shift(tau, theta, omega, v, gx0, gx1, alpha, r)
+            u_peak = max(u_peak, abs(u))
             t += tau
             theta, v, z, w = th1, v1, z1, w1
             if event == 2:
@@ -559,6 +577,8 @@ def simulate_general(
                 jam = False
                 vp = 0.0
                 if rs:
+                    u += v * dtc + 0.5 * xdd0 * dtc * dtc
+                    u_peak, t_slide = max(u_peak, abs(u)), t_slide + dtc
                     v1 = v + xdd0 * dtc
                     v1 = v1 if v1 * v > 0.0 else 0.0
                     vp = corner_impact_velocity(v1, -omega, e, r, alpha)
@@ -667,6 +687,10 @@ def simulate_general(
             theta_max = max(theta_max, abs(th_r))
             if tau_r > 0.0:
                 instant = 0
+            if rs:
+                u += _rs_shift(theta, omega, v, th_r, om_r, v_r, t, tau_r, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                               ig2, mu, cb, sb)
+                u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_r
             t += tau_r
             theta, omega = th_r, om_r
             tt = t
@@ -685,9 +709,17 @@ def simulate_general(
             continue
         hold = False
         if ev == 1:
-            return int(s), t + tau_ev, fall, impacts, t + tau_ev, OVERTURNED, steps, False
+            if rs:
+                u += _rs_shift(theta, omega, v, th_e, om_e, v_e, t, tau_ev, ti, a0x, sx, a0y, sy, s, slip, alpha,
+                               r, ig2, mu, cb, sb)
+                u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_ev
+            return int(s), t + tau_ev, fall, impacts, t + tau_ev, OVERTURNED, steps, False, u_peak, u, t_slide
         if ev == 2:
             theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+            if rs:
+                u += _rs_shift(theta, omega, v, th_e, om_e, v_e, t, tau_ev, ti, a0x, sx, a0y, sy, s, slip, alpha,
+                               r, ig2, mu, cb, sb)
+                u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_ev
             t += tau_ev
             impacts += 1
             omega_minus = om_e
@@ -717,5 +749,9 @@ def simulate_general(
         if omega * omega1 < 0.0:
             theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
         theta_max = max(theta_max, abs(theta1))
+        if rs:
+            u += _rs_shift(theta, omega, v, theta1, omega1, v1, t, te - t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                           ig2, mu, cb, sb)
+            u_peak, t_slide = max(u_peak, abs(u)), t_slide + (te - t)
         theta, omega, v, t = theta1, omega1, v1, te
         instant = 0

@@ -49,6 +49,9 @@ DEN_MIN = 1e-3
 """Smallest accepted denominator of Eq. 9, relative to i_g² + r² (Painlevé guard)."""
 MAX_INSTANT = 12
 """Transitions in a row that take no time before the pivot is held for one step."""
+TIE = 1e-12
+"""Relative band around μ = tan α = b/h inside which friction and slenderness tie: the block slides
+(:func:`friction_tips`, docs/general-model.md, *Ties*)."""
 
 
 # --------------------------------------------------------------------------------------------------
@@ -93,6 +96,17 @@ def landing_omega(theta: float, omega: float, v: float, w: float, alpha: float, 
     dz = r * math.cos(psi)
     wz = (ig2 * (-omega) + dx * w - dz * v) / (ig2 + r * r)
     return -wz
+
+
+@njit(cache=True, inline="always")
+def lean_offset(theta: float, alpha: float, r: float) -> float:
+    """u − x_G [m]: the slide displacement u (docs/general-model.md, *Slide displacement*) is where the
+    base centre lies once the block is laid flat about the corner it leans on (sign θ), x_G the centre
+    of mass: sign θ · r (sin(α − |θ|) − sin α); 0 when flat, continuous through θ = 0."""
+    if theta == 0.0:
+        return 0.0
+    sg = 1.0 if theta > 0.0 else -1.0
+    return sg * r * (math.sin(alpha - abs(theta)) - math.sin(alpha))
 
 
 @njit(cache=True)
@@ -178,15 +192,67 @@ def rest_margins(ax_: float, ay_: float, cb: float, sb: float, ca: float, sa: fl
 
 
 @njit(cache=True, inline="always")
-def rest_exit(m1: float, m2: float, m3: float, m4: float, m5: float, slide_first: bool) -> int:
-    """The exit among the positive margins (priority: lift-off, then rock or slide)."""
+def friction_tips(mu: float, ta: float) -> bool:
+    """μ > tan α = b/h beyond the tie band ``TIE``: a block pushed past its thresholds rocks (its
+    REST exits are the uplifts) and friction tips a sliding block over its leading corner. At the tie
+    (|μ − b/h| within ``TIE`` b/h) and below, it slides (docs/general-model.md, *Ties*)."""
+    return mu > ta * (1.0 + TIE)
+
+
+@njit(cache=True, inline="always")
+def rest_exit(m1: float, m2: float, m3: float, m4: float, m5: float, tips: bool) -> int:
+    """The exit among the positive margins: lift-off first; then, when friction tips
+    (:func:`friction_tips`) and g_z > 0, the uplifts (m1/m2), else the slides (m3/m4). Mathematically an uplift
+    margin > 0 implies the slide margin > 0 when μ ≤ b/h, and a slide margin > 0 implies the uplift
+    when μ > b/h, so the other pair only decides by rounding: it is not read."""
     if m5 > 0.0:
         return EXIT_FLIGHT
-    rock = EXIT_ROCK_PLUS if m1 > 0.0 else (EXIT_ROCK_MINUS if m2 > 0.0 else EXIT_NONE)
-    slide = EXIT_SLIDE_PLUS if m3 > 0.0 else (EXIT_SLIDE_MINUS if m4 > 0.0 else EXIT_NONE)
-    if rock != EXIT_NONE and (slide == EXIT_NONE or not slide_first):
-        return rock
-    return slide
+    if tips and m5 < 0.0:  # a weightless block (g_z = 0) has no normal force to pivot on: it slides
+        return EXIT_ROCK_PLUS if m1 > 0.0 else (EXIT_ROCK_MINUS if m2 > 0.0 else EXIT_NONE)
+    return EXIT_SLIDE_PLUS if m3 > 0.0 else (EXIT_SLIDE_MINUS if m4 > 0.0 else EXIT_NONE)
+
+
+@njit(cache=True)
+def rest_leave(t0: float, t1: float, tl: float, a0x: float, sx: float, a0y: float, sy: float, a1x: float,
+               a1y: float, cb: float, sb: float, ca: float, sa: float, mu: float, tips: bool
+               ) -> tuple[float, int]:
+    """When and how a block resting at ``t0`` [s] leaves rest before ``t1`` on one sample interval:
+    (time, EXIT_*), or (inf, EXIT_NONE) if it stays.
+
+    Inside the interval the input is the line a(t) = a0 + slope (t − tl) [m/s², m/s³] — exactly as
+    the engines integrate it — and at ``t1`` the next sample (a1x, a1y), the value the next interval
+    starts from. The margins are linear in t: the candidate is the earliest root of those positive at
+    ``t1``. The tie rule: a margin that is 0 (or negative by rounding) at that root is not an exit;
+    the block leaves at the first representable time from there at which :func:`rest_exit` finds a
+    positive margin, so the stage it enters accelerates away from rest with the same numbers (θ''/k
+    is the uplift margin, the slide's acceleration times slip the slide margin) and cannot fall back
+    into rest at the same instant. A time within 2e-12 of the interval's length of ``t1`` is ``t1``.
+    """
+    ma = rest_margins(a0x + sx * (t0 - tl), a0y + sy * (t0 - tl), cb, sb, ca, sa, mu)
+    kind = rest_exit(ma[0], ma[1], ma[2], ma[3], ma[4], tips)
+    if kind != EXIT_NONE:
+        return t0, kind
+    mb = rest_margins(a1x, a1y, cb, sb, ca, sa, mu)
+    kind_b = rest_exit(mb[0], mb[1], mb[2], mb[3], mb[4], tips)
+    if kind_b == EXIT_NONE:
+        return math.inf, EXIT_NONE
+    tc = math.inf
+    for j in range(5):
+        if (j == 4 or (j < 2) == tips) and mb[j] > 0.0:
+            tc = min(tc, t0 + (t1 - t0) * ma[j] / (ma[j] - mb[j]))
+    t = max(tc, t0)
+    snap = 2e-12 * (t1 - tl)
+    d = 0.0
+    for _ in range(2100):  # doubling steps from one ulp reach t1 well within this
+        if t1 - t <= snap:
+            break
+        m = rest_margins(a0x + sx * (t - tl), a0y + sy * (t - tl), cb, sb, ca, sa, mu)
+        kind = rest_exit(m[0], m[1], m[2], m[3], m[4], tips)
+        if kind != EXIT_NONE:
+            return t, kind
+        d = max(2.0 * d, abs(t) * 2.3e-16, 5e-324)
+        t += d
+    return t1, kind_b
 
 
 @njit(cache=True)
@@ -202,20 +268,23 @@ def leave_rest(kind: int, s: float, slip: float, z: float, r: float, ca: float) 
 
 
 @njit(cache=True)
-def break_instant_chain(stage: int, theta: float, omega: float, s: float) -> tuple[int, float]:
+def break_instant_chain(stage: int, theta: float, omega: float, v: float, s: float) -> tuple[int, float]:
     """Where a chain of more than ``MAX_INSTANT`` transitions that take no time ends: (stage, s).
 
-    A sliding block keeps sliding (ST_SLIDE returned unchanged). A moving block (θ or ω not 0) is
-    put on a pivot held for one step without reaction checks (ST_ROCK: the caller sets hold, v = 0);
-    from a flight that pivot is the side it leans (or turns) to. A block that does not move rests
-    (ST_REST: the caller sets v = 0 and the rest time). ``stage`` is never ST_REST here.
+    A block that slides (v ≠ 0) keeps sliding (ST_SLIDE returned unchanged: its slide takes time). A
+    rotating block (θ or ω not 0) is put on a pivot held for one hold without reaction checks (ST_ROCK:
+    the caller sets hold, v = 0); from a flight that pivot is the side it leans (or turns) to. A
+    block that does not move rests for one hold (ST_REST: the caller sets v = 0, the rest time, and
+    looks for the next exit from rest only after the hold — one step in the fast engine, 1e-9 s in
+    the reference). Either way the clock advances: no input makes an engine loop in place.
+    ``stage`` is never ST_REST here.
     """
     if stage == ST_FLIGHT:
         if theta != 0.0:
             s = 1.0 if theta > 0.0 else -1.0
         elif omega != 0.0:
             s = 1.0 if omega > 0.0 else -1.0
-    if stage == ST_SLIDE:
+    if stage == ST_SLIDE and v != 0.0:
         return stage, s
     if theta != 0.0 or omega != 0.0:
         return ST_ROCK, s
@@ -234,18 +303,18 @@ def enter_stage(stage: int, hold: bool, jam: bool, theta: float, omega: float, v
     as ζ from the lift-off height from here on and sets ``psi_ref`` = α − |θ|). ``gx0``/``gz0``: the
     plate-frame gravity now; ``ta`` = tan α, ``ca`` = cos α, ``k`` = r/(i_g² + r²).
 
-    * SLIDE: lifts off if gz ≤ 0; with μ > tan α friction tips the block over its leading corner at
+    * SLIDE: lifts off if gz < 0; with μ > tan α friction tips the block over its leading corner at
       once (ROCKSLIDE), or the slide jams (Painlevé: REST);
     * ROCK (not held): :func:`rock_exit` — slides (ROCKSLIDE), flies, sticks (``jam``) or is held;
     * ROCKSLIDE: :func:`rockslide_entry` — lifts off (FLIGHT) or, Painlevé, sticks (ROCK, ``jam``).
     """
     new = stage
     if stage == ST_SLIDE:
-        if gz0 <= 0.0:
+        if gz0 < 0.0:  # the lift-off margin −gz of REST: at gz = 0 the weightless block slides
             new = ST_FLIGHT
             theta = omega = w = 0.0
             z = r * ca
-        elif mu > ta:  # friction tips the sliding block over its leading corner at once
+        elif friction_tips(mu, ta):  # friction tips the sliding block over its leading corner at once
             code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, alpha, r, ig2, mu)
             if code == 0:
                 new, s, theta, omega = ST_ROCKSLIDE, slip, 0.0, 0.0

@@ -31,7 +31,6 @@ from analysis.equations import (
 )
 from analysis.general_stages import (
     DEN_MIN,
-    EXIT_FLIGHT,
     EXIT_NONE,
     FLAT,
     MAX_INSTANT,
@@ -45,9 +44,12 @@ from analysis.general_stages import (
     corner_impact_velocity,
     enter_stage,
     flight_entry,
+    friction_tips,
     landing_omega,
+    lean_offset,
     leave_rest,
     rest_exit,
+    rest_leave,
     rest_margins,
     rock_margin,
     rs_denominator,
@@ -76,13 +78,19 @@ class GeneralTrace(Trace):
     Per history sample: ``v`` (tangential velocity relative to the plate of the base in REST/SLIDE,
     of the pivot in ROCK/ROCKSLIDE, of the centre of mass in FLIGHT) [m/s], ``z``/``w`` (height of
     the centre of mass above the plate and its rate, FLIGHT; otherwise the rigid-contact value of z
-    and 0) [m, m/s], ``stage`` (ST_* code) and ``pivot`` (s, ±1)."""
+    and 0) [m, m/s], ``stage`` (ST_* code), ``pivot`` (s, ±1) and ``u`` the slide displacement [m]
+    (docs/general-model.md, *Slide displacement*). Always: the slide's ``slide_peak`` (largest |u|)
+    [m], ``slide_residual`` (u at the end) [m] and ``slide_time`` (time the base or the pivot slid) [s]."""
 
     v: list[float] = field(default_factory=list)
     z: list[float] = field(default_factory=list)
     w: list[float] = field(default_factory=list)
     stage: list[int] = field(default_factory=list)
     pivot: list[float] = field(default_factory=list)
+    u: list[float] = field(default_factory=list)
+    slide_peak: float = 0.0
+    slide_residual: float = 0.0
+    slide_time: float = 0.0
 
 
 def simulate_general_reference(
@@ -124,10 +132,14 @@ class _Scene:
 
     # ---------------------------------------------------------------------------------------------
     def _record(self, ts: np.ndarray, th: np.ndarray, om: np.ndarray, v: np.ndarray, z: np.ndarray,
-                w: np.ndarray, stage: int, s: float) -> None:
+                w: np.ndarray, stage: int, s: float, u: np.ndarray) -> None:
+        tr = self.trace
+        tr.slide_peak = max(tr.slide_peak, float(np.max(np.abs(u))))
+        tr.slide_residual = float(u[-1])
+        if stage in (ST_SLIDE, ST_ROCKSLIDE):
+            tr.slide_time += float(ts[-1] - ts[0])
         if not self.history:
             return
-        tr = self.trace
         tr.t.extend(ts.tolist())
         tr.theta.extend(th.tolist())
         tr.omega.extend(om.tolist())
@@ -136,6 +148,7 @@ class _Scene:
         tr.w.extend(w.tolist())
         tr.stage.extend([stage] * len(ts))
         tr.pivot.extend([s] * len(ts))
+        tr.u.extend(u.tolist())
 
     def run(self, theta0: float, omega0: float) -> ReferenceOutcome:
         alpha, r, ig2, e, mu, k = self.alpha, self.r, self.ig2, self.e, self.mu, self.k
@@ -143,6 +156,7 @@ class _Scene:
         t, inp, trace = self.t, self.inp, self.trace
         t_stop = self.t_stop
         theta, omega, v, z, w = theta0, omega0, 0.0, 0.0, 0.0
+        u = 0.0  # slide displacement [m]
         s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
         slip = 1.0
         stage = ST_REST if (theta0 == 0.0 and omega0 == 0.0) else ST_ROCK
@@ -154,6 +168,7 @@ class _Scene:
         n_iter = 0
         max_iter = 20 * len(t) + 20_000
         ca, sa = math.cos(alpha), math.sin(alpha)
+        tips = friction_tips(mu, ta)
         psi_ref = alpha
 
         def done(direction: int, t_o: float | None, status: str, t_end: float) -> ReferenceOutcome:
@@ -173,31 +188,18 @@ class _Scene:
 
             # ============================================================ REST: exact exit
             if stage == ST_REST:
-                slide_first = mu < ta
                 if t_b == math.inf:
-                    kind = rest_exit(*rest_margins(0.0, 0.0, cb, sb, ca, sa, mu), slide_first)
+                    kind = rest_exit(*rest_margins(0.0, 0.0, cb, sb, ca, sa, mu), tips)
                     if kind == EXIT_NONE:
                         return done(0, None, "rest", trace.t_rest)
                     t_x = now
                 else:
-                    ma = rest_margins(*_input_at(a0x, sx, a0y, sy, t_a, now), cb, sb, ca, sa, mu)
-                    kind = rest_exit(*ma, slide_first)
-                    t_x = now
+                    t_x, kind = rest_leave(now, t_b, t_a, a0x, sx, a0y, sy, float(inp.ax[i + 1]),
+                                           float(inp.ay[i + 1]), cb, sb, ca, sa, mu, tips)
                     if kind == EXIT_NONE:
-                        mb = rest_margins(*_input_at(a0x, sx, a0y, sy, t_a, t_b), cb, sb, ca, sa, mu)
-                        order = ((4, EXIT_FLIGHT), (2, 3), (3, 4), (0, 1), (1, 2)) if slide_first else \
-                            ((4, EXIT_FLIGHT), (0, 1), (1, 2), (2, 3), (3, 4))
-                        best = math.inf
-                        for j, kd in order:
-                            if mb[j] > 0.0:
-                                tc = now + (t_b - now) * ma[j] / (ma[j] - mb[j])
-                                if tc < best - 1e-12 * (t_b - t_a):
-                                    best, kind = tc, kd
-                        if kind == EXIT_NONE:
-                            now = t_b
-                            i += 1
-                            continue
-                        t_x = max(best, now)
+                        now = t_b
+                        i += 1
+                        continue
                 now = t_x
                 theta = omega = v = w = 0.0
                 jam = False
@@ -215,11 +217,13 @@ class _Scene:
             # ---- a chain of transitions that take no time: hold the pivot briefly
             if fresh and instant > MAX_INSTANT:
                 instant = 0
-                stage, s = break_instant_chain(stage, theta, omega, s)
+                stage, s = break_instant_chain(stage, theta, omega, v, s)
                 if stage == ST_ROCK:
                     hold, fresh, v = True, False, 0.0
-                elif stage == ST_REST:
-                    v, trace.t_rest = 0.0, now
+                elif stage == ST_REST:  # it rests for HOLD before its next exit
+                    theta = omega = v = w = 0.0
+                    trace.t_rest = now
+                    now = min(now + HOLD, t_stop)
                     continue
 
             # ---- entry conditions (instant transitions)
@@ -249,7 +253,7 @@ class _Scene:
 
                 def rhs_slide(tt: float, y: np.ndarray, sl: float = sl) -> list[float]:
                     gx, gz = grav(tt)
-                    return [sliding_acceleration(sl, gx, gz, mu)]
+                    return [sliding_acceleration(sl, gx, gz, mu), y[0]]
 
                 def ev_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
                     return sl * y[0] if tt != t0 else _AT_START
@@ -257,33 +261,34 @@ class _Scene:
                 ev_stop.terminal, ev_stop.direction = True, -1
 
                 def ev_lift(tt: float, y: np.ndarray) -> float:
-                    return grav(tt)[1]
+                    gz = grav(tt)[1]  # lifts off when g_z < 0: at g_z = 0 the weightless block slides
+                    return gz if gz != 0.0 else _AT_START
 
                 ev_lift.terminal, ev_lift.direction = True, -1
-                sol = solve_ivp(rhs_slide, (now, t_end), [v], method="DOP853", rtol=RTOL, atol=ATOL,
+                sol = solve_ivp(rhs_slide, (now, t_end), [v, u], method="DOP853", rtol=RTOL, atol=ATOL,
                                 events=[ev_stop, ev_lift])
                 n_pts = sol.t.size
                 zeros = np.zeros(n_pts)
-                self._record(sol.t, zeros, zeros, sol.y[0], np.full(n_pts, r * ca), zeros, ST_SLIDE, s)
+                self._record(sol.t, zeros, zeros, sol.y[0], np.full(n_pts, r * ca), zeros, ST_SLIDE, s, sol.y[1])
                 if sol.t_events[0].size and (not sol.t_events[1].size or sol.t_events[0][0] <= sol.t_events[1][0]):
-                    now, v = float(sol.t_events[0][0]), 0.0
+                    now, v, u = float(sol.t_events[0][0]), 0.0, float(sol.y_events[0][0][1])
                     stage, trace.t_rest = ST_REST, now
                     transition(now)
                 elif sol.t_events[1].size:
-                    now, v = float(sol.t_events[1][0]), float(sol.y_events[1][0][0])
+                    now, v, u = float(sol.t_events[1][0]), float(sol.y_events[1][0][0]), float(sol.y_events[1][0][1])
                     stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
                     transition(now)
                 else:
-                    now, v = t_end, float(sol.y[0, -1])
+                    now, v, u = t_end, float(sol.y[0, -1]), float(sol.y[1, -1])
                 continue
 
             # ============================================================ FLIGHT
             if stage == ST_FLIGHT:
                 fp, fm = self.fall_plus, self.fall_minus
 
-                def rhs_flight(tt: float, y: np.ndarray) -> list[float]:
+                def rhs_flight(tt: float, y: np.ndarray) -> list[float]:  # y[5]: x_G, the centre of mass
                     gx, gz = grav(tt)
-                    return [y[1], 0.0, gx, y[4], -gz]
+                    return [y[1], 0.0, gx, y[4], -gz, y[2]]
 
                 def ev_land(tt: float, y: np.ndarray, psi_ref: float = psi_ref, t0: float = now) -> float:
                     # gap of the lowest corner, ζ − r (cos ψ − cos ψ_ref): no cancellation at lift-off
@@ -302,23 +307,26 @@ class _Scene:
 
                 ev_fp.terminal, ev_fp.direction = True, 1
                 ev_fm.terminal, ev_fm.direction = True, 1
-                sol = solve_ivp(rhs_flight, (now, t_end), [theta, omega, v, z, w], method="DOP853", rtol=RTOL,
-                                atol=ATOL, events=[ev_land, ev_fp, ev_fm])
+                sol = solve_ivp(rhs_flight, (now, t_end), [theta, omega, v, z, w, u - lean_offset(theta, alpha, r)],
+                                method="DOP853", rtol=RTOL, atol=ATOL, events=[ev_land, ev_fp, ev_fm])
                 self._record(sol.t, sol.y[0], sol.y[1], sol.y[2], sol.y[3] + r * math.cos(psi_ref), sol.y[4],
-                             ST_FLIGHT, s)
+                             ST_FLIGHT, s, sol.y[5] + np.array([lean_offset(th, alpha, r) for th in sol.y[0]]))
                 theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
                 evs = [(float(te[0]), j) for j, te in enumerate(sol.t_events) if te.size]
                 if not evs:
-                    theta, omega, v, z, w = (float(x) for x in sol.y[:, -1])
+                    theta, omega, v, z, w, x_g = (float(x) for x in sol.y[:, -1])
+                    u = x_g + lean_offset(theta, alpha, r)
                     now = t_end
                     continue
                 t_ev, j = min(evs)
                 y = sol.y_events[j][0]
+                u = float(y[5]) + lean_offset(float(y[0]), alpha, r)
+                trace.slide_peak, trace.slide_residual = max(trace.slide_peak, abs(u)), u
                 if j > 0:
                     d = 1 if j == 1 else -1
                     theta_max = max(theta_max, fp if d > 0 else fm)
                     return done(d, t_ev, "overturned", t_ev)
-                theta, omega, v, z, w = (float(x) for x in y)
+                theta, omega, v, z, w, _ = (float(x) for x in y)
                 now = t_ev
                 if abs(theta) < FLAT:
                     trace.impacts.append((now, omega, 0.0))
@@ -352,7 +360,7 @@ class _Scene:
                 def rhs(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> list[float]:
                     gx, gz = grav(tt)
                     th_dd, x_dd, _ = rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)
-                    return [y[1], th_dd, x_dd]
+                    return [y[1], th_dd, x_dd, y[2]]
             else:
                 def rhs(tt: float, y: np.ndarray, side: float = side) -> list[float]:
                     gx, gz = grav(tt)
@@ -388,7 +396,7 @@ class _Scene:
                 ev_lift.terminal, ev_lift.direction = True, 1
                 ev_painleve.terminal, ev_painleve.direction = True, -1
                 events += [ev_stop, ev_lift, ev_painleve]
-                y0 = [theta, omega, v]
+                y0 = [theta, omega, v, u]
             else:
                 if not hold_now:
                     def ev_react(tt: float, y: np.ndarray, side: float = side, jam_now: bool = jam_now) -> float:
@@ -403,7 +411,7 @@ class _Scene:
             sol = solve_ivp(rhs, (now, t_seg), y0, method="DOP853", rtol=RTOL, atol=ATOL, events=events)
             vv = sol.y[2] if rs else np.zeros(sol.t.size)
             self._record(sol.t, sol.y[0], sol.y[1], vv, r * np.cos(alpha - np.abs(sol.y[0])), np.zeros(sol.t.size),
-                         stage, side)
+                         stage, side, sol.y[3] if rs else np.full(sol.t.size, u))
             theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
             for y_turn in sol.y_events[2]:
                 theta_max = max(theta_max, abs(float(y_turn[0])))
@@ -412,6 +420,7 @@ class _Scene:
             if not evs:
                 theta, omega = float(sol.y[0, -1]), float(sol.y[1, -1])
                 v = float(sol.y[2, -1]) if rs else 0.0
+                u = float(sol.y[3, -1]) if rs else u
                 now = t_seg
                 fresh = hold_now  # after a hold, the reactions are checked again at once
                 continue
@@ -419,6 +428,9 @@ class _Scene:
             y = sol.y_events[j][0]
             theta, omega = float(y[0]), float(y[1])
             v = float(y[2]) if rs else 0.0
+            if rs:
+                u = float(y[3])
+                trace.slide_peak, trace.slide_residual = max(trace.slide_peak, abs(u)), u
             now = t_ev
             if j == 1:  # overturn
                 theta_max = max(theta_max, fall)
@@ -466,6 +478,3 @@ class _Scene:
                                                self.r, self.ig2, self.mu)[0]
         return side * acc < 0.0 and 2.0 * abs(omega) / abs(acc) < CHATTER
 
-
-def _input_at(a0x: float, sx: float, a0y: float, sy: float, t_a: float, tt: float) -> tuple[float, float]:
-    return a0x + sx * (tt - t_a), a0y + sy * (tt - t_a)

@@ -54,6 +54,14 @@ class SimulationResult:
     solver: str
     prescreened: bool = False
     """True when Eq. 1's pre-screen alone settled the scene (the body never left rest)."""
+    slide_peak: float = 0.0
+    """General model: largest |u| [m], u the slide displacement along +x (downhill) relative to the
+    plate — where the base centre lies once the block is laid flat about the corner it leans on
+    (docs/general-model.md, *Slide displacement*). The rocking model does not slide: 0."""
+    slide_residual: float = 0.0
+    """General model: u when the motion ended (rest, overturn or the end of ``t_after``) [m]."""
+    slide_time: float = 0.0
+    """General model: how long the base (SLIDE) or the pivot (ROCKSLIDE) slid [s]."""
     trace: Trace | None = None
     """Reference solver only: impacts and, with ``history=True``, the time history."""
 
@@ -207,14 +215,16 @@ def _fast(body: Body, model: str, ax: np.ndarray, ay: np.ndarray, dt: float, bet
 
         d, t_o, th_max, imp, t_end, status, _, pre = simulate_rocking(
             ax, ay, dt, body.alpha, k, beta, e, n_sub, t_after, fall_plus, fall_minus, theta0, omega0)
+        slide = (0.0, 0.0, 0.0)
     else:
         from analysis.fast_general import simulate_general
 
-        d, t_o, th_max, imp, t_end, status, _, pre = simulate_general(
+        d, t_o, th_max, imp, t_end, status, _, pre, *slide = simulate_general(
             ax, ay, dt, body.alpha, body.r, body.i_g**2, beta, e, friction, n_sub, t_after,
             fall_plus, fall_minus, theta0, omega0, has_vertical)
     return SimulationResult(int(d), None if math.isnan(t_o) else float(t_o), float(th_max),
-                            _status_name(status), float(t_end), int(imp), model, "fast", bool(pre))
+                            _status_name(status), float(t_end), int(imp), model, "fast", bool(pre),
+                            *(float(x) for x in slide))
 
 
 def _reference(body: Body, model: str, t: np.ndarray, ax: np.ndarray, ay: np.ndarray, beta: float,
@@ -234,5 +244,7 @@ def _reference(body: Body, model: str, t: np.ndarray, ax: np.ndarray, ay: np.nda
             t, ax, ay, alpha=body.alpha, r=body.r, ig2=body.i_g**2, beta=beta, restitution=e,
             friction=friction, t_after=t_after, fall_plus=fall_plus, fall_minus=fall_minus,
             theta0=theta0, omega0=omega0, history=history)
+    tr = out.trace
+    slide = (tr.slide_peak, tr.slide_residual, tr.slide_time) if model == "general" else (0.0, 0.0, 0.0)
     return SimulationResult(out.direction, out.t_overturn, out.theta_max, out.status, out.t_end,
-                            len(out.trace.impacts), model, "reference", False, out.trace)
+                            len(tr.impacts), model, "reference", False, *slide, trace=tr)

@@ -10,7 +10,12 @@ Measured in one run on this machine:
   its chaos check;
 * run time against error for several fast-engine steps (p·h) on a sample of scenes that rock;
 * the skipping: scenes settled by Eq. 1's pre-screen alone and the integration they did not need;
-* the study's body-averaged COR beside the paper's Table II (Eq. 11) and the fitted c1 beside 0.048.
+* the study's body-averaged COR beside the paper's Table II (Eq. 11) and the fitted c1 beside 0.048;
+* general model, the stressed agreement set: μ uniform in 0.1–0.6, a vertical input in half of the
+  scenes (peak 0.3–1.5 g), either sign, β in 0–10° (600 scenes, ``--quick`` 100): outcome agreement
+  with the chaos check, slide displacement and overturn time errors (``verification.compare_stressed``);
+* energy added by the fast engine over 60 s of free rocking with e = 1, per step p·h (the bound
+  stated in tests/analysis/test_general.py, ``ENERGY_BOUND``).
 
 Usage: ``python benchmarks/engine.py [--quick] [--models rocking,general]``
 """
@@ -27,9 +32,16 @@ from dataclasses import asdict
 import numpy as np
 
 from analysis import TABLE_I, simulate
+from analysis.body import Body
 from analysis.design import gcor
 from analysis.study import StudyResult, study
-from analysis.verification import Agreement, compare_with_reference
+from analysis.verification import (
+    Agreement,
+    compare_stressed,
+    compare_with_reference,
+    free_rocking_energy_growth,
+    stressed_scenes,
+)
 from rig.records import load_records
 
 ANGLES = np.radians(np.arange(0.0, 7.0 + 1e-9, 0.5))
@@ -122,6 +134,27 @@ def general_vs_rocking(rocking: StudyResult, general: StudyResult) -> dict:
             "same_direction_fraction": same, "paper": "within 4 %", "friction": general.settings["friction"]}
 
 
+ENERGY_BODIES = (TABLE_I[0], TABLE_I[-1], Body(b=0.05, h=0.05), Body(b=0.0025, h=0.05), Body(b=1.0, h=5.0))
+
+
+def energy_growth(model: str) -> list[dict]:
+    """Largest relative energy gain over 60 s of free rocking with e = 1 (level plate, released at
+    0.1, 0.3, 0.6 and 0.9 α) over ENERGY_BODIES, per step p·h."""
+    out = []
+    for step in STEPS[1:5]:
+        gains = [free_rocking_energy_growth(b, f * b.alpha, step=step, model=model)
+                 for b in ENERGY_BODIES for f in (0.1, 0.3, 0.6, 0.9)]
+        out.append({"step_p_h": step, "max_relative_gain": max(gains), "cases": len(gains)})
+    return out
+
+
+def stressed(records: list, quick: bool) -> dict:
+    ag = compare_stressed(stressed_scenes(list(TABLE_I), records, 100 if quick else 600, seed=26))
+    return {**asdict(ag), "reference_seconds": round(ag.reference_seconds, 1),
+            "set": "Table I x FEMA P695, mu U(0.1, 0.6), either sign, beta U(0, 10) deg, vertical (partner "
+                   "component, peak U(0.3, 1.5) g) in half; seed 26"}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smaller agreement set and samples")
@@ -149,6 +182,9 @@ def main() -> None:
             "unexplained_differences": len(ag.unexplained), "reference_wall_s": round(ag.reference_seconds, 1),
             "targets": {"same_direction_fraction": ">= 0.995", "max_cor_difference_pp": "<= 0.5"}}
         entry["pareto_step_vs_error"] = pareto(model, bodies, recs, ag)
+        entry["free_rocking_e1_energy_gain_60s"] = energy_growth(model)
+        if model == "general":
+            entry["stressed_agreement"] = stressed(records, args.quick)
         report["models"][model] = entry
         print(json.dumps({"progress": model, "done": True}), flush=True, file=__import__("sys").stderr)
     if {"rocking", "general"} <= studies.keys():

@@ -1,5 +1,6 @@
 """Fast engine against the reference on real records (issue: ≥ 99.5 % same direction, COR within
-0.5 percentage points per angle, every difference explained by chaos)."""
+0.5 percentage points per angle, every difference explained by chaos); for the general model also
+the stressed set (μ 0.1–0.6, vertical input in half, both signs, 0–10°), slide displacement included."""
 
 from __future__ import annotations
 
@@ -9,7 +10,13 @@ import numpy as np
 import pytest
 
 from analysis import TABLE_I
-from analysis.verification import Agreement, compare_with_reference
+from analysis.verification import (
+    Agreement,
+    StressedAgreement,
+    compare_stressed,
+    compare_with_reference,
+    stressed_scenes,
+)
 from rig.records import load_records
 
 ANGLES = [math.radians(a) for a in (0.0, 3.0, 5.0, 7.0)]
@@ -41,3 +48,28 @@ def test_fast_matches_reference_on_all_fema_components(model: str) -> None:
     # at 0° the two signs of a record mirror each other: COR is exactly 50 % in both solvers
     assert ag.cor_reference[0]["cor"] == pytest.approx(0.5) and ag.cor_fast[0]["cor"] == pytest.approx(0.5)
     assert np.count_nonzero(ag.reference_direction) > 1000  # the set really exercises overturning
+
+
+def check_stressed(ag: StressedAgreement) -> None:
+    assert not ag.unexplained, f"differences that a 1e-6 perturbation does not explain: {ag.unexplained}"
+    assert ag.same_outcome >= 0.99 * ag.scenes
+    # the slide: exact in SLIDE and FLIGHT, order 4 in ROCKSLIDE (fast); DOP853 at rtol 1e-11 (reference)
+    assert ag.slide_residual_max_error_m <= 1e-6 and ag.slide_peak_max_error_m <= 1e-6
+    assert ag.slide_time_max_error_s <= 1e-6
+    assert ag.t_overturn_max_error_s <= 1e-3
+
+
+def test_slide_agrees_on_a_few_stressed_scenes() -> None:
+    ag = compare_stressed(stressed_scenes(list(TABLE_I), load_records("fema"), 6, seed=7), processes=2)
+    check_stressed(ag)
+    assert ag.sliding >= 3
+
+
+@pytest.mark.slow
+def test_fast_matches_reference_on_the_stressed_set() -> None:
+    """120 scenes: Table I bodies × FEMA components, μ uniform in [0.1, 0.6], either sign, β in
+    [0°, 10°], a vertical input (the partner component, peak 0.3–1.5 g) in half of them — the first
+    120 of benchmarks/engine.py's 600 (same seed; a scene's draws depend only on those before it)."""
+    ag = compare_stressed(stressed_scenes(list(TABLE_I), load_records("fema"), 120, seed=26), processes=2)
+    check_stressed(ag)
+    assert ag.sliding >= 60 and ag.overturned >= 10 and ag.with_vertical >= 40  # the set does stress it

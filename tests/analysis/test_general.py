@@ -273,7 +273,10 @@ def test_sliding_under_a_constant_ground_acceleration(a: float) -> None:
     v' = −a g + μ g sign(a) while it slides (friction opposes the relative velocity, whose sign is
     −sign a), so v(T) = −sign(a) (|a| − μ) g T. During the ramp the mean ground acceleration is a/2:
     v(T + dt) = v(T) − sign(a) (|a|/2 − μ) g dt; afterwards only friction acts, and it stops at
-    T + dt + |v(T + dt)|/(μ g)."""
+    T + dt + |v(T + dt)|/(μ g). The slide displacement is the integral of v: v_T T/2 by T, then over
+    the ramp (v' = −a g (1 − τ/dt) + μ g sign a) v_T dt + (−a + μ sign a) g dt²/2 + a g dt²/6, then
+    v(T + dt)²/(2 μ g) more in the direction of v; it grows monotonically, so the peak is the residual,
+    and the block slid the whole time up to the stop."""
     mu, T = 0.3, 1.0
     n = round(T / DT) + 1
     acc = np.full(n, a)
@@ -281,6 +284,8 @@ def test_sliding_under_a_constant_ground_acceleration(a: float) -> None:
     v_T = -sgn * (abs(a) - mu) * G * T
     v_ramp = v_T - sgn * (abs(a) / 2 - mu) * G * DT
     t_stop = T + DT + abs(v_ramp) / (mu * G)
+    u_stop = (0.5 * v_T * T + v_T * DT + (-a + mu * sgn) * G * DT**2 / 2 + a * G * DT**2 / 6
+              + math.copysign(v_ramp**2 / (2 * mu * G), v_ramp))
     for solver in ("fast", "reference"):
         res = run(SLIDER, acc, DT, solver, friction=mu, t_after=5.0, history=solver == "reference")
         assert res.status == "rest"
@@ -288,6 +293,9 @@ def test_sliding_under_a_constant_ground_acceleration(a: float) -> None:
         assert res.impacts == 0
         assert res.direction == 0
         assert res.t_end == pytest.approx(t_stop, abs=1e-9)
+        assert res.slide_residual == pytest.approx(u_stop, rel=1e-9)
+        assert res.slide_peak == pytest.approx(abs(u_stop), rel=1e-9)
+        assert res.slide_time == pytest.approx(t_stop, abs=1e-9)
         if solver == "reference":
             tr = res.trace
             assert stages(tr) == {ST_SLIDE}
@@ -312,11 +320,48 @@ def test_sliding_down_an_incline_from_rest() -> None:
             v = np.asarray(res.trace.v)
             assert t[-1] == pytest.approx(0.5 + 2.0)  # 50 samples + the trailing zero, then t_after
             np.testing.assert_allclose(v, G * (math.sin(beta) - mu * math.cos(beta)) * t, rtol=1e-9, atol=1e-12)
+            np.testing.assert_allclose(res.trace.u, 0.5 * G * (math.sin(beta) - mu * math.cos(beta)) * t**2,
+                                       rtol=1e-9, atol=1e-12)
+        u_end = 0.5 * G * (math.sin(beta) - mu * math.cos(beta)) * 2.5**2  # u = a t²/2 at t = 2.5 s
+        assert res.slide_residual == pytest.approx(u_end, rel=1e-9)
+        assert res.slide_peak == pytest.approx(u_end, rel=1e-9)
+        assert res.slide_time == pytest.approx(2.5, rel=1e-12)
     # with tan β < μ the same block stays put, and the pre-screen alone settles it
-    d, _, th, imp, t_end, status, steps, pre = simulate_general(
+    d, _, th, imp, t_end, status, steps, pre, *_ = simulate_general(
         np.append(acc, 0.0) * G, np.zeros(51), DT, SLIDER.alpha, SLIDER.r, SLIDER.i_g**2, beta, 0.0, 0.35, 4, 2.0,
         math.pi / 2, math.pi / 2, 0.0, 0.0, False)
     assert (d, status, steps, pre, imp, th, t_end) == (0, REST, 0, True, 0, 0.0, 0.0)
+
+
+@pytest.mark.parametrize("a", [-0.5, 0.8])
+def test_sliding_on_an_incline_under_a_step_acceleration(a: float) -> None:
+    """Plate at β = 0.1 rad (tan β < μ = 0.3: without input the block stays), ground acceleration a
+    (in g) for T = 0.5 s, down to 0 over one sample. Coulomb friction, plate frame: the block slides
+    with slip = sign gx, v' = gx − μ slip gz = A (constant), so v(T) = A T, u(T) = A T²/2. Over the
+    ramp v' goes linearly from A to A_e (the same with a = 0), so v_r = v(T) + (A + A_e) dt/2 and
+    u += v(T) dt + A dt²/2 + (A_e − A) dt²/6. Then friction alone stops it at v_r²/(2 |A_e|) further,
+    |v_r|/|A_e| later, and it stays (tan β < μ). Downhill (a < 0: the plate is pulled uphill) and
+    uphill (a > 0)."""
+    beta, mu, T = 0.1, 0.3, 0.5
+    n = round(T / DT) + 1
+    gx, gz = plate_gravity(a * G, 0.0, math.cos(beta), math.sin(beta))
+    slip = math.copysign(1.0, gx)
+    assert abs(gx) > mu * gz  # it slides
+    gx_e, gz_e = plate_gravity(0.0, 0.0, math.cos(beta), math.sin(beta))
+    acc_s, acc_e = gx - mu * slip * gz, gx_e - mu * slip * gz_e
+    v_T, u_T = acc_s * T, 0.5 * acc_s * T**2
+    v_r = v_T + 0.5 * (acc_s + acc_e) * DT
+    u_r = u_T + v_T * DT + 0.5 * acc_s * DT**2 + (acc_e - acc_s) * DT**2 / 6
+    assert v_r * slip > 0 and acc_e * slip < 0  # still sliding after the ramp, then friction stops it
+    u_stop = u_r + v_r**2 / (2 * abs(acc_e)) * slip
+    t_stop = T + DT + abs(v_r / acc_e)
+    for solver in ("fast", "reference"):
+        res = run(SLIDER, np.full(n, a), DT, solver, beta=beta, friction=mu, t_after=5.0)
+        assert (res.status, res.direction, res.theta_max, res.impacts) == ("rest", 0, 0.0, 0)
+        assert res.t_end == pytest.approx(t_stop, abs=1e-9)
+        assert res.slide_residual == pytest.approx(u_stop, rel=1e-9)
+        assert res.slide_peak == pytest.approx(abs(u_stop), rel=1e-9)
+        assert res.slide_time == pytest.approx(t_stop, abs=1e-9)
 
 
 # --------------------------------------------------------------------------------------------------
@@ -450,6 +495,28 @@ def test_energy_never_grows_in_free_motion(e: float) -> None:
         assert (fast.status, fast.direction) == (res.status, res.direction)
         assert fast.t_end == pytest.approx(res.t_end, abs=1e-3)
     assert {ST_ROCK, ST_ROCKSLIDE, ST_FLIGHT} <= seen  # the cases do exercise slipping and flying
+
+
+ENERGY_BOUND = 1e-4
+"""Relative energy the fast engine may add over 60 s of free rocking with e = 1 at the default step
+(p·h = 0.05); benchmarks/engine.py measures it (largest 4.5e-5 on these bodies, on 2026-11-27)."""
+
+
+def test_free_rocking_with_e1_gains_less_energy_than_the_stated_bound() -> None:
+    """e = 1 free rocking for 60 s: RK4 adds energy (it is not symplectic, and every impact restarts it
+    at a Hermite-located θ = 0). Over Table I's extremes, a 0.05 m cube and a 5 m slab, released at
+    0.1–0.9 α, the gain stays below ENERGY_BOUND at the default step, and on the worst of them it falls
+    at least 16-fold with a step four times smaller (the method is order 4; 4⁴ = 256)."""
+    from analysis.body import TABLE_I
+    from analysis.verification import free_rocking_energy_growth
+
+    bodies = [TABLE_I[0], TABLE_I[-1], Body(b=0.05, h=0.05), Body(b=0.0025, h=0.05), Body(b=1.0, h=5.0)]
+    worst = max(free_rocking_energy_growth(body, frac * body.alpha, step=0.05)
+                for body in bodies for frac in (0.1, 0.3, 0.6, 0.9))
+    assert 0.0 < worst <= ENERGY_BOUND
+    cube = bodies[2]  # the largest gain of the set, at 0.1 α
+    coarse = free_rocking_energy_growth(cube, 0.1 * cube.alpha, step=0.05)
+    assert free_rocking_energy_growth(cube, 0.1 * cube.alpha, step=0.0125) <= coarse / 16
 
 
 # --------------------------------------------------------------------------------------------------
