@@ -116,6 +116,10 @@ def host(url: str, key_file: str, stop_mid: bool) -> dict[str, Any]:
             result["outcome"] = f"table error: {exc}"
             start = None
         time.sleep(0.3)
+        table.wait_for_status(lambda s: s.state in ("armed", "faulted"), 30)
+        if table.status().state == "armed":
+            table.home()
+            table.disarm()  # at rest and disarmed before the link closes: no watchdog stop after the host left
         batches = accel.drain()
         accel.close()
         if batches and start is not None:
@@ -126,7 +130,6 @@ def host(url: str, key_file: str, stop_mid: bool) -> dict[str, Any]:
             rest = float(np.median(fx[:200]))
             result["peak_accel_m_s2"] = float(np.abs(fx - rest).max())
             result["peak_jerk_m_s3"] = jerk(fx - rest)
-        table.stop()
     return result
 
 
@@ -154,7 +157,7 @@ def case(transport: str, stall: float, key: Path, stop_mid: bool = False) -> dic
         counters = emulator.stop()
     result = json.loads(out.strip().splitlines()[-1])
     result.update(underruns=counters["underruns"], samples_late=counters["samples_late"],
-                  watchdog_stops=counters["watchdog_stops"], faults=counters["faults"])
+                  watchdog_stops=counters["watchdog_stops"], faults_raised=counters["faults_raised"])
     return result
 
 

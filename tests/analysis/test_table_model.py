@@ -474,7 +474,7 @@ leg_speed_m_s = 0.9
      "rig.toml:3: limits.heave.velocity_m_s: must be from 0.001 m/s to 5 m/s, got -0.3"),
     ("[table]\ncontroller_rate_hz = \n", "rig.toml:2: TOML syntax error: Invalid value (column 22)"),
     ("[limit.surge]\ndisplacement_m = 0.3\n",
-     "rig.toml:1: limit: unknown key (did you mean 'limits'?); expected one of table, limits, hexapod, dynamics"),
+     "rig.toml:1: limit: unknown key (did you mean 'limits'?); expected one of table, limits, hexapod, dynamics, controller"),
     ("[limits.tilt]\nangle_deg = \"10\"\n", "rig.toml:2: limits.tilt.angle_deg: expected a number, got '10'"),
     ("[limits.tilt]\nangle_deg = 10\nangle_rad = 0.2\n",
      "rig.toml:3: limits.tilt.angle_rad: give either angle_deg or angle_rad, not both"),
@@ -530,7 +530,7 @@ def test_the_plate_s_mass_inertia_and_centre_of_gravity_from_the_rig_toml(tmp_pa
                                         r"is at most the sum of the other two \(2272.5 kg·m²\), got 5000",
         "plate_cg_z_m = 0.1": r"rig.toml:2: dynamics.plate_cg_z_m: the plate lies below its top surface .* got 0.1",
         "plate_cg_y_m = -2.5": r"rig.toml:2: dynamics.plate_cg_y_m: the centre of gravity is 2.5 m from .* within 2",
-        "plate_mass_kg = 0": r"rig.toml:2: dynamics.plate_mass_kg: must be > 0, got 0",
+        "plate_mass_kg = 0": r"rig.toml:2: dynamics.plate_mass_kg: expected a number from 1 kg to 1e5 kg, got 0",
         "plate_inertia_x_kg_m2 = -1": r"rig.toml:2: dynamics.plate_inertia_x_kg_m2: must be > 0",
     }
     for line, message in bad.items():

@@ -489,7 +489,9 @@ def test_the_bodies_tilt_sensors_sample_every_fifth_tick_on_a_contiguous_grid(mo
         core.heartbeat(0)
         core.chunk(0, 10_000_000, 1_000_000, samples, True, True, 0)
         while core.state is State.STREAMING:
+            core.heartbeat(0)  # the host's, as a link's thread sends them: the watchdog counts host time
             emulator.step_virtual(0)
+        assert core.faults == Fault(0)  # played to its end, not stopped
         plate_time = emulator.controller_time(0) - emulator.tick_ns  # the last tick's plate time
         counters = emulator.endpoint.counters_dict()
     finally:
