@@ -20,6 +20,7 @@ from analysis.body import TABLE_V, Body
 from analysis.table.model import TableModel, TableModelError
 from analysis.table.toml_check import TomlChecker
 from analysis.table.toml_lines import KeyPath, dotted_path, key_lines, suggest, syntax_message
+from rig.drive.prepare import HEADROOM_MAX
 
 from .model import (
     DEFAULT_FRICTION,
@@ -152,7 +153,7 @@ class _Reader(TomlChecker):
 
     def drive(self, value: Any) -> DriveOptions:
         path: KeyPath = ("drive",)
-        drive = self.table(value, path, ("settle_s", "corner_hz"))
+        drive = self.table(value, path, ("settle_s", "corner_hz", "headroom_pct"))
         options = DriveOptions()
         settle = options.settle
         if "settle_s" in drive:
@@ -161,7 +162,11 @@ class _Reader(TomlChecker):
         corner = None
         if "corner_hz" in drive:
             corner = self.positive(drive["corner_hz"], (*path, "corner_hz"), "Hz")
-        return DriveOptions(settle=settle, corner=corner)
+        headroom = options.headroom
+        if "headroom_pct" in drive:
+            headroom = self.number(drive["headroom_pct"], (*path, "headroom_pct"), low=0.0, low_open=False,
+                                   high=100 * HEADROOM_MAX, what=f"a percentage from 0 to {100 * HEADROOM_MAX:g}") / 100
+        return DriveOptions(settle=settle, corner=corner, headroom=headroom)
 
     def operator(self, value: Any) -> OperatorSteps:
         path: KeyPath = ("operator",)

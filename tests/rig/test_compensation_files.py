@@ -11,6 +11,7 @@ import pytest
 from analysis.table.model import TableModel
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate
+from rig.compensation.laws import DiagonalLaw
 from rig.compensation.signals import base_accelerations
 from rig.compensation.store import response_from_rows, response_rows
 from rig.drive import prepare_drive
@@ -30,8 +31,8 @@ def compensated():
     frf = frequency_response(ident.accelerations[:, :3], base_accelerations(play_offline(TABLE, ident.poses), BETA),
                              TABLE.controller_rate)
     motion = load_entry(RecordEntry(spec="fema:KOBE/NIS000", resolved="fema:KOBE/NIS000", window=(5.0, 10.0)))
-    drive = prepare_drive(motion, angle=BETA, table=TABLE, corner=1.0, settle=0.5, ramps=False)
-    result = compensate(drive, frf, lambda d, k: play_offline(TABLE, d.poses, seed=k), iterations=2)
+    drive = prepare_drive(motion, angle=BETA, table=TABLE, corner=1.0, settle=0.5, ramps=False, headroom=0.1)
+    result = compensate(drive, DiagonalLaw(frf), lambda d, k: play_offline(TABLE, d.poses, seed=k), iterations=2)
     return drive, result, frf
 
 
