@@ -8,9 +8,11 @@ are played through the same loop (``rig.compensation.iteration``: level ramp, pr
   re-estimated, only the axes the record drives corrected;
 - :class:`MimoLaw` — the response matrix (``rig.compensation.mimo``), the Tikhonov inverse scaled per line to
   σ_max², each output's error weighted by its multiple coherence, a frequency-dependent gain ``gain`` up to
-  ``knee_hz`` falling log-linearly to ``gain_high`` at ``band_high`` (the highest lines have the smallest
-  table gain and the largest relative phase error), the matrix re-estimated from every play's own drive and response,
-  all three axes corrected (an axis the record leaves at rest is driven to cancel the cross-coupling into it).
+  ``knee_hz`` falling log-linearly to ``gain_high`` at ``band_high`` (the highest lines have the smallest table gain,
+  so the inverse amplifies the measurement noise in the error most there: with 1 up to 45 Hz the fall-line error
+  settled at 3.4 % on H-BCR_233, with 0.3 at 45 Hz at 1.5 %), the matrix re-estimated from every play's own drive
+  and response, all three axes corrected (an axis the record leaves at rest is driven to cancel the cross-coupling
+  into it).
 """
 
 from __future__ import annotations
@@ -59,7 +61,7 @@ class MimoLaw:
 
     response: MimoResponse
     gain: float = 1.0
-    gain_high: float = 0.5
+    gain_high: float = 0.3
     knee_hz: float = 20.0
     band_high: float = 45.0
     regularisation: float = REGULARISATION
