@@ -1,4 +1,4 @@
-"""One iteration session on a table: identify, iterate, store — what ``rig iterate`` runs (``docs/table-dynamics.md``).
+"""One iteration session on a table: identify, iterate, store — what ``rig iterate`` runs (``docs/compensation.md``).
 
 The table is armed and tilted to the drive's angle; the identification drive (``identify``) is played as the
 session's first run and the frequency response computed from it; the record's drive is then played and corrected
