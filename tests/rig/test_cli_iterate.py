@@ -59,4 +59,8 @@ def test_iterate_refuses_bad_input(tmp_path):
     assert done.returncode == 2 and "either --table URL or --emulate" in done.stderr
     done = _rig("iterate", "fema:NO/SUCH", "--angle", "4", "--emulate")
     assert done.returncode == 2 and "NO/SUCH" in done.stderr
+    for option, value in (("--law", "lms"), ("--levels", "-6,-12"), ("--levels", "-12,-6"), ("--speed", "fast"),
+                          ("--headroom", "70%")):
+        done = _rig("iterate", "fema:KOBE/NIS000", "--emulate", option, value)
+        assert done.returncode == 2 and option.lstrip("-") in done.stderr, (option, done.stderr)
     assert not list(tmp_path.iterdir())
