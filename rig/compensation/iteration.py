@@ -87,7 +87,8 @@ class Law(Protocol):
 class Iteration:
     """One play: ``index`` (0: the drive as prepared), its ``level_db``, its ``measures`` (fall-line
     ``rms_error_pct`` and ``peak_error_pct`` among them), the ``gain`` scale of the correction that made it (0 for
-    index 0), a ``note`` (gain reduced for the limits, roll-back …) and the ``seconds`` the play took."""
+    index 0), a ``note`` (gain reduced for the limits, roll-back …) and the ``seconds`` the correction, its checks
+    and the play took."""
 
     index: int
     level_db: float
@@ -244,6 +245,7 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
     best, rollbacks, gain_scale = -1, 0, 1.0
     stopped, converged = f"{iterations} full-level plays done", False
     for index, level_db in enumerate(schedule):
+        started = clock()
         factor = 10.0 ** (level_db / 20.0)
         note, step = "as prepared", 0.0
         if index == 0:
@@ -260,7 +262,6 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
                 stopped = (f"every correction would leave the table (more headroom would give the corrections room: "
                            f"rig prepare --headroom): {note}")
                 break
-        started = clock()
         scaled = at_level(candidate, level_db)
         force = play(scaled, index)
         measured = base_accelerations(force, drive.angle)
