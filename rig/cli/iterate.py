@@ -140,12 +140,14 @@ def register(app: typer.Typer) -> None:
         for it, run in zip(outcome.result.iterations, outcome.runs, strict=True):
             m = it.measures
             per_axis = ", ".join(f"{axis} {m.axes[axis]['rms_error_pct']:.1f}" for axis in m.axes)
+            trac = m.fall_line["trac"]
             console.print(f"play {it.index} (run {run}, {it.level_db:g} dB): fall-line RMS error "
-                          f"{it.rms_error_pct:.1f} %, peak {it.peak_error_pct:.1f} %, TRAC {m.fall_line['trac']:.3f}, "
+                          f"{it.rms_error_pct:.1f} %, peak {it.peak_error_pct:.1f} %, TRAC "
+                          f"{'–' if trac is None else f'{trac:.3f}'}, "
                           f"5 % spectrum error ≤ {m.psa_error_max_pct:.1f} %; RMS per axis [%] {per_axis}; peak "
                           f"{m.peak_to_limit:.2f} of the {m.peak_axis} limit", highlight=False)
         console.print(f"{'converged' if outcome.result.converged else 'not converged'}: {outcome.result.stopped}; "
-                      f"best iteration {outcome.result.best}\nsession file: {outcome.session}\n"
+                      f"best play {outcome.result.best}\nsession file: {outcome.session}\n"
                       f"compensated drive: {outcome.drive_file}", highlight=False)
 
 
