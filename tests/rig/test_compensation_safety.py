@@ -160,3 +160,16 @@ def test_measures_against_closed_forms(random_drive):
         assert m.axes[axis]["rms_error_pct"] == pytest.approx(10.0, rel=1e-6)
         assert m.axes[axis]["trac"] == pytest.approx(1.0)
     assert 0.5 < m.peak_to_limit < 1.1 * 0.5 * 1.01
+
+
+def test_headroom_on_the_legs_when_they_bind_first():
+    """Legs slower than the default (0.2 m/s): the drive without headroom is refused for a leg's speed; with 10 %
+    its motion is scaled until the legs use at most 90 % of their speed (their speed is linear in the scale)."""
+    slow = dataclasses.replace(TABLE, geometry=dataclasses.replace(TABLE.geometry, leg_speed=0.2))
+    motion = load_record(RECORD)
+    with pytest.raises(DriveError, match="speed"):
+        prepare_drive(motion, table=slow, ramps=False)
+    kept = prepare_drive(motion, table=slow, ramps=False, headroom=0.1)
+    speeds = np.abs(slow.leg_velocities(kept.poses, kept.velocities)).max()
+    assert 0.89 * 0.2 <= speeds <= 0.9 * 0.2 * (1 + 1e-9)
+    assert kept.scale_factor < prepare_drive(motion, table=TABLE, ramps=False, headroom=0.1).scale_factor
