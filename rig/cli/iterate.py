@@ -1,14 +1,15 @@
 """``rig iterate RECORD --angle DEG [--table URL | --emulate]``: identify the table's response, iterate the record's
-drive until the plate's achieved acceleration reproduces it, save the compensated drive (``docs/table-dynamics.md``).
+drive until the plate's achieved acceleration reproduces it, save the compensated drive (``docs/compensation.md``).
 
 Exit codes: 0 done (converged or not: ``converged`` says), 1 the table stopped a run, 2 bad input, 3 the record's
-drive does not fit the table.
+drive does not fit the table, or the plate's predicted response to it does not (nothing of the record played).
 """
 
 from __future__ import annotations
 
 import math
 from datetime import datetime
+from itertools import pairwise
 from pathlib import Path
 from typing import Annotated, Any
 
@@ -26,12 +27,19 @@ def register(app: typer.Typer) -> None:
         angle: Annotated[float, typer.Option(help="plate tilt β in degrees")] = 0.0,
         table: Annotated[str | None, typer.Option(help="the table's URL (mavlink://, zenoh://, canopen://)")] = None,
         emulate: Annotated[bool, typer.Option(help="start the emulated table (MAVLink on loopback)")] = False,
-        iterations: Annotated[int, typer.Option(help="corrections at most")] = 5,
+        iterations: Annotated[int, typer.Option(help="full-level plays at most (after the level ramp)")] = 4,
+        law: Annotated[str, typer.Option(help="the update law: mimo (response matrix) or diagonal (per axis)")
+                       ] = "mimo",
+        levels: Annotated[str, typer.Option(help="the first plays' levels in dB, comma-separated, ending at 0")
+                          ] = "-12,-6,0",
+        headroom: Annotated[str, typer.Option(help="margin the drive's scale leaves on every limit for the "
+                                              "corrections, e.g. 10%")] = "10%",
         output: Annotated[Path | None, typer.Option("-o", "--output", help="the new session file (default: "
                                                     "iterate-DATE-RECORD.h5 here)")] = None,
         drive_out: Annotated[Path | None, typer.Option("--drive-out", help="the compensated drive file (default: "
                                                        "SESSION.drive.h5)")] = None,
-        gain: Annotated[float, typer.Option(help="relaxation gain of each correction, 0 to 1.5")] = 0.8,
+        gain: Annotated[float | None, typer.Option(help="gain of each correction, 0 to 1.5 (default: the law's, "
+                                                   "mimo 1 falling to 0.3 at 45 Hz, diagonal 0.8)")] = None,
         tolerance: Annotated[float, typer.Option(help="stop at this fall-line RMS error, percent")] = 0.0,
         identify_seconds: Annotated[float, typer.Option(help="length of the identification drive in seconds")] = 60.0,
         window: Annotated[str | None, typer.Option(help="play only T0,T1 (seconds) of the record")] = None,
@@ -41,7 +49,8 @@ def register(app: typer.Typer) -> None:
         dynamics: Annotated[str, typer.Option(help="with --emulate: the legs' model, servo or lag")] = "servo",
         body: Annotated[list[str] | None, typer.Option(help="with --emulate: a specimen BxH@X,Y[;mass=M] on the "
                                                        "plate (repeat)")] = None,
-        speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+        speed: Annotated[str, typer.Option(help="with --emulate: controller time per real time, or max (virtual "
+                                           "time: as fast as the machine computes)")] = "1",
         key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                       "$SHAKETABLE_MAVLINK_KEY)")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
@@ -50,8 +59,9 @@ def register(app: typer.Typer) -> None:
         plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
         from analysis.table.model import TableModel, TableModelError
         from rig import __version__
-        from rig.compensation.session import iterate_on_table
-        from rig.drive import DriveError, DriveRefusedError, prepare_drive
+        from rig.compensation.safety import PredictedLimitError
+        from rig.compensation.session import LAWS, iterate_on_table
+        from rig.drive import DriveError, DriveRefusedError, parse_headroom, prepare_drive
         from rig.drive.file import DriveFileError
         from rig.records import RecordError
         from rig.sequence.model import RecordEntry
@@ -60,10 +70,26 @@ def register(app: typer.Typer) -> None:
 
         if emulate == (table is not None):
             fail("give either --table URL or --emulate")
-        if iterations < 0:
-            fail(f"--iterations {iterations}: expected >= 0")
+        if iterations < 1:
+            fail(f"--iterations {iterations}: expected >= 1")
+        if law not in LAWS:
+            fail(f"--law {law!r}: expected one of {', '.join(LAWS)}")
+        if gain is not None and not 0 < gain <= 1.5:
+            fail(f"--gain {gain!r}: expected a gain in (0, 1.5]")
+        try:
+            levels_db = tuple(float(v) for v in levels.split(","))
+        except ValueError:
+            fail(f"--levels {levels!r}: expected levels in dB separated by commas, e.g. -12,-6,0")
+        if levels_db[-1] != 0.0 or any(b <= a for a, b in pairwise(levels_db)):
+            fail(f"--levels {levels!r}: expected increasing levels in dB ending at 0")
         if dynamics not in ("lag", "servo"):
             fail(f"--dynamics {dynamics!r}: expected servo or lag")
+        from rig.emulator import parse_speed
+
+        try:
+            speed_factor = parse_speed(speed)
+        except ValueError as exc:
+            fail(str(exc))
         try:
             model = TableModel.from_toml(rig_config) if rig_config else TableModel()
             span = None
@@ -74,7 +100,8 @@ def register(app: typer.Typer) -> None:
                     fail(f"--window {window!r}: expected T0,T1 in seconds")
                 span = (t0, t1)
             motion = load_entry(RecordEntry(spec=record, resolved=record, window=span))
-            drive = prepare_drive(motion, angle=math.radians(angle), table=model, corner=corner, ramps=False)
+            drive = prepare_drive(motion, angle=math.radians(angle), table=model, corner=corner, ramps=False,
+                                  headroom=parse_headroom(headroom))
         except DriveRefusedError as exc:
             print_error(err_console, "error", str(exc))
             raise typer.Exit(EXIT_REFUSED) from None
@@ -89,15 +116,19 @@ def register(app: typer.Typer) -> None:
         bodies = _bodies(body or [])
         sequence = {"name": f"iterate {motion.name}", "kind": "drive iteration", "record": record,
                     "angles_deg": [angle], "bodies": bodies,
-                    "iteration": {"iterations": iterations, "gain": gain, "tolerance_pct": tolerance,
+                    "iteration": {"iterations": iterations, "law": law, "gain": gain, "tolerance_pct": tolerance,
+                                  "levels_db": list(levels_db), "headroom": drive.headroom,
                                   "identify_seconds": identify_seconds}}
         say = (lambda _t: None) if as_json else (lambda text: console.print(f"[dim]{text}[/]", highlight=False))
         try:
-            with _Table(table, emulate, key_file, rig_config, dynamics, body or [], speed) as (url, options):
+            with _Table(table, emulate, key_file, rig_config, dynamics, body or [], speed_factor) as (url, options):
                 outcome = iterate_on_table(drive, url, options, session, drive_path, sequence=sequence,
                                            software_version=__version__, bodies=bodies,
-                                           iterations=iterations, gain=gain, tolerance=tolerance,
-                                           identify_seconds=identify_seconds, note=say)
+                                           iterations=iterations, law=law, gain=gain, tolerance=tolerance,
+                                           levels_db=levels_db, identify_seconds=identify_seconds, note=say)
+        except PredictedLimitError as exc:
+            print_error(err_console, "error", str(exc))
+            raise typer.Exit(EXIT_REFUSED) from None
         except (SessionError, DriveFileError, OSError, ValueError) as exc:
             fail(str(exc))
         except RuntimeError as exc:
@@ -107,10 +138,16 @@ def register(app: typer.Typer) -> None:
             emit_json(outcome.to_json())
             return
         for it, run in zip(outcome.result.iterations, outcome.runs, strict=True):
-            console.print(f"iteration {it.index} (run {run}): fall-line RMS error {it.rms_error_pct:.1f} %, peak "
-                          f"{it.peak_error_pct:.1f} %", highlight=False)
+            m = it.measures
+            per_axis = ", ".join(f"{axis} {m.axes[axis]['rms_error_pct']:.1f}" for axis in m.axes)
+            trac = m.fall_line["trac"]
+            console.print(f"play {it.index} (run {run}, {it.level_db:g} dB): fall-line RMS error "
+                          f"{it.rms_error_pct:.1f} %, peak {it.peak_error_pct:.1f} %, TRAC "
+                          f"{'–' if trac is None else f'{trac:.3f}'}, "
+                          f"5 % spectrum error ≤ {m.psa_error_max_pct:.1f} %; RMS per axis [%] {per_axis}; peak "
+                          f"{m.peak_to_limit:.2f} of the {m.peak_axis} limit", highlight=False)
         console.print(f"{'converged' if outcome.result.converged else 'not converged'}: {outcome.result.stopped}; "
-                      f"best iteration {outcome.result.best}\nsession file: {outcome.session}\n"
+                      f"best play {outcome.result.best}\nsession file: {outcome.session}\n"
                       f"compensated drive: {outcome.drive_file}", highlight=False)
 
 
@@ -136,7 +173,9 @@ class _Table:
     def __init__(self, url: str | None, emulate: bool, key_file: Path | None, rig_config: Path | None,
                  dynamics: str, bodies: list[str], speed: float) -> None:
         self.url, self.emulate, self.key_file = url, emulate, key_file
-        self.flags = ["--dynamics", dynamics, "--speed", f"{speed:g}"]
+        from rig.emulator import speed_flags
+
+        self.flags = ["--dynamics", dynamics, *speed_flags(speed)]
         if rig_config is not None:
             self.flags += ["--rig-config", str(rig_config)]
         for spec in bodies:

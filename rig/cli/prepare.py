@@ -47,17 +47,20 @@ def prepare_cmd(
                      ] = None,
     plot: Annotated[Path | None, typer.Option(help="write a figure of the drive (PNG)")] = None,
     accept_vertical: Annotated[bool, typer.Option(help="let a lone vertical component drive surge")] = False,
+    headroom: Annotated[str, typer.Option(help="margin the scale factor leaves on every limit for drive "
+                                          "compensation, e.g. 10% (default 0)")] = "0",
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
     """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
     from analysis.table.model import TableModelError
-    from rig.drive import DriveError, DriveRefusedError, prepare_drive
+    from rig.drive import DriveError, DriveRefusedError, parse_headroom, prepare_drive
     from rig.records import RecordError, load_record
 
     try:
         table = load_table(rig_config)
         motion = load_record(record, dt=dt, units=units, accept_vertical=accept_vertical)
-        drive = prepare_drive(motion, angle=math.radians(angle), table=table, scale=scale, corner=corner, rate=rate)
+        drive = prepare_drive(motion, angle=math.radians(angle), table=table, scale=scale, corner=corner, rate=rate,
+                              headroom=parse_headroom(headroom))
     except DriveRefusedError as exc:
         if as_json:
             emit_json({"refused": {"record": record, **vars(exc.violation), "message": exc.violation.message()}},
@@ -108,6 +111,7 @@ def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
         f"(peak acceleration kept by the filter: "
         + ", ".join(f"{a} {100 * r:.1f} %" for a, r in drive.highpass_pga_ratio.items())
         + f"); drive {drive.duration:.2f} s at {drive.rate:g} Hz, record from t = {drive.record_start:.2f} s"
+        + (f"; headroom {drive.headroom:.0%} left on every limit" if drive.headroom else "")
         + (f"; plot: {out['plot']}" if "plot" in out else ""),
         highlight=False,
     )

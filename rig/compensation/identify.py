@@ -54,6 +54,19 @@ class FrequencyResponse:
         coh = np.column_stack([np.interp(freqs, self.f, self.coherence[:, k]) for k in range(3)])
         return h, coh
 
+    def apply(self, freqs: np.ndarray, spectrum: np.ndarray) -> np.ndarray:
+        """The predicted output spectrum (n, 3) of the input spectrum (n, 3) at ``freqs`` [Hz]: ``H X`` per axis
+        inside the band, ``X`` outside it (``rig.compensation.safety``)."""
+        h, _ = self.at(freqs)
+        inside = (freqs >= self.band[0]) & (freqs <= self.band[1])
+        return np.where(inside[:, None], h * spectrum, spectrum)
+
+    def correction(self, freqs: np.ndarray, error: np.ndarray, gain: np.ndarray,
+                   regularisation: float = 0.01) -> np.ndarray:
+        """The drive's acceleration correction spectrum (n, 3) for the error spectrum ``error`` (n, 3): ``gain``
+        (n,) × the regularised inverse per axis."""
+        return gain[:, None] * self.inverse(freqs, regularisation) * error
+
     def inverse(self, freqs: np.ndarray, regularisation: float = 0.01) -> np.ndarray:
         """The regularised inverse (n, 3): ``conj(H) / (|H|² + ε)``, ``ε = regularisation + (1 − γ²)/γ²`` — exact
         where the coherence is 1 and H well above ε, shrinking towards 0 where the measurement is noise (γ² → 0)

@@ -1,31 +1,47 @@
-"""Drive iteration: play, measure, correct the drive with the table's inverse response, repeat.
+"""Drive iteration: ramp up, play, measure, correct the drive with the table's inverse response, repeat — never
+playing a drive whose predicted response leaves the table.
 
-With the table's frequency response H per axis (``rig.compensation.identify``), iteration i played drive d_i and
-measured the plate's base-frame acceleration y_i; the error against the target acceleration x (the drive as
-prepared: what the record asks of the table) is e_i = x − y_i, and the next drive's acceleration is
+With the identified response H (``rig.compensation.laws``: per axis or the full matrix), play i of drive d_i at
+level s_i (a factor ≤ 1 on its translations) measured the plate's base-frame acceleration y_i; the error against
+the target x (the drive as prepared: what the record asks of the table), brought to full level, is
+e_i = (s_i x − y_i)/s_i, and the next drive's acceleration is
 
-    D_{i+1}(f) = D_i(f) + g · H⁻¹(f) · E_i(f)
+    D_{i+1}(f) = D_b(f) + G(f) · H⁺(f) · E_b(f)
 
-per axis, with the relaxation gain g (≤ 1: a step that does not overshoot where H is uncertain) and the regularised
-inverse ``conj(H) / (|H|² + ε)``, ε growing where the coherence is low (``FrequencyResponse.inverse``). The
+from the best play b so far (the lowest fall-line RMS error), with the law's gain G(f) and inverse H⁺. The
 correction is confined to the record's motion (a Tukey window) and to the band above the larger of the drive's
 high-pass corner and the identified band's lower edge, up to ``band_high``; its displacement is the exact double
 integral in the frequency domain (−ΔA/ω²), its velocity and acceleration the drive's plus the correction's
-derivatives. Each corrected drive is checked against the table's limits (Table IV and the legs' stroke and speed,
-``TableModel.check_trajectory``); when it leaves them the correction is narrowed to :data:`NARROW_BANDS_HZ`, then
-its gain halved twice, else iteration stops there. Iteration stops when the fall-line RMS error
-(``rig.compensation.signals``: over the record, in band) improves by less than ``min_improvement`` (relative) on
-the best so far, reaches ``tolerance``, or after ``iterations`` corrections; the result is the best drive played.
-With an exact H and g = 1 one step removes the error inside the band; the offline tests check the convergence on
-the servo-hydraulic model (``sim_table.dynamics``).
+derivatives.
+
+**Every play is checked first**: the drive at its level against the table's limits (Table IV and the legs'
+stroke and speed, ``TableModel.check_trajectory``) and the plate's response *predicted* by the current H
+(``rig.compensation.safety``). The first play (the drive as prepared) is refused with
+:class:`~rig.compensation.safety.PredictedLimitError` when its prediction leaves the table; a correction that does
+is narrowed to :data:`NARROW_BANDS_HZ`, then its gain halved twice, else iteration stops there. A correction
+played during the ramp must fit at full level too (its level only previews it): the full-level plays then start
+from a drive that may be played.
+
+**Level ramp.** The first plays ramp up (``levels_db``, −12, −6, 0 dB by default): the drive as prepared at the
+lowest level, each following play corrected from the previous and played at the next level, then every further
+play at full level — so the first full-level play is already corrected, and each level's play also feeds the
+response estimate (``law.update``).
+
+**Roll-back.** A play whose fall-line RMS error is not below the best so far does not become the next base: the
+next correction starts again from the best play with the gain halved; after ``max_rollbacks`` such plays in a row
+iteration stops. It also stops when a full-level play's error reaches ``tolerance`` or after ``iterations``
+full-level plays; the result is the best drive played at full level.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import math
+import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from itertools import pairwise
+from typing import Protocol
 
 import numpy as np
 from scipy.fft import irfft, next_fast_len, rfft, rfftfreq
@@ -34,11 +50,12 @@ from scipy.signal import windows
 from analysis.table.model import AXES
 from rig.drive import Drive
 
-from .identify import FrequencyResponse
+from .measures import Measures, measure
+from .safety import LEVELS_DB, PredictedLimitError, Response, at_level, check_prediction
 from .signals import base_accelerations, errors_pct, fall_line, in_band
 
 Play = Callable[[Drive, int], np.ndarray]
-"""Plays a drive (iteration index given) and returns the plate-frame specific force (n, 3) [m/s²] measured at the
+"""Plays a drive (play index given) and returns the plate-frame specific force (n, 3) [m/s²] measured at the
 drive's samples."""
 
 NARROW_BANDS_HZ = (30.0, 20.0)
@@ -53,31 +70,54 @@ TAPER_SECONDS = 0.5
 """Half-cosine ramps of the correction's window at both ends of the record's motion [s]."""
 
 
+class Law(Protocol):
+    """An update law (``rig.compensation.laws``)."""
+
+    name: str
+    response: Response
+
+    def correction(self, freqs: np.ndarray, error: np.ndarray, scale: float) -> np.ndarray: ...
+
+    def corrected_axes(self, drive: Drive) -> tuple[str, ...]: ...
+
+    def update(self, drive: Drive, force: np.ndarray) -> None: ...
+
+
 @dataclass(frozen=True)
 class Iteration:
-    """One played drive: ``index`` (0: the drive as prepared), fall-line ``rms_error_pct`` and ``peak_error_pct``,
-    the relaxation ``gain`` that made it from the previous best (0 for index 0) and a ``note`` (gain reduced for the
-    limits …)."""
+    """One play: ``index`` (0: the drive as prepared), its ``level_db``, its ``measures`` (fall-line
+    ``rms_error_pct`` and ``peak_error_pct`` among them), the ``gain`` scale of the correction that made it (0 for
+    index 0), a ``note`` (gain reduced for the limits, roll-back …) and the ``seconds`` the correction, its checks
+    and the play took."""
 
     index: int
-    rms_error_pct: float
-    peak_error_pct: float
+    level_db: float
+    measures: Measures
     gain: float = 0.0
     note: str = ""
     seconds: float = 0.0
 
+    @property
+    def rms_error_pct(self) -> float:
+        return self.measures.rms_error_pct
+
+    @property
+    def peak_error_pct(self) -> float:
+        return float(self.measures.fall_line["peak_error_pct"])  # type: ignore[arg-type]
+
     def to_json(self) -> dict[str, object]:
-        return {"index": self.index, "rms_error_pct": self.rms_error_pct, "peak_error_pct": self.peak_error_pct,
-                "gain": self.gain, "note": self.note, "seconds": self.seconds}
+        return {"index": self.index, "level_db": self.level_db, "rms_error_pct": self.rms_error_pct,
+                "peak_error_pct": self.peak_error_pct, "gain": self.gain, "note": self.note,
+                "seconds": self.seconds, **self.measures.to_json()}
 
 
 @dataclass
 class Compensation:
-    """The outcome: every ``iterations``' errors, the ``best`` index and its ``drive``, whether iteration
-    ``converged`` (the error stopped improving or reached the tolerance, as opposed to running out of iterations
-    or of room in the limits) and why it ``stopped``; the fall-line ``target`` (n,) and each iteration's
-    ``achieved`` fall-line acceleration (n,) [m/s²] (both low-passed as compared), ``motion`` the samples the errors
-    cover (``error_window``)."""
+    """The outcome: every play's ``iterations``, the ``best`` full-level play's index and its ``drive``, whether
+    iteration ``converged`` (reached the tolerance or stopped improving, as opposed to running out of plays or of
+    room in the limits) and why it ``stopped``; the fall-line ``target`` (n,) and each play's ``achieved``
+    fall-line acceleration (n,) [m/s²] brought to full level (both low-passed as compared), ``motion`` the samples
+    the errors cover (``error_window``), the ``law``'s name and its final ``response``."""
 
     iterations: list[Iteration]
     best: int
@@ -87,9 +127,11 @@ class Compensation:
     target: np.ndarray
     achieved: list[np.ndarray] = field(repr=False)
     motion: slice = field(default_factory=lambda: slice(None))
+    law: str = ""
+    response: Response | None = field(default=None, repr=False)
 
     def to_json(self) -> dict[str, object]:
-        return {"iterations": [it.to_json() for it in self.iterations], "best": self.best,
+        return {"law": self.law, "iterations": [it.to_json() for it in self.iterations], "best": self.best,
                 "converged": self.converged, "stopped": self.stopped}
 
 
@@ -126,22 +168,22 @@ def target_acceleration(drive: Drive) -> np.ndarray:
     return np.array(drive.accelerations[:, :3])
 
 
-def corrected_drive(drive: Drive, error: np.ndarray, response: FrequencyResponse, gain: float, *,
-                    band_high: float, regularisation: float = 0.01) -> Drive:
-    """``drive`` plus ``gain`` × the inverse response applied to the acceleration ``error`` (n, 3) [m/s²]
-    (module docstring)."""
+def corrected_drive(drive: Drive, error: np.ndarray, law: Law, scale: float, *, band_high: float) -> Drive:
+    """``drive`` plus the ``law``'s correction (its gain times ``scale``) of the acceleration ``error`` (n, 3)
+    [m/s²] (module docstring); axes the law does not correct stay as they are."""
     _, window = motion_window(drive)
     n = len(drive.t)
     n_fft = next_fast_len(2 * n)
     freqs = rfftfreq(n_fft, 1.0 / drive.rate)
-    low = max(response.band[0], drive.corner_frequency)
-    inside = (freqs >= low) & (freqs <= min(band_high, response.band[1]))
+    band = law.response.band
+    low = max(band[0], drive.corner_frequency)
+    inside = (freqs >= low) & (freqs <= min(band_high, band[1]))
     spectrum = rfft(error * window[:, None], n_fft, axis=0)
-    delta_acc = gain * response.inverse(freqs, regularisation) * spectrum * inside[:, None]
+    delta_acc = law.correction(freqs, spectrum, scale) * inside[:, None]
     omega = 2.0 * math.pi * np.where(freqs > 0, freqs, 1.0)
     delta = irfft(-delta_acc / (omega**2)[:, None], n_fft, axis=0)[:n] * window[:, None]
-    driven = [AXES.index(axis) for axis in drive.components]
-    delta[:, [c for c in range(3) if c not in driven]] = 0.0  # an axis the record does not drive stays at home
+    corrected = [AXES.index(axis) for axis in law.corrected_axes(drive)]
+    delta[:, [c for c in range(3) if c not in corrected]] = 0.0
     poses, velocities, accelerations = drive.poses.copy(), drive.velocities.copy(), drive.accelerations.copy()
     dv = np.gradient(delta, axis=0) * drive.rate
     poses[:, :3] += delta
@@ -150,64 +192,100 @@ def corrected_drive(drive: Drive, error: np.ndarray, response: FrequencyResponse
     return dataclasses.replace(drive, poses=poses, velocities=velocities, accelerations=accelerations)
 
 
-def compensate(drive: Drive, response: FrequencyResponse, play: Play, *, iterations: int = 5, gain: float = 0.8,
-               tolerance: float = 0.0, min_improvement: float = 0.05, band_high: float = BAND_HIGH,
-               regularisation: float = 0.01, clock: Callable[[], float] | None = None) -> Compensation:
-    """Iterate ``drive`` on the table that ``play`` plays (module docstring); ``iterations`` corrections at most."""
-    if iterations < 0 or not 0 < gain <= 1.5:
-        raise ValueError(f"iterations {iterations!r} must be >= 0 and gain {gain!r} in (0, 1.5]")
-    import time
+def refusal(drive: Drive, law: Law) -> str | None:
+    """Why ``drive`` may not be played (its own trajectory or its predicted response leaves the table), or None."""
+    violation = drive.table.check_trajectory(drive.t, drive.poses, drive.velocities, drive.accelerations)
+    if violation is not None:
+        return f"the drive leaves the table: {violation.message()}"
+    violation = check_prediction(drive, law.response)
+    if violation is not None:
+        return f"its predicted response leaves the table: {violation.message()}"
+    return None
 
-    clock = clock or time.perf_counter
-    beta = drive.angle
+
+def _schedule(levels_db: tuple[float, ...], iterations: int) -> list[float]:
+    """The level of every play: the ramp, then full-level plays up to ``iterations`` of them."""
+    if not levels_db or levels_db[-1] != 0.0 or any(b <= a for a, b in pairwise(levels_db)):
+        raise ValueError(f"levels {levels_db!r} dB: expected increasing levels ending at 0 dB")
+    if iterations < 1:
+        raise ValueError(f"iterations {iterations!r}: expected >= 1 full-level play")
+    return [*levels_db[:-1], *([0.0] * iterations)]
+
+
+def _next_drive(base: Drive, error: np.ndarray, law: Law, gain_scale: float, level_db: float, band_high: float
+                ) -> tuple[Drive | None, float, list[str]]:
+    """The next full-level drive (module docstring): ``base`` corrected for ``error`` with the gain scaled by
+    ``gain_scale`` up to ``band_high``, else up to :data:`NARROW_BANDS_HZ`, else with the gain halved twice — the
+    first that may be played at full level and at ``level_db``; (None, 0, why not) when none may. Also (drive, its
+    gain scale, what was given up)."""
+    bands = sorted({min(band_high, b) for b in (band_high, *NARROW_BANDS_HZ)}, reverse=True)
+    notes: list[str] = []
+    for step, high in (*((gain_scale, b) for b in bands), (gain_scale / 2, bands[-1]), (gain_scale / 4, bands[-1])):
+        trial = corrected_drive(base, error, law, step, band_high=high)
+        reason = refusal(trial, law) or refusal(at_level(trial, level_db), law)
+        if reason is None:
+            return trial, step, notes
+        notes.append(f"gain ×{step:g} up to {high:g} Hz: {reason}")
+    return None, 0.0, notes
+
+
+def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, levels_db: tuple[float, ...] = LEVELS_DB,
+               tolerance: float = 0.0, band_high: float = BAND_HIGH, max_rollbacks: int = 2,
+               clock: Callable[[], float] = time.perf_counter) -> Compensation:
+    """Iterate ``drive`` with ``law`` on the table that ``play`` plays (module docstring): the ramp's plays, then
+    ``iterations`` full-level plays at most. Raises PredictedLimitError when the drive as prepared may not be
+    played even at the ramp's first level."""
+    schedule = _schedule(tuple(float(x) for x in levels_db), iterations)
     target = target_acceleration(drive)
-    target_fl = in_band(fall_line(target, beta), drive.rate)
-    motion = error_window(drive)
-    played: list[tuple[Drive, np.ndarray]] = []
+    window = error_window(drive)
+    target_fl = in_band(fall_line(target, drive.angle), drive.rate)
     history: list[Iteration] = []
+    played: list[tuple[Drive, float, np.ndarray]] = []  # (full-level drive, level factor, base-frame measured)
     achieved_fl: list[np.ndarray] = []
-
-    def run(candidate: Drive, used_gain: float, note: str) -> Iteration:
+    best, rollbacks, gain_scale = -1, 0, 1.0
+    stopped, converged = f"{iterations} full-level plays done", False
+    for index, level_db in enumerate(schedule):
         started = clock()
-        measured = base_accelerations(play(candidate, len(history)), beta)
-        achieved, rms, peak = fall_line_errors(drive, measured)
-        achieved_fl.append(achieved)
-        played.append((candidate, measured))
-        item = Iteration(len(history), rms, peak, used_gain, note, clock() - started)
-        history.append(item)
-        return item
-
-    run(drive, 0.0, "as prepared")
-    stopped, converged = f"{iterations} iterations done", False
-    for _ in range(iterations):
-        best = min(range(len(history)), key=lambda i: history[i].rms_error_pct)
-        if history[best].rms_error_pct <= tolerance:
+        factor = 10.0 ** (level_db / 20.0)
+        note, step = "as prepared", 0.0
+        if index == 0:
+            candidate = drive
+            violation = check_prediction(at_level(drive, level_db), law.response)
+            if violation is not None:
+                raise PredictedLimitError(f"the drive as prepared at {level_db:g} dB", violation)
+        else:
+            base, base_factor, measured = played[best]
+            error = (base_factor * target - measured) / base_factor
+            candidate, step, notes = _next_drive(base, error, law, gain_scale, level_db, band_high)
+            note = "; ".join(notes)
+            if candidate is None:
+                stopped = (f"every correction would leave the table (more headroom would give the corrections room: "
+                           f"rig prepare --headroom): {note}")
+                break
+        scaled = at_level(candidate, level_db)
+        force = play(scaled, index)
+        measured = base_accelerations(force, drive.angle)
+        law.update(scaled, force)
+        measures = measure(drive, factor * target, measured, window, band_high)
+        if best >= 0 and measures.rms_error_pct >= history[best].rms_error_pct:
+            rollbacks += 1
+            gain_scale /= 2.0
+            note = "; ".join(filter(None, (note, f"error grew: roll-back to play {best}, gain ×{gain_scale:g}")))
+        history.append(Iteration(index, level_db, measures, step, note, clock() - started))
+        played.append((candidate, factor, measured))
+        achieved_fl.append(in_band(fall_line(measured, drive.angle), drive.rate) / factor)
+        if best < 0 or measures.rms_error_pct < history[best].rms_error_pct:
+            best, rollbacks = index, 0
+        if level_db == 0.0 and measures.rms_error_pct <= tolerance:
             stopped, converged = f"the error reached the tolerance {tolerance:g} %", True
             break
-        base, measured = played[best]
-        error = target - measured
-        bands = sorted({min(band_high, b) for b in (band_high, *NARROW_BANDS_HZ)}, reverse=True)
-        narrow = bands[-1]
-        notes, candidate, step = [], None, gain
-        for step, high in (*((gain, b) for b in bands), (gain / 2, narrow), (gain / 4, narrow)):
-            trial = corrected_drive(base, error, response, step, band_high=high, regularisation=regularisation)
-            violation = trial.table.check_trajectory(trial.t, trial.poses, trial.velocities, trial.accelerations)
-            if violation is None:
-                candidate = trial
-                break
-            notes.append(f"gain {step:g} up to {high:g} Hz left the limits ({violation.message()})")
-        note = "; ".join(notes)
-        if candidate is None:
-            stopped = f"every correction left the table's limits: {note}"
+        if rollbacks >= max_rollbacks:
+            stopped, converged = f"the error stopped improving ({rollbacks} roll-backs in a row)", True
             break
-        previous_best = history[best].rms_error_pct
-        item = run(candidate, step, note)
-        if item.rms_error_pct > previous_best * (1.0 - min_improvement):
-            stopped, converged = (f"the error stopped improving ({item.rms_error_pct:.2f} % after "
-                                  f"{previous_best:.2f} %)"), True
-            break
-    best = min(range(len(history)), key=lambda i: history[i].rms_error_pct)
-    if not converged and history[best].rms_error_pct <= tolerance:
-        converged = True
-    return Compensation(iterations=history, best=best, drive=played[best][0], converged=converged, stopped=stopped,
-                        target=target_fl, achieved=achieved_fl, motion=motion)
+    full = [k for k, it in enumerate(history) if it.level_db == 0.0]
+    chosen = min(full, key=lambda k: history[k].rms_error_pct) if full else best
+    if not full:
+        stopped += "; no play at full level: the result is the best correction, never played at full level"
+    return Compensation(iterations=history, best=chosen, drive=played[chosen][0], converged=converged,
+                        stopped=stopped, target=target_fl, achieved=achieved_fl, motion=window, law=law.name,
+                        response=law.response)

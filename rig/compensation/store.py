@@ -1,15 +1,21 @@
 """The identification and the iterations in the session file: the ``/compensation`` group (additive; the runs and
 their datasets are the session schema's own).
 
-Layout (schema ``shaketable-rig/compensation/1``), written once the session log is closed, in one crash-atomic
+Layout (schema ``shaketable-rig/compensation/2``), written once the session log is closed, in one crash-atomic
 transaction under the writer's locks (``rig.analyze.store.locked``), replacing an earlier ``/compensation``:
 
 * attributes ``schema``, ``record``, ``angle_deg``, ``identification_run`` (run name), ``runs`` (JSON list of the
   iterations' run names, iteration 0 first), ``best`` (iteration index), ``converged``, ``stopped`` (text),
-  ``drive_file`` (path of the compensated drive, "" if none), ``band_hz`` [low, high];
-* ``response``: compound (f [Hz], then per axis surge/lateral/heave: ``h_re``, ``h_im`` (H1 from commanded to
-  measured base-frame acceleration), ``coherence``);
-* ``iterations``: compound (index, run (text), rms_error_pct, peak_error_pct, gain, seconds);
+  ``drive_file`` (path of the compensated drive, "" if none), ``band_hz`` [low, high], ``law`` (``mimo`` or
+  ``diagonal``);
+* ``response``: compound (f [Hz], then per axis surge/lateral/heave: ``h_re``, ``h_im`` (the direct term of H1 from
+  commanded to measured base-frame acceleration), ``coherence`` (the multiple coherence of that output with the
+  ``mimo`` law, the ordinary one with ``diagonal``), then ``condition`` (the response matrix's condition number per
+  line; 0 with ``diagonal``)) — the response as last re-estimated;
+* ``response_matrix`` (``mimo`` only): (lines, 3 outputs, 3 inputs) complex H1;
+* ``iterations``: compound (index, run (text), level_db, rms_error_pct, peak_error_pct (fall line), per axis
+  ``AXIS_rms_error_pct``, ``AXIS_peak_error_pct``, ``AXIS_trac``, then ``fall_line_trac``, ``psa_error_max_pct``,
+  ``psa_error_mean_pct``, ``peak_to_limit``, gain, seconds; TRAC NaN where undefined);
 * ``target`` (n,) and ``achieved`` (iterations, n): fall-line acceleration [m/s²] over the record's motion, and
   ``t`` (n,) [s, run clock].
 """
@@ -27,26 +33,49 @@ import numpy as np
 from analysis.table.model import AXES
 
 from .identify import FrequencyResponse
-from .iteration import Compensation
+from .iteration import Compensation, Iteration
+from .mimo import MimoResponse
 
-SCHEMA = "shaketable-rig/compensation/1"
+SCHEMA = "shaketable-rig/compensation/2"
 GROUP = "compensation"
 
-ITERATION = np.dtype([("index", "<i4"), ("run", "S8"), ("rms_error_pct", "<f8"), ("peak_error_pct", "<f8"),
-                      ("gain", "<f8"), ("seconds", "<f8")])
+ITERATION = np.dtype([("index", "<i4"), ("run", "S8"), ("level_db", "<f8"), ("rms_error_pct", "<f8"),
+                      ("peak_error_pct", "<f8"),
+                      *[(f"{axis}_{part}", "<f8") for axis in AXES for part in ("rms_error_pct", "peak_error_pct",
+                                                                                  "trac")],
+                      ("fall_line_trac", "<f8"), ("psa_error_max_pct", "<f8"), ("psa_error_mean_pct", "<f8"),
+                      ("peak_to_limit", "<f8"), ("gain", "<f8"), ("seconds", "<f8")])
 RESPONSE = np.dtype([("f", "<f8"), *[(f"{axis}_{part}", "<f8") for axis in AXES
-                                       for part in ("h_re", "h_im", "coherence")]])
+                                       for part in ("h_re", "h_im", "coherence")], ("condition", "<f8")])
 
 
-def response_rows(response: FrequencyResponse) -> np.ndarray:
-    """The `RESPONSE` rows of a frequency response."""
+def response_rows(response: FrequencyResponse | MimoResponse) -> np.ndarray:
+    """The `RESPONSE` rows of a per-axis or matrix response (its direct terms)."""
     rows = np.zeros(len(response.f), RESPONSE)
     rows["f"] = response.f
+    direct = response.h if response.h.ndim == 2 else np.diagonal(response.h, axis1=1, axis2=2)
     for k, axis in enumerate(AXES):
-        rows[f"{axis}_h_re"] = response.h[:, k].real
-        rows[f"{axis}_h_im"] = response.h[:, k].imag
+        rows[f"{axis}_h_re"] = direct[:, k].real
+        rows[f"{axis}_h_im"] = direct[:, k].imag
         rows[f"{axis}_coherence"] = response.coherence[:, k]
+    if isinstance(response, MimoResponse):
+        rows["condition"] = response.condition
     return rows
+
+
+def iteration_row(it: Iteration, run: str) -> np.ndarray:
+    """One `ITERATION` row."""
+    row = np.zeros((), ITERATION)
+    m = it.measures
+    values = {"index": it.index, "run": run.encode(), "level_db": it.level_db, "rms_error_pct": it.rms_error_pct,
+              "peak_error_pct": it.peak_error_pct, "fall_line_trac": m.fall_line["trac"],
+              "psa_error_max_pct": m.psa_error_max_pct, "psa_error_mean_pct": m.psa_error_mean_pct,
+              "peak_to_limit": m.peak_to_limit, "gain": it.gain, "seconds": it.seconds}
+    for axis in AXES:
+        values.update({f"{axis}_{key}": value for key, value in m.axes[axis].items()})
+    for key, value in values.items():
+        row[key] = math.nan if value is None else value
+    return row
 
 
 def response_from_rows(rows: np.ndarray, band: tuple[float, float]) -> FrequencyResponse:
@@ -57,11 +86,13 @@ def response_from_rows(rows: np.ndarray, band: tuple[float, float]) -> Frequency
 
 
 def write(path: Path, *, record: str, angle_deg: float, identification_run: str, iteration_runs: list[str],
-          response: FrequencyResponse, result: Compensation, t: np.ndarray, drive_file: str) -> None:
+          result: Compensation, t: np.ndarray, drive_file: str) -> None:
     """Replace the session's ``/compensation`` group (module docstring)."""
     from rig.analyze.store import locked
 
-    motion = result.motion
+    motion, response = result.motion, result.response
+    if response is None:
+        raise ValueError("the compensation carries no response to store")
     with locked(Path(path)) as file, file.transaction() as h5:
         if GROUP in h5:
             del h5[GROUP]
@@ -70,12 +101,13 @@ def write(path: Path, *, record: str, angle_deg: float, identification_run: str,
             "schema": SCHEMA, "record": record, "angle_deg": float(angle_deg),
             "identification_run": identification_run, "runs": json.dumps(iteration_runs), "best": result.best,
             "converged": bool(result.converged), "stopped": result.stopped, "drive_file": drive_file,
-            "band_hz": np.array(response.band, dtype=float)})
+            "band_hz": np.array(response.band, dtype=float), "law": result.law})
         group.create_dataset("response", data=response_rows(response))
+        if isinstance(response, MimoResponse):
+            group.create_dataset("response_matrix", data=response.h)
         rows = np.zeros(len(result.iterations), ITERATION)
         for k, it in enumerate(result.iterations):
-            rows[k] = (it.index, iteration_runs[k].encode() if k < len(iteration_runs) else b"",
-                       it.rms_error_pct, it.peak_error_pct, it.gain, it.seconds)
+            rows[k] = iteration_row(it, iteration_runs[k] if k < len(iteration_runs) else "")
         group.create_dataset("iterations", data=rows)
         group.create_dataset("t", data=np.asarray(t)[motion])
         group.create_dataset("target", data=result.target[motion])
@@ -96,17 +128,3 @@ def read(path: str | os.PathLike[str]) -> dict[str, Any] | None:
         out.update({key: group[key][()] for key in ("response", "iterations", "t", "target", "achieved")})
         return out
 
-
-def summary(group: object) -> dict[str, object]:
-    """The group's attributes and iterations as plain JSON values (for reports and ``--json``)."""
-    from rig.session.reader import plain
-
-    attrs = {key: plain(group.attrs[key]) for key in group.attrs}  # type: ignore[attr-defined]
-    rows = group["iterations"][()]  # type: ignore[index]
-    attrs["iterations"] = [{"index": int(r["index"]), "run": r["run"].decode(),
-                            "rms_error_pct": float(r["rms_error_pct"]), "peak_error_pct": float(r["peak_error_pct"]),
-                            "gain": float(r["gain"]), "seconds": float(r["seconds"])} for r in rows]
-    if isinstance(attrs.get("runs"), str):
-        attrs["runs"] = json.loads(attrs["runs"])
-    attrs["angle_deg"] = float(attrs.get("angle_deg", math.nan))
-    return attrs

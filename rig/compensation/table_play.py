@@ -2,8 +2,9 @@
 
 Each play is one run of the session (``SessionLog.begin_run``: the commanded trajectory, the table's feedback
 recorded by :class:`~rig.orchestrator.recorder.RunRecorder`), with the run attributes ``compensation`` (``"identify"``
-or ``"iterate"``) and ``iteration`` (0: the drive as prepared), and — for the iterations — the fall-line
-``rms_error_pct`` and ``peak_error_pct`` against the target, set when the run ends. The table is tilted to the
+or ``"iterate"``) and ``iteration`` (0: the drive as prepared), and — for the iterations — its ``level_db`` (the
+drive's scale against the target's) and the fall-line ``rms_error_pct`` and ``peak_error_pct`` against the target
+at that level, set when the run ends. The table is tilted to the
 drive's angle before (SET_TILT) and held there; the drives start and end at that tilt.
 """
 
@@ -89,8 +90,10 @@ class TablePlayer:
         force = on_grid(rows, drive.t)
         extra: dict[str, Any] = {"underruns": report.underruns, "t_start_controller_ns": report.t_start_ns}
         if self.target is not None:
+            level = drive.scale_factor / self.target.scale_factor
+            extra["level_db"] = 20.0 * math.log10(level)
             _, extra["rms_error_pct"], extra["peak_error_pct"] = fall_line_errors(
-                self.target, base_accelerations(force, drive.angle))
+                self.target, base_accelerations(force, drive.angle) / level)
         run_log.end("completed", **extra)
         return force
 

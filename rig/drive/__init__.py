@@ -5,6 +5,6 @@ chain, `rig.drive.tilt` the jerk-limited tilt ramp and `rig.drive.file` a prepar
 an HDF5 file a sequence plays.
 """
 
-from .prepare import Drive, DriveError, DriveRefusedError, Governing, prepare_drive
+from .prepare import Drive, DriveError, DriveRefusedError, Governing, parse_headroom, prepare_drive
 
-__all__ = ["Drive", "DriveError", "DriveRefusedError", "Governing", "prepare_drive"]
+__all__ = ["Drive", "DriveError", "DriveRefusedError", "Governing", "parse_headroom", "prepare_drive"]

@@ -12,6 +12,13 @@ once tilted), the second horizontal component (``acc_h2``) **lateral**, the vert
 **heave**; an absent component leaves its axis at home. Translations are in the base (world) frame: the
 table reproduces the horizontal ground motion while its plate is tilted by pitch = +β.
 
+**Headroom.** ``headroom`` h (0 by default; ``rig prepare --headroom 10%``, a sequence's ``headroom_pct``) is the
+margin the scale factor leaves on every limit: each axis's displacement, velocity and acceleration peak stays within
+(1 − h) × Table IV, and the legs' excursion from their lengths at the static tilt within (1 − h) of the stroke left
+on that side and their speed within (1 − h) × the leg speed (the motion scaled down once more when the legs bind
+first, their excursion being linear in the scale to first order). It is the room drive compensation needs: a
+correction that asks 0.61 g of a drive scaled to 0.6 g has nowhere to go.
+
 **Corner frequency.** The high-pass is what fits the stroke: the corner is the lowest of the candidates
 ``fc_min · 2^(k/4)`` (up to ``fc_max``) at which displacement no longer limits the scale factor more than
 velocity or acceleration do — so as much long-period motion as the stroke allows is kept, and the scale
@@ -48,6 +55,8 @@ FC_MIN = 0.1
 FC_MAX = 5.0
 #: Seconds held at the tilt before and after the motion.
 SETTLE_SECONDS = 1.0
+#: Largest headroom accepted (a share of every limit).
+HEADROOM_MAX = 0.5
 
 
 class DriveError(ValueError):
@@ -98,6 +107,7 @@ class Drive:
         highpass_pga_ratio: per driven axis, peak acceleration after / before the high-pass (unscaled).
         components: the driven axes.
         table: the table model the drive was checked against.
+        headroom: the margin left on every limit by the scale factor (a share, 0 ≤ h < 1).
     """
 
     record: str
@@ -116,6 +126,7 @@ class Drive:
     highpass_pga_ratio: dict[str, float]
     components: tuple[str, ...]
     table: TableModel = field(repr=False)
+    headroom: float = 0.0
 
     @property
     def duration(self) -> float:
@@ -135,6 +146,7 @@ class Drive:
             "record": self.record,
             "angle_deg": math.degrees(self.angle),
             "scale_factor": self.scale_factor,
+            "headroom": self.headroom,
             "governing": {
                 "axis": gov.axis, "quantity": gov.quantity, "binding": gov.binding,
                 "peak": gov.peak * to_user[gov.quantity], "limit": gov.limit * to_user[gov.quantity],
@@ -224,18 +236,33 @@ def choose_corner(components: dict[str, np.ndarray], dt: float, limits: TableLim
     return float(fc), processed
 
 
-def _scale(peaks: dict[str, dict[str, float]], limits: TableLimits, requested: float | None
+def parse_headroom(text: str | float) -> float:
+    """A headroom given as a share (``0.1``) or in percent (``"10%"``) → the share, in [0, `HEADROOM_MAX`]."""
+    raw = str(text).strip()
+    try:
+        value = float(raw[:-1]) / 100.0 if raw.endswith("%") else float(raw)
+    except ValueError:
+        raise DriveError(f"headroom {text!r}: expected a share such as 0.1 or a percentage such as 10%") from None
+    if not 0.0 <= value <= HEADROOM_MAX:
+        raise DriveError(f"headroom {text!r}: expected 0 to {HEADROOM_MAX:.0%} of every limit")
+    return value
+
+
+def _scale(peaks: dict[str, dict[str, float]], limits: TableLimits, requested: float | None, headroom: float = 0.0
            ) -> tuple[float, Governing]:
-    """The scale factor (largest ≤ 1, or ``requested`` if it fits) and the governing limit."""
+    """The scale factor (largest ≤ 1 leaving ``headroom`` on every limit, or ``requested`` if it fits) and the
+    governing limit."""
     ratio, axis, quantity = _ratios(peaks, limits)[0]
+    ratio *= 1.0 - headroom
     governing = Governing(axis, quantity, peaks[axis][quantity], getattr(limits.axis(axis), quantity), ratio <= 1.0)
     largest = min(1.0, ratio)
     if requested is None:
         return largest, governing
     if not 0.0 < requested <= largest * (1.0 + 1e-12):
+        margin = f" less the headroom {headroom:.0%}" if headroom else ""
         raise DriveError(
             f"scale factor {requested:g} is outside (0, {largest:.4g}]: {axis} {quantity} would reach "
-            f"{requested * governing.peak:.4g} against the limit {governing.limit:.4g} (SI units)"
+            f"{requested * governing.peak:.4g} against the limit {governing.limit:.4g}{margin} (SI units)"
         )
     return requested, governing
 
@@ -244,7 +271,7 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
                   scale: float | None = None, corner: float | None = None, rate: float | None = None,
                   settle: float = SETTLE_SECONDS, order: int = processing.FILTER_ORDER,
                   baseline_degree: int = processing.BASELINE_DEGREE, taper: float = processing.TAPER_SECONDS,
-                  fc_min: float = FC_MIN, fc_max: float = FC_MAX, ramps: bool = True) -> Drive:
+                  fc_min: float = FC_MIN, fc_max: float = FC_MAX, ramps: bool = True, headroom: float = 0.0) -> Drive:
     """Prepare ``motion`` for the table at static tilt ``angle`` [rad] (see the module docstring).
 
     Args:
@@ -272,6 +299,8 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
         raise DriveError(
             f"angle {math.degrees(angle):g}° is beyond the table's tilt limit ±{math.degrees(limits.tilt.angle):g}°"
         )
+    if not 0.0 <= headroom <= HEADROOM_MAX:
+        raise DriveError(f"headroom {headroom!r}: expected 0 to {HEADROOM_MAX:g} of every limit")
     if not rate > 0.0 or settle < 0.0:
         raise DriveError(f"rate must be > 0 Hz and settle >= 0 s, got {rate!r} Hz and {settle!r} s")
     opts = {"order": order, "baseline_degree": baseline_degree, "taper": taper}
@@ -287,25 +316,48 @@ def prepare_drive(motion: GroundMotion, *, angle: float = 0.0, table: TableModel
     except ValueError as exc:  # a corner above Nyquist, a dt that does not resample to the rate
         raise DriveError(f"record {motion.name!r}: {exc}") from None
     unscaled_peaks = _peaks(channels)
-    scale_factor, governing = _scale(unscaled_peaks, limits, scale)
+    scale_factor, governing = _scale(unscaled_peaks, limits, scale, headroom)
     pga_ratio = {
         axis: float(np.max(np.abs(processed[axis].acceleration)) / np.max(np.abs(acc))) if np.any(acc) else 1.0
         for axis, acc in components.items()
     }
     pad_seconds = next(iter(processed.values())).pad * dt
-    peaks = {axis: {q: 0.0 for q in QUANTITIES} for axis in AXES}
-    for axis, by_quantity in unscaled_peaks.items():
-        peaks[axis] = {q: scale_factor * v for q, v in by_quantity.items()}
-    return _assemble(motion.name, channels, pad_seconds, angle, rate, settle, scale_factor, governing, fc,
-                     pga_ratio, peaks, table, ramps)
+    def assemble(factor: float) -> Drive:
+        peaks = {axis: {q: 0.0 for q in QUANTITIES} for axis in AXES}
+        for axis, by_quantity in unscaled_peaks.items():
+            peaks[axis] = {q: factor * v for q, v in by_quantity.items()}
+        return _assemble(motion.name, channels, pad_seconds, angle, rate, settle, factor, governing, fc,
+                         pga_ratio, peaks, table, ramps, headroom)
+
+    if headroom > 0.0:
+        legs = _leg_usage(_assemble(motion.name, channels, pad_seconds, angle, rate, settle, scale_factor, governing,
+                                    fc, pga_ratio, {}, table, ramps, headroom, check=False))
+        if legs > 1.0 - headroom:
+            if scale is not None:
+                raise DriveError(f"scale factor {scale:g}: the legs would use {legs:.1%} of their stroke or speed, "
+                                 f"more than the {1.0 - headroom:.0%} the headroom leaves")
+            scale_factor *= (1.0 - headroom) / legs
+    return assemble(scale_factor)
+
+def _leg_usage(drive: Drive) -> float:
+    """The largest share of the legs' room the drive's motion uses [-]: each leg's excursion from its length at the
+    static tilt against the stroke left on that side, and its speed against the leg speed."""
+    g = drive.table.geometry
+    still = drive.poses.copy()
+    still[:, :3] = 0.0
+    lengths, rest = drive.table.leg_lengths(drive.poses), drive.table.leg_lengths(still)
+    room = np.where(lengths >= rest, g.leg_max - rest, rest - g.leg_min)
+    stroke = float(np.max(np.abs(lengths - rest) / room))
+    speed = float(np.max(np.abs(drive.table.leg_velocities(drive.poses, drive.velocities)))) / g.leg_speed
+    return max(stroke, speed)
 
 
 def _assemble(record: str, channels: dict[str, processing.ProcessedChannel], pad_seconds: float, angle: float,
               rate: float, settle: float, scale_factor: float, governing: Governing, fc: float,
               pga_ratio: dict[str, float], peaks: dict[str, dict[str, float]], table: TableModel,
-              ramps: bool) -> Drive:
-    """Ramp up, hold, motion, hold, ramp down, home (without ``ramps``: hold, motion, hold at the tilt) — then the
-    check against the table model."""
+              ramps: bool, headroom: float = 0.0, check: bool = True) -> Drive:
+    """Ramp up, hold, motion, hold, ramp down, home (without ``ramps``: hold, motion, hold at the tilt) — then, with
+    ``check``, the check against the table model."""
     if ramps:
         ramp_time = tilt.ramp_duration(angle, table.limits.tilt, rate)
         up = tilt.ramp(0.0, angle, ramp_time, rate)
@@ -333,8 +385,10 @@ def _assemble(record: str, channels: dict[str, processing.ProcessedChannel], pad
         record=record, angle=angle, rate=rate, t=t, poses=poses, velocities=velocities,
         accelerations=accelerations, scale_factor=scale_factor, governing=governing, corner_frequency=fc,
         record_start=first / rate + pad_seconds, motion=(first / rate, (first + n_motion) / rate),
-        peaks=peaks, highpass_pga_ratio=pga_ratio, components=tuple(channels), table=table,
+        peaks=peaks, highpass_pga_ratio=pga_ratio, components=tuple(channels), table=table, headroom=headroom,
     )
+    if not check:
+        return drive
     violation = table.check_trajectory(t, poses, velocities, accelerations)
     if violation is not None:
         raise DriveRefusedError(record, violation)

@@ -48,7 +48,7 @@ def _errors_png(rows: np.ndarray) -> bytes:
         ax.plot(rows["index"], rows["rms_error_pct"], "o-", color="C0", label="RMS error")
         ax.plot(rows["index"], rows["peak_error_pct"], "s--", color="C3", label="peak error")
         ax.axhline(5.0, color="0.4", ls=":", lw=0.8)
-        ax.set_xlabel("iteration (0: drive as prepared)")
+        ax.set_xlabel("play (0: drive as prepared, at the ramp's first level)")
         ax.set_ylabel("fall-line error [%]")
         ax.set_xticks(rows["index"])
         ax.legend(frameon=False)
@@ -77,6 +77,11 @@ def _history_png(t: np.ndarray, target: np.ndarray, before: np.ndarray, after: n
         return figures.png(fig)
 
 
+def _cell(row: np.void, name: str, fmt: str) -> str:
+    """A number of an iteration row, "–" in a session written before it was stored (compensation/1)."""
+    return num(row[name], fmt) if name in (row.dtype.names or ()) else "–"
+
+
 def compensation_section(path: Any) -> str:
     """The section's HTML, or "" when the session has no ``/compensation`` group."""
     stored = compensation_store.read(path)
@@ -89,18 +94,28 @@ def compensation_section(path: Any) -> str:
     parts = ["<h2>Drive compensation</h2>", key_values([
         ("record", esc(attrs.get("record"))), ("plate angle", f"{num(attrs.get('angle_deg'), 'g')}°"),
         ("identification run", esc(attrs.get("identification_run"))),
-        ("iterations", f"{len(rows) - 1} correction(s); best: iteration {best}"),
+        ("update law", esc(attrs.get("law", "diagonal"))),
+        ("plays", f"{len(rows)} ({len(rows) - 1} correction(s)); best: play {best}"),
         ("converged", f"{bool(attrs.get('converged'))} ({esc(attrs.get('stopped'))})"),
         ("compensated drive", esc(attrs.get("drive_file")))])]
     parts.append(figure(_response_png(response, band), (
-        f"The table's measured frequency response from the identification run: H1 = S<sub>xy</sub>/S<sub>xx</sub> "
-        f"from commanded to measured base-frame acceleration per axis, magnitude, phase and coherence γ², "
-        f"{band[0]:g}–{band[1]:g} Hz."), alt="frequency response"))
-    parts.append(table(["iteration", "run", "RMS error [%]", "peak error [%]", "gain", "time [s]"], [
-        [int(r["index"]), r["run"].decode(), num(r["rms_error_pct"], ".2f"), num(r["peak_error_pct"], ".1f"),
+        f"The table's measured frequency response (identification run, re-estimated with every play under the mimo "
+        f"law): H1 from commanded to measured base-frame acceleration, its direct term per axis, magnitude, phase and "
+        f"coherence γ² (multiple coherence under the mimo law), {band[0]:g}–{band[1]:g} Hz."),
+        alt="frequency response"))
+    parts.append(table(["play", "run", "level [dB]", "RMS error [%]", "peak error [%]", "TRAC",
+                        "5 % PSA error max / mean [%]", "RMS error surge / lateral / heave [%]", "peak / limit",
+                        "gain", "time [s]"], [
+        [int(r["index"]), r["run"].decode(), _cell(r, "level_db", "g"), num(r["rms_error_pct"], ".2f"),
+         num(r["peak_error_pct"], ".1f"), _cell(r, "fall_line_trac", ".4f"),
+         f"{_cell(r, 'psa_error_max_pct', '.1f')} / {_cell(r, 'psa_error_mean_pct', '.1f')}",
+         " / ".join(_cell(r, f"{axis}_rms_error_pct", ".1f") for axis in AXES), _cell(r, "peak_to_limit", ".2f"),
          num(r["gain"], "g"), num(r["seconds"], ".1f")] for r in rows],
-        caption="Fall-line error per iteration: RMS(achieved − target)/RMS(target) and max|achieved − target|/"
-                "max|target| over the record's motion", left=2))
+        caption="Error per play (the first ones ramp up in level): fall-line RMS(achieved − target)/RMS(target) and "
+                "max|achieved − target|/max|target| over the record's motion, the time response assurance criterion "
+                "(tᵀa)²/((tᵀt)(aᵀa)), the 5 % damped response spectrum's largest and mean error over the compensated "
+                "band, the RMS error per axis (of the fall line's RMS on an axis the record leaves at rest), the "
+                "largest acceleration against its Table IV limit (docs/compensation.md)", left=2))
     parts.append(figure(_errors_png(rows), "Fall-line RMS and peak error per iteration [%]; dotted: 5 %.",
                         alt="error per iteration"))
     if len(achieved):

@@ -34,6 +34,7 @@ seconds, ``_hz`` Hz. Top-level keys come first: in TOML every key after a ``[sec
     [drive]                                   # drive preparation for every record
     settle_s = 1.0                            # held at the tilt before and after the motion
     corner_hz = 1.0                           # fixed high-pass corner; default automatic (as rig prepare)
+    headroom_pct = 10                         # margin the scale factor leaves on every limit (default 0)
 
     [operator]
     place_bodies = "Place the bodies at their marks ({angle_deg:g}°)"   # also {bodies}, {sequence}

@@ -258,13 +258,17 @@ class OperatorSteps:
 @dataclass(frozen=True)
 class DriveOptions:
     """Drive preparation options for every record: ``settle`` [s] held at the tilt before and after the
-    motion, ``corner`` [Hz] a fixed high-pass corner (None: automatic, as ``rig prepare``)."""
+    motion, ``corner`` [Hz] a fixed high-pass corner (None: automatic, as ``rig prepare``), ``headroom`` the margin
+    the scale factor leaves on every limit (a share; ``headroom_pct`` in the file, ``rig prepare --headroom``)."""
 
     settle: float = SETTLE_SECONDS
     corner: float | None = None
+    headroom: float = 0.0
 
     def to_dict(self) -> dict[str, Any]:
         out: dict[str, Any] = {"settle_s": self.settle}
+        if self.headroom:
+            out["headroom_pct"] = 100.0 * self.headroom
         if self.corner is not None:
             out["corner_hz"] = self.corner
         return out

@@ -20,7 +20,7 @@ from analysis.body import TABLE_V, Body
 from analysis.table.model import TableModel, TableModelError
 from analysis.table.toml_check import TomlChecker, TomlFileError, read_toml, shown
 from analysis.table.toml_lines import KeyPath, dotted_path, suggest
-from rig.drive.prepare import FC_MAX, FC_MIN
+from rig.drive.prepare import FC_MAX, FC_MIN, HEADROOM_MAX
 from rig.records.source import DT_MAX_S, DT_MIN_S, MAX_DURATION_S
 
 from .model import (
@@ -198,7 +198,7 @@ class _Reader(TomlChecker):
 
     def drive(self, value: Any) -> DriveOptions:
         path: KeyPath = ("drive",)
-        drive = self.table(value, path, ("settle_s", "corner_hz"))
+        drive = self.table(value, path, ("settle_s", "corner_hz", "headroom_pct"))
         options = DriveOptions()
         settle = options.settle
         if "settle_s" in drive:
@@ -206,7 +206,11 @@ class _Reader(TomlChecker):
         corner = None
         if "corner_hz" in drive:
             corner = self.quantity(drive["corner_hz"], (*path, "corner_hz"), "corner_hz")
-        return DriveOptions(settle=settle, corner=corner)
+        headroom = options.headroom
+        if "headroom_pct" in drive:
+            headroom = self.ranged(drive["headroom_pct"], (*path, "headroom_pct"), 0.0, 100 * HEADROOM_MAX,
+                                   "a percentage") / 100
+        return DriveOptions(settle=settle, corner=corner, headroom=headroom)
 
     def operator(self, value: Any) -> OperatorSteps:
         path: KeyPath = ("operator",)

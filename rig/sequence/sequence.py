@@ -130,7 +130,7 @@ class Sequence:
         corner = entry.corner if entry.corner is not None else self.drive.corner
         try:
             return prepare_drive(motion, angle=run.angle, table=self.table, scale=entry.scale, corner=corner,
-                                 settle=self.drive.settle, ramps=False)
+                                 settle=self.drive.settle, ramps=False, headroom=self.drive.headroom)
         except DriveRefusedError as exc:
             raise self.record_error(entry, f"at β = {run.angle_deg:g}° the drive leaves the table: "
                                            f"{exc.violation.message()}") from None

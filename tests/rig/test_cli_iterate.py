@@ -16,7 +16,7 @@ from rig.drive.file import load_drive
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 ITERATE = ["fema:KOBE/NIS000", "--angle", "4", "--emulate", "--window", "5,10", "--corner", "1",
-           "--identify-seconds", "10", "--iterations", "1"]
+           "--identify-seconds", "10", "--iterations", "1", "--levels", "-6,0"]
 
 
 def _rig(*args: str) -> subprocess.CompletedProcess[str]:
@@ -30,24 +30,28 @@ def test_iterate_on_the_emulator(tmp_path):
     done = _rig("iterate", *ITERATE, "-o", str(session), "--json")
     assert done.returncode == 0, done.stderr
     out = json.loads(done.stdout)
-    assert set(out) >= {"iterations", "converged", "drive"}
+    assert set(out) >= {"iterations", "converged", "drive"} and out["law"] == "mimo"
     errors = [it["rms_error_pct"] for it in out["iterations"]]
     assert len(errors) == 2 and errors[0] > 10.0 and errors[1] < errors[0]
-    assert all(it["peak_error_pct"] >= 0 for it in out["iterations"])
+    assert [it["level_db"] for it in out["iterations"]] == [-6.0, 0.0]
+    for it in out["iterations"]:
+        assert it["peak_error_pct"] >= 0 and 0 < it["fall_line"]["trac"] <= 1 and it["psa_error_max_pct"] >= 0
+        assert set(it["axes"]) == {"surge", "lateral", "heave"} and it["peak_to_limit"] <= 1.0
     with h5py.File(session, "r") as h5:
         runs = sorted(h5["runs"])
         assert len(runs) == 3 and h5["runs"][runs[0]].attrs["compensation"] == "identify"
         for name, err in zip(runs[1:], errors, strict=True):
-            assert h5["runs"][name].attrs["rms_error_pct"] == pytest.approx(err)
+            assert h5["runs"][name].attrs["rms_error_pct"] == pytest.approx(err, rel=1e-6)
         group = h5["compensation"]
         assert group["iterations"].shape == (2,) and group["achieved"].shape[0] == 2
-        assert group["response"]["surge_coherence"].max() > 0.9
+        assert group["response"]["surge_coherence"].max() > 0.9 and group["response_matrix"].shape[1:] == (3, 3)
+        assert list(group["iterations"]["level_db"]) == [-6.0, 0.0]
     drive = load_drive(out["drive"])
     assert drive.angle == pytest.approx(0.0698, abs=1e-4)
     report = _rig("report", str(session), "-o", str(tmp_path / "s.html"), "--json")
     assert report.returncode == 0, report.stderr
     html = (tmp_path / "s.html").read_text()
-    assert "Drive compensation" in html and "coherence" in html
+    assert "Drive compensation" in html and "coherence" in html and "TRAC" in html
 
 
 def test_iterate_refuses_bad_input(tmp_path):
@@ -55,4 +59,8 @@ def test_iterate_refuses_bad_input(tmp_path):
     assert done.returncode == 2 and "either --table URL or --emulate" in done.stderr
     done = _rig("iterate", "fema:NO/SUCH", "--angle", "4", "--emulate")
     assert done.returncode == 2 and "NO/SUCH" in done.stderr
+    for option, value in (("--law", "lms"), ("--levels", "-6,-12"), ("--levels", "-12,-6"), ("--speed", "fast"),
+                          ("--headroom", "70%")):
+        done = _rig("iterate", "fema:KOBE/NIS000", "--emulate", option, value)
+        assert done.returncode == 2 and option.lstrip("-") in done.stderr, (option, done.stderr)
     assert not list(tmp_path.iterdir())
