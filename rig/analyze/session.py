@@ -151,7 +151,8 @@ def _analyze_rules(run: dict[str, Any], models: Sequence[str], solver: str, sens
         return done[0][1]
     first = done[0][1]
     predictions = [replace(p, model=rule_label(p.model, rule)) for rule, ra in done for p in ra.predictions]
-    return replace(first, predictions=predictions)
+    skipped = list(dict.fromkeys(body for _, ra in done for body in ra.skipped_bodies))
+    return replace(first, predictions=predictions, skipped_bodies=skipped)
 
 
 def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS, solver: str = "fast", *,
