@@ -44,13 +44,18 @@ overturned, ``p_overturn`` McNemar's p on those two. The average row sums the co
 (pairs of different bodies share records: not independent).
 **max_difference** per model: the largest |difference| over the per-body rows
 (the paper: "a maximum of 5 % difference … for a given angle and specific body"), None if none is defined.
+
+**Impact rules side by side** (``rig analyze --restitution all``): a model run under each impact rule is one
+analysis, its ``model`` the label ``model:rule`` (:func:`rule_label`: ``rocking:plastic``, ``rocking:housner``,
+``rocking:fit``); :func:`side_by_side` puts the rules' rows of one model, angle and body together.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Mapping
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 
@@ -152,6 +157,29 @@ class Fig13Row:
     def to_json(self) -> dict:
         """JSON-ready (NaN → None)."""
         return {k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in asdict(self).items()}
+
+
+def rule_label(model: str, rule: str) -> str:
+    """The label of ``model`` run under impact ``rule`` (``rig analyze --restitution all``): ``"rocking:fit"``."""
+    return f"{model}:{rule}"
+
+
+def split_label(label: str) -> tuple[str, str]:
+    """(model, rule) of a :func:`rule_label`; a plain model name gives (model, "")."""
+    model, _, rule = label.partition(":")
+    return model, rule
+
+
+def side_by_side(rows: Iterable[Mapping[str, Any]]) -> list[tuple[str, float, int, dict[str, Mapping[str, Any]]]]:
+    """The rows (`Fig13Row.to_json` or the stored ``fig13`` records) of models run under several impact rules,
+    grouped: (model, angle_deg, body_id, {rule: row}) per model, angle and body, in the order first seen (rows
+    of a plain model name go under rule "")."""
+    out: dict[tuple[str, float, int], dict[str, Mapping[str, Any]]] = {}
+    for row in rows:
+        model, rule = split_label(str(row["model"]))
+        key = (model, round(float(row["angle_deg"]), ANGLE_DIGITS), int(row["body_id"]))
+        out.setdefault(key, {})[rule] = row
+    return [(model, angle, body_id, by_rule) for (model, angle, body_id), by_rule in out.items()]
 
 
 def verdict_words(verdict: str, body_id: int, runs: int, runs_to_resolve: int) -> str:

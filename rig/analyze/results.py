@@ -140,9 +140,11 @@ class SessionAnalysis:
     models: tuple[str, ...]
     solver: str
     restitution: str
-    """The models' impact rule as given: ``"0.0"`` (plastic, the paper's), ``"housner"``, a number or ``"fit"``."""
+    """The models' impact rule as given: ``"0.0"`` (plastic, the paper's), ``"housner"``, a number, ``"fit"``, or
+    ``"all"`` (the three rules side by side: ``models`` then holds the labels ``model:rule``,
+    `rig.analyze.fig13.rule_label`)."""
     fitted_restitution: dict[int, BodyRestitution]
-    """With ``"fit"``: each body's restitution and where it came from (empty otherwise)."""
+    """With ``"fit"`` or ``"all"``: each body's restitution and where it came from (empty otherwise)."""
     runs: list[RunAnalysis]
     skipped: list[SkippedRun]
     margin: float

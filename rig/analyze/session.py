@@ -6,9 +6,11 @@ For every ``completed`` run (others are skipped and listed with their status: ``
 (`rig.analyze.transform`), then every body of the run's ``bodies`` table and every model through
 ``analysis.simulate`` at the run's angle (plastic impacts and the general model's default high friction, as in
 the paper's analysis; ``restitution`` can change the impact rule, ``"fit"`` identifies each body's from its
-measured tilts: `rig.analyze.restitution`). The observed direction of a body is its first
-detection in the run (sensor or operator), 0 if none. The Fig. 13 table and its COR definition:
-`rig.analyze.fig13`; the file layout: `rig.analyze.store`.
+measured tilts: `rig.analyze.restitution`; ``"all"`` runs the models under the three impact rules
+:data:`IMPACT_RULES`, plastic, Housner's and fitted, side by side: each model under each rule is one analysis,
+labelled ``model:rule``, e.g. ``rocking:fit``, wherever a model's name stands — predictions, Fig. 13 rows,
+agreement). The observed direction of a body is its first detection in the run (sensor or operator), 0 if none.
+The Fig. 13 table and its COR definition: `rig.analyze.fig13`; the file layout: `rig.analyze.store`.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -26,6 +29,7 @@ from rig.sequence import record_of_label
 from rig.session import read_session
 
 from . import fig13, store
+from .fig13 import rule_label
 from .restitution import BodyRestitution, fitted_restitution
 from .results import Agreement, Prediction, RunAnalysis, SessionAnalysis, SkippedRun
 from .transform import TransformError, measured_inputs
@@ -34,6 +38,14 @@ MODELS = ("rocking", "general")
 SOLVERS = ("fast", "reference")
 ANALYSED_STATUSES = frozenset({"completed"})
 """Run statuses analysed by default (``degraded`` runs only when asked)."""
+
+ALL_RULES = "all"
+"""``restitution`` value that runs every model under each of :data:`IMPACT_RULES`."""
+
+IMPACT_RULES = ("plastic", "housner", "fit")
+"""The impact rules of ``restitution = "all"``, in the order they are shown: plastic (restitution 0, the
+paper's analysis), Housner's 1 − 1.5 sin²α, and each body's fitted from its measured tilts."""
+
 
 
 def observed_directions(detections: list[dict[str, Any]]) -> dict[int, tuple[int, float]]:
@@ -94,10 +106,12 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
     runs: list[RunAnalysis] = []
     skipped: list[SkippedRun] = []
     fitted: dict[int, BodyRestitution] = {}
-    impact: float | str | dict[int, float] = restitution
-    if restitution == "fit":
+    if restitution in ("fit", ALL_RULES):
         fitted = fitted_restitution(session["runs"])
-        impact = {body_id: body.value for body_id, body in fitted.items()}
+    rule_of = {"plastic": 0.0, "housner": "housner", "fit": {body_id: body.value for body_id, body in fitted.items()}}
+    rules: dict[str, float | str | dict[int, float]] = (
+        {rule: rule_of[rule] for rule in IMPACT_RULES} if restitution == ALL_RULES
+        else {"": rule_of["fit"] if restitution == "fit" else restitution})
     analysed = ANALYSED_STATUSES | ({"degraded"} if include_degraded else set())
     for run in session["runs"]:
         status = str(run["status"])
@@ -110,9 +124,10 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
             skipped.append(SkippedRun(run["name"], status, str(reason)))
             continue
         try:
-            runs.append(analyze_run(run, models, solver, sensor, impact))
+            runs.append(_analyze_rules(run, models, solver, sensor, rules))
         except TransformError as exc:
             skipped.append(SkippedRun(run["name"], status, str(exc)))
+    labels = tuple(rule_label(m, rule) if rule else m for m in models for rule in rules)
     predictions = [p for r in runs for p in r.predictions]
     angle = {r.run: r.angle_deg for r in runs}
     record = {r.run: record_of_label(r.record)[0] for r in runs}  # both polarities of a record: one cluster
@@ -121,10 +136,23 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
     rows = fig13.fig13_rows(cases, margin)
     diff = fig13.max_difference(rows)
     return SessionAnalysis(
-        path=str(path), models=models, solver=solver, restitution=str(restitution), fitted_restitution=fitted,
+        path=str(path), models=labels, solver=solver, restitution=str(restitution), fitted_restitution=fitted,
         runs=runs, skipped=skipped, margin=margin,
-        fig13=rows, max_difference={m: diff.get(m) for m in models},
-        agreement={m: Agreement.of(m, predictions) for m in models}, written=written)
+        fig13=rows, max_difference={m: diff.get(m) for m in labels},
+        agreement={m: Agreement.of(m, predictions) for m in labels}, written=written)
+
+
+def _analyze_rules(run: dict[str, Any], models: Sequence[str], solver: str, sensor: str | None,
+                   rules: Mapping[str, float | str | Mapping[int, float]]) -> RunAnalysis:
+    """`analyze_run` under each of ``rules`` ({rule: restitution}; one rule "" keeps the models' plain names),
+    the predictions of all in one `RunAnalysis`, each labelled `rig.analyze.fig13.rule_label`."""
+    done = [(rule, analyze_run(run, models, solver, sensor, impact)) for rule, impact in rules.items()]
+    if len(done) == 1:
+        return done[0][1]
+    first = done[0][1]
+    predictions = [replace(p, model=rule_label(p.model, rule)) for rule, ra in done for p in ra.predictions]
+    skipped = list(dict.fromkeys(body for _, ra in done for body in ra.skipped_bodies))
+    return replace(first, predictions=predictions, skipped_bodies=skipped)
 
 
 def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS, solver: str = "fast", *,
@@ -136,12 +164,12 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
 
     ``sensor``: use that accelerometer only (default: the mean of all). ``restitution``: the models' impact rule,
     0 (plastic, the paper's analysis: default), ``"housner"`` (1 − 1.5 sin²α, a rigid block's no-bounce impact)
-    a number in [0, 1], or ``"fit"``: each body's from the session's measured tilts (`rig.analyze.restitution`;
-    a body that hardly rocked gets Housner's). ``margin``: the equivalence margin of the Fig. 13 verdicts
-    [fraction, 0.05 = 5 points]. ``include_degraded``: also the runs logged ``degraded`` (left out by default,
-    each listed in ``skipped`` with what degraded it). Raises `AnalysisInputError` for a bad
-    model/solver/restitution, `rig.session.SessionError` for a file that cannot be read or (with ``write``) is being
-    written (`rig.analyze.store.SessionBusyError`).
+    a number in [0, 1], ``"fit"``: each body's from the session's measured tilts (`rig.analyze.restitution`;
+    a body that hardly rocked gets Housner's), or ``"all"``: the three side by side (module docstring).
+    ``margin``: the equivalence margin of the Fig. 13 verdicts [fraction, 0.05 = 5 points]. ``include_degraded``:
+    also the runs logged ``degraded`` (left out by default, each listed in ``skipped`` with what degraded it).
+    Raises `AnalysisInputError` for a bad model/solver/restitution, `rig.session.SessionError` for a file that
+    cannot be read or (with ``write``) is being written (`rig.analyze.store.SessionBusyError`).
     """
     models = tuple(dict.fromkeys(models))
     if not models or any(m not in MODELS for m in models):
@@ -150,7 +178,7 @@ def analyze_session(path: str | os.PathLike[str], models: Sequence[str] = MODELS
         raise AnalysisInputError(f"solver {solver!r}: expected one of {list(SOLVERS)}")
     if not 0.0 < margin < 1.0:
         raise AnalysisInputError(f"margin {margin!r}: expected a fraction in (0, 1) (0.05 = 5 points)")
-    if restitution != "fit":
+    if restitution not in ("fit", ALL_RULES):
         resolve_restitution(Body(b=0.1, h=0.5), restitution)  # a bad value fails here, not as skipped bodies
     path = Path(path)
     if not write:

@@ -85,6 +85,45 @@ def fig13_table(result: SessionAnalysis) -> Table:
     return table
 
 
+RULE_NAMES = {"plastic": "plastic", "housner": "Housner's", "fit": "fitted"}
+"""Column heads of the impact rules side by side (``--restitution all``)."""
+
+
+def rules_table(result: SessionAnalysis) -> Table:
+    """Fig. 13 with the models under plastic, Housner's and fitted restitution side by side (``--restitution
+    all``): per model, angle and body the experiment's COR, then per rule the analysis's COR and the verdict."""
+    from rig.analyze.fig13 import side_by_side, verdict_words
+
+    groups = side_by_side(row.to_json() for row in result.fig13)
+    rules = list(dict.fromkeys(rule for *_, by_rule in groups for rule in by_rule))
+    table = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — plastic, Housner's and fitted restitution side by side",
+                  caption=f"COR [%] [95 % interval]; verdict: equivalence of the analysis's COR with the experiment's "
+                          f"within ±{100 * result.margin:g} points (two one-sided tests at 5 %); the counts, "
+                          f"differences and McNemar tests per rule: --json, or rig report")
+    for name in ("model", "β°", "body", "COR E"):
+        table.add_column(name, justify="left" if name in ("model", "body") else "right")
+    for rule in rules:
+        table.add_column(f"COR A {RULE_NAMES.get(rule, rule)}", justify="right")
+        table.add_column(f"verdict {RULE_NAMES.get(rule, rule)}", justify="left")
+    for model, angle, body_id, by_rule in groups:
+        first = next(iter(by_rule.values()))
+        cells = []
+        for rule in rules:
+            row = by_rule.get(rule)
+            cells += ["–", "–"] if row is None else [
+                _rate(_nan(row["cor_analysis"]), _nan(row["cor_analysis_low"]), _nan(row["cor_analysis_high"])),
+                verdict_words(str(row["verdict"]), body_id, int(row["runs"]), int(row["runs_to_resolve"]))]
+        table.add_row(model, f"{angle:g}", "average" if body_id == 0 else str(body_id),
+                      _rate(_nan(first["cor_experiment"]), _nan(first["cor_experiment_low"]),
+                            _nan(first["cor_experiment_high"])), *cells, style="bold" if body_id == 0 else None)
+    return table
+
+
+def _nan(value: float | None) -> float:
+    """A JSON rate (None when undefined) as a float (NaN)."""
+    return math.nan if value is None else float(value)
+
+
 def _mcnemar(b: int, c: int, p: float) -> str:
     """Discordant counts and McNemar's exact p, ``–`` on the average row."""
     return "–" if math.isnan(p) else f"{b}/{c} p={p:.2f}"
@@ -114,7 +153,9 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
         for note in run.input.notes:
             console.print(f"  run {run.run}: {note}", highlight=False)
     console.print(predictions_table(result))
-    console.print(fig13_table(result))
+    from rig.analyze.session import ALL_RULES
+
+    console.print(rules_table(result) if result.restitution == ALL_RULES else fig13_table(result))
     for model in result.models:
         a = result.agreement[model]
         diff = result.max_difference.get(model)
@@ -138,8 +179,9 @@ def register(app: typer.Typer) -> None:
         model: Annotated[str, typer.Option(help="rocking | general | both")] = "both",
         solver: Annotated[str, typer.Option(help="fast | reference")] = "fast",
         restitution: Annotated[str, typer.Option(help="the models' impact rule: 0 (plastic, the paper's), "
-                                                      "'housner', a number in [0, 1], or 'fit' (each body's "
-                                                      "from its measured tilts)")] = "0",
+                                                      "'housner', a number in [0, 1], 'fit' (each body's "
+                                                      "from its measured tilts), or 'all' (plastic, Housner's "
+                                                      "and fitted side by side)")] = "0",
         sensor: Annotated[str | None, typer.Option(help="use this accelerometer only (default: the mean of all)")
                           ] = None,
         margin: Annotated[float, typer.Option(help="equivalence margin of the Fig. 13 verdicts [percentage "
@@ -157,10 +199,10 @@ def register(app: typer.Typer) -> None:
         if model not in MODEL_CHOICES:
             fail(f"--model {model!r}: expected one of {', '.join(MODEL_CHOICES)}")
         try:
-            impact: float | str = (restitution.lower() if restitution.lower() in ("housner", "fit")
+            impact: float | str = (restitution.lower() if restitution.lower() in ("housner", "fit", "all")
                                    else float(restitution))
         except ValueError:
-            fail(f"--restitution {restitution!r}: expected 0, 'housner', a number in [0, 1] or 'fit'")
+            fail(f"--restitution {restitution!r}: expected 0, 'housner', a number in [0, 1], 'fit' or 'all'")
         from analysis.errors import AnalysisInputError
         from rig.analyze import analyze_session
         from rig.session import SessionError
