@@ -68,8 +68,8 @@ def test_leg_strokes_at_home_are_the_hexapods_joint_distances() -> None:
     pose[:, 0] = np.linspace(0.0, 1.0, 5)
     legs = leg_strokes(pose, model.to_dict())
     assert legs is not None
-    by_hand = np.linalg.norm(np.asarray(g.platform_joints) + [0.0, 0.0, g.home_height] - np.asarray(g.base_joints),
-                             axis=1)
+    home = np.array([0.0, 0.0, g.home_height])
+    by_hand = np.linalg.norm(np.asarray(g.platform_joints) + home - np.asarray(g.base_joints), axis=1)
     np.testing.assert_allclose(legs.lengths, np.tile(by_hand, (5, 1)), rtol=1e-12)
     margins = {"leg_min": by_hand.min() - g.leg_min, "leg_max": g.leg_max - by_hand.max()}
     limit = min(margins, key=margins.__getitem__)
