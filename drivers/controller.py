@@ -30,6 +30,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from drivers.bodies import TableBody
 from drivers.heap import HeapHold
 
 T = TypeVar("T")
@@ -440,6 +441,11 @@ class TableController(ABC):
         """Stop the actuators at once (every state); only :meth:`arm` leaves ``emergency_stopped``."""
 
     # --- feedback
+
+    def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
+        """The bodies the controller reports on its plate (`drivers.bodies`), waiting at most ``timeout`` [s] for
+        them; None when this transport or controller does not report them."""
+        return None
 
     def status(self) -> TableStatus:
         """The latest status received (:class:`TableError` before the first)."""

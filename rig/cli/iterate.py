@@ -15,6 +15,7 @@ from typing import Annotated, Any
 import typer
 
 from rig.cli._common import EXIT_REFUSED, EXIT_STOPPED, console, emit_json, err_console, fail, print_error
+from rig.emulator import parse_speed, speed_flags
 
 
 def register(app: typer.Typer) -> None:
@@ -41,7 +42,9 @@ def register(app: typer.Typer) -> None:
         dynamics: Annotated[str, typer.Option(help="with --emulate: the legs' model, servo or lag")] = "servo",
         body: Annotated[list[str] | None, typer.Option(help="with --emulate: a specimen BxH@X,Y[;mass=M] on the "
                                                        "plate (repeat)")] = None,
-        speed: Annotated[float, typer.Option(help="with --emulate: controller time per real time")] = 1.0,
+        speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
+                                             help="with --emulate: controller time per real time, or max (virtual "
+                                                  "time: as fast as the emulator computes)")] = 1.0,
         key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                       "$SHAKETABLE_MAVLINK_KEY)")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
@@ -136,7 +139,7 @@ class _Table:
     def __init__(self, url: str | None, emulate: bool, key_file: Path | None, rig_config: Path | None,
                  dynamics: str, bodies: list[str], speed: float) -> None:
         self.url, self.emulate, self.key_file = url, emulate, key_file
-        self.flags = ["--dynamics", dynamics, "--speed", f"{speed:g}"]
+        self.flags = ["--dynamics", dynamics, *speed_flags(speed)]
         if rig_config is not None:
             self.flags += ["--rig-config", str(rig_config)]
         for spec in bodies:

@@ -53,6 +53,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             return drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
                                  yes=yes, console=console, key_file=key_file, speed=speed)
 
+    again = f"--console {http}" + (f" --key-file {key_file}" if key_file is not None else "")
     with tempfile.TemporaryDirectory(prefix="rig-console-") as scratch:
         if key_file is None and not os.environ.get(KEY_ENV):
             key_file = Path(scratch) / "session.key"
@@ -73,7 +74,9 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             with page:
                 console.print(f"operator console: {page.url} (operator token {token_from_key_file(key_file)})",
                               highlight=False)
+                # this service and console end with this command: a new one continues the session
                 return drive_service(endpoint, sequence, table=table, emulate=emulate, output=output, resume=resume,
-                                     yes=yes, console=console, key_file=key_file, speed=speed)
+                                     yes=yes, console=console, key_file=key_file, speed=speed,
+                                     resume_with=again)
         finally:
             service.close()
