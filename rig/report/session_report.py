@@ -13,6 +13,7 @@ when there are several (on the first one's time grid), as ``rig analyze`` takes 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -185,8 +186,9 @@ def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure |
         parts.append(table(["t [s]", "fault", "detail"],
                            [[num(f.get("t"), ".3f"), f.get("name", ""), f.get("detail", "")] for f in run.faults],
                            caption="Faults the table reported", left=3))
-    if run.events:
-        parts.append(table(["t [s]", "event"], [[num(e.get("t"), ".3f"), e.get("text", "")] for e in run.events],
+    events = run_events(run)
+    if events:
+        parts.append(table(["t [s]", "event"], [[num(t, ".3f"), text] for t, text in events],
                            caption="Events (degraded states, control requests; t – when not on the run's clock)",
                            left=2, wrap={1}))
     parts.append("</section>")
@@ -195,6 +197,24 @@ def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure |
                          _peak(a_cmd), _peak(a_meas), None if error is None else error.rms,
                          None if error is None else error.peak, overturns)
     return "\n".join(parts), summary
+
+
+def run_events(run: RunData) -> list[tuple[float | None, str]]:
+    """The run's events: its ``events`` dataset (t [s], text), then those of an ``events`` run attribute (a JSON
+    list of texts or of objects with ``t`` and ``text``: the degraded-state events a run may carry)."""
+    rows: list[tuple[float | None, str]] = [(e.get("t"), str(e.get("text", ""))) for e in run.events]
+    extra = run.attrs.get("events")
+    if isinstance(extra, str):
+        try:
+            extra = json.loads(extra)
+        except ValueError:
+            extra = [extra]
+    for item in extra if isinstance(extra, list) else []:
+        if isinstance(item, dict):
+            rows.append((item.get("t"), str(item.get("text") or item.get("event") or item)))
+        else:
+            rows.append((None, str(item)))
+    return rows
 
 
 def _tracking(run: RunData, error: Any, legs: Any, tracker: figures.TrackingFigure) -> str:

@@ -106,7 +106,8 @@ def make_session(path: Path) -> Path:
         run.add_fault(1.25, "UNDERRUN", "buffer ran dry")
         run.add_event(1.3, "degraded: the setpoint buffer ran dry for 12 ms")
         run.add_event(float("nan"), "pause requested (console)")
-        run.end("completed", underruns=1)
+        run.end("completed", underruns=1, events=[{"t": 2.5, "text": "degraded: accelerometer 0 lost 3 batches"},
+                                                  "degraded: the link's delay rose to 40 ms"])
     return path
 
 
@@ -119,6 +120,7 @@ def test_the_report_shows_error_pose_legs_faults_and_events(tmp_path: Path) -> N
     assert float(found.group(2)) == pytest.approx(E, rel=0.02)
     for text in ("closest to a stroke limit: leg", "(d) the legs", "(e) plate translations", "UNDERRUN",
                  "buffer ran dry", "degraded: the setpoint buffer ran dry for 12 ms", "pause requested (console)",
+                 "degraded: accelerometer 0 lost 3 batches", "degraded: the link&#x27;s delay rose to 40 ms",
                  "Events"):
         assert text in html, text
     pngs = re.findall(r'src="data:image/png;base64,([^"]*)"', html)
