@@ -251,8 +251,8 @@ class ServiceSession:
                 message = message.replace(f"{self._scratch}{os.sep}", "")
             raise StartRefusedError(message) from None
         except NoTableError:
-            raise StartRefusedError("no table: give one (rig run --table URL, or table_url in the sequence) or ask "
-                                    "for the emulated table (rig run --emulate)") from None
+            raise StartRefusedError("no table: give a table URL (rig run --table URL, or table_url in the sequence) "
+                                    "or ask for the emulated table (rig run --emulate)") from None
         return sequence, log
 
     def _load(self, stack: contextlib.ExitStack) -> Sequence:
