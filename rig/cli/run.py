@@ -312,6 +312,7 @@ def register(app: typer.Typer) -> None:
             emit_json({"session": str(path), "complete": complete, **outcome, "resume": hint,
                        "emulator_counters": None if emulator_file is None else str(emulator_file)})
         elif hint is not None:
-            console.print(f"the session stopped early: continue it with {hint}", highlight=False)
+            console.print(f"the session stopped early: continue it with {hint}", highlight=False,
+                          soft_wrap=True)  # a command is never broken across lines
         if not complete:
             raise typer.Exit(code=EXIT_STOPPED)

@@ -89,7 +89,7 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
     again = f"--service {connect}" if resume_with is None else resume_with
     key = f" --key-file {key_file}" if key_file is not None and resume_with is None else ""
     console.print(f"{progress['runs_done']} of {progress['runs_total']} runs done; continue the session with "
-                  f"rig run {again} --resume {session}{key}", highlight=False)
+                  f"rig run {again} --resume {session}{key}", highlight=False, soft_wrap=True)
     return EXIT_STOPPED
 
 

@@ -160,4 +160,5 @@ def register(app: typer.Typer) -> None:
             return
         cut = ", ".join(done.interrupted) or "none"
         console.print(f"{path}: recovered — writer flags cleared (were 0x{done.flags:02x}), runs marked interrupted: "
-                      f"{cut}; continue the session with rig run --resume {path}", highlight=False)
+                      f"{cut}; continue the session with rig run --resume {path}", highlight=False,
+                      soft_wrap=True)  # a command is never broken across lines
