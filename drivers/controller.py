@@ -31,6 +31,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from analysis.table.link import LinkSettings
+from drivers.bodies import TableBody
 from drivers.heap import HeapHold
 
 T = TypeVar("T")
@@ -469,6 +470,11 @@ class TableController(ABC):
         """Accelerometer batches known to be missing since connect (from their sequence numbers); 0 on a transport
         whose samples carry none."""
         return 0
+
+    def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
+        """The bodies the controller reports on its plate (`drivers.bodies`), waiting at most ``timeout`` [s] for
+        them; None when this transport or controller does not report them."""
+        return None
 
     def status(self) -> TableStatus:
         """The latest status received (:class:`TableError` before the first)."""

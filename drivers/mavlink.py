@@ -41,6 +41,7 @@ from typing import Any
 
 import numpy as np
 
+from drivers.bodies import BodyReports, TableBody
 from drivers.chunked import MOTION_STATES, ChunkedStreamController, CommandAnswer
 from drivers.controller import (
     AccelBatch,
@@ -151,6 +152,7 @@ class MavlinkTable(ChunkedStreamController):
                             for bit, entry in self.d.enums["SHAKETABLE_FAULT"].items() if bit & (bit - 1) == 0]
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
+        self._body_reports = BodyReports()
 
     # ----- connection -----------------------------------------------------------------------------------
 
@@ -217,6 +219,9 @@ class MavlinkTable(ChunkedStreamController):
             self._accel(msg)
         elif kind == "SHAKETABLE_TILT_BATCH":
             self._tilt(msg)
+        elif kind == "SHAKETABLE_BODY":
+            self._body_reports.add(msg.count, TableBody(msg.body_id, msg.b, msg.h, msg.depth, msg.x, msg.y)
+                                   if msg.count else None)
         elif kind == "SHAKETABLE_OVERTURN_EVENT":
             self.feedback.publish_detection(Detection(msg.event_id, msg.body_id, msg.direction, msg.tilt, msg.t_ns))
         elif kind == "COMMAND_ACK":
@@ -229,6 +234,11 @@ class MavlinkTable(ChunkedStreamController):
             self.feedback.notify()
         elif kind == "HEARTBEAT":
             self.last_controller_heartbeat_ns = now
+
+    def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
+        """The bodies in the controller's SHAKETABLE_BODY messages (sent at once to a new host, then every second);
+        None if they did not all come within ``timeout`` [s] (a controller that does not send them)."""
+        return self._body_reports.wait(timeout)
 
     def _status(self, msg: Any, now: int) -> TableStatus:
         state = self.d.enums["SHAKETABLE_STATE"][msg.state].name.removeprefix("SHAKETABLE_STATE_").lower()

@@ -46,6 +46,7 @@ from collections.abc import Callable
 import numpy as np
 import zenoh
 
+from drivers.bodies import TableBody
 from drivers.chunked import ChunkedStreamController, CommandAnswer
 from drivers.controller import (
     AccelBatch,
@@ -71,6 +72,7 @@ from protocols.zenoh.table import (
     SetpointChunk,
     decode_accel,
     decode_answer,
+    decode_bodies,
     decode_clock_reply,
     decode_heartbeat,
     decode_overturn,
@@ -142,7 +144,8 @@ class ZenohTable(ChunkedStreamController):
         self.connect_timeout = connect_timeout
         self._keys = {kind: table_key(self.address.table, kind) for kind in ("command", "clock", "setpoints",
                                                                             "host-heartbeat", "answer", "status",
-                                                                            "overturn", "heartbeat", "tilt")}
+                                                                            "overturn", "heartbeat", "tilt",
+                                                                            "bodies")}
         self._session: zenoh.Session | None = None
         self._signer: Signer | None = None
         self._command_lock = threading.Lock()  # command ids, signing and sending a command
@@ -197,6 +200,22 @@ class ZenohTable(ChunkedStreamController):
         except BaseException:
             self.close()
             raise
+
+    def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
+        """The bodies on the plate, from the controller's ``bodies`` queryable (a BODIES reply); None if it gives
+        none within ``timeout`` [s] (a controller without the queryable)."""
+        if self._session is None:
+            raise TableError(f"{self.url}: not connected")
+        for reply in self._session.get(self._keys["bodies"], timeout=timeout):
+            if reply.ok is None:
+                continue
+            try:
+                bodies = decode_bodies(reply.ok.payload.to_bytes())
+            except PayloadError:
+                self.bad_payloads += 1
+                continue
+            return tuple(TableBody(k, *body) for k, body in enumerate(bodies))
+        return None
 
     def _routes_ready(self) -> bool:
         return bool(self._setpoints.matching_status and self._heartbeat.matching_status

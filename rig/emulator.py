@@ -124,3 +124,45 @@ class EmulatorProcess:
     def __exit__(self, *exc: object) -> None:
         if self.proc.poll() is None:
             self.stop()
+
+
+def counter_rows(counters: dict[str, Any]) -> list[tuple[str, str]]:
+    """The emulator's counters (its exit JSON object) as ``(name, value)`` rows for a table: nested objects
+    (``link``, ``timing``, ``faults_raised``) flattened to ``link.packets_sent`` etc., numbers as they are (floats to
+    4 significant digits), lists joined (``faults``) or counted (``overturns``: ``N``, each shown by
+    :func:`overturn_rows`)."""
+    rows: list[tuple[str, str]] = []
+
+    def add(name: str, value: Any) -> None:
+        if isinstance(value, dict):
+            if not value:
+                rows.append((name, "-"))
+            for key, sub in value.items():
+                add(f"{name}.{key}", sub)
+        elif isinstance(value, list):
+            is_records = bool(value) and all(isinstance(v, dict) for v in value)
+            rows.append((name, str(len(value)) if is_records else (", ".join(map(str, value)) or "-")))
+        elif isinstance(value, float):
+            rows.append((name, f"{value:.4g}"))
+        else:
+            rows.append((name, "-" if value is None else str(value)))
+
+    for key, value in counters.items():
+        add(key, value)
+    return rows
+
+
+def overturn_rows(counters: dict[str, Any]) -> list[tuple[str, str, str, str, str]]:
+    """The emulator's overturns as rows: event id, body id, direction (+1 towards the low side), controller time
+    [s], plate tilt [°]."""
+    return [(str(o["event_id"]), str(o["body_id"]), f"{o['direction']:+d}", f"{o['t']:.3f}",
+             f"{math.degrees(o['tilt']):.2f}") for o in counters.get("overturns", [])]
+
+
+def counters_summary(counters: dict[str, Any]) -> str:
+    """One line of what matters in the emulator's counters (for a log): state, faults, underruns, refused
+    commands, stops, overturns."""
+    faults = ", ".join(counters.get("faults", [])) or "none"
+    return (f"state {counters.get('state', '?')}, faults {faults}, underruns {counters.get('underruns', 0)}, "
+            f"refused commands {counters.get('refused_commands', 0)}, stops {counters.get('stops', 0)}, "
+            f"watchdog stops {counters.get('watchdog_stops', 0)}, overturns {len(counters.get('overturns', []))}")

@@ -38,6 +38,17 @@ ENDPOINT_MODULES: dict[str, str] = {
 }
 
 
+class BodyOnPlate(NamedTuple):
+    """A specimen as the controller reports it (``docs/table-controller.md``, Bodies on the plate): breadth ``b``
+    along x, height ``h``, ``depth`` along y and the centre of its base at (``x``, ``y``) on the plate [m]."""
+
+    b: float
+    h: float
+    depth: float
+    x: float
+    y: float
+
+
 @dataclass(frozen=True)
 class EndpointOptions:
     """What every endpoint is built with.
@@ -45,7 +56,8 @@ class EndpointOptions:
     ``key`` the 32-byte secret that authenticates motion commands and setpoints; ``clock`` maps host monotonic
     ns to controller ns; ``table`` the table model (leg scaling on CANopen); ``loss`` (probability) and
     ``delay`` [s] inject faults on every message both ways with ``seed``; ``virtual_time``: the controller's clock
-    is virtual (``--speed max``), so it may wait for the link rather than drop telemetry.
+    is virtual (``--speed max``), so it may wait for the link rather than drop telemetry; ``bodies`` the specimens
+    on the plate in body-id order (reported to the host).
     """
 
     key: bytes = field(repr=False)
@@ -55,6 +67,7 @@ class EndpointOptions:
     delay: float = 0.0
     seed: int = 0
     virtual_time: bool = False
+    bodies: tuple[BodyOnPlate, ...] = ()
 
 
 class Endpoint(Protocol):

@@ -71,7 +71,7 @@ from protocols.mavlink import (
     unpack_setpoint_chunk,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
-from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, EndpointOptions
+from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
 
 DEDUP_WINDOW = 1.0
 """How long a command is remembered for recognising its retransmissions [s, real time]."""
@@ -81,6 +81,9 @@ PEER_TIMEOUT = 3.0
 
 HEARTBEAT_PERIOD = 0.05
 """The controller's heartbeat period [s, real time] (20 Hz)."""
+
+BODIES_PERIOD = 1.0
+"""The bodies on the plate are sent this often [s, real time] (and at once to a new host)."""
 
 EVENT_RESENDS = 3
 """Overturn events are sent again this many times ..."""
@@ -138,11 +141,12 @@ class MavlinkEndpoint(BatchedTelemetry):
 
     ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns;
     ``system``/``component`` are the controller's MAVLink ids; ``loss`` (probability) and ``delay`` [s] inject
-    faults with ``seed``.
+    faults with ``seed``; ``bodies`` the specimens on the plate (sent as SHAKETABLE_BODY).
     """
 
     def __init__(self, local: tuple[str, int], key: bytes, clock: Callable[[int], int], *, system: int = 1,
-                 component: int = 1, loss: float = 0.0, delay: float = 0.0, seed: int = 0) -> None:
+                 component: int = 1, loss: float = 0.0, delay: float = 0.0, seed: int = 0,
+                 bodies: tuple[BodyOnPlate, ...] = ()) -> None:
         if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
         self.d = dialect()
@@ -173,6 +177,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._tilt = Batcher(TILT_PER_BATCH)
         self._resends: list[tuple[int, int, int, Any]] = []  # (due host ns, copies left, event id, message)
         self._next_heartbeat = 0
+        self._bodies = bodies
+        self._next_bodies = 0
         self._commands = {getattr(self.d, f"MAV_CMD_SHAKETABLE_{c.name}"): c for c in Command}
         self._command_ids = {c: cmd_id for cmd_id, c in self._commands.items()}
         self._results = {Result.ACCEPTED: self.d.MAV_RESULT_ACCEPTED, Result.IN_PROGRESS: self.d.MAV_RESULT_IN_PROGRESS,
@@ -262,6 +268,8 @@ class MavlinkEndpoint(BatchedTelemetry):
             return
         if kind == "HEARTBEAT":
             with self._send_lock:
+                if source not in self._peers:
+                    self._next_bodies = 0  # a new host learns the bodies at once
                 self._peers[source] = now
         due = now + self.delay_ns
         with self._inbox_lock:
@@ -400,6 +408,9 @@ class MavlinkEndpoint(BatchedTelemetry):
             self._send(self.d.MAVLink_heartbeat_message(self.d.MAV_TYPE_GENERIC, self.d.MAV_AUTOPILOT_INVALID, 0,
                                                         getattr(self.d, f"SHAKETABLE_STATE_{state.name}"),
                                                         self.d.MAV_STATE_ACTIVE, 3))
+        if now >= self._next_bodies:
+            self._next_bodies = now + round(BODIES_PERIOD * 1e9)
+            self._send_bodies()
         while self._resends and self._resends[0][0] <= now:
             due, left, event_id, msg = heapq.heappop(self._resends)
             self.counters.overturn_messages_sent += 1
@@ -410,6 +421,15 @@ class MavlinkEndpoint(BatchedTelemetry):
             while self._outbox and self._outbox[0][0] <= now:
                 _, _, data, addr = heapq.heappop(self._outbox)
                 self._sendto(data, addr)
+
+    def _send_bodies(self) -> None:
+        """A SHAKETABLE_BODY per body on the plate (one with count 0 when there is none)."""
+        count = len(self._bodies)
+        if not count:
+            self._send(self.d.MAVLink_shaketable_body_message(0, 0, 0.0, 0.0, 0.0, 0.0, 0.0))
+        for body_id, body in enumerate(self._bodies):
+            self._send(self.d.MAVLink_shaketable_body_message(body_id, count, body.b, body.h, body.depth, body.x,
+                                                              body.y))
 
     def _send(self, msg: Any, to: list[tuple[str, int]] | None = None) -> None:
         """Frame ``msg`` and send it to ``to`` (default: the live peers), through the injected loss and delay."""
@@ -456,4 +476,4 @@ def open_endpoint(url: str, options: EndpointOptions) -> MavlinkEndpoint:
     if parts.scheme != "mavlink" or port is None or not parts.hostname:
         raise ValueError(f"--listen {url!r}: expected mavlink://HOST:PORT (port 0: any free port)")
     return MavlinkEndpoint((parts.hostname, port), options.key, options.clock, loss=options.loss,
-                           delay=options.delay, seed=options.seed)
+                           delay=options.delay, seed=options.seed, bodies=options.bodies)

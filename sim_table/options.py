@@ -51,10 +51,10 @@ def argument_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
                                 description="The emulated shake-table controller (docs/table-controller.md): "
                                             "runs until SIGINT/SIGTERM, then prints its counters as JSON.")
-    p.add_argument("--listen", required=True,
+    p.add_argument("--listen", required=True, metavar="URL",
                    help="the transport and address to listen on: mavlink://HOST:PORT, zenoh://HOST:PORT/TABLE "
                         "(port 0: any free port) or canopen://CHANNEL?interface=…")
-    p.add_argument("--speed", type=_speed, default=1.0,
+    p.add_argument("--speed", type=_speed, default=1.0, metavar="FACTOR|max",
                    help="controller time per real time, or max: virtual time, as fast as the emulator computes "
                         "while the host's setpoints allow (docs/table-controller.md)")
     p.add_argument("--body", action="append", default=[], metavar="BxH@X,Y[;depth=D][;mass=M][;mu=F][;restitution=E]",
@@ -70,7 +70,7 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--leg-stall", type=_leg_stall, metavar="LEG@S",
                    help="leg LEG's actuator (1..6) seizes S s after the first stream start: it brakes to rest and "
                         "stops following its command (CANopen: its drive's following-error supervision trips)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random number (noise, loss)")
+    p.add_argument("--seed", type=int, default=0, metavar="N", help="seed of every random number (noise, loss)")
     p.add_argument("--watchdog", type=float, metavar="S",
                    help="host-heartbeat and setpoint watchdogs [s, controller time] (default: the rig "
                         "configuration's [controller] watchdog_s, 1 s; virtual time uses 1 s of host time)")
@@ -80,9 +80,10 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--exit-with-parent", action="store_true",
                    help="stop (as on SIGINT) when the process that started this one exits, even by kill -9: "
                         "no emulator is left holding its port")
-    p.add_argument("--key-file", type=Path,
+    p.add_argument("--key-file", type=Path, metavar="FILE",
                    help=f"signing key file (default: ${KEY_ENV}); mavlink and zenoh only: canopen does not sign")
-    p.add_argument("--rig-config", type=Path, help="rig configuration TOML (default: Table IV, default hexapod)")
+    p.add_argument("--rig-config", type=Path, metavar="FILE",
+                   help="rig configuration TOML (default: Table IV, default hexapod)")
     p.add_argument("--leg-noise", type=float, metavar="M",
                    help="σ of a leg-length reading [m] (default: sim_table.actuators.ActuatorSettings's, 1 µm)")
     p.add_argument("--dynamics", choices=DYNAMICS, default="lag",
@@ -91,3 +92,22 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--accel-noise", type=float, default=0.02, metavar="M/S2", help="σ of accelerometer noise")
     p.add_argument("--counters", type=Path, metavar="FILE", help="write the exit counters here, not to stdout")
     return p
+
+
+def describe() -> dict[str, object]:
+    """The command line as plain data (``python -m sim_table --help-json``): the description and each option's
+    flags, metavar, help, default, whether it is required, repeatable or a switch, and its choices — what
+    ``rig emulate --help`` shows in the style of the other ``rig`` commands (``rig`` does not import sim_table)."""
+    parser = argument_parser()
+    options = []
+    for action in parser._actions:  # argparse keeps no public list of its actions
+        if isinstance(action, argparse._HelpAction):
+            continue
+        default = action.default
+        options.append({
+            "flags": list(action.option_strings), "metavar": action.metavar, "help": action.help,
+            "default": default if isinstance(default, str | int | float | bool) and default != [] else None,
+            "required": action.required, "repeat": isinstance(action, argparse._AppendAction),
+            "switch": action.nargs == 0, "choices": list(action.choices) if action.choices else None,
+            "dest": action.dest})
+    return {"description": parser.description, "options": options}

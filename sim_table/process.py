@@ -68,7 +68,7 @@ from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
 from sim_table.dynamics import make_actuators, specimen_loads
-from sim_table.endpoint import EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
+from sim_table.endpoint import BodyOnPlate, EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.options import argument_parser
 from sim_table.scene import Specimen, parse_body
 from sim_table.specimens import SpecimenScene
@@ -208,7 +208,8 @@ class Emulator:
         self._start = time.monotonic_ns()
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
-            seed=config.seed + 2, virtual_time=self.virtual))
+            seed=config.seed + 2, virtual_time=self.virtual,
+            bodies=tuple(BodyOnPlate(s.body.b, s.body.h, s.depth, s.x, s.y) for s in config.specimens)))
         self.url = self.endpoint.url
         self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
         self._next_tick = self.tick_ns

@@ -69,6 +69,7 @@ from protocols.zenoh.table import (
     decode_setpoints,
     encode_accel,
     encode_answer,
+    encode_bodies,
     encode_clock_reply,
     encode_heartbeat,
     encode_overturn,
@@ -77,7 +78,7 @@ from protocols.zenoh.table import (
     parse_table_url,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
-from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, EndpointOptions
+from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
 
 REMEMBERED_COMMANDS = 256
 """Commands remembered by id for recognising retries."""
@@ -126,11 +127,13 @@ class ZenohEndpoint(BatchedTelemetry):
     """The controller's zenoh endpoint for ``address`` (module docstring).
 
     ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns; ``loss``
-    (probability) and ``delay`` [s] inject faults with ``seed``.
+    (probability) and ``delay`` [s] inject faults with ``seed``; ``bodies`` the specimens on the plate (the
+    ``bodies`` queryable's reply).
     """
 
     def __init__(self, address: TableUrl, key: bytes, clock: Callable[[int], int], *, loss: float = 0.0,
-                 delay: float = 0.0, seed: int = 0, virtual_time: bool = False) -> None:
+                 delay: float = 0.0, seed: int = 0, virtual_time: bool = False,
+                 bodies: tuple[BodyOnPlate, ...] = ()) -> None:
         if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
         self.clock = clock
@@ -146,7 +149,8 @@ class ZenohEndpoint(BatchedTelemetry):
         self._session, self.address = _listen(address)
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
-                                   "heartbeat", "tilt")}
+                                   "heartbeat", "tilt", "bodies")}
+        self._bodies_payload = encode_bodies([tuple(b) for b in bodies])
         declare = self._session.declare_publisher
         self._status = declare(self._keys["status"], express=True)
         self._answer = declare(self._keys["answer"], express=True)
@@ -177,6 +181,8 @@ class ZenohEndpoint(BatchedTelemetry):
         self._entities = [
             session.declare_queryable(self._keys["command"], lambda q: self._arrived("command", q, _payload(q))),
             session.declare_queryable(self._keys["clock"], self._clock_query),
+            session.declare_queryable(self._keys["bodies"],
+                                      lambda q: self._reply(q, self._keys["bodies"], self._bodies_payload)),
             session.declare_subscriber(self._keys["setpoints"],
                                        lambda s: self._arrived("setpoints", None, s.payload.to_bytes())),
             session.declare_subscriber(self._keys["host-heartbeat"],
@@ -449,4 +455,5 @@ def _free_port(host: str) -> int:
 def open_endpoint(url: str, options: EndpointOptions) -> ZenohEndpoint:
     """The endpoint for ``zenoh://HOST:PORT/TABLE`` (port 0: any free port) — `sim_table.endpoint`'s factory."""
     return ZenohEndpoint(parse_table_url(url, any_port=True), options.key, options.clock, loss=options.loss,
-                         delay=options.delay, seed=options.seed, virtual_time=options.virtual_time)
+                         delay=options.delay, seed=options.seed, virtual_time=options.virtual_time,
+                         bodies=options.bodies)

@@ -25,6 +25,7 @@ table link key                                  zenoh entity        payload (:mo
 ==============================================  ==================  ===========================================
 ``shaketable/<t>/controller/command``           queryable           query: COMMAND (signed), reply: ANSWER
 ``shaketable/<t>/controller/clock``             queryable           query: CLOCK_REQUEST, reply: CLOCK_REPLY
+``shaketable/<t>/controller/bodies``            queryable           query: none, reply: BODIES
 ``shaketable/<t>/controller/setpoints``         host's publication  SETPOINTS (signed)
 ``shaketable/<t>/controller/host-heartbeat``    host's publication  HEARTBEAT (host monotonic time)
 ``shaketable/<t>/controller/answer``            publication         ANSWER (final answers of HOME, SET_TILT)
@@ -53,7 +54,7 @@ TELEMETRY_KINDS = ("status", "accel", "detection", "run")
 """Telemetry publications (``accel`` has one more chunk: the sensor)."""
 
 TABLE_KINDS = ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "accel", "overturn",
-               "heartbeat", "tilt")
+               "heartbeat", "tilt", "bodies")
 """Keys of the table link (``accel`` has one more chunk: the sensor)."""
 
 PLANES = ("service", "telemetry", "alive", "controller")

@@ -33,6 +33,8 @@ OVERTURN        event_id u64, body_id u32, direction i8 (+1 low side, −1 high 
 HEARTBEAT       t_ns i64 (the sender's clock: host monotonic, or controller time)
 TILT            body_id u32, seq u32 (the body's batch count), t_start i64, spacing i64, n u32, n × f64 (the body's
                 tilt [rad])
+BODIES          n u16, n × (b, h, depth, x, y) f64 [m]: the bodies on the plate in body-id order (the reply to a
+                query on ``bodies``; ``docs/table-controller.md``, Bodies on the plate)
 ==============  ============================================================================================
 
 A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
@@ -100,6 +102,8 @@ _ACCEL = struct.Struct("<HIqqI")
 _OVERTURN = struct.Struct("<QIbdq")
 _HEARTBEAT = struct.Struct("<q")
 _TILT = struct.Struct("<IIqqI")
+_BODY = struct.Struct("<5d")
+_COUNT = struct.Struct("<H")
 
 
 class TableKind(IntEnum):
@@ -115,6 +119,7 @@ class TableKind(IntEnum):
     OVERTURN = 8
     HEARTBEAT = 9
     TILT = 10
+    BODIES = 11
 
 
 class TableUrl(NamedTuple):
@@ -329,6 +334,22 @@ def encode_answer(answer: Answer) -> bytes:
 def decode_answer(payload: bytes) -> Answer:
     cmd_id, code, t_ns = _fixed(payload, TableKind.ANSWER, _ANSWER)
     return Answer(cmd_id, _name(RESULTS, code, "result"), t_ns)
+
+
+def encode_bodies(bodies: list[tuple[float, float, float, float, float]]) -> bytes:
+    """The BODIES payload: each body's (b, h, depth, x, y) [m], in body-id order."""
+    return _header(TableKind.BODIES) + _COUNT.pack(len(bodies)) + b"".join(_BODY.pack(*b) for b in bodies)
+
+
+def decode_bodies(payload: bytes) -> list[tuple[float, float, float, float, float]]:
+    """Each body's (b, h, depth, x, y) [m] of a BODIES payload, in body-id order."""
+    body = _body(payload, TableKind.BODIES)
+    if len(body) < _COUNT.size:
+        raise PayloadError(f"BODIES body has {len(body)} bytes, expected at least {_COUNT.size}")
+    (n,) = _COUNT.unpack_from(body)
+    if len(body) != _COUNT.size + n * _BODY.size:
+        raise PayloadError(f"BODIES body has {len(body)} bytes, expected {_COUNT.size + n * _BODY.size} for {n} bodies")
+    return [_BODY.unpack_from(body, _COUNT.size + k * _BODY.size) for k in range(n)]
 
 
 def encode_clock_request(t_send_ns: int) -> bytes:

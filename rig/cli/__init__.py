@@ -8,11 +8,15 @@ Imports are lazy (issue 16): this package and every module in it import only typ
 light modules (`rig.emulator` for ``parse_speed``, `analysis.body`) at module level, so that `rig --help` and each
 command's --help answer at once; each command imports what it uses inside its body (numpy, scipy, numba, h5py,
 matplotlib, … only where needed). tests/rig/test_cli_startup.py checks it.
+
+``rig --version`` prints the version; ``rig --install-completion`` installs tab completion for the shell it runs in
+(bash, zsh, fish, PowerShell; ``--show-completion`` prints the script instead), typer's own.
 """
 
 from __future__ import annotations
 
 import sys
+from typing import Annotated
 
 import typer
 
@@ -34,7 +38,21 @@ from rig.cli import (
 )
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
-                  no_args_is_help=True, add_completion=False)
+                  no_args_is_help=True)
+
+
+def _print_version(asked: bool) -> None:
+    if asked:
+        from rig import __version__
+
+        typer.echo(f"rig {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _options(version: Annotated[bool, typer.Option("--version", callback=_print_version, is_eager=True,
+                                                   help="Print the version and exit.")] = False) -> None:
+    """Shake-table rig: records, analysis, studies and design of controlled overturning."""
 
 for command in (study, demo, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report,
                 iterate, plan):

@@ -15,6 +15,7 @@ from __future__ import annotations
 import json
 import sys
 import warnings
+from pathlib import Path
 from typing import NoReturn, TextIO
 
 import typer
@@ -61,6 +62,15 @@ def fail(message: str) -> NoReturn:
     """Print the error on stderr (one line when stderr is not a terminal) and exit 2."""
     print_error(err_console, "error", message)
     raise typer.Exit(code=EXIT_USAGE)
+
+
+def require_file(path: Path, what: str = "file") -> None:
+    """Exit 2 (:func:`fail`) unless ``path`` is an existing file: checked before anything heavy is imported or
+    anything is written, so that a mistyped name is said at once (issue 22)."""
+    if not path.exists():
+        fail(f"{path}: no such {what}")
+    if not path.is_file():
+        fail(f"{path}: not a {what} (a directory?)")
 
 
 def emit_json(obj: dict, *, allow_nan: bool = True) -> None:

@@ -13,7 +13,7 @@ import typer
 from rich import box
 from rich.table import Table
 
-from rig.cli._common import console, emit_json, fail
+from rig.cli._common import console, emit_json, fail, require_file
 
 if TYPE_CHECKING:
     from rig.analyze import SessionAnalysis
@@ -203,6 +203,7 @@ def register(app: typer.Typer) -> None:
                                    else float(restitution))
         except ValueError:
             fail(f"--restitution {restitution!r}: expected 0, 'housner', a number in [0, 1], 'fit' or 'all'")
+        require_file(path, "session file")
         from analysis.errors import AnalysisInputError
         from rig.analyze import analyze_session
         from rig.session import SessionError

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
+from rich.markup import escape
 from rich.table import Table
 
 from rig.cli._common import EXIT_REFUSED, EXIT_USAGE, console, emit_json, err_console, print_error
@@ -46,12 +47,21 @@ def prepare_cmd(
     units: Annotated[str | None, typer.Option(help="unit of a text record that does not state it (g, cm/s/s, m/s/s)")
                      ] = None,
     plot: Annotated[Path | None, typer.Option(help="write a figure of the drive (PNG)")] = None,
+    output: Annotated[Path | None, typer.Option("-o", "--output", metavar="DRIVE.h5",
+                                                help="save the drive as a drive file a sequence plays (drive = "
+                                                     "\"DRIVE.h5\" in a [[records]] entry); never overwritten")
+                      ] = None,
     accept_vertical: Annotated[bool, typer.Option(help="let a lone vertical component drive surge")] = False,
     headroom: Annotated[str, typer.Option(help="margin the scale factor leaves on every limit for drive "
                                           "compensation, e.g. 10% (default 0)")] = "0",
     as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
 ) -> None:
-    """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check."""
+    """Prepare a record for the table: filter, scale into the table's limits, tilt ramps, leg check; -o saves the
+    drive for a sequence to play."""
+    if output is not None and (output.exists() or output.is_symlink()):
+        print_error(err_console, "error", f"{output}: already exists; a drive file is never overwritten, choose "
+                                          "another name")
+        raise typer.Exit(EXIT_USAGE)
     from analysis.table.model import TableModelError
     from rig.drive import DriveError, DriveRefusedError, parse_headroom, prepare_drive
     from rig.records import RecordError, load_record
@@ -71,6 +81,14 @@ def prepare_cmd(
         print_error(err_console, "error", str(exc))
         raise typer.Exit(EXIT_USAGE) from None
     out = drive.to_json()
+    if output is not None:
+        from rig.drive.file import DriveFileError, save_drive
+
+        try:
+            out["drive_file"] = str(save_drive(output, drive, {"compensated": False, "prepared_by": "rig prepare"}))
+        except DriveFileError as exc:
+            print_error(err_console, "error", str(exc))
+            raise typer.Exit(EXIT_USAGE) from None
     if plot is not None:
         from rig.drive.plot import plot_drive  # matplotlib only when a figure is asked for
 
@@ -92,7 +110,7 @@ def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
                   f"scale factor {drive.scale_factor:.3f}")
     table.add_column("axis")
     for quantity, unit in (("displacement", "m"), ("velocity", "m/s"), ("acceleration", "g")):
-        table.add_column(f"{quantity} [{unit}]", justify="right")
+        table.add_column(escape(f"{quantity} [{unit}]"), justify="right")  # "[m]" is not rich markup
     for axis in AXES:
         if axis not in drive.components:
             continue
@@ -112,6 +130,7 @@ def _print_drive(drive: Drive, out: dict[str, Any]) -> None:
         + ", ".join(f"{a} {100 * r:.1f} %" for a, r in drive.highpass_pga_ratio.items())
         + f"); drive {drive.duration:.2f} s at {drive.rate:g} Hz, record from t = {drive.record_start:.2f} s"
         + (f"; headroom {drive.headroom:.0%} left on every limit" if drive.headroom else "")
-        + (f"; plot: {out['plot']}" if "plot" in out else ""),
+        + (f"; plot: {out['plot']}" if "plot" in out else "")
+        + (f"; drive file: {out['drive_file']}" if "drive_file" in out else ""),
         highlight=False,
     )

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from rig.cli._common import console, emit_json, fail
+from rig.cli._common import console, emit_json, fail, require_file
 
 
 def register(app: typer.Typer) -> None:
@@ -25,6 +25,7 @@ def register(app: typer.Typer) -> None:
     ) -> None:
         """An HTML report (figures embedded, A4 width) of a session (rig, sequence, runs, spectra, detections,
         Fig. 13) or of a study (COR curves, fitted equations, Tables II–III, Fig. 2)."""
+        require_file(path)
         target = output if output is not None else path.with_suffix(".html")
         from rig.cli.sessions import crashed_warning
         from rig.report import ReportError, write_report

@@ -29,7 +29,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
-from rig.cli._common import EXIT_STOPPED, console, fail
+from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail, require_file
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -117,10 +117,17 @@ class Screen:
         return Group(self.bars, status)
 
 
+def resume_hint(path: Path, key_file: Path | None, yes: bool) -> str:
+    """The command that continues the session file ``path`` on the table stored in it, with this one's key file and
+    unattended if this one was."""
+    return (f"rig run --resume {path}" + (f" --key-file {key_file}" if key_file is not None else "")
+            + (" --yes" if yes else ""))
+
+
 def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str, Any], *, yes: bool,
-                console: Any) -> bool:
+                console: Any, with_outcome: bool = False) -> Any:
     """Play the session with the screen, the prompts and Ctrl-C handling (module docstring); whether every run of
-    the plan is done."""
+    the plan is done (with ``with_outcome``: that and ``{"state", "message", "runs_done", "runs_total"}``)."""
     from rig.orchestrator import Orchestrator, OrchestratorState
 
     operator = None if yes else TerminalOperator()
@@ -186,7 +193,11 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
     if degraded:
         console.print(f"[bold yellow]degraded[/]: run(s) {', '.join(map(str, degraded))} played, but not cleanly "
                       "(their events say why): left out of Fig. 13; --resume plays them again")
-    return outcome is OrchestratorState.DONE and progress.runs_done == progress.runs_total
+    complete = outcome is OrchestratorState.DONE and progress.runs_done == progress.runs_total
+    if not with_outcome:
+        return complete
+    return complete, {"state": outcome.value, "message": progress.message, "runs_done": progress.runs_done,
+                      "runs_total": progress.runs_total, "degraded_runs": degraded}
 
 
 def _next_question(operator: TerminalOperator | None) -> tuple[Callable[[], Any], queue.Queue[Any]] | None:
@@ -266,9 +277,10 @@ def register(app: typer.Typer) -> None:
             yes: Annotated[bool, typer.Option("--yes", "-y", help="unattended: no operator prompts")] = False,
             key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                                "$SHAKETABLE_MAVLINK_KEY)")] = None,
-            speed: Annotated[float, typer.Option(parser=parse_speed, metavar="FACTOR|max",
-                                                 help="with --emulate: controller time per real time, or max "
-                                                      "(virtual time: as fast as the emulator computes)")] = 1.0,
+            speed: Annotated[float | None, typer.Option(parser=parse_speed, metavar="FACTOR|max",
+                                                        help="with --emulate: controller time per real time, or max "
+                                                             "(virtual time: as fast as the emulator computes); "
+                                                             "default 1, or with --resume the session's")] = None,
             service: Annotated[str | None, typer.Option(help="have a rig service (rig serve) at this zenoh "
                                                              "endpoint run it, e.g. tcp/127.0.0.1:7447")] = None,
             console_at: Annotated[str | None, typer.Option("--console", help="serve the operator's console (live "
@@ -278,8 +290,19 @@ def register(app: typer.Typer) -> None:
                 "--console-linger", metavar="SECONDS", min=0.0,
                 help="with --console: close the console SECONDS after the session ends (default: it stays up "
                      "showing the final state and the report until Ctrl-C)")] = None,
+            as_json: Annotated[bool, typer.Option("--json", help="print one JSON object (the session's outcome) "
+                                                  "on stdout, the progress on stderr; needs --yes")] = False,
             ) -> None:
-        """Run a test sequence on the table, logging every run to a session file."""
+        """Run a test sequence on the table, logging every run to a session file. With --resume the session
+        continues on the table it ran on (its URL, or the emulated table at its speed) unless --table or --emulate
+        says otherwise."""
+        for given in (sequence_file, resume, key_file):
+            if given is not None:
+                require_file(given)
+        if as_json and (not yes or console_at is not None or service is not None):
+            fail("--json needs --yes (no operator prompts) and is not taken with --service or --console")
+        speed_given = speed
+        speed = 1.0 if speed is None else speed
         if console_at is not None:
             from rig.cli.with_console import run_with_console
 
@@ -288,11 +311,15 @@ def register(app: typer.Typer) -> None:
                                               speed=speed, service=service, linger_s=console_linger))
 
         from rig.emulator import EmulatorError
+        from rig.orchestrator.bodies import BodiesMismatchError
         from rig.orchestrator.setup import (
             NoTableError,
+            TableUnreachableError,
+            choose_table,
             create_log,
             default_session_path,
             load_checked,
+            resume_log,
             resumed,
             table_for,
             write_emulator_counters,
@@ -305,30 +332,37 @@ def register(app: typer.Typer) -> None:
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
+        screen = err_console if as_json else console
         try:
+            stored = None
             if resume is not None:
-                sequence, log = resumed(resume)
+                sequence, stored = resumed(resume)
                 path = resume
             else:
                 if sequence_file is None:
                     fail("give a SEQUENCE.toml (or --resume SESSION.h5)")
                 sequence = load_checked(sequence_file)
                 path = output or default_session_path(sequence)
-                log = None
-            with table_for(sequence, table, emulate, key_file, speed) as (url, options, counters):
-                if log is None:
-                    log = create_log(sequence, path)
-                console.print(f"session file: {path}")
+            choice = choose_table(sequence, table, emulate, speed_given, stored)
+            with table_for(sequence, choice.url, choice.emulate, key_file, choice.speed) as (url, options, counters):
+                log = resume_log(path) if resume is not None else create_log(sequence, path, choice)
+                screen.print(f"session file: {path}", highlight=False)
                 try:
-                    complete = run_session(sequence, log, url, options, yes=yes, console=console)
+                    complete, outcome = run_session(sequence, log, url, options, yes=yes, console=screen,
+                                                    with_outcome=True)
                 finally:
                     log.close()
-            if counters is not None:
-                write_emulator_counters(path, counters())
+            emulator_file = write_emulator_counters(path, counters()) if counters is not None else None
         except NoTableError:
-            fail("give --table URL (or table_url in the sequence), or --emulate")
-        except (SequenceError, SessionError, EmulatorError) as exc:
+            fail("no table: give --table URL (or table_url in the sequence), or --emulate")
+        except (SequenceError, SessionError, EmulatorError, TableUnreachableError, BodiesMismatchError) as exc:
             fail(str(exc))
+        hint = None if complete else resume_hint(path, key_file, yes)
+        if as_json:
+            emit_json({"session": str(path), "complete": complete, **outcome, "resume": hint,
+                       "emulator_counters": None if emulator_file is None else str(emulator_file)})
+        elif hint is not None:
+            console.print(f"the session stopped early: continue it with {hint}", highlight=False,
+                          soft_wrap=True)  # a command is never broken across lines
         if not complete:
-            console.print(f"the session stopped early: continue it with rig run --resume {path}")
             raise typer.Exit(code=EXIT_STOPPED)

@@ -39,13 +39,15 @@ KeyOption = Annotated[Path | None, typer.Option(help="the rig's key file (defaul
 
 def drive_service(connect: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
                   resume: Path | None, yes: bool, console: Any, key_file: Path | None = None,
-                  speed: float = 1.0) -> int:
+                  speed: float = 1.0, resume_with: str | None = None) -> int:
     """Start ``sequence`` (or ``resume`` a session file) on the rig service at ``connect`` and follow it.
 
     The status line shows the service's telemetry. Ctrl-C sends pause (the session pauses at the end of the current
     record; then: resume, or end the session there — with ``yes`` it ends there), a second Ctrl-C sends abort.
-    Without ``yes`` the operator confirms the start first (the service runs sequences unattended). Returns the exit
-    code: 0 all runs done, 1 the session stopped early (or was not started), 2 the service refused or is absent.
+    Without ``yes`` the operator confirms the start first (the service runs sequences unattended). A session that
+    stopped early names the command that continues it: ``rig run RESUME_WITH --resume SESSION`` (default
+    ``--service CONNECT``: this service again). Returns the exit code: 0 all runs done, 1 the session stopped early
+    (or was not started), 2 the service refused or is absent.
     """
     from rig.service import ServiceClient, ServiceError
 
@@ -84,8 +86,10 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
     console.print(f"[bold]{final['state']}[/]: {final['message']}", highlight=False)
     if final["state"] == "done" and progress["runs_done"] == progress["runs_total"]:
         return 0
+    again = f"--service {connect}" if resume_with is None else resume_with
+    key = f" --key-file {key_file}" if key_file is not None and resume_with is None else ""
     console.print(f"{progress['runs_done']} of {progress['runs_total']} runs done; continue the session with "
-                  f"rig run --service {connect} --resume {session}", highlight=False)
+                  f"rig run {again} --resume {session}{key}", highlight=False, soft_wrap=True)
     return EXIT_STOPPED
 
 
@@ -195,7 +199,7 @@ def _after_pause(client: ServiceClient, yes: bool, console: Any) -> bool:
         if go_on:
             client.resume()
             return True
-        console.print("the session ends here; continue it with --resume SESSION.h5")
+        console.print("the session ends here (resumable: the command is printed below)")
         client.abort()
     except ServiceError as exc:
         print_error(console, "error", str(exc))

@@ -10,7 +10,7 @@ from typing import Annotated, Any
 
 import typer
 
-from rig.cli._common import console, emit_json, fail
+from rig.cli._common import console, emit_json, fail, require_file
 
 #: What ``rig sessions list`` shows in its "writer" column for each `rig.session.writer_state`.
 _STATE_SHOWN = {"writing": "writing", "crashed": "CRASHED: rig sessions recover", "closed": ""}
@@ -43,6 +43,23 @@ def crashed_warning(path: Path) -> str | None:
     except (SessionError, OSError):
         return None
     return f"warning: {crashed_message(path)}" if crashed else None
+
+
+def session_summary(path: Path) -> dict[str, Any]:
+    """``rig sessions show --json``: the session's header (sequence name, created, software version, the table it
+    played on, the writer's state) and :func:`run_rows` (a scale factor NaN: null)."""
+    import json
+
+    from rig.session import read_session, writer_state
+
+    session = read_session(path)
+    stored = session["attrs"].get("table")
+    rows = [{**row, "scale_factor": None if row["scale_factor"] is None or math.isnan(row["scale_factor"])
+             else row["scale_factor"]} for row in run_rows(session)]
+    return {"path": str(path), "sequence": (session.get("sequence") or {}).get("name"),
+            "created": session["created"], "software_version": session["software_version"],
+            "table": json.loads(stored) if isinstance(stored, str) and stored else None,
+            "writer": writer_state(path), "runs": rows}
 
 
 def print_session(path: Path, console: Any) -> None:
@@ -83,9 +100,12 @@ def register(app: typer.Typer) -> None:
     app.add_typer(sessions, name="sessions")
 
     @sessions.command("list")
-    def list_cmd(directory: Annotated[Path, typer.Argument(help="where the session files are")] = Path(".")) -> None:
+    def list_cmd(directory: Annotated[Path, typer.Argument(help="where the session files are")] = Path("."),
+                 as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False) -> None:
         """The session files in DIRECTORY: created, runs and their statuses, and the writer: "writing" (a live
         rig run holds it) or "CRASHED" (its writer was killed: recover it with rig sessions recover FILE)."""
+        if not directory.is_dir():
+            fail(f"{directory}: no such directory")
         from rich import box
         from rich.table import Table
 
@@ -95,6 +115,9 @@ def register(app: typer.Typer) -> None:
             found = list_sessions(directory)
         except (SessionError, OSError) as exc:
             fail(str(exc))
+        if as_json:
+            emit_json({"directory": str(directory), "sessions": found})
+            return
         table = Table(box=box.SIMPLE_HEAD)
         for name in ("file", "created", "runs", "statuses", "writer"):
             table.add_column(name)
@@ -105,12 +128,17 @@ def register(app: typer.Typer) -> None:
         console.print(table)
 
     @sessions.command("show")
-    def show_cmd(path: Annotated[Path, typer.Argument(metavar="SESSION.h5")]) -> None:
+    def show_cmd(path: Annotated[Path, typer.Argument(metavar="SESSION.h5")],
+                 as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False) -> None:
         """One session's runs: record, angle, scale factor, status, samples, overturns."""
+        require_file(path, "session file")
         from rig.session import SessionError
 
         try:
-            print_session(path, console)
+            if as_json:
+                emit_json(session_summary(path), allow_nan=False)
+            else:
+                print_session(path, console)
         except (SessionError, OSError) as exc:
             fail(str(exc))
 
@@ -122,6 +150,7 @@ def register(app: typer.Typer) -> None:
         """After a crash (rig run killed): clear the file's writer flags so that any HDF5 program opens it, and mark
         the cut run interrupted, as rig run --resume would; no table needed, every recorded sample kept as it is.
         Refused (nothing changed) while a live writer holds the file."""
+        require_file(path, "session file")
         from rig.session import SessionError, recover
 
         try:
@@ -136,4 +165,5 @@ def register(app: typer.Typer) -> None:
             return
         cut = ", ".join(done.interrupted) or "none"
         console.print(f"{path}: recovered — writer flags cleared (were 0x{done.flags:02x}), runs marked interrupted: "
-                      f"{cut}; continue the session with rig run --resume {path}", highlight=False)
+                      f"{cut}; continue the session with rig run --resume {path}", highlight=False,
+                      soft_wrap=True)  # a command is never broken across lines

@@ -79,6 +79,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             linger(page.url, linger_s, console)
             return code
 
+    again = f"--console {http}" + (f" --key-file {key_file}" if key_file is not None else "")
     with tempfile.TemporaryDirectory(prefix="rig-console-") as scratch:
         if key_file is None and not os.environ.get(KEY_ENV):
             key_file = Path(scratch) / "session.key"
@@ -99,8 +100,9 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             with page:
                 console.print(f"operator console: {page.url} (operator token {token_from_key_file(key_file)})",
                               highlight=False)
+                # this service ends with this command (its console lingers): a new one continues the session
                 code = drive_service(endpoint, sequence, table=table, emulate=emulate, output=output, resume=resume,
-                                     yes=yes, console=console, key_file=key_file, speed=speed)
+                                     yes=yes, console=console, key_file=key_file, speed=speed, resume_with=again)
                 linger(page.url, linger_s, console)
                 return code
         finally:

@@ -71,6 +71,8 @@ class RunData:
     """(N, 7): t, surge, sway, heave [m], roll, pitch, yaw [rad]."""
     accel: dict[str, np.ndarray]
     """sensor → (M, 4): t, ax, ay, az [m/s², plate-frame specific force]."""
+    pose: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    """(K, 7): the measured pose from the controller's statuses, columns as ``commanded``."""
     bodies: list[dict[str, Any]] = field(default_factory=list)
     detections: list[dict[str, Any]] = field(default_factory=list)
     faults: list[dict[str, Any]] = field(default_factory=list)
@@ -110,7 +112,7 @@ def _run(run: dict[str, Any]) -> RunData:
         name=run["name"], record=str(run.get("record") or ""),
         scale_factor=None if scale is None or not np.isfinite(scale) else float(scale),
         angle_deg=float(run.get("angle_deg") or 0.0), status=str(run.get("status") or ""), attrs=run["attrs"],
-        commanded=run["commanded"], accel=run["accel"],
+        commanded=run["commanded"], accel=run["accel"], pose=run.get("pose", np.zeros((0, 7))),
         **{key: run[key] for key in ("bodies", "detections", "faults", "events")},
         predictions=run_predictions(run),
     )

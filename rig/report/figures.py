@@ -36,6 +36,8 @@ DPI = 120
 """Raster resolution [dots per inch]."""
 MAX_POINTS = 4000
 """Curves with more samples are drawn from their per-bin min/max envelope (2 points per bin)."""
+COMMANDED_COLOR = "#1f3a93"
+"""The commanded traces' colour (dark blue), drawn over the measured ones (red)."""
 
 _STYLE = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "legend.fontsize": 7, "xtick.labelsize": 7,
           "ytick.labelsize": 7, "lines.linewidth": 0.9, "axes.grid": True, "grid.alpha": 0.3,
@@ -103,19 +105,24 @@ class RunFigure:
             self.fig = Figure(figsize=(WIDTH_IN, 2.6), dpi=DPI)
             FigureCanvasAgg(self.fig)
             self.ax, self.sp = self.fig.subplots(1, 2, gridspec_kw={"width_ratios": [1.65, 1.0]})
-            self.cmd, = self.ax.plot([], [], color="C0", label="commanded")
-            self.meas, = self.ax.plot([], [], color="C3", alpha=0.75, lw=0.7, label="measured")
+            # the commanded trace is drawn over the measured one (thin and dark): it stays visible where the table
+            # follows it closely, and the measured one shows around it where it does not
+            self.meas, = self.ax.plot([], [], color="C3", alpha=0.75, lw=1.1, label="measured", zorder=2)
+            self.cmd, = self.ax.plot([], [], color=COMMANDED_COLOR, lw=0.6, label="commanded", zorder=3)
             self.ax.set_xlabel("time [s]")
             self.ax.set_ylabel("horizontal acceleration [m/s²]")
             self.ax.set_title("(a) acceleration", loc="left")
             self.periods = np.asarray(periods, dtype=float)
-            self.psa_cmd, = self.sp.plot(self.periods, np.zeros_like(self.periods), color="C0", label="commanded")
-            self.psa_meas, = self.sp.plot(self.periods, np.zeros_like(self.periods), color="C3", label="measured")
+            self.psa_meas, = self.sp.plot(self.periods, np.zeros_like(self.periods), color="C3", lw=1.4,
+                                          label="measured", zorder=2)
+            self.psa_cmd, = self.sp.plot(self.periods, np.zeros_like(self.periods), color=COMMANDED_COLOR, lw=0.8,
+                                         label="commanded", zorder=3)
             self.sp.set_xscale("log")
             self.sp.set_xlabel("period [s]")
             self.sp.set_ylabel("PSA, 5 % damping [m/s²]")
             self.sp.set_title("(b) response spectrum", loc="left")
-            self.ax.legend(loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2, frameon=False, borderaxespad=0.1)
+            self.ax.legend(handles=[self.cmd, self.meas], loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
+                           frameon=False, borderaxespad=0.1)
             self.fig.subplots_adjust(left=0.08, right=0.99, bottom=0.16, top=0.9, wspace=0.28)
         self._marks: list[object] = []
 
@@ -140,6 +147,77 @@ class RunFigure:
             for axes in (self.ax, self.sp):
                 axes.relim(visible_only=True)
                 axes.autoscale_view()
+            return png(self.fig)
+
+
+class TrackingFigure:
+    """How the table followed a run's drive, built once and redrawn for each run (as :class:`RunFigure`):
+    (c) the fall-line acceleration error measured − commanded [m/s²] against time [s], its RMS and peak in the
+    legend; (d) the legs' lengths [m] with their stroke limits (dashed); (e) the plate's translations [mm] and
+    (f) rotations [°], measured (solid) and commanded (thin, dark)."""
+
+    AXES = ("surge", "sway", "heave", "roll", "pitch", "yaw")
+
+    def __init__(self) -> None:
+        with rc_context(_STYLE):
+            self.fig = Figure(figsize=(WIDTH_IN, 4.4), dpi=DPI)
+            FigureCanvasAgg(self.fig)
+            (self.err_ax, self.leg_ax), (self.trans_ax, self.rot_ax) = self.fig.subplots(2, 2)
+            self.err, = self.err_ax.plot([], [], color="C3", lw=0.7, label="error")
+            self.err_ax.axhline(0.0, color="0.4", lw=0.6)
+            self.err_ax.set_ylabel("fall-line error [m/s²]")
+            self.err_ax.set_title("(c) measured − commanded fall-line acceleration", loc="left")
+            self.legs = [self.leg_ax.plot([], [], color=f"C{k}", lw=0.8, label=f"leg {k + 1}")[0] for k in range(6)]
+            self.limits = [self.leg_ax.axhline(0.0, color="k", ls="--", lw=0.7) for _ in range(2)]
+            self.leg_ax.set_ylabel("leg length [m]")
+            self.leg_ax.set_title("(d) legs against their stroke limits (dashed)", loc="left")
+            self.leg_ax.legend(loc="center right", ncols=2, fontsize=6)
+            self.pose: dict[str, tuple[Line2D, Line2D]] = {}
+            for k, axis in enumerate(self.AXES):
+                ax = self.trans_ax if k < 3 else self.rot_ax
+                measured, = ax.plot([], [], color=f"C{k % 3}", lw=1.0, label=axis, zorder=2)
+                commanded, = ax.plot([], [], color=COMMANDED_COLOR, lw=0.5, zorder=3)
+                self.pose[axis] = (measured, commanded)
+            self.trans_ax.set_ylabel("translation [mm]")
+            self.trans_ax.set_title("(e) plate translations (thin dark: commanded)", loc="left")
+            self.rot_ax.set_ylabel("rotation [°]")
+            self.rot_ax.set_title("(f) plate rotations (thin dark: commanded)", loc="left")
+            for ax in (self.trans_ax, self.rot_ax):
+                ax.set_xlabel("time [s]")
+                ax.legend(loc="upper right", ncols=3, fontsize=6)
+            self.fig.subplots_adjust(left=0.09, right=0.99, bottom=0.09, top=0.94, wspace=0.28, hspace=0.42)
+
+    def render(self, error: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None,
+               legs: tuple[NDArray[np.float64], NDArray[np.float64], float, float] | None,
+               pose: NDArray[np.float64], commanded: NDArray[np.float64]) -> bytes:
+        """The PNG: ``error`` (t [s], error [m/s²], RMS, peak [m/s²]) or None, ``legs`` (t [s], lengths (K, 6) [m],
+        leg_min, leg_max [m]) or None, the measured ``pose`` and ``commanded`` rows (t, surge, sway, heave [m],
+        roll, pitch, yaw [rad])."""
+        with rc_context(_STYLE):
+            if error is None:
+                self.err.set_data([], [])
+                self.err.set_label("error: no measured samples")
+            else:
+                t, e, rms, peak = error
+                self.err.set_data(*envelope(t, e))
+                self.err.set_label(f"RMS {rms:.3g} m/s², peak {peak:.3g} m/s²")
+            self.err_ax.legend(loc="upper right", fontsize=6.5)
+            for k, line in enumerate(self.legs):
+                line.set_data(*(([], []) if legs is None else envelope(legs[0], legs[1][:, k])))
+            for limit, value in zip(self.limits, (None, None) if legs is None else legs[2:], strict=True):
+                limit.set_visible(value is not None)
+                if value is not None:
+                    limit.set_ydata([value, value])
+            for k, axis in enumerate(self.AXES):
+                scale = 1e3 if k < 3 else 180.0 / math.pi
+                for line, rows in zip(self.pose[axis], (pose, commanded), strict=True):
+                    if rows.ndim == 2 and rows.shape[0] and rows.shape[1] == 7:
+                        line.set_data(*envelope(rows[:, 0], rows[:, k + 1] * scale))
+                    else:
+                        line.set_data([], [])
+            for ax in (self.err_ax, self.leg_ax, self.trans_ax, self.rot_ax):
+                ax.relim(visible_only=True)
+                ax.autoscale_view()
             return png(self.fig)
 
 

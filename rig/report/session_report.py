@@ -1,6 +1,8 @@
 """The report of a session file: the rig and the sequence, a table of the runs, the records' scale factors, the
 Fig. 13 comparison (or "not analysed yet"), and per run its record, scale factor and governing limit, commanded
-against measured horizontal acceleration with their response spectra, detections and the analysis' predictions.
+against measured horizontal acceleration with their response spectra, how the table followed the drive (the
+fall-line acceleration error, the plate pose, the legs' strokes against their limits: `rig.report.tracking`),
+detections, the analysis' predictions, and the run's faults and events (what degraded it).
 
 **Accelerations shown.** Commanded: the second derivative of the commanded surge (central differences of
 ``commanded``). Measured: the plate-frame specific force (f_x, f_z) of the accelerometers rotated back to the
@@ -11,6 +13,7 @@ when there are several (on the first one's time grid), as ``rig analyze`` takes 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -27,6 +30,7 @@ from . import figures
 from .compensation_report import compensation_section
 from .data import RunData, SessionData, iter_runs, read_header
 from .html import esc, figure, key_values, num, table
+from .tracking import fall_line_error, leg_strokes
 
 Progress = Callable[[int, int], None]
 
@@ -48,6 +52,8 @@ class RunSummary:
     status: str
     peak_commanded: float | None
     peak_measured: float | None
+    error_rms: float | None
+    error_peak: float | None
     overturns: str
 
 
@@ -126,10 +132,12 @@ def _predictions_table(run: RunData, names: dict[int, str]) -> str:
                  caption="Analysis (rig analyze): predicted against observed overturn direction")
 
 
-def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure | None = None
+def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure | None = None,
+                rig_config: dict[str, Any] | None = None, tracker: figures.TrackingFigure | None = None
                 ) -> tuple[str, RunSummary]:
-    """One run's section (HTML) and its line of the runs table; ``drawer``: the figure to redraw (a new one if
-    None)."""
+    """One run's section (HTML) and its line of the runs table; ``drawer`` and ``tracker``: the figures to redraw
+    (new ones if None); ``rig_config``: the session's rig (the legs' geometry and stroke limits; default: the
+    default rig)."""
     beta = math.radians(run.angle_deg)
     t_cmd, a_cmd = commanded_acceleration(run.commanded)
     t_meas, a_meas, sensors = measured_horizontal(run.accel, beta)
@@ -161,6 +169,10 @@ def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure |
             f"[m/s²]."), alt=f"run {run.name} acceleration and response spectrum"))
     else:
         parts.append('<p class="note">No commanded or measured samples in this run.</p>')
+    error = fall_line_error(run.commanded, run.accel, beta)
+    legs = leg_strokes(run.pose, rig_config or {})
+    if error is not None or legs is not None or run.pose.shape[0]:
+        parts.append(_tracking(run, error, legs, tracker or figures.TrackingFigure()))
     if run.detections:
         parts.append(table(["t [s]", "body", "direction", "source"], [
             [num(d.get("t"), ".3f"), f"{d['body_id']} {names.get(int(d['body_id']), '')}".strip(),
@@ -173,21 +185,67 @@ def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure |
     if run.faults:
         parts.append(table(["t [s]", "fault", "detail"],
                            [[num(f.get("t"), ".3f"), f.get("name", ""), f.get("detail", "")] for f in run.faults],
-                           caption="Faults", left=3))
+                           caption="Faults the table reported", left=3))
+    events = run_events(run)
+    if events:
+        parts.append(table(["t [s]", "event"], [[num(t, ".3f"), text] for t, text in events],
+                           caption="Events (degraded states, control requests; t – when not on the run's clock)",
+                           left=2, wrap={1}))
     parts.append("</section>")
     overturns = " ".join(f"{d['body_id']}:{int(d['direction']):+d}" for d in run.detections) or "–"
     summary = RunSummary(run.name, run.record, run.angle_deg, run.scale_factor, _governing(attrs), run.status,
-                         _peak(a_cmd), _peak(a_meas), overturns)
+                         _peak(a_cmd), _peak(a_meas), None if error is None else error.rms,
+                         None if error is None else error.peak, overturns)
     return "\n".join(parts), summary
+
+
+def run_events(run: RunData) -> list[tuple[float | None, str]]:
+    """The run's events: its ``events`` dataset (t [s], text), then those of an ``events`` run attribute (a JSON
+    list of texts or of objects with ``t`` and ``text``: the degraded-state events a run may carry)."""
+    rows: list[tuple[float | None, str]] = [(e.get("t"), str(e.get("text", ""))) for e in run.events]
+    extra = run.attrs.get("events")
+    if isinstance(extra, str):
+        try:
+            extra = json.loads(extra)
+        except ValueError:
+            extra = [extra]
+    for item in extra if isinstance(extra, list) else []:
+        if isinstance(item, dict):
+            rows.append((item.get("t"), str(item.get("text") or item.get("event") or item)))
+        else:
+            rows.append((None, str(item)))
+    return rows
+
+
+def _tracking(run: RunData, error: Any, legs: Any, tracker: figures.TrackingFigure) -> str:
+    """The run's tracking figure and the figures a table engineer looks for first (HTML)."""
+    facts = []
+    if error is not None:
+        facts.append(f"fall-line error RMS <b>{error.rms:.3g} m/s²</b> ({num(error.rms_percent, '.1f')} % of the "
+                     f"commanded RMS), peak <b>{error.peak:.3g} m/s²</b>")
+    if legs is not None:
+        leg, limit = legs.closest
+        facts.append(f"closest to a stroke limit: leg {leg}, {1e3 * legs.margin:.0f} mm from {limit} "
+                     f"({legs.leg_min:g}–{legs.leg_max:g} m)")
+    png = tracker.render(None if error is None else (error.t, error.error, error.rms, error.peak),
+                         None if legs is None else (legs.t, legs.lengths, legs.leg_min, legs.leg_max),
+                         run.pose, run.commanded)
+    caption = (f"Run {esc(run.name)}, how the table followed the drive: (c) measured − commanded fall-line "
+               "acceleration [m/s²] (plate x, +downhill, gravity excluded; both low-passed at 50 Hz); (d) the legs' "
+               "lengths [m] from the measured pose, stroke limits dashed; (e) plate translations [mm] and "
+               "(f) rotations [°], measured from the controller's status, commanded thin and dark.")
+    return (f'<p class="small">{" · ".join(facts)}</p>' if facts else "") + figure(
+        png, caption, alt=f"run {run.name} tracking error, legs and pose")
 
 
 def _runs_table(rows: list[RunSummary]) -> str:
     return table(
         ["run", "record", "β [°]", "scale", "governing limit", "status", "peak cmd [m/s²]", "peak meas [m/s²]",
-         "overturns body:dir"],
+         "fall-line error RMS / peak [m/s²]", "overturns body:dir"],
         [[f'<a href="#run-{esc(r.name)}">{esc(r.name)}</a>', esc(r.record), num(r.angle_deg, "g"),
           num(r.scale_factor, ".3f"), esc(r.governing), esc(r.status), num(r.peak_commanded, ".2f"),
-          num(r.peak_measured, ".2f"), esc(r.overturns)] for r in rows],
+          num(r.peak_measured, ".2f"), f"{num(r.error_rms, '.3g')} / {num(r.error_peak, '.3g')}",
+          esc(r.overturns)] for r in rows],
         caption="Runs", left=2, wrap={1}, raw=True)
 
 
@@ -442,12 +500,12 @@ def session_body(path: str, progress: Progress | None = None) -> tuple[str, str,
     sections, summaries = [], []
     n_figures = 0
     total = len(header.runs)
-    drawer = figures.RunFigure(DEFAULT_PERIODS)
+    drawer, tracker = figures.RunFigure(DEFAULT_PERIODS), figures.TrackingFigure()
     for k, run in enumerate(iter_runs(path)):
         if not body_rows and run.bodies:
             body_rows = run.bodies
             names = _body_names(body_rows)
-        html, summary = run_section(run, names, drawer)
+        html, summary = run_section(run, names, drawer, header.rig_config, tracker)
         n_figures += html.count("<img ")
         sections.append(html)
         summaries.append(summary)

@@ -21,9 +21,18 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from rig.emulator import EmulatorError
+from rig.emulator import EmulatorError, counters_summary
 from rig.orchestrator import Orchestrator, OrchestratorState, Progress
-from rig.orchestrator.setup import NoTableError, create_log, default_session_path, load_checked, table_for
+from rig.orchestrator.bodies import BodiesMismatchError
+from rig.orchestrator.setup import (
+    NoTableError,
+    TableUnreachableError,
+    choose_table,
+    create_log,
+    default_session_path,
+    load_checked,
+    table_for,
+)
 from rig.sequence import Sequence, SequenceError
 from rig.service.operator import RemoteOperator
 from rig.session import SessionError, SessionLog
@@ -45,9 +54,10 @@ class StartRequest:
     (``speed``: its controller time per real time, math.inf for virtual time: ``"max"`` in the request's
     ``args``); ``output``: the new session file (default
     ``session-DATE-TIME-NAME.h5`` in the service's sessions directory); ``resume``: continue that session file
-    instead (no sequence then); ``attended``: the operator's steps (place the bodies, and per the sequence confirm
-    each run and say which bodies fell) wait for the service's ``answer`` command (:mod:`rig.service.operator`),
-    else the session runs unattended. Relative paths are taken from the sessions directory.
+    instead (no sequence then), on the table stored in it unless ``table`` or ``emulate`` is given; ``attended``:
+    the operator's steps (place the bodies, and per the sequence confirm each run and say which bodies fell) wait for
+    the service's ``answer`` command (:mod:`rig.service.operator`), else the session runs unattended. Relative paths
+    are taken from the sessions directory.
     """
 
     sequence: Path | None = None
@@ -215,7 +225,7 @@ class ServiceSession:
             self._say(f"session {self.path}: {self.final.value}: {self.progress.message}")
             self._on_update()
         if self._counters is not None:
-            self._say(f"emulator: {self._counters()}")
+            self._say(f"emulator: {counters_summary(self._counters())}")
 
     def _prepare(self, stack: contextlib.ExitStack) -> tuple[Sequence, Any]:
         """Sequence, table (or emulator) and session file, opened on ``stack``; :class:`StartRefusedError`."""
@@ -223,33 +233,36 @@ class ServiceSession:
         self._counters: Callable[[], dict[str, Any]] | None = None
         self._scratch: Path | None = None
         try:
-            log = None
+            log, stored = None, None
             if request.resume is not None:
                 log = SessionLog.resume(request.resume)
                 stack.callback(log.close)
                 sequence = Sequence.from_dict(log.sequence, source=str(request.resume))
                 sequence.check()
-                self.path = request.resume
+                self.path, stored = request.resume, log.table
             else:
                 sequence = self._load(stack)
                 self.path = request.output or default_session_path(sequence, self.sessions_dir)
                 if self.path.exists():
                     raise StartRefusedError(f"{self.path}: already exists; a session file is never overwritten, "
                                             "choose a new file name (or resume that session)")
-            self._note("preparing the session: starting the emulated table" if request.emulate
+            choice = choose_table(sequence, request.table, request.emulate,
+                                  request.speed if request.emulate else None, stored)
+            self._note("preparing the session: starting the emulated table" if choice.emulate
                        else "preparing the session")
             self._url, self._options, self._counters = stack.enter_context(
-                table_for(sequence, request.table, request.emulate, self.key_file, request.speed))
+                table_for(sequence, choice.url, choice.emulate, self.key_file, choice.speed))
             if log is None:
-                log = create_log(sequence, self.path)
+                log = create_log(sequence, self.path, choice)
                 stack.callback(log.close)
-        except (SequenceError, SessionError, EmulatorError, OSError) as exc:
+        except (SequenceError, SessionError, EmulatorError, TableUnreachableError, BodiesMismatchError, OSError) as exc:
             message = str(exc)
             if self._scratch is not None:  # the text's file is named as the client named it
                 message = message.replace(f"{self._scratch}{os.sep}", "")
             raise StartRefusedError(message) from None
         except NoTableError:
-            raise StartRefusedError("give a table URL (or table_url in the sequence), or emulate: true") from None
+            raise StartRefusedError("no table: give a table URL (rig run --table URL, or table_url in the sequence) "
+                                    "or ask for the emulated table (rig run --emulate)") from None
         return sequence, log
 
     def _load(self, stack: contextlib.ExitStack) -> Sequence:

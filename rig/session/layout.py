@@ -41,13 +41,17 @@ def attr_value(name: str, value: Any) -> Any:
                      "list or dict")
 
 
-def create_root(h5: h5py.File, *, software_version: str, created: str, rig_config: str, sequence: str) -> None:
-    """Root attributes and the empty ``/runs`` group (compact links, sized for `EST_RUNS` runs in page 0)."""
+def create_root(h5: h5py.File, *, software_version: str, created: str, rig_config: str, sequence: str,
+                table: str | None = None) -> None:
+    """Root attributes (``table`` only when given) and the empty ``/runs`` group (compact links, sized for
+    `EST_RUNS` runs in page 0)."""
     h5.attrs["schema"] = schema.SCHEMA
     h5.attrs["software_version"] = software_version
     h5.attrs["created"] = created
     h5.attrs["rig_config"] = rig_config
     h5.attrs["sequence"] = sequence
+    if table is not None:
+        h5.attrs["table"] = table
     create_group(h5, "runs", links=EST_RUNS)
 
 

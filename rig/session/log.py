@@ -82,9 +82,10 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[RunInfo]]:
             if "runs" not in h5:
                 raise SessionError(f"{path}: no /runs group; expected a {schema.SCHEMA} session file")
             root = {key: text(h5.attrs.get(key, "")) for key in ("software_version", "created", "rig_config",
-                                                                  "sequence")}
+                                                                  "sequence", "table")}
             for key in ("rig_config", "sequence"):
                 root[key] = json.loads(root[key]) if root[key] else {}
+            root["table"] = json.loads(root["table"]) if root["table"] else None
             return root, [run_info(name, h5["runs"][name].attrs) for name in sorted(h5["runs"])]
     except (OSError, KeyError, ValueError) as exc:
         raise SessionError(f"{path}: unreadable session file ({exc})") from None
@@ -117,10 +118,11 @@ class SessionLog:
     # -- opening -----------------------------------------------------------------------------------------
     @classmethod
     def create(cls, path: str | os.PathLike[str], rig_config: dict, sequence: dict, software_version: str, *,
-               flush_interval: float = FLUSH_INTERVAL) -> SessionLog:
+               flush_interval: float = FLUSH_INTERVAL, table: dict | None = None) -> SessionLog:
         """Create a new session file at ``path``; `SessionExistsError` if anything exists there (never replaced).
 
-        ``flush_interval``: time between two flushes of a run's samples [s], at most `MAX_FLUSH_INTERVAL`."""
+        ``flush_interval``: time between two flushes of a run's samples [s], at most `MAX_FLUSH_INTERVAL`;
+        ``table``: where the session plays (root attribute ``table``, `rig.session.schema`)."""
         flush_interval = _interval(flush_interval)
         path = Path(path)
         if path.exists() or path.is_symlink():
@@ -130,14 +132,16 @@ class SessionLog:
             raise SessionError(f"{path}: directory {path.parent} does not exist")
         config_json = _jsontext(rig_config, "rig_config", path)
         sequence_json = _jsontext(sequence, "sequence", path)
+        table_json = None if table is None else _jsontext(table, "table", path)
         tmp = path.with_name(f".{path.name}.{secrets.token_hex(6)}.creating")
         root = {"software_version": str(software_version), "created": schema.iso_now(),
-                "rig_config": json.loads(config_json), "sequence": json.loads(sequence_json)}
+                "rig_config": json.loads(config_json), "sequence": json.loads(sequence_json),
+                "table": None if table_json is None else json.loads(table_json)}
         fd = -1
         try:
             with h5py.File(tmp, "w-", libver=LIBVER, fs_strategy="page", fs_page_size=PAGE, locking=False) as h5:
                 layout.create_root(h5, software_version=root["software_version"], created=root["created"],
-                                   rig_config=config_json, sequence=sequence_json)
+                                   rig_config=config_json, sequence=sequence_json, table=table_json)
             fd = os.open(tmp, os.O_RDWR | os.O_CLOEXEC)
             os.fsync(fd)
             lock_fd(fd, path)
@@ -201,6 +205,11 @@ class SessionLog:
     def sequence(self) -> dict:
         """The sequence stored at creation (parsed from the root attribute's JSON)."""
         return self._root["sequence"]
+
+    @property
+    def table(self) -> dict | None:
+        """Where the session plays, as stored at creation (root attribute ``table``), or None (not stored)."""
+        return self._root["table"]
 
     @property
     def software_version(self) -> str:

@@ -1,8 +1,10 @@
 """Names, types and units of the session file, schema ``shaketable-rig/session/1`` (ARCHITECTURE §7).
 
 Root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), ``rig_config`` and ``sequence``
-(JSON text). ``/runs/<NNNN>/``: one group per run *attempt*, numbered 0001, 0002, … in the order the runs
-began (a re-run of an interrupted plan entry is a new group; the old one stays, status ``interrupted``).
+(JSON text), and ``table`` (JSON text, where ``rig run`` played it: ``{"url": …}`` or ``{"emulate": true, "speed":
+…}``, ``rig.orchestrator.setup.TableChoice``; absent in files written by tools that play on no table).
+``/runs/<NNNN>/``: one group per run *attempt*, numbered 0001, 0002, … in the order the runs began
+(a re-run of an interrupted plan entry is a new group; the old one stays, status ``interrupted``).
 
 Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (float, degrees), ``plan_index``
 (int, index into the sequence's plan), ``attempt`` (int, 1 for the first run of that plan index),

@@ -234,8 +234,8 @@ def assert_self_contained(html: str) -> list[bytes]:
 def test_session_report(files: dict[str, Path]) -> None:
     html = files["session_html"].read_text()
     pngs = assert_self_contained(html)
-    # two runs with samples, Fig. 2 of the bodies, Fig. 13
-    assert len(pngs) == 4 and html.count("<figure>") == 4
+    # two runs with samples (each: acceleration and spectrum, tracking), Fig. 2 of the bodies, Fig. 13
+    assert len(pngs) == 6 and html.count("<figure>") == 6
     assert "Analysis against experiment (Fig. 13)" in html and "not analysed yet" not in html.lower()
     for text in ("fema-nearfield:NORTHR/RRS_032", "governing limit", "Records and scale factors", "refused",
                  "drive leaves the table", "Detections", "low side (+1)", "high side (−1)", "rocking", "general",
@@ -262,7 +262,7 @@ def test_session_report_scale_factors_and_peaks_are_those_of_the_file(files: dic
 def test_unanalysed_session_says_so(files: dict[str, Path]) -> None:
     html = files["bare_html"].read_text()
     assert "Not analysed yet (rig analyze)" in html
-    assert len(assert_self_contained(html)) == 2  # one run with samples, Fig. 2
+    assert len(assert_self_contained(html)) == 3  # one run with samples (two figures), Fig. 2
 
 
 def test_session_analysed_by_rig_analyze(files: dict[str, Path], tmp_path: Path) -> None:
@@ -276,7 +276,7 @@ def test_session_analysed_by_rig_analyze(files: dict[str, Path], tmp_path: Path)
     assert "Not analysed yet" not in html and "Fig. 13 data" in html
     assert "Analysis (rig analyze): predicted against observed" in html
     assert "plastic (no bounce, the paper&#x27;s)" in html or "plastic (no bounce, the paper's)" in html
-    assert len(assert_self_contained(html)) == 3  # the run, Fig. 2, Fig. 13
+    assert len(assert_self_contained(html)) == 4  # the run's two, Fig. 2, Fig. 13
     analyze_session(session, models=("rocking",), restitution="housner")
     html = write_report(session, tmp_path / "housner.html").output.read_text()
     assert "Housner" in html and "1 − 1.5 sin²α" in html and "plastic (no bounce" not in html
