@@ -12,6 +12,7 @@ Exit codes: 0 all runs done, 1 the session stopped early or a run is degraded (r
 
 from __future__ import annotations
 
+import os
 import queue
 import select
 import signal
@@ -20,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 from rich.console import Group
@@ -118,9 +119,9 @@ class Screen:
 
 
 def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str, Any], *, yes: bool,
-                console: Any) -> bool:
+                console: Any, ending: list[str] | None = None) -> bool:
     """Play the session with the screen, the prompts and Ctrl-C handling (module docstring); whether every run of
-    the plan is done."""
+    the plan is done. The final message is appended to ``ending`` if given."""
     from rig.orchestrator import Orchestrator, OrchestratorState
 
     operator = None if yes else TerminalOperator()
@@ -182,11 +183,24 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
         raise outcome
     progress = orchestrator.progress
     console.print(f"\n[bold]{outcome.value}[/]: {progress.message}")
+    if ending is not None:
+        ending.append(progress.message)
     degraded = sorted(index + 1 for index, status in progress.outcomes.items() if status == "degraded")
     if degraded:
         console.print(f"[bold yellow]degraded[/]: run(s) {', '.join(map(str, degraded))} played, but not cleanly "
                       "(their events say why): left out of Fig. 13; --resume plays them again")
     return outcome is OrchestratorState.DONE and progress.runs_done == progress.runs_total
+
+
+def _end_disk_full(path: Path) -> NoReturn:
+    """Exit :data:`EXIT_STOPPED` after a session the disk ended. HDF5 frees a file whose last writes failed at the
+    interpreter's final garbage collection and crashed there (a segmentation fault), after everything was said and
+    every committed row was on disk: this exit skips it."""
+    console.print(f"the session stopped early: the rows written are kept; free some space, then `rig sessions "
+                  f"recover {path}` if it says so, and continue with rig run --resume {path}")
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(EXIT_STOPPED)
 
 
 def _next_question(operator: TerminalOperator | None) -> tuple[Callable[[], Any], queue.Queue[Any]] | None:
@@ -301,6 +315,7 @@ def register(app: typer.Typer) -> None:
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
+        ending: list[str] = []
         try:
             if resume is not None:
                 sequence, log = resumed(resume)
@@ -316,7 +331,7 @@ def register(app: typer.Typer) -> None:
                     log = create_log(sequence, path)
                 console.print(f"session file: {path}")
                 try:
-                    complete = run_session(sequence, log, url, options, yes=yes, console=console)
+                    complete = run_session(sequence, log, url, options, yes=yes, console=console, ending=ending)
                 finally:
                     log.close()
             if counters is not None:
@@ -324,7 +339,11 @@ def register(app: typer.Typer) -> None:
         except NoTableError:
             fail("give --table URL (or table_url in the sequence), or --emulate")
         except (SequenceError, SessionError, EmulatorError) as exc:
+            if ending and ending[-1].startswith("disk full:"):
+                _end_disk_full(path)
             fail(str(exc))
         if not complete:
+            if ending and ending[-1].startswith("disk full:"):
+                _end_disk_full(path)
             console.print(f"the session stopped early: continue it with rig run --resume {path}")
             raise typer.Exit(code=EXIT_STOPPED)
