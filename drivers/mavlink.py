@@ -1,7 +1,12 @@
 """The table controller over MAVLink 2 on UDP: ``open_table("mavlink://HOST:PORT", key_file=...)``.
 
 The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with
-the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.mavlink.load_signing_key`).
+the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.mavlink.load_signing_key`) both
+ways: what the controller sends is taken only when signed with that key, fresh, by a stream not replayed
+(:func:`protocols.mavlink.parse_verified`); the rest is dropped and counted
+(:meth:`MavlinkTable.link_stats`:
+``junk_datagrams``, ``refused_unsigned``, ``refused_bad_signature``, ``refused_stale``), so that no local process
+can put an overturn, an accelerometer sample or a status into the record.
 
 Threads: a **receive thread** drains the socket continuously (receive buffer enlarged to
 :data:`RECEIVE_BUFFER`), stamps each datagram with its arrival time and dispatches every message to the feedback
@@ -34,10 +39,11 @@ Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
 from __future__ import annotations
 
 import ipaddress
+import secrets
 import threading
 import time
 from collections import deque
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -60,11 +66,17 @@ from drivers.controller import (
 from protocols.mavlink import (
     SETPOINTS_PER_CHUNK,
     UdpLink,
+    badly_signed,
     dialect,
+    enable_signing,
+    follow_wall_clock,
     load_signing_key,
+    parse_verified,
     setpoint_chunks,
+    stale_new_stream,
     unpack_accel_batch,
     unpack_tilt_batch,
+    whole_frames,
 )
 
 RECEIVE_BUFFER = 4 << 20
@@ -122,14 +134,16 @@ class MavlinkTable(ChunkedStreamController):
     """A table controller at ``mavlink://HOST:PORT`` (module docstring).
 
     Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``system``/``component`` this host's MAVLink
-    ids; ``target_system``/``target_component`` the controller's; ``link_id`` of the signatures;
+    ids; ``target_system``/``target_component`` the controller's; ``link_id`` of the signatures (default: random
+    per connection, so that two hosts with the same ids are two signing streams, not one whose timestamps
+    interleave and get refused as replays);
     ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s].
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, system: int = 255, component: int = 190,
-                 target_system: int = 1, target_component: int = 1, link_id: int = 0,
+                 target_system: int = 1, target_component: int = 1, link_id: int | None = None,
                  command_timeout: float = 0.15, retries: int = 4, connect_timeout: float = 3.0) -> None:
         super().__init__(url)
         self.address = host_port(url)
@@ -153,6 +167,10 @@ class MavlinkTable(ChunkedStreamController):
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
+        self.refused = {"junk_datagrams": 0, "refused_unsigned": 0, "refused_bad_signature": 0, "refused_stale": 0}
+        """What the receive thread dropped: datagrams that are not whole MAVLink 2 frames, messages without a
+        signature, with one that did not verify (another key, altered, replayed within its stream), opening a stream
+        with a stale timestamp (:func:`protocols.mavlink.stale_new_stream`)."""
 
     # ----- connection -----------------------------------------------------------------------------------
 
@@ -160,14 +178,16 @@ class MavlinkTable(ChunkedStreamController):
         if self._link is not None:
             return
         key = load_signing_key(self.key_file)
+        link_id = secrets.randbelow(256) if self.link_id is None else self.link_id
         self.heap.hold()
         host, port = self.address
         local = "127.0.0.1" if _is_loopback(host) else "0.0.0.0"
         self._link = UdpLink.open((local, 0), (host, port), source_system=self.system,
-                                  source_component=self.component, key=key, link_id=self.link_id,
+                                  source_component=self.component, key=key, link_id=link_id,
                                   receive_buffer=RECEIVE_BUFFER)
         self._parser = self.d.MAVLink(None, srcSystem=self.system, srcComponent=self.component)
         self._parser.robust_parsing = True
+        enable_signing(self._parser, key, link_id=link_id, sign_outgoing=False)
         self._closing.clear()
         self._threads = [threading.Thread(target=self._receive_loop, name="mavlink-receive", daemon=True),
                          threading.Thread(target=self._heartbeat_loop, name="mavlink-heartbeat", daemon=True)]
@@ -177,8 +197,7 @@ class MavlinkTable(ChunkedStreamController):
             deadline = time.monotonic() + self.connect_timeout
             while not (self.clock.fitted and self.feedback.latest is not None):
                 if time.monotonic() > deadline:
-                    raise TableTimeoutError(f"{self.url}: no answer from the table controller "
-                                            f"within {self.connect_timeout} s")
+                    self._no_answer()
                 self._request_timesync()  # round trips 20 ms apart until the clock's rate is fitted
                 time.sleep(0.02)
         except BaseException:
@@ -196,6 +215,15 @@ class MavlinkTable(ChunkedStreamController):
         self.feedback.close()
         self.heap.release()
 
+    def _no_answer(self) -> NoReturn:
+        """Why :meth:`connect` got no answer: another signing key (the controller's messages did not verify), or
+        silence."""
+        if self.refused["refused_bad_signature"]:
+            raise TableError(f"{self.url}: the table controller answers, but {self.refused['refused_bad_signature']} "
+                             "of its messages did not verify with this host's signing key: are host and controller "
+                             "using the same signing key?")
+        raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s")
+
     def _receive_loop(self) -> None:
         assert self._link is not None
         sock = self._link.sock
@@ -208,8 +236,28 @@ class MavlinkTable(ChunkedStreamController):
             except OSError:
                 return
             now = time.monotonic_ns()
-            for msg in self._parser.parse_buffer(data) or []:
+            for msg in self._verified(data):
                 self._dispatch(msg, now)
+
+    def _verified(self, data: bytes) -> list[Any]:
+        """The messages of one datagram signed by the controller with the rig's key; the rest counted in
+        :attr:`refused`."""
+        frames = whole_frames(data)
+        if frames is None:
+            self.refused["junk_datagrams"] += 1
+            return []
+        verified = []
+        for frame in frames:
+            if stale_new_stream(self._parser, frame):
+                self.refused["refused_stale"] += 1
+                parse_verified(self._parser, frame, stale=True)  # a replayed stream must not stay open
+                continue
+            for msg in parse_verified(self._parser, frame):
+                if msg.get_signed():
+                    verified.append(msg)
+                else:
+                    self.refused["refused_bad_signature" if badly_signed(msg) else "refused_unsigned"] += 1
+        return verified
 
     def _dispatch(self, msg: Any, now: int) -> None:
         kind = msg.get_type()
@@ -280,6 +328,7 @@ class MavlinkTable(ChunkedStreamController):
         if link is None:
             raise TableError(f"{self.url}: not connected")
         with self._send_lock:
+            follow_wall_clock(link.mav)
             link.send(msg)
 
     # ----- commands (ChunkedStreamController) ---------------------------------------------------------
@@ -341,9 +390,10 @@ class MavlinkTable(ChunkedStreamController):
 
     def link_stats(self) -> dict[str, float | None]:
         """Clock estimate and round trips, accelerometer and body-tilt batches lost, duplicate overturn events
-        dropped, age of the controller's last heartbeat [s] (None before the first)."""
+        dropped, what was refused (:attr:`refused`), age of the controller's last heartbeat [s] (None before the
+        first)."""
         beat = self.last_controller_heartbeat_ns
-        return {**self.clock.stats(), "accel_batches_lost": self.accel_batches_lost,
+        return {**self.clock.stats(), **self.refused, "accel_batches_lost": self.accel_batches_lost,
                 "tilt_batches_lost": self.tilt_batches_lost,
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "controller_heartbeat_age_s": None if beat is None else (time.monotonic_ns() - beat) * 1e-9}

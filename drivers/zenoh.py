@@ -3,9 +3,12 @@
 The controller's zenoh session listens on ``tcp/HOST:PORT`` (loopback); this host opens a peer session that
 connects there (scouting off, :func:`protocols.zenoh.session_config`) and speaks the table link of
 :mod:`protocols.zenoh.table` on ``shaketable/TABLE/controller/...`` (the controller side is
-``sim_table.zenoh_endpoint``). Motion commands and setpoint chunks — in fact every command — are signed
-(:mod:`protocols.zenoh.auth`: HMAC-SHA256 with the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``,
-a random sender id per connection and a strictly increasing µs stamp against replay).
+``sim_table.zenoh_endpoint``). Every command, setpoint chunk and heartbeat is signed (:mod:`protocols.zenoh.auth`:
+HMAC-SHA256 with the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``, a random sender id per connection
+and a strictly increasing µs stamp against replay), and so is everything the controller sends: a publication or
+reply without a valid, fresh signature is dropped and counted (:meth:`ZenohTable.link_stats`: ``refused_unsigned``,
+``refused_bad_signature``, ``refused_stale``), so that no other zenoh peer can put an overturn, an accelerometer
+sample or a status into the record.
 
 Threads: zenoh's callback threads stamp each publication of the controller with its arrival time and publish it
 to the feedback (status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id, final
@@ -42,6 +45,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import NoReturn
 
 import numpy as np
 import zenoh
@@ -63,7 +67,7 @@ from drivers.controller import (
 )
 from protocols.mavlink import load_signing_key
 from protocols.zenoh import session_config, table_accel_selector, table_key
-from protocols.zenoh.auth import Signer
+from protocols.zenoh.auth import Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
     SETPOINTS_PER_CHUNK,
@@ -98,6 +102,9 @@ CLOCK_TIMEOUT = 0.5
 
 RETRY_SPACING = 0.01
 """Least time between two attempts of a command [s] (a query without a route ends at once)."""
+
+_REFUSED = {Verdict.UNSIGNED: "refused_unsigned", Verdict.BAD_SIGNATURE: "refused_bad_signature",
+            Verdict.STALE: "refused_stale"}
 
 
 class _QueryAnswer(CommandAnswer):
@@ -161,13 +168,21 @@ class ZenohTable(ChunkedStreamController):
         """Publications of the controller that could not be decoded."""
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
+        self.refused = dict.fromkeys(_REFUSED.values(), 0)
+        """Payloads of the controller dropped: without a signature (too short to hold one), with one that did not
+        verify (another key or key expression, altered; an unsigned payload long enough to hold one), or stale
+        (replayed, reordered, too old)."""
+        self._verifier: Verifier | None = None
+        self._verify_lock = threading.Lock()  # zenoh calls back on several threads
 
     # ----- connection -----------------------------------------------------------------------------------
 
     def connect(self) -> None:
         if self._session is not None:
             return
-        self._signer = Signer(load_signing_key(self.key_file), secrets.randbits(64))
+        key = load_signing_key(self.key_file)
+        self._signer = Signer(key, secrets.randbits(64))
+        self._verifier = Verifier(key)
         deadline = time.monotonic() + self.connect_timeout
         self.heap.hold()
         try:
@@ -193,8 +208,7 @@ class ZenohTable(ChunkedStreamController):
             self._thread.start()
             while not (self.clock.fitted and self.feedback.latest is not None and self._routes_ready()):
                 if time.monotonic() > deadline:
-                    raise TableTimeoutError(f"{self.url}: no answer from the table controller "
-                                            f"within {self.connect_timeout} s")
+                    self._no_answer()
                 self._request_clock()  # round trips 20 ms apart until the clock's rate is fitted
                 time.sleep(0.02)
         except BaseException:
@@ -217,6 +231,15 @@ class ZenohTable(ChunkedStreamController):
             return tuple(TableBody(k, *body) for k, body in enumerate(bodies))
         return None
 
+    def _no_answer(self) -> NoReturn:
+        """Why :meth:`connect` got no answer: another signing key (the controller's messages did not verify), or
+        silence."""
+        if self.refused["refused_bad_signature"]:
+            raise TableError(f"{self.url}: the table controller answers, but {self.refused['refused_bad_signature']} "
+                             "of its messages did not verify with this host's signing key: are host and controller "
+                             "using the same signing key?")
+        raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s")
+
     def _routes_ready(self) -> bool:
         return bool(self._setpoints.matching_status and self._heartbeat.matching_status
                     and self._command_querier.matching_status)
@@ -236,17 +259,30 @@ class ZenohTable(ChunkedStreamController):
     # ----- receiving (zenoh's callback threads) ----------------------------------------------------------
 
     def _receiver(self, handler: Callable[[bytes, int], None]) -> Callable[[zenoh.Sample], None]:
-        """A subscriber callback: ``handler(payload, arrival host ns)``; an undecodable payload is counted (zenoh
-        would only log the exception)."""
+        """A subscriber callback: ``handler(message, arrival host ns)`` for a payload signed by the controller (the
+        rest counted in :attr:`refused`); an undecodable payload is counted (zenoh would only log the exception)."""
 
         def receive(sample: zenoh.Sample) -> None:
             now = time.monotonic_ns()
+            received = split_signed(sample.payload.to_bytes())
+            if not self._verified(str(sample.key_expr), received):
+                return
             try:
-                handler(sample.payload.to_bytes(), now)
+                handler(received.message, now)
             except PayloadError:
                 self.bad_payloads += 1
 
         return receive
+
+    def _verified(self, key: str, received: Received, *, reply: bool = False) -> bool:
+        """Whether ``received`` came signed by the controller on ``key`` (``reply``: a reply to a query of this
+        host, :meth:`~protocols.zenoh.auth.Verifier.verify_reply`); counted in :attr:`refused` if not."""
+        assert self._verifier is not None  # connected
+        with self._verify_lock:
+            verdict = (self._verifier.verify_reply if reply else self._verifier.verify)(key, received)
+            if verdict is not Verdict.SIGNED:
+                self.refused[_REFUSED[verdict]] += 1
+        return verdict is Verdict.SIGNED
 
     def _on_status(self, payload: bytes, now: int) -> None:
         report = decode_status(payload)
@@ -284,8 +320,11 @@ class ZenohTable(ChunkedStreamController):
         now = time.monotonic_ns()
         if reply.ok is None:
             return
+        received = split_signed(reply.ok.payload.to_bytes())
+        if not self._verified(self._keys["clock"], received, reply=True):
+            return
         try:
-            answer = decode_clock_reply(reply.ok.payload.to_bytes())
+            answer = decode_clock_reply(received.message)
         except PayloadError:
             self.bad_payloads += 1
             return
@@ -300,7 +339,7 @@ class ZenohTable(ChunkedStreamController):
         deadline = time.monotonic_ns()
         beats = 0
         while not self._closing.is_set():
-            self._heartbeat.put(encode_heartbeat(time.monotonic_ns()))
+            self._heartbeat.put(self._signed(self._keys["host-heartbeat"], encode_heartbeat(time.monotonic_ns())))
             beats += 1
             if beats % CLOCK_EVERY == 0:
                 self._request_clock()
@@ -360,8 +399,12 @@ class ZenohTable(ChunkedStreamController):
             if reply.ok is None:
                 errors.append(reply.err.payload.to_string())
                 continue
+            received = split_signed(reply.ok.payload.to_bytes())
+            if not self._verified(self._keys["command"], received, reply=True):
+                errors.append("an answer without a valid signature")
+                continue
             try:
-                answer = decode_answer(reply.ok.payload.to_bytes())
+                answer = decode_answer(received.message)
             except PayloadError as exc:
                 errors.append(str(exc))
                 continue
@@ -401,10 +444,10 @@ class ZenohTable(ChunkedStreamController):
 
     def link_stats(self) -> dict[str, float | None]:
         """Clock estimate and round trips, accelerometer and body-tilt batches lost, duplicate overturn events
-        dropped, command queries unanswered, undecodable publications, age of the controller's last heartbeat [s]
-        (None before the first)."""
+        dropped, command queries unanswered, undecodable publications, what was refused (:attr:`refused`), age of
+        the controller's last heartbeat [s] (None before the first)."""
         beat = self.last_controller_heartbeat_ns
-        return {**self.clock.stats(), "accel_batches_lost": self.accel_batches_lost,
+        return {**self.clock.stats(), **self.refused, "accel_batches_lost": self.accel_batches_lost,
                 "tilt_batches_lost": self.tilt_batches_lost,
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "command_attempts_unanswered": self.command_attempts_unanswered, "bad_payloads": self.bad_payloads,

@@ -29,8 +29,16 @@ Protocol decisions (the host side is ``drivers.mavlink``):
   transmission lost — it is taken for a retransmission of the first and answered with its result.
 - **Signatures.** Unsigned or badly signed ARM, HOME, SET_TILT, START_STREAM and setpoint chunks are refused;
   STOP, DISARM and EMERGENCY_STOP are accepted unsigned. A badly signed message must not move pymavlink's
-  per-stream replay timestamp (pymavlink records it before checking the signature, so one forged message with
-  a future timestamp would lock the real host out): it is restored.
+  per-stream replay timestamp (:func:`protocols.mavlink.parse_verified`). A signed message opening a stream
+  this controller has not heard counts as unsigned when stamped more than :data:`~protocols.mavlink.REPLAY_WINDOW`
+  s behind the wall clock (``stale_signatures``): a capture replayed after a restart is denied. Everything the
+  controller sends is signed with the same key (the host drops what is not).
+- **Heartbeats.** Only a signed HEARTBEAT makes its sender a peer (telemetry goes to it), and only a signed one
+  from the host that armed the table (address, system, component of the accepted ARM) feeds the watchdog; the
+  others are counted (``heartbeats_refused`` unsigned or badly signed, ``heartbeats_other_host``).
+- **Bounded reading.** A datagram that is not a whole number of MAVLink 2 frames is dropped unparsed
+  (``junk_datagrams``); one drain reads at most :data:`DRAIN_LIMIT` datagrams, so that a flood cannot hold the
+  tick thread (the receive thread drains the rest).
 - **Telemetry** (status, accelerometer batches, tilt batches of :data:`~protocols.mavlink.TILT_PER_BATCH` angles
   per body, overturn events, heartbeats) goes to every address that sent a HEARTBEAT within :data:`PEER_TIMEOUT`
   s. Overturn events are sent at once and again 3 times 100 ms apart (real time), with the same event id.
@@ -66,9 +74,13 @@ from protocols.mavlink import (
     accel_batches,
     dialect,
     enable_signing,
+    follow_wall_clock,
+    parse_verified,
     signed_with_key,
+    stale_new_stream,
     tilt_batches,
     unpack_setpoint_chunk,
+    whole_frames,
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
@@ -96,13 +108,13 @@ RECEIVE_BUFFER = 4 << 20
 
 MAX_DATAGRAM = 65535
 
+DRAIN_LIMIT = 256
+"""Most datagrams one :meth:`MavlinkEndpoint.drain` reads (one tick's worth of a host's messages many times over)."""
+
 _SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35) if sys.platform == "linux" else None
 """Linux's socket option (and control-message type) for a nanosecond kernel receive stamp (struct timespec)."""
 
 _STAMP_SPACE = socket.CMSG_SPACE(struct.calcsize("ll")) if _SO_TIMESTAMPNS is not None else 0
-
-_SIGNED_FRAME = 0x01  # MAVLINK_IFLAG_SIGNED in incompat_flags
-
 
 
 @dataclass
@@ -114,6 +126,10 @@ class LinkCounters:
     packets_sent: int = 0
     packets_not_sent: int = 0  # injected loss, outbound
     bad_data: int = 0
+    junk_datagrams: int = 0  # not whole MAVLink 2 frames: dropped unparsed
+    stale_signatures: int = 0  # a new stream stamped too far behind the wall clock (a replay after a restart)
+    heartbeats_refused: int = 0  # unsigned or badly signed host heartbeats
+    heartbeats_other_host: int = 0  # signed, from another host than the one that armed the table
     timesync_answered: int = 0
     duplicate_commands: int = 0
     unsupported_commands: int = 0
@@ -139,9 +155,10 @@ def _enable_kernel_stamps(sock: socket.socket) -> None:
 class MavlinkEndpoint(BatchedTelemetry):
     """The controller's UDP endpoint at ``local`` (host, port; port 0 = any free one).
 
-    ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns;
-    ``system``/``component`` are the controller's MAVLink ids; ``loss`` (probability) and ``delay`` [s] inject
-    faults with ``seed``; ``bodies`` the specimens on the plate (sent as SHAKETABLE_BODY).
+    ``key`` (32 bytes) verifies the host's signatures and signs what the controller sends; ``clock`` maps host
+    monotonic ns to controller ns; ``system``/``component`` are the controller's MAVLink ids; ``loss``
+    (probability) and ``delay`` [s] inject faults with ``seed``; ``bodies`` the specimens on the plate (sent as
+    SHAKETABLE_BODY).
     """
 
     def __init__(self, local: tuple[str, int], key: bytes, clock: Callable[[int], int], *, system: int = 1,
@@ -162,6 +179,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._parser = self.d.MAVLink(None, srcSystem=system, srcComponent=component)
         self._parser.robust_parsing = True
         enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
+        enable_signing(self._link.mav, key, link_id=0)
         _enable_kernel_stamps(self._link.sock)
         self._receive_lock = threading.Lock()
         self._send_lock = threading.Lock()
@@ -169,7 +187,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._inbox_lock = threading.Lock()
         self._outbox: list[tuple[int, int, bytes, tuple[str, int]]] = []  # delayed datagrams (due, n, data, addr)
         self._sent = 0
-        self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last heartbeat
+        self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last signed heartbeat
+        self._armer: tuple[tuple[str, int], int, int] | None = None  # (address, system, component) of the ARM
         self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
         self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
         self._answers: list[tuple[Any, tuple[str, int]]] = []  # COMMAND_ACKs held until the batch's statuses are out
@@ -216,10 +235,12 @@ class MavlinkEndpoint(BatchedTelemetry):
 
     def drain(self) -> None:
         """Receive every datagram waiting in the socket, each stamped with its arrival time (module docstring),
-        and queue its messages (either thread; one at a time)."""
+        and queue its messages (either thread; one at a time), at most :data:`DRAIN_LIMIT` datagrams."""
         sock = self._link.sock
         with self._receive_lock:
-            while not self._closing:
+            for _ in range(DRAIN_LIMIT):
+                if self._closing:
+                    return
                 try:
                     if not select.select([sock], [], [], 0)[0]:
                         return
@@ -245,20 +266,19 @@ class MavlinkEndpoint(BatchedTelemetry):
         return now
 
     def _parse(self, data: bytes) -> list[Any]:
-        stamps = self._parser.signing.stream_timestamps
-        before = dict(stamps)
+        """The messages of one datagram, signatures checked (flagged, not dropped: stopping needs none)."""
+        frames = whole_frames(data)
+        if frames is None:
+            self.counters.junk_datagrams += 1
+            return []
         messages = []
-        for msg in self._parser.parse_buffer(data) or []:
-            if msg.get_type() == "BAD_DATA":
+        for frame in frames:
+            stale = stale_new_stream(self._parser, frame)
+            self.counters.stale_signatures += stale
+            parsed = parse_verified(self._parser, frame, stale=stale)
+            if not parsed:
                 self.counters.bad_data += 1
-                continue
-            if not msg.get_signed() and msg._header.incompat_flags & _SIGNED_FRAME:
-                stream = (msg._msgbuf[-13], msg.get_srcSystem(), msg.get_srcComponent())
-                if stream in before:
-                    stamps[stream] = before[stream]
-                else:
-                    stamps.pop(stream, None)
-            messages.append(msg)
+            messages += parsed
         return messages
 
     def _arrived(self, msg: Any, source: tuple[str, int], now: int) -> None:
@@ -266,7 +286,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         if kind == "TIMESYNC" and msg.tc1 == 0 and not self.delay_ns:
             self._answer_timesync(msg, source, now)
             return
-        if kind == "HEARTBEAT":
+        if kind == "HEARTBEAT" and signed_with_key(msg):
             with self._send_lock:
                 if source not in self._peers:
                     self._next_bodies = 0  # a new host learns the bodies at once
@@ -299,7 +319,7 @@ class MavlinkEndpoint(BatchedTelemetry):
     def _action(self, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> Action | None:
         kind = msg.get_type()
         if kind == "HEARTBEAT":
-            return lambda core: core.heartbeat(arrival)
+            return self._heartbeat_action(msg, source, signed, arrival)
         if kind == "TIMESYNC" and msg.tc1 == 0:
             return lambda core: self._answer_timesync(msg, source, time.monotonic_ns())
         if kind == "COMMAND_LONG":
@@ -307,6 +327,16 @@ class MavlinkEndpoint(BatchedTelemetry):
         if kind == "SHAKETABLE_SETPOINT_CHUNK":
             return self._chunk_action(msg, signed, arrival)
         return None
+
+    def _heartbeat_action(self, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> Action | None:
+        """A host heartbeat feeds the watchdog only when signed and from the host that armed the table."""
+        if not signed:
+            self.counters.heartbeats_refused += 1
+            return None
+        if self._armer != (source, msg.get_srcSystem(), msg.get_srcComponent()):
+            self.counters.heartbeats_other_host += 1
+            return None
+        return lambda core: core.heartbeat(arrival)
 
     def _chunk_action(self, msg: Any, signed: bool, arrival: int) -> Action | None:
         if self.stall_chunks:
@@ -343,6 +373,8 @@ class MavlinkEndpoint(BatchedTelemetry):
             self._ack(msg.command, self._results[last[2]], 0, source, sender)
             return
         result = core.command(command, params, signed, arrival)
+        if command is Command.ARM and result is Result.ACCEPTED:
+            self._armer = (source, *sender)
         if result is not Result.DENIED:
             self._last[sender] = (msg.command, params, result, now)
         if result is Result.IN_PROGRESS:
@@ -439,6 +471,7 @@ class MavlinkEndpoint(BatchedTelemetry):
                 to = [addr for addr, seen in self._peers.items() if seen >= limit]
             if not to:
                 return
+            follow_wall_clock(self._link.mav)
             data = msg.pack(self._link.mav)
             self._link.mav.seq = (self._link.mav.seq + 1) % 256
             for addr in to:

@@ -22,7 +22,10 @@ Protocol decisions:
 - **Signatures** (``protocols.zenoh.auth``, the rig's key): ARM, HOME, SET_TILT, START_STREAM and setpoint
   chunks without a valid, fresh signature are refused (``refused_commands``, answered ``denied``); STOP, DISARM
   and EMERGENCY_STOP are accepted unsigned. The counters say why (``unsigned``, ``bad_signatures``,
-  ``stale_signatures``).
+  ``stale_signatures``). Everything the controller sends — replies, statuses, answers, batches, overturn events
+  (each copy signed afresh), heartbeats — is signed as one sender (random per start); the host drops the rest.
+- **Heartbeats** of the host are signed; only those of the sender whose ARM was accepted feed the watchdog
+  (``heartbeats_refused``: without a valid, fresh signature; ``heartbeats_other_host``: another sender's).
 - **Clock**: a query on ``clock`` is answered with the controller time when it is answered.
 - **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
   per sensor), tilt batches of :data:`~protocols.zenoh.table.TILT_PER_BATCH` angles (every body's on one key),
@@ -39,6 +42,7 @@ from __future__ import annotations
 import contextlib
 import heapq
 import math
+import secrets
 import socket
 import threading
 import time
@@ -51,7 +55,7 @@ import numpy as np
 import zenoh
 
 from protocols.zenoh import session_config, table_key
-from protocols.zenoh.auth import Verdict, Verifier
+from protocols.zenoh.auth import Signer, Verdict, Verifier, sender_of, split_signed
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
     ACCEL_PER_BATCH,
@@ -111,6 +115,8 @@ class LinkCounters:
     unsigned: int = 0  # commands and chunks without a signature
     bad_signatures: int = 0
     stale_signatures: int = 0  # replayed, reordered or too old
+    heartbeats_refused: int = 0  # host heartbeats without a valid, fresh signature
+    heartbeats_other_host: int = 0  # signed by another sender than the one whose ARM was accepted
     clock_answered: int = 0
     duplicate_commands: int = 0
     chunks_stalled: int = 0
@@ -126,9 +132,9 @@ class LinkCounters:
 class ZenohEndpoint(BatchedTelemetry):
     """The controller's zenoh endpoint for ``address`` (module docstring).
 
-    ``key`` (32 bytes) verifies the host's signatures; ``clock`` maps host monotonic ns to controller ns; ``loss``
-    (probability) and ``delay`` [s] inject faults with ``seed``; ``bodies`` the specimens on the plate (the
-    ``bodies`` queryable's reply).
+    ``key`` (32 bytes) verifies the host's signatures and signs what the controller sends; ``clock`` maps host
+    monotonic ns to controller ns; ``loss`` (probability) and ``delay`` [s] inject faults with ``seed``; ``bodies``
+    the specimens on the plate (the ``bodies`` queryable's reply).
     """
 
     def __init__(self, address: TableUrl, key: bytes, clock: Callable[[int], int], *, loss: float = 0.0,
@@ -144,6 +150,8 @@ class ZenohEndpoint(BatchedTelemetry):
         self.stall_chunks = False
         """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
         self._verifier = Verifier(key)
+        self._signer = Signer(key, secrets.randbits(64))
+        self._armer: int | None = None  # sender id of the host whose ARM was accepted
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()  # the random numbers, the inbox, the counters of several threads
         self._session, self.address = _listen(address)
@@ -250,13 +258,24 @@ class ZenohEndpoint(BatchedTelemetry):
                 return lambda core: self._answer_clock(query, payload)
             return lambda core: self._command(core, query, payload, arrival)
         if kind == "heartbeat":
-            try:
-                decode_heartbeat(payload)
-            except PayloadError:
-                self._count("bad_payloads")
-                return None
-            return lambda core: core.heartbeat(arrival)
+            return self._heartbeat_action(payload, arrival)
         return self._chunk_action(payload, arrival)
+
+    def _heartbeat_action(self, payload: bytes, arrival: int) -> Action | None:
+        """A host heartbeat feeds the watchdog only when signed and from the host whose ARM was accepted."""
+        received = split_signed(payload)
+        try:
+            decode_heartbeat(received.message)
+        except PayloadError:
+            self._count("bad_payloads")
+            return None
+        if self._verifier.verify(self._keys["host-heartbeat"], received) is not Verdict.SIGNED:
+            self._count("heartbeats_refused")
+            return None
+        if sender_of(received) != self._armer:
+            self._count("heartbeats_other_host")
+            return None
+        return lambda core: core.heartbeat(arrival)
 
     def _chunk_action(self, payload: bytes, arrival: int) -> Action | None:
         if self.stall_chunks:
@@ -296,6 +315,8 @@ class ZenohEndpoint(BatchedTelemetry):
             self._reply_answer(query, Answer(request.cmd_id, known[1].value, arrival))
             return
         result = core.command(command, request.params, signed, arrival)
+        if command is Command.ARM and result is Result.ACCEPTED:
+            self._armer = sender_of(received)
         if result is not Result.DENIED:
             self._answers[request.cmd_id] = (received.message, result)
             self._answers.move_to_end(request.cmd_id)
@@ -312,31 +333,32 @@ class ZenohEndpoint(BatchedTelemetry):
             return
         if cmd_id in self._answers:
             self._answers[cmd_id] = (self._answers[cmd_id][0], done.result)
-        self._publish(self._answer, encode_answer(Answer(cmd_id, done.result.value, done.t_ns)))
+        self._publish(self._answer, self._keys["answer"], encode_answer(Answer(cmd_id, done.result.value, done.t_ns)))
 
     def send_status(self, snap: Snapshot) -> None:
         """One STATUS."""
         self._count("status_sent")
-        self._publish(self._status, encode_status(StatusReport(
+        self._publish(self._status, self._keys["status"], encode_status(StatusReport(
             snap.t_ns, snap.state.value, min(snap.buffer_depth, 2**32 - 1), snap.last_chunk_seq, snap.underruns,
             int(snap.faults), snap.refused_commands, snap.pose, snap.buffer_capacity,
             min(snap.samples_late, 2**32 - 1))))
 
     def _send_accel(self, batch: Batch) -> None:
+        key = table_key(self.address.table, "accel", str(batch.source))
         publisher = self._accel_publishers.get(batch.source)
         if publisher is None:
             publisher = self._accel_publishers[batch.source] = self._session.declare_publisher(
-                table_key(self.address.table, "accel", str(batch.source)), congestion_control=self._batch_congestion)
+                key, congestion_control=self._batch_congestion)
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
-        self._publish(publisher, encode_accel(AccelSamples(batch.source, batch.seq, batch.t_start_ns,
+        self._publish(publisher, key, encode_accel(AccelSamples(batch.source, batch.seq, batch.t_start_ns,
                                                            batch.spacing_ns, batch.samples)))
 
     def _send_tilt(self, batch: Batch) -> None:
         self.counters.tilt_batches_sent += 1
         self.counters.tilt_samples_sent += len(batch.samples)
-        self._publish(self._tilt_publisher, encode_tilt(TiltSamples(batch.source, batch.seq, batch.t_start_ns,
-                                                                    batch.spacing_ns, batch.samples)))
+        self._publish(self._tilt_publisher, self._keys["tilt"], encode_tilt(TiltSamples(
+            batch.source, batch.seq, batch.t_start_ns, batch.spacing_ns, batch.samples)))
 
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
         """An overturn event, now and again :data:`EVENT_RESENDS` times."""
@@ -348,13 +370,13 @@ class ZenohEndpoint(BatchedTelemetry):
 
     def _send_overturn(self, payload: bytes) -> None:
         self.counters.overturn_messages_sent += 1
-        self._publish(self._overturn, payload)
+        self._publish(self._overturn, self._keys["overturn"], payload)
 
     def service(self, now: int, state: State) -> None:
         """Periodic duties at host time ``now`` [ns]: heartbeat, event resends, delayed messages."""
         if now >= self._next_heartbeat:
             self._next_heartbeat = now + round(HEARTBEAT_PERIOD * 1e9)
-            self._publish(self._heartbeat, encode_heartbeat(self.clock(now)))
+            self._publish(self._heartbeat, self._keys["heartbeat"], encode_heartbeat(self.clock(now)))
         while self._resends and self._resends[0][0] <= now:
             due, left, event_id, payload = heapq.heappop(self._resends)
             self._send_overturn(payload)
@@ -373,10 +395,14 @@ class ZenohEndpoint(BatchedTelemetry):
         with self._lock:
             setattr(self.counters, name, getattr(self.counters, name) + 1)
 
-    def _publish(self, publisher: zenoh.Publisher, payload: bytes) -> None:
+    def _publish(self, publisher: zenoh.Publisher, key: str, message: bytes) -> None:
+        """Publish ``message`` signed for ``key``, the publisher's key expression."""
+        payload = self._signer.sign(key, message)
         self._send(lambda: publisher.put(payload))
 
-    def _reply(self, query: zenoh.Query, key: str, payload: bytes) -> None:
+    def _reply(self, query: zenoh.Query, key: str, message: bytes) -> None:
+        payload = self._signer.sign(key, message)
+
         def deliver() -> None:
             query.reply(key, payload)
             query.drop()

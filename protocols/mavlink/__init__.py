@@ -33,14 +33,19 @@ from protocols.mavlink.framing import (
     unpack_setpoint_chunk,
     unpack_tilt_batch,
 )
-from protocols.mavlink.link import UdpLink, mavlink_connection
+from protocols.mavlink.link import UdpLink, mavlink_connection, whole_frames
 from protocols.mavlink.signing import (
     KEY_ENV,
+    REPLAY_WINDOW,
     SigningKeyError,
+    badly_signed,
     enable_signing,
+    follow_wall_clock,
     load_signing_key,
+    parse_verified,
     requires_signature,
     signed_with_key,
+    stale_new_stream,
 )
 
 __all__ = [
@@ -48,6 +53,7 @@ __all__ = [
     "DIALECT_NAME",
     "END_OF_STREAM",
     "KEY_ENV",
+    "REPLAY_WINDOW",
     "SETPOINTS_PER_CHUNK",
     "TILT_PER_BATCH",
     "DialectError",
@@ -57,17 +63,22 @@ __all__ = [
     "SigningKeyError",
     "UdpLink",
     "accel_batches",
+    "badly_signed",
     "dialect",
     "enable_signing",
+    "follow_wall_clock",
     "join_accel_batches",
     "join_setpoint_chunks",
     "load_signing_key",
     "mavlink_connection",
+    "parse_verified",
     "requires_signature",
     "setpoint_chunks",
     "signed_with_key",
+    "stale_new_stream",
     "tilt_batches",
     "unpack_accel_batch",
     "unpack_setpoint_chunk",
     "unpack_tilt_batch",
+    "whole_frames",
 ]

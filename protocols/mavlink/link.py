@@ -16,12 +16,35 @@ import socket
 from typing import Any
 
 from protocols.mavlink.codegen import DIALECT_NAME, dialect
-from protocols.mavlink.signing import enable_signing
+from protocols.mavlink.signing import SIGNED_FRAME, enable_signing
 
 Address = tuple[str, int]
 
 MAX_DATAGRAM = 65535
 """Largest UDP datagram read at once [bytes]."""
+
+MAGIC_V2 = 0xFD
+"""First byte of a MAVLink 2 frame."""
+
+_FRAME_OVERHEAD = 12  # header 10 + checksum 2 [bytes]
+_SIGNATURE_BYTES = 13  # link id 1 + timestamp 6 + signature 6
+
+
+def whole_frames(data: bytes) -> list[bytes] | None:
+    """The MAVLink 2 frames a datagram is made of, or None when it is not a whole number of them (junk: dropped
+    before any parsing, in time proportional to the number of frames, not of bytes). The checksum and the signature
+    are pymavlink's to check."""
+    frames = []
+    start, size = 0, len(data)
+    while start < size:
+        if size - start < _FRAME_OVERHEAD or data[start] != MAGIC_V2:
+            return None
+        end = start + _FRAME_OVERHEAD + data[start + 1] + (_SIGNATURE_BYTES if data[start + 2] & SIGNED_FRAME else 0)
+        if end > size:
+            return None
+        frames.append(data[start:end])
+        start = end
+    return frames or None
 
 
 class UdpLink:
@@ -38,6 +61,8 @@ class UdpLink:
         self.peer = peer
         self.mav = dialect().MAVLink(self, srcSystem=source_system, srcComponent=source_component)
         self.mav.robust_parsing = True  # garbage becomes BAD_DATA (dropped, counted) instead of an exception
+        self.junk = 0
+        """Datagrams dropped unread by :meth:`receive`: not a whole number of MAVLink 2 frames."""
 
     @classmethod
     def open(cls, local: Address = ("127.0.0.1", 0), peer: Address | None = None, *, source_system: int,
@@ -78,13 +103,17 @@ class UdpLink:
     def receive(self, timeout: float | None = 0.0) -> list[Any]:
         """The messages of the next datagram, waiting up to ``timeout`` [s] (None: forever); [] if none came.
 
-        Undecodable bytes are dropped (``mav.total_receive_errors`` counts them); unsigned or badly signed
+        A datagram that is not a whole number of MAVLink 2 frames is dropped unread (counted in ``junk``);
+        undecodable frames are dropped (``mav.total_receive_errors`` counts them); unsigned or badly signed
         messages on a signing link are returned, flagged (see :mod:`protocols.mavlink.signing`).
         """
         self.sock.settimeout(timeout)
         try:
             data, source = self.sock.recvfrom(MAX_DATAGRAM)
         except (BlockingIOError, TimeoutError):
+            return []
+        if whole_frames(data) is None:
+            self.junk += 1
             return []
         if self.peer is None:
             self.peer = source

@@ -16,8 +16,13 @@ and its timestamp was newer than the last one of its stream (link id, system, co
 reordered signed messages count as unsigned.
 
 **Timestamps.** A signature carries a 48-bit timestamp in units of 10 µs since 2015-01-01 00:00:00 UTC; a
-sender starts from its wall clock (:func:`signing_timestamp`) and pymavlink adds one per message sent.
-A receiver accepts a new stream only if its timestamp is at most one minute behind its own.
+sender starts from its wall clock (:func:`signing_timestamp`), pymavlink adds one per message sent, and
+:func:`follow_wall_clock` before each send keeps it at or above the wall clock (so that a long connection does not
+fall behind it). pymavlink accepts a stream's message only when its timestamp is above the stream's last one, and
+the first message of a stream it has not heard up to one minute behind the receiver; :func:`stale_new_stream`
+narrows that to :data:`REPLAY_WINDOW` behind the receiver's wall clock (MAVLink's signing specification: "a small
+window"), so that a message captured earlier is refused by a controller that restarted since — host and
+controller clocks must agree within that window.
 """
 
 from __future__ import annotations
@@ -38,8 +43,17 @@ KEY_ENV = "SHAKETABLE_MAVLINK_KEY"
 KEY_BYTES = 32
 """Length of a MAVLink 2 signing key."""
 
+SIGNED_FRAME = 0x01
+"""MAVLINK_IFLAG_SIGNED, the signed bit of a MAVLink 2 frame's ``incompat_flags`` (its third byte)."""
+
 SIGNING_EPOCH = calendar.timegm((2015, 1, 1, 0, 0, 0))
 """The MAVLink signing epoch, 2015-01-01 00:00:00 UTC, in Unix seconds."""
+
+REPLAY_WINDOW = 5.0
+"""How far behind the receiver's wall clock the first signed message of a stream it has not heard may be [s]."""
+
+TIMESTAMP_UNITS_PER_S = 100_000
+"""Signing timestamp units (10 µs) per second."""
 
 
 class SigningKeyError(ValueError):
@@ -90,7 +104,31 @@ def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping
 def signing_timestamp(unix_time: float | None = None) -> int:
     """A signing timestamp [10 µs since 2015-01-01 UTC] for ``unix_time`` [s] (default: now)."""
     now = time.time() if unix_time is None else unix_time
-    return max(0, int((now - SIGNING_EPOCH) * 100_000))
+    return max(0, int((now - SIGNING_EPOCH) * TIMESTAMP_UNITS_PER_S))
+
+
+def follow_wall_clock(mav: Any) -> None:
+    """Raise the next outgoing signing timestamp of ``mav`` to the wall clock if it fell behind (call before a
+    send, under the lock that serialises sends)."""
+    mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp())
+
+
+def signature_stream(frame: bytes) -> tuple[tuple[int, int, int], int] | None:
+    """The stream (link id, system, component) and timestamp [10 µs since 2015] of one signed MAVLink 2 ``frame``;
+    None for an unsigned one."""
+    if not frame[2] & SIGNED_FRAME:
+        return None
+    return (frame[-13], frame[5], frame[6]), int.from_bytes(frame[-12:-6], "little")
+
+
+def stale_new_stream(mav: Any, frame: bytes, window: float = REPLAY_WINDOW) -> bool:
+    """Whether ``frame`` is signed, opens a stream the receiving ``mav`` has not heard, and is stamped more than
+    ``window`` [s] behind the wall clock: a replay to a receiver that restarted (module docstring). pymavlink
+    would take it up to one minute late: give the answer to :func:`parse_verified`."""
+    stream = signature_stream(frame)
+    if stream is None or stream[0] in mav.signing.stream_timestamps:
+        return False
+    return stream[1] < signing_timestamp() - round(window * TIMESTAMP_UNITS_PER_S)
 
 
 def enable_signing(mav: Any, key: bytes, *, link_id: int, sign_outgoing: bool = True,
@@ -124,6 +162,36 @@ def signed_with_key(msg: Any) -> bool:
     ``MAVLink`` object without a key (pymavlink then checks nothing).
     """
     return bool(msg.get_signed())
+
+
+def parse_verified(mav: Any, frame: bytes, *, stale: bool = False) -> list[Any]:
+    """The messages of ``frame`` parsed by ``mav`` (signing enabled), BAD_DATA left out, each flagged as
+    :func:`signed_with_key` says; ``stale`` (:func:`stale_new_stream`) flags them unsigned whatever pymavlink found.
+    A badly signed or stale message does not move its stream's timestamp: pymavlink records it before checking the
+    signature, so one forged message with a future timestamp would lock the real sender out, and a replayed one
+    would open its stream to the rest of the capture; it is restored."""
+    stamps = mav.signing.stream_timestamps
+    before = dict(stamps)
+    messages = []
+    for msg in mav.parse_buffer(frame) or []:
+        if msg.get_type() == "BAD_DATA":
+            continue
+        if stale:
+            msg._signed = False
+        if not msg.get_signed() and msg._header.incompat_flags & SIGNED_FRAME:
+            stream = (msg._msgbuf[-13], msg.get_srcSystem(), msg.get_srcComponent())
+            if stream in before:
+                stamps[stream] = before[stream]
+            else:
+                stamps.pop(stream, None)
+        messages.append(msg)
+    return messages
+
+
+def badly_signed(msg: Any) -> bool:
+    """Whether ``msg`` carried a signature that did not verify (another key, altered, replayed or reordered), as
+    opposed to none."""
+    return not msg.get_signed() and bool(msg._header.incompat_flags & SIGNED_FRAME)
 
 
 @functools.cache

@@ -4,7 +4,7 @@
 - :mod:`~protocols.zenoh.payloads` — versioned payloads (8-byte header; JSON bodies, binary accelerometer batches)
 - :mod:`~protocols.zenoh.config` — ``session_config``: explicit loopback endpoints, scouting off
 - :mod:`~protocols.zenoh.table` — the table link (``zenoh://HOST:PORT/TABLE``): its URL and binary payloads
-- :mod:`~protocols.zenoh.auth` — HMAC-SHA256 signatures of the table link's commands and setpoint chunks
+- :mod:`~protocols.zenoh.auth` — HMAC-SHA256 signatures of every payload of the table link
 """
 
 from protocols.zenoh.config import EndpointError, check_endpoint, loopback_endpoint, session_config

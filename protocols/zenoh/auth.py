@@ -1,4 +1,4 @@
-"""Authentication of the table link over zenoh: HMAC-SHA256 signatures on motion commands and setpoint chunks.
+"""Authentication of the table link over zenoh: HMAC-SHA256 signatures on every payload of the link.
 
 zenoh has nothing like MAVLink 2 signing, so the table link signs its payloads itself, with the rig's 32-byte key
 (``protocols.mavlink.load_signing_key``: a key file or ``$SHAKETABLE_MAVLINK_KEY``). A signed payload is the
@@ -15,9 +15,13 @@ keys or as a command. A receiver (:class:`Verifier`) takes a payload as **signed
 (constant-time comparison) and the stamp is fresh: above the last stamp it accepted from that sender on that key
 expression, and for a sender it has not heard on that key, at most :data:`FRESHNESS` behind its own wall clock.
 Replayed, reordered and stale payloads therefore count as unsigned, as in MAVLink signing. Only a payload whose
-tag verified moves the sender's stamp: a forged one with a future stamp cannot lock the real sender out. What
-remains possible is the MAVLink weakness: a receiver that restarted accepts, once, a payload recorded less than
-:data:`FRESHNESS` before from a sender it has not heard since.
+tag verified moves the sender's stamp: a forged one with a future stamp cannot lock the real sender out. A
+receiver that restarted accepts, once, only a payload recorded less than :data:`FRESHNESS` (a few seconds) before
+from a sender it has not heard since; host and controller clocks must agree within that.
+
+The host signs its commands, setpoint chunks and heartbeats; the controller signs everything it sends (statuses,
+answers, clock replies, accelerometer and tilt batches, overturn events, heartbeats), each copy of a resent
+message afresh. :func:`split_signed` cuts the trailer off a payload whose kind always carries one.
 """
 
 from __future__ import annotations
@@ -42,8 +46,11 @@ _TRAILER = struct.Struct("<QQ")  # sender, stamp
 TRAILER_BYTES = _TRAILER.size + TAG_BYTES
 """Length of a signature's trailer: sender, stamp, tag."""
 
-FRESHNESS = 60.0
-"""How far behind the receiver's wall clock the first stamp of a sender may be [s]."""
+FRESHNESS = 5.0
+"""How far behind the receiver's wall clock the first stamp of a sender may be [s] (MAVLink's
+``protocols.mavlink.REPLAY_WINDOW``)."""
+
+_HEADER_BYTES = 8  # the table link's payload header (protocols.zenoh.table)
 
 REMEMBERED_SENDERS = 1024
 """(sender, key expression) pairs whose last stamp a :class:`Verifier` remembers (the least recent is forgotten)."""
@@ -63,6 +70,22 @@ class Verdict(enum.Enum):
     UNSIGNED = "unsigned"  # no trailer
     BAD_SIGNATURE = "bad_signature"  # another key, another key expression, or altered
     STALE = "stale"  # a stamp not above the sender's last one (replayed, reordered) or too old
+
+
+def split_signed(payload: bytes) -> Received:
+    """``payload`` split into message and trailer for a kind that is always signed: the trailer is its last
+    :data:`TRAILER_BYTES` bytes; a payload too short to hold a header and a trailer is unsigned (empty trailer). An
+    unsigned payload long enough is cut all the same and its "signature" does not verify."""
+    if len(payload) < _HEADER_BYTES + TRAILER_BYTES:
+        return Received(bytes(payload), b"")
+    return Received(bytes(payload[:-TRAILER_BYTES]), bytes(payload[-TRAILER_BYTES:]))
+
+
+def sender_of(received: Received) -> int | None:
+    """The sender id in ``received``'s trailer (None: unsigned or malformed); meaningful once verified."""
+    if len(received.trailer) != TRAILER_BYTES:
+        return None
+    return _TRAILER.unpack_from(received.trailer)[0]
 
 
 def _check_key(key: bytes) -> bytes:
@@ -104,8 +127,7 @@ class Verifier:
         self._key = _check_key(key)
         self._last: OrderedDict[tuple[int, str], int] = OrderedDict()
 
-    def verify(self, key_expr: str, received: Received) -> Verdict:
-        """Whether ``received`` came on ``key_expr`` with a valid, fresh signature; a signed one moves the stamp."""
+    def _tag_verdict(self, key_expr: str, received: Received) -> Verdict:
         if not received.trailer:
             return Verdict.UNSIGNED
         if len(received.trailer) != TRAILER_BYTES:
@@ -113,6 +135,24 @@ class Verifier:
         covered = received.message + received.trailer[:_TRAILER.size]
         if not hmac.compare_digest(_tag(self._key, key_expr, covered), received.trailer[_TRAILER.size:]):
             return Verdict.BAD_SIGNATURE
+        return Verdict.SIGNED
+
+    def verify_reply(self, key_expr: str, received: Received) -> Verdict:
+        """Whether ``received``, a reply to one of this receiver's own queries, came on ``key_expr`` with a valid
+        signature stamped at most :data:`FRESHNESS` behind the wall clock. Replies to different queries may arrive
+        in any order, so their stamps are not ordered; the caller matches the reply to its query (a command id, a
+        clock request's send time), which a replayed reply does not."""
+        verdict = self._tag_verdict(key_expr, received)
+        if verdict is not Verdict.SIGNED:
+            return verdict
+        stamp = _TRAILER.unpack_from(received.trailer)[1]
+        return Verdict.STALE if stamp < time.time_ns() // 1000 - round(FRESHNESS * 1e6) else Verdict.SIGNED
+
+    def verify(self, key_expr: str, received: Received) -> Verdict:
+        """Whether ``received`` came on ``key_expr`` with a valid, fresh signature; a signed one moves the stamp."""
+        verdict = self._tag_verdict(key_expr, received)
+        if verdict is not Verdict.SIGNED:
+            return verdict
         sender, stamp = _TRAILER.unpack_from(received.trailer)
         last = self._last.get((sender, key_expr))
         if last is None:

@@ -8,10 +8,13 @@ key space (default :data:`DEFAULT_TABLE`).
 
 Every payload starts with an 8-byte little-endian header ``magic b"SHTC", version (UNSIGNED16) = 1, kind
 (UNSIGNED16, :class:`TableKind`)`` (the rig service's payloads, :mod:`protocols.zenoh.payloads`, use another
-magic), then a fixed little-endian body; COMMAND and SETPOINTS may end in a 48-byte signature trailer
-(:mod:`protocols.zenoh.auth`). Units: times integer ns (controller time unless said), poses ``(surge, sway, heave
-[m], roll, pitch, yaw [rad])``, accelerations [m/s², plate frame, specific force], a body's tilt [rad] its rotation
-about the plate's y axis relative to the plate, > 0 when its top has moved towards the plate's +x (the low side).
+magic), then a fixed little-endian body. On the link every payload travels with a 48-byte signature trailer
+(:mod:`protocols.zenoh.auth`): COMMAND and SETPOINTS are decoded with it (:func:`decode_command`,
+:func:`decode_setpoints` split it off; unsigned ones are refused by the controller), the other kinds are decoded
+from the message :func:`protocols.zenoh.auth.split_signed` leaves once the signature verified. Units: times
+integer ns (controller time unless said), poses ``(surge, sway, heave [m], roll, pitch, yaw [rad])``,
+accelerations [m/s², plate frame, specific force], a body's tilt [rad] its rotation about the plate's y axis
+relative to the plate, > 0 when its top has moved towards the plate's +x (the low side).
 Version 1 bodies:
 
 ==============  ============================================================================================

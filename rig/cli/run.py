@@ -12,6 +12,7 @@ Exit codes: 0 all runs done, 1 the session stopped early or a run is degraded (r
 
 from __future__ import annotations
 
+import os
 import queue
 import select
 import signal
@@ -20,7 +21,7 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import TYPE_CHECKING, Annotated, Any
+from typing import TYPE_CHECKING, Annotated, Any, NoReturn
 
 import typer
 from rich.console import Group
@@ -125,9 +126,10 @@ def resume_hint(path: Path, key_file: Path | None, yes: bool) -> str:
 
 
 def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str, Any], *, yes: bool,
-                console: Any, with_outcome: bool = False) -> Any:
+                console: Any, with_outcome: bool = False, ending: list[str] | None = None) -> Any:
     """Play the session with the screen, the prompts and Ctrl-C handling (module docstring); whether every run of
-    the plan is done (with ``with_outcome``: that and ``{"state", "message", "runs_done", "runs_total"}``)."""
+    the plan is done (with ``with_outcome``: that and ``{"state", "message", "runs_done", "runs_total"}``). The final
+    message is appended to ``ending`` if given."""
     from rig.orchestrator import Orchestrator, OrchestratorState
 
     operator = None if yes else TerminalOperator()
@@ -189,6 +191,8 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
         raise outcome
     progress = orchestrator.progress
     console.print(f"\n[bold]{outcome.value}[/]: {progress.message}")
+    if ending is not None:
+        ending.append(progress.message)
     degraded = sorted(index + 1 for index, status in progress.outcomes.items() if status == "degraded")
     if degraded:
         console.print(f"[bold yellow]degraded[/]: run(s) {', '.join(map(str, degraded))} played, but not cleanly "
@@ -198,6 +202,17 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
         return complete
     return complete, {"state": outcome.value, "message": progress.message, "runs_done": progress.runs_done,
                       "runs_total": progress.runs_total, "degraded_runs": degraded}
+
+
+def _end_disk_full(path: Path) -> NoReturn:
+    """Exit :data:`EXIT_STOPPED` after a session the disk ended. HDF5 frees a file whose last writes failed at the
+    interpreter's final garbage collection and crashed there (a segmentation fault), after everything was said and
+    every committed row was on disk: this exit skips it."""
+    console.print(f"the session stopped early: the rows written are kept; free some space, then `rig sessions "
+                  f"recover {path}` if it says so, and continue with rig run --resume {path}")
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(EXIT_STOPPED)
 
 
 def _next_question(operator: TerminalOperator | None) -> tuple[Callable[[], Any], queue.Queue[Any]] | None:
@@ -333,6 +348,7 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
                                            resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
         screen = err_console if as_json else console
+        ending: list[str] = []
         try:
             stored = None
             if resume is not None:
@@ -349,13 +365,15 @@ def register(app: typer.Typer) -> None:
                 screen.print(f"session file: {path}", highlight=False)
                 try:
                     complete, outcome = run_session(sequence, log, url, options, yes=yes, console=screen,
-                                                    with_outcome=True)
+                                                    with_outcome=True, ending=ending)
                 finally:
                     log.close()
             emulator_file = write_emulator_counters(path, counters()) if counters is not None else None
         except NoTableError:
             fail("no table: give --table URL (or table_url in the sequence), or --emulate")
         except (SequenceError, SessionError, EmulatorError, TableUnreachableError, BodiesMismatchError) as exc:
+            if ending and ending[-1].startswith("disk full:"):
+                _end_disk_full(path)
             fail(str(exc))
         hint = None if complete else resume_hint(path, key_file, yes)
         if as_json:
@@ -365,4 +383,6 @@ def register(app: typer.Typer) -> None:
             console.print(f"the session stopped early: continue it with {hint}", highlight=False,
                           soft_wrap=True)  # a command is never broken across lines
         if not complete:
+            if ending and ending[-1].startswith("disk full:"):
+                _end_disk_full(path)
             raise typer.Exit(code=EXIT_STOPPED)

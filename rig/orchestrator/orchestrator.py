@@ -28,6 +28,7 @@ plan entries with a completed (or refused) run are skipped, the rest run in orde
 
 from __future__ import annotations
 
+import contextlib
 import itertools
 import math
 import threading
@@ -58,7 +59,7 @@ from rig.orchestrator.states import (
     check_transition,
 )
 from rig.sequence import PlannedRun, Sequence, SequenceError
-from rig.session import SessionError
+from rig.session import SessionError, check_room, is_disk_full, run_needs
 
 LEAD = 1.0
 """How far ahead of its first sample each setpoint chunk is sent [s] where no rig configuration says
@@ -201,7 +202,12 @@ class Orchestrator:
         except TableLinkLostError as exc:
             self._set(State.FAULTED, f"interrupted: {exc}")
             return State.FAULTED
-        except (TableError, OSError) as exc:
+        except (TableError, OSError, SessionError) as exc:
+            if is_disk_full(exc):  # the session file's disk, not the table: say so
+                self._set(State.FAULTED, str(exc) if str(exc).startswith("disk full:") else f"disk full: {exc}")
+                return State.FAULTED
+            if isinstance(exc, SessionError):
+                raise
             self._set(State.FAULTED, f"table: {exc}")
             return State.FAULTED
         self._set(State.DONE, f"{self.progress.runs_done} of {self.progress.runs_total} runs done")
@@ -260,6 +266,10 @@ class Orchestrator:
                 f"{entry.label()} at {run.angle_deg:g}°, scale factor {drive.scale_factor:.3f} "
                 f"({drive.governing.axis} {drive.governing.quantity}), {drive.duration:.1f} s")))
             self._wait_while_paused()
+        check_room(self.log.path, run_needs(drive.duration, len(drive.t), len(self.sensors),
+                                            len(self.sequence.bodies)),
+                   f"run {run.plan_index + 1} ({drive.duration:.1f} s of drive, {len(self.sensors)} accelerometers, "
+                   f"{len(self.sequence.bodies)} bodies)")
         run_log = self.log.begin_run(
             run.plan_index, record=entry.label(), scale_factor=drive.scale_factor, angle_deg=run.angle_deg,
             commanded=np.column_stack([drive.t, drive.poses]), bodies=self._bodies(),
@@ -282,10 +292,14 @@ class Orchestrator:
         except TableLinkLostError as exc:
             self._end_interrupted(run, recorder, run_log, exc)
         except StreamAbortedError as exc:
+            if recorder.write_error is not None:
+                self._end_write_failed(table, run, recorder, run_log)
             self._end_aborted(table, run, recorder, run_log, f"the table stopped the stream: {exc}")
         except TableError as exc:
             self._end_aborted(table, run, recorder, run_log, f"table error: {exc}")
         recorder.finish(LINGER)
+        if recorder.write_error is not None:
+            self._end_write_failed(table, run, recorder, run_log)
         if not recorder.detections and self.sequence.operator.ask_detections:
             self._set(State.WAITING, "which bodies fell?")
             for body_id, direction in self._ask(lambda: self.operator.which_fell(run, self.sequence.bodies)):
@@ -310,6 +324,22 @@ class Orchestrator:
         run_log.end("interrupted", reason=reason)
         self._finish(run, "interrupted", f"run {run.plan_index + 1} interrupted: {reason}")
         raise lost
+
+    def _end_write_failed(self, table: TableController, run: PlannedRun, recorder: RunRecorder,
+                          run_log: RunSink) -> NoReturn:
+        """The session file could not be written (the recorder stopped the table): wait for the table to rest, end
+        the run ``interrupted`` if the file still takes it (else `rig sessions recover` / ``--resume`` will), and
+        end the session with the error (``disk full: …`` when it was that)."""
+        recorder.finish()
+        error = recorder.write_error
+        assert error is not None
+        why = f"disk full: {error}" if is_disk_full(error) else f"session file: {error}"
+        with contextlib.suppress(SessionError, OSError):
+            run_log.add_event(float("nan"), f"interrupted: {why}")
+            run_log.end("interrupted", reason=why)
+        self._finish(run, "interrupted", f"run {run.plan_index + 1} interrupted: {why}")
+        self._settle_after_stop(table)
+        raise SessionStoppedError(why, faulted=True)
 
     def _end_aborted(self, table: TableController, run: PlannedRun, recorder: RunRecorder, run_log: RunSink,
                      reason: str) -> NoReturn:

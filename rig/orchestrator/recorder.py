@@ -6,19 +6,33 @@ It subscribes when made (before the stream starts, so nothing is missed) and wri
 seconds from that instant (the commanded trajectory's t = 0), negative for what was measured before it.
 Accelerometer ids map to the run's sensor names; detection and tilt body ids are the bodies' order on the table
 (the emulator's ``--body`` order, a real detector's channel order), mapped to the sequence's body ids.
+
+A write that fails (the session's disk full, a session error) ends the recording at once: the recorder keeps the
+error in :attr:`RunRecorder.write_error` and stops the table (a controlled stop, home), and the orchestrator ends
+the run and the session saying so; the rows the session file already committed stay.
 """
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from typing import Any
 
 import numpy as np
 
-from drivers.controller import AccelBatch, Detection, FaultEvent, TableController, TableStatus, TiltBatch
+from drivers.controller import (
+    AccelBatch,
+    Detection,
+    FaultEvent,
+    TableController,
+    TableError,
+    TableStatus,
+    TiltBatch,
+)
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.sinks import RunSink
 from rig.orchestrator.states import Progress
+from rig.session import SessionError
 
 POLL_SECONDS = 0.02
 """How often the recorder drains the subscriptions [s]."""
@@ -38,7 +52,10 @@ class RunRecorder:
     def __init__(self, table: TableController, run_log: RunSink, sensors: dict[int, str], body_ids: list[int],
                  progress: Progress, live: LiveTap | None = None) -> None:
         self.run_log = run_log
+        self.table = table
         self.live = live
+        self.write_error: Exception | None = None
+        """The write that failed and ended the recording (None: none did)."""
         self.sensors = sensors
         self.body_ids = body_ids
         self.progress = progress
@@ -71,9 +88,14 @@ class RunRecorder:
             sub.close()
 
     def _loop(self) -> None:
-        while not self._stop.wait(POLL_SECONDS):
+        try:
+            while not self._stop.wait(POLL_SECONDS):
+                self._drain()
             self._drain()
-        self._drain()
+        except (OSError, SessionError) as exc:
+            self.write_error = exc
+            with contextlib.suppress(TableError):  # stopped already, or gone: the orchestrator's stream says so
+                self.table.stop()
 
     def _seconds(self, t_ns: int | np.ndarray) -> Any:
         assert self._t0_ns is not None

@@ -9,6 +9,7 @@ plate frame, poses (surge, sway, heave [m], roll, pitch, yaw [rad]).
 from __future__ import annotations
 
 from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -44,6 +45,10 @@ class RunSink(Protocol):
 @runtime_checkable
 class SessionSink(Protocol):
     """The session file being written (:class:`rig.session.SessionLog`, new or resumed)."""
+
+    @property
+    def path(self) -> Path:
+        """The session file (its file system is checked for room before each run)."""
 
     def done_plan_indices(self) -> set[int]:
         """Plan indices that must not run again (a completed or refused run)."""

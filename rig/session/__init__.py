@@ -23,6 +23,7 @@ from .recover import CLOSED, CRASHED, WRITING, Recovery, crashed_message, recove
 from .run import RunLog
 from .runinfo import RunInfo
 from .schema import DONE_STATUSES, FINAL_STATUSES, RUNNING, SCHEMA
+from .space import DiskFullError, check_room, is_disk_full, run_needs
 from .writer import WriterStats
 
 __all__ = [
@@ -35,6 +36,7 @@ __all__ = [
     "RUNNING",
     "SCHEMA",
     "WRITING",
+    "DiskFullError",
     "Recovery",
     "RunInfo",
     "RunLog",
@@ -42,12 +44,15 @@ __all__ = [
     "SessionExistsError",
     "SessionLog",
     "WriterStats",
+    "check_room",
     "crashed_message",
+    "is_disk_full",
     "list_sessions",
     "open_session",
     "read_session",
     "recover",
     "recover_command",
+    "run_needs",
     "writer_flags",
     "writer_state",
 ]

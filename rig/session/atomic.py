@@ -121,10 +121,21 @@ class SessionFile:
         except BaseException:
             with contextlib.suppress(Exception):
                 h5.close()
+            self._refuse_failed(overlay)
             raise
         h5.close()
+        self._refuse_failed(overlay)
         failpoints.hit("commit:closed")
         self.last_commit = self._commit(overlay)
+
+    def _refuse_failed(self, overlay: Overlay) -> None:
+        """Raise (nothing committed) if a write of the transaction failed; the space it took is given back."""
+        if overlay.error is None:
+            return
+        with contextlib.suppress(OSError):
+            os.ftruncate(self.fd, overlay.start_size)
+        raise SessionError(f"{self.path}: cannot write ({overlay.error}); nothing of this change was committed, "
+                           "the file is as it was") from overlay.error
 
     def _commit(self, overlay: Overlay) -> CommitStats:
         t0 = time.perf_counter()

@@ -4,6 +4,11 @@ HDF5 reads and writes through it instead of the file: writes at or beyond ``boun
 when the transaction began: new space no metadata of the file refers to yet) go straight to the file; writes
 below it ("in place") are kept in memory per 4 KiB page, and reads see them. After h5py has closed the file,
 `Overlay.changed_pages` tells the committer which pages the transaction changes in place.
+
+A write to the file that fails (a full disk: ENOSPC, EFBIG, EDQUOT) is kept in `Overlay.error` and that write and
+every later one to the file are skipped, not raised: HDF5 calls this object from C, also while h5py frees its
+objects, and an exception there leaves the library in a state that crashed the process (a segmentation fault). The
+transaction then refuses to commit (`rig.session.atomic`): nothing the file's metadata refers to has changed.
 """
 
 from __future__ import annotations
@@ -26,6 +31,10 @@ class Overlay(io.RawIOBase):
         self._size = os.fstat(fd).st_size
         self._pos = 0
         self._pages: dict[int, bytearray] = {}
+        self.start_size = self._size
+        """The file's length when the transaction began [bytes]."""
+        self.error: OSError | None = None
+        """The first write to the file that failed (module docstring); None while all succeeded."""
 
     # -- file-object protocol used by h5py's driver ------------------------------------------------------
     def readable(self) -> bool:
@@ -90,8 +99,11 @@ class Overlay(io.RawIOBase):
         for done, at, k, index in self._spans(n):
             if index is None:
                 written = 0
-                while written < k:
-                    written += os.pwrite(self._fd, view[done + written : done + k], at + written)
+                while written < k and self.error is None:
+                    try:
+                        written += os.pwrite(self._fd, view[done + written : done + k], at + written)
+                    except OSError as exc:
+                        self.error = exc
             else:
                 offset = at - index * PAGE
                 self._page(index)[offset : offset + k] = view[done : done + k]

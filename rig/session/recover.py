@@ -20,7 +20,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import schema
+from . import schema, space
 from .errors import SessionError
 from .log import SessionLog
 from .reader import CLOSED, CRASHED, WRITING, read_session, writer_flags, writer_state
@@ -61,8 +61,9 @@ class Recovery:
 def recover(path: str | os.PathLike[str]) -> Recovery:
     """Recover a crashed session file (module docstring); a file that needs nothing is left as it is.
 
-    Raises `SessionError` naming the file if it is not a session file, or if a live writer holds it (then nothing
-    is changed)."""
+    Raises `SessionError` naming the file if it is not a session file, or if a live writer holds it, and
+    `~rig.session.space.DiskFullError` when its file system has not :data:`~rig.session.space.RECOVER_NEEDS` free
+    (in each case nothing is changed)."""
     path = Path(path)
     if not path.is_file():
         raise SessionError(f"{path}: no such session file")
@@ -72,6 +73,8 @@ def recover(path: str | os.PathLike[str]) -> Recovery:
                            "needs no recovery — nothing was changed")
     flags = writer_flags(path)
     before = {run["name"]: run["status"] for run in read_session(path, data=False)["runs"]}
+    if flags or schema.RUNNING in before.values():  # it will write: only with room to finish
+        space.check_room(path, space.RECOVER_NEEDS, "recovering it")
     try:
         log = SessionLog.resume(path)
     except SessionError as exc:

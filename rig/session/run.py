@@ -74,7 +74,7 @@ class RunLog:
                 raise SessionError(f"{self._session.path}: run {self.name} has ended; nothing more can be appended")
             if self._writer.error is not None:
                 raise SessionError(f"{self._session.path}: run {self.name}: the writer failed "
-                                   f"({self._writer.error!r})")
+                                   f"({self._writer.error!r})") from self._writer.error
             self._writer.put(key, rows)
 
     def append_accel(self, sensor: str, t: np.ndarray, xyz: np.ndarray) -> None:

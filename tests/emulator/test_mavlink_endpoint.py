@@ -7,13 +7,28 @@ import time
 
 import pytest
 
+from analysis.table.model import TableModel
 from protocols.mavlink import UdpLink, dialect
+from sim_table.controller import ControllerCore, State
 from sim_table.mavlink_endpoint import MavlinkEndpoint
 
 pytestmark = pytest.mark.integration  # opens sockets (tests/conftest.py)
 
 STALL_NS = 150_000_000
 """How long the endpoint is left unread: longer than the controller's 100 ms heartbeat watchdog."""
+
+
+def arm_heartbeats_of(endpoint: MavlinkEndpoint, host: UdpLink) -> None:
+    """Have ``host`` arm the table of ``endpoint`` (only the arming host's heartbeats feed the watchdog)."""
+    d = dialect()
+    host.send(d.MAVLink_command_long_message(1, 1, d.MAV_CMD_SHAKETABLE_ARM, 0, 0, 0, 0, 0, 0, 0, 0))
+    deadline = time.monotonic() + 5.0
+    while not (actions := endpoint.take(time.monotonic_ns())):
+        assert time.monotonic() < deadline, "the ARM did not arrive"
+    core = ControllerCore(TableModel())
+    for _, action in actions:
+        action(core)
+    assert core.state is State.ARMED
 
 
 def test_heartbeats_read_after_a_stall_count_at_the_times_they_came() -> None:
@@ -26,6 +41,7 @@ def test_heartbeats_read_after_a_stall_count_at_the_times_they_came() -> None:
     host = UdpLink.open(peer=endpoint.address, source_system=255, source_component=190, key=key, link_id=1)
     d = dialect()
     try:
+        arm_heartbeats_of(endpoint, host)
         windows = []
         for _ in range(5):
             before = time.monotonic_ns()

@@ -8,6 +8,7 @@ import contextlib
 import json
 import math
 import os
+import resource
 import signal
 import subprocess
 import sys
@@ -213,3 +214,57 @@ def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path,
     assert done.returncode == 2
     assert where in done.stderr, done.stderr
     assert not (tmp_path / "s.h5").exists()  # nothing written, nothing contacted
+
+
+FILE_LIMIT = 150_000
+"""RLIMIT_FSIZE of the first full-disk test [bytes]: the session file is created, the first run's transaction finds
+no room (EFBIG, as ENOSPC on a full disk: the same path through HDF5's file object)."""
+
+FILE_LIMIT_MID_RUN = 400_000
+"""RLIMIT_FSIZE of the second [bytes]: the first run begins, its writer finds no room mid-record."""
+
+
+def rig_on_a_full_disk(tmp_path: Path, limit: int) -> tuple[subprocess.CompletedProcess[str], Path]:
+    """``rig run`` of the tiny sequence whose files cannot grow beyond ``limit`` bytes (a write beyond fails as on
+    a full disk: SIGXFSZ ignored)."""
+
+    def limited() -> None:
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+
+    (tmp_path / "tiny.toml").write_text(TINY)
+    session = tmp_path / "s.h5"
+    done = subprocess.run([*RIG, "run", "tiny.toml", "--emulate", "--speed", "max", "--yes", "-o", str(session)],
+                          cwd=tmp_path, capture_output=True, text=True, timeout=300, preexec_fn=limited,
+                          env={**os.environ, "COLUMNS": "160"})
+    return done, session
+
+
+def test_a_full_disk_ends_the_session_saying_so_and_changes_nothing(tmp_path: Path) -> None:
+    """``rig run`` whose session file cannot grow beyond 150 kB (issue 25: on a small tmpfs every run ended in a
+    segmentation fault blaming the table): exit 1 with ``disk full: …``, no crash, the file as it was before the
+    write that failed, and plain h5py opens it."""
+    done, session = rig_on_a_full_disk(tmp_path, FILE_LIMIT)
+    assert done.returncode == 1, done.stderr[-2000:] + done.stdout[-2000:]
+    assert "faulted: disk full: " in done.stdout and "table:" not in done.stdout
+    assert "Traceback" not in done.stderr
+    assert session.stat().st_size <= FILE_LIMIT
+    with h5py.File(session, "r") as h5:  # closed cleanly: plain h5py opens it
+        assert len(h5["runs"]) == 0
+    assert read_session(session)["runs"] == []
+
+
+def test_a_disk_full_mid_run_stops_the_table_and_keeps_the_rows_written(tmp_path: Path) -> None:
+    """The writer finds no room mid-record: exit 1 with ``disk full: …`` (not a crash, not the table), the rows
+    written before are in the file, and ``rig sessions recover`` marks the run interrupted keeping them all."""
+    done, session = rig_on_a_full_disk(tmp_path, FILE_LIMIT_MID_RUN)
+    assert done.returncode == 1, done.stderr[-2000:] + done.stdout[-2000:]
+    assert "faulted: disk full: " in done.stdout and "table:" not in done.stdout
+    (cut,) = read_session(session)["runs"]
+    kept = cut["accel"]["0"]
+    assert len(kept) > 100
+    recovered = rig("sessions", "recover", str(session), cwd=tmp_path)
+    assert recovered.returncode == 0, recovered.stderr + recovered.stdout
+    (after,) = read_session(session)["runs"]
+    assert after["status"] == "interrupted"
+    np.testing.assert_array_equal(after["accel"]["0"], kept)

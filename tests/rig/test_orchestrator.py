@@ -17,7 +17,7 @@ import pytest
 from rig.emulator import EmulatorProcess, specimen_flags
 from rig.orchestrator import FINAL_STATES, TRANSITIONS, Orchestrator, OrchestratorState, Progress
 from rig.sequence import Sequence, load_sequence
-from rig.session import SessionLog, read_session
+from rig.session import SessionLog, read_session, run_needs, space
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -245,3 +245,22 @@ def test_the_emulated_table_is_the_sequence_s_rig(tmp_path: Path) -> None:
     with table_for(load_sequence(tmp_path / "plain.toml"), None, True, None, math.inf):
         (line,) = _emulator_command_lines()
         assert "--rig-config" not in line
+
+
+def test_a_run_without_room_on_the_disk_is_not_begun(tiny: Sequence, tmp_path: Path, key_file: Path,
+                                                     monkeypatch: pytest.MonkeyPatch) -> None:
+    """Less free on the session's file system than the first run needs: the session ends ``disk full: …`` before
+    that run begins (no run in the file, no drive streamed), the table left at rest."""
+    monkeypatch.setattr(space, "free_bytes", lambda where: 1 << 20)  # 1 MiB: less than the reserve alone
+    log = new_log(tiny, tmp_path / "s.h5")
+    orchestrators: list[Orchestrator] = []
+    state, counters = play(tiny, log, key_file, during=orchestrators.append)
+    log.close()
+    assert state is OrchestratorState.FAULTED
+    message = orchestrators[0].progress.message
+    drive = tiny.prepare(tiny.plan()[0])
+    needed = run_needs(drive.duration, len(drive.t), 1, 1) / (1 << 20)
+    assert message.startswith("disk full: ") and (f"run 1 ({drive.duration:.1f} s of drive, 1 accelerometers, 1 "
+                                                  f"bodies) needs about {needed:.1f} MiB free") in message, message
+    assert read_session(tmp_path / "s.h5")["runs"] == []
+    assert counters["streams_completed"] == 0 and counters["state"] in ("idle", "armed")

@@ -19,10 +19,10 @@ from stream_checks import smooth_ramp, surge
 
 from analysis.table.link import LinkSettings
 from drivers.controller import (
-    CommandDeniedError,
     StreamAbortedError,
     StreamReport,
     TableController,
+    TableError,
     TableTimeoutError,
     open_table,
 )
@@ -106,12 +106,13 @@ def motion_from_others_is_refused(table: Any, others: tuple[Host, ...],
 
 
 def wrong_key_is_refused(url: str, directory: Path) -> None:
-    """A driver with another key (written to ``directory``) connects (telemetry is not signed), its ARM is denied."""
+    """A driver with another key (written to ``directory``) does not connect, and says why: the controller's
+    messages (signed, as everything it sends) do not verify with its key."""
     other = directory / "other.key"
     other.write_text(secrets.token_hex(32))
-    table = open_table(url, key_file=str(other))
-    with table, pytest.raises(CommandDeniedError, match="ARM refused: missing or bad signature"):
-        table.arm()  # telemetry needs no signature: it connected
+    with pytest.raises(TableError, match="did not verify with this host's signing key: are host and controller "
+                                         "using the same signing key"):
+        open_table(url, key_file=str(other), connect_timeout=1.0).connect()
 
 
 # ----- watchdogs, stops, faults -------------------------------------------------------------------------------

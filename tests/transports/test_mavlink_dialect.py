@@ -21,6 +21,7 @@ from protocols.mavlink import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
     KEY_ENV,
+    REPLAY_WINDOW,
     SETPOINTS_PER_CHUNK,
     TILT_PER_BATCH,
     DialectError,
@@ -29,6 +30,7 @@ from protocols.mavlink import (
     SigningKeyError,
     UdpLink,
     accel_batches,
+    badly_signed,
     codegen,
     dialect,
     enable_signing,
@@ -36,14 +38,18 @@ from protocols.mavlink import (
     join_setpoint_chunks,
     load_signing_key,
     mavlink_connection,
+    parse_verified,
     requires_signature,
     setpoint_chunks,
     signed_with_key,
+    stale_new_stream,
     tilt_batches,
     unpack_accel_batch,
     unpack_setpoint_chunk,
     unpack_tilt_batch,
+    whole_frames,
 )
+from protocols.mavlink.signing import signing_timestamp
 
 # A schema change must show up here: update the numbers together with both ends of the link.
 PINNED = {  # name: (message id, CRC_EXTRA)
@@ -559,7 +565,11 @@ def test_udp_loopback_streams_setpoints_and_accelerations_exactly(d):
             np.testing.assert_array_equal(series.samples, a.astype(np.float32))
         assert host.mav.total_receive_errors == 0 and table.mav.total_receive_errors == 0
 
-        host.sock.sendto(b"\x00garbage", table.local_address)  # dropped, counted
+        host.sock.sendto(b"\x00garbage", table.local_address)  # no MAVLink 2 frame: dropped unparsed, counted
+        assert table.receive(timeout=2.0) == [] and table.junk == 1 and table.mav.total_receive_errors == 0
+        frame = bytearray(host.mav.heartbeat_encode(0, 0, 0, 0, 0, 3).pack(host.mav))
+        frame[-14] ^= 0xFF  # a whole frame with a bad checksum: pymavlink's to drop and count
+        host.sock.sendto(bytes(frame), table.local_address)
         assert table.receive(timeout=2.0) == [] and table.mav.total_receive_errors > 0
 
 
@@ -593,3 +603,46 @@ def test_mavutil_connection_speaks_the_dialect_signed(d, monkeypatch):
     finally:
         host.close()
         table.close()
+
+
+# ----- what a receiver drops before pymavlink parses (issue 25) -------------------------------------------------
+
+
+def _heartbeat(d, key: bytes | None = None, *, timestamp: int | None = None, system: int = 255) -> bytes:
+    mav = d.MAVLink(None, srcSystem=system, srcComponent=190)
+    if key is not None:
+        enable_signing(mav, key, link_id=3, timestamp=timestamp)
+    return d.MAVLink_heartbeat_message(d.MAV_TYPE_GCS, d.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3).pack(mav)
+
+
+def test_whole_frames_splits_datagrams_and_refuses_junk(d):
+    key = bytes(range(1, 33))
+    unsigned, signed = _heartbeat(d), _heartbeat(d, key)
+    # MAVLink 2 heartbeat: 10-byte header, 9-byte payload (none of it trailing zeros here), 2-byte CRC, 13 signed
+    assert (len(unsigned), len(signed)) == (21, 34)
+    assert whole_frames(unsigned + signed) == [unsigned, signed]
+    junk = np.random.default_rng(1).bytes(1024)
+    assert whole_frames(junk[1:] if junk[0] == 0xFD else junk) is None
+    assert whole_frames(unsigned[:-1]) is None  # truncated
+    assert whole_frames(unsigned + b"\x00") is None  # a trailing byte
+    assert whole_frames(b"") is None
+
+
+def test_a_new_stream_stamped_more_than_the_window_behind_the_wall_clock_is_stale(d):
+    key = bytes(range(1, 33))
+    receiver = d.MAVLink(None, srcSystem=1, srcComponent=1)
+    enable_signing(receiver, key, link_id=0, sign_outgoing=False)
+    now = time.time()
+    captured = _heartbeat(d, key, timestamp=signing_timestamp(now - 36.0))
+    late = _heartbeat(d, key, timestamp=signing_timestamp(now - REPLAY_WINDOW - 0.5), system=254)
+    fresh = _heartbeat(d, key, timestamp=signing_timestamp(now - REPLAY_WINDOW + 1.0), system=253)
+    assert stale_new_stream(receiver, captured) and stale_new_stream(receiver, late)
+    assert not stale_new_stream(receiver, fresh) and not stale_new_stream(receiver, _heartbeat(d))
+    # pymavlink alone takes the 36 s old one (its window is a minute); flagged stale, it is unsigned and its stream
+    # stays closed, so the rest of the capture is stale too
+    (replayed,) = parse_verified(receiver, captured, stale=True)
+    assert not signed_with_key(replayed) and badly_signed(replayed)
+    assert receiver.signing.stream_timestamps == {}
+    (taken,) = parse_verified(receiver, fresh)
+    assert signed_with_key(taken)
+    assert list(receiver.signing.stream_timestamps) == [(3, 253, 190)]

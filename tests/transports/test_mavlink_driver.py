@@ -10,11 +10,12 @@ import math
 import re
 import secrets
 import signal
+import socket
 import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -25,7 +26,17 @@ from stream_checks import drive_excerpt, stream_and_check, surge
 
 from drivers.controller import StreamAbortedError, TableError, TableStatus, open_table, register_scheme
 from drivers.mavlink import MavlinkTable
-from protocols.mavlink import SETPOINTS_PER_CHUNK, UdpLink, dialect, enable_signing, setpoint_chunks, tilt_batches
+from protocols.mavlink import (
+    ACCEL_PER_BATCH,
+    REPLAY_WINDOW,
+    SETPOINTS_PER_CHUNK,
+    UdpLink,
+    accel_batches,
+    dialect,
+    enable_signing,
+    setpoint_chunks,
+    tilt_batches,
+)
 from protocols.mavlink.signing import signing_timestamp
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
@@ -119,9 +130,18 @@ class RawHost(table_checks.Host):
     def command(self, name: str, *params: float) -> str:
         """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …)."""
         command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
-        count = len(self.acks)
         values = [*params] + [0.0] * (7 - len(params))
-        self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values))
+        return self.answer(command, lambda: self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values)))
+
+    def replay(self, frame: bytes) -> str:
+        """Send a captured COMMAND_LONG frame as it is, from this host's socket; the result of its ACK."""
+        command = D.MAVLink(None).decode(bytearray(frame)).command  # no key: the signature is not checked
+        return self.answer(command, lambda: self.link.sock.sendto(frame, self.link.peer))
+
+    def answer(self, command: int, send: Callable[[], object]) -> str:
+        """The result of the first COMMAND_ACK for ``command`` after ``send()``."""
+        count = len(self.acks)
+        send()
         deadline = time.monotonic() + 2.0
         while time.monotonic() < deadline:
             answers = [a for a in self.acks[count:] if a.command == command]
@@ -190,6 +210,141 @@ def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorPro
 
 def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
     table_checks.wrong_key_is_refused(plain.url, tmp_path)
+
+
+# ----- a local process attacking the link (issue 25) ---------------------------------------------------------
+
+
+FORGED_OVERTURNS = 58
+"""Fake overturns sent by a local process (issue 25: 58 fake against 2 real went into the record)."""
+
+
+@pytest.mark.parametrize("forger_key", ["none", "wrong"])
+def test_telemetry_forged_by_a_local_process_is_dropped_and_counted(plain: EmulatorProcess, key_file: Path,
+                                                                     forger_key: str) -> None:
+    """A process on the host sends to the driver's UDP port, with the controller's ids: overturn events, an
+    accelerometer batch of 50 m/s², a FAULTED status with a DRIVE fault — unsigned, or signed with another key.
+    None reaches the feedback (the record); each is counted once."""
+    with open_table(plain.url, key_file=str(key_file)) as table:
+        assert isinstance(table, MavlinkTable) and table._link is not None
+        at_rest(table)
+        detections, accelerations, statuses = table.detections(), table.accelerations(), table.statuses()
+        forger = UdpLink.open(peer=table._link.local_address, source_system=1, source_component=1)
+        if forger_key == "wrong":
+            enable_signing(forger.mav, secrets.token_bytes(32), link_id=0)
+        try:
+            for k in range(FORGED_OVERTURNS):
+                forger.send(D.MAVLink_shaketable_overturn_event_message(1_000_000 + k, 0, 1, 1.2, k))
+            (accel,) = accel_batches(np.full((ACCEL_PER_BATCH, 3), 50.0), 0, 0, 1_000_000, 0)
+            forger.send(accel)
+            forger.send(D.MAVLink_shaketable_status_message(0, D.SHAKETABLE_STATE_FAULTED, 0, 0, 0,
+                                                            D.SHAKETABLE_FAULT_DRIVE, 0, [0.0] * 6, 0, 0))
+        finally:
+            forger.close()
+        counter = "refused_unsigned" if forger_key == "none" else "refused_bad_signature"
+        forged = FORGED_OVERTURNS + 2
+        table.wait(lambda: table.link_stats().get(counter, 0) >= forged, 5)
+        table.wait_for_status(lambda s: True, 2)  # a real status after the forged ones
+        stats = table.link_stats()
+    assert detections.drain() == []
+    assert all(np.abs(batch.samples).max() < 20.0 for batch in accelerations.drain())  # at rest: about g
+    seen = statuses.drain()
+    assert seen and all("DRIVE" not in status.faults for status in seen)
+    assert stats[counter] == forged
+
+
+def test_heartbeats_of_other_processes_do_not_keep_an_armed_table_armed(plain: EmulatorProcess,
+                                                                        key_file: Path) -> None:
+    """The host that armed the table dies; an unsigned process and a signed host that did not arm keep sending
+    heartbeats at 50 Hz: the table stops (HEARTBEAT_LOST) within the watchdog, as if nobody sent any (issue 25:
+    unsigned heartbeats of a third process kept it armed)."""
+    key = bytes.fromhex(key_file.read_text())
+    address = mavlink_address(plain)
+    armer = RawHost(address, key, heartbeat_rate=50.0)
+    intruder = RawHost(address, system=7, heartbeat_rate=50.0)
+    observer = RawHost(address, key, system=8, heartbeat_rate=50.0)
+    try:
+        observer.wait(lambda s: observer.state(s) in ("idle", "armed", "faulted", "emergency_stopped"), 15)
+        assert armer.command("arm") == "accepted"
+        observer.wait(lambda s: observer.state(s) == "armed", 2)
+        armer.beating = False  # killed
+        stopped = observer.wait(lambda s: observer.state(s) != "armed", 5)
+        assert stopped.faults & observer.fault("HEARTBEAT_LOST")
+        assert intruder.statuses == []  # unsigned heartbeats make no peer: nothing is sent to it
+    finally:
+        for host in (armer, intruder, observer):
+            host.close()
+
+
+def captured_commands(key: bytes, unix_time: float, *commands: tuple[str, float]) -> list[bytes]:
+    """COMMAND_LONG frames (name, param1) as the driver signed them at ``unix_time`` [s] (system 255, component
+    190, link 0): what a capture of the link holds."""
+    mav = D.MAVLink(None, srcSystem=255, srcComponent=190)
+    enable_signing(mav, key, link_id=0, timestamp=signing_timestamp(unix_time))
+    return [D.MAVLink_command_long_message(1, 1, getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}"), 0, param,
+                                           *[0.0] * 6).pack(mav) for name, param in commands]
+
+
+def test_a_signed_arm_and_tilt_captured_before_a_restart_are_refused(key_file: Path) -> None:
+    """Captured signed ARM and SET_TILT (a stream stamped 36 s ago, as in issue 25) replayed to a controller that
+    has just started: refused as unsigned; a host stamping from the wall clock arms."""
+    key = bytes.fromhex(key_file.read_text())
+    emulator = start_emulator(key_file=key_file)
+    try:
+        address = mavlink_address(emulator)
+        replayer = RawHost(address, system=251)
+        host = RawHost(address, key, system=252)
+        captured = captured_commands(key, time.time() - 36.0, ("arm", 0.0), ("set_tilt", math.radians(4.0)))
+        late = captured_commands(key, time.time() - REPLAY_WINDOW - 1.0, ("arm", 0.0))
+        try:
+            assert [replayer.replay(frame) for frame in captured + late] == ["denied"] * 3
+            assert host.command("arm") == "accepted"
+            assert host.command("disarm") == "accepted"
+        finally:
+            for raw in (replayer, host):
+                raw.close()
+    finally:
+        counters = emulator.stop()
+    assert counters["refused_commands"] == 3
+    assert counters["link"]["stale_signatures"] >= 3
+
+
+JUNK_BYTES = 30 << 20
+"""The junk flood of issue 25 [bytes]: at least this much is sent before the host starts connecting."""
+
+
+def test_a_junk_flood_does_not_keep_the_host_from_connecting(key_file: Path) -> None:
+    """A local process floods the controller's port with junk datagrams (1 KiB of random bytes each), 30 MB before
+    the host starts connecting and on until it is done: it connects, arms and disarms, and the junk is counted."""
+    emulator = start_emulator(key_file=key_file)
+    address = mavlink_address(emulator)
+    junk = np.random.default_rng(25).bytes(1024)
+    flooded, done = threading.Event(), threading.Event()
+    sent = [0]
+
+    def flood() -> None:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+            while not done.is_set():
+                try:
+                    sent[0] += sock.sendto(junk, address)
+                except OSError:  # ENOBUFS: the kernel's queue is full, try again
+                    time.sleep(0.0001)
+                if sent[0] >= JUNK_BYTES:
+                    flooded.set()
+
+    thread = threading.Thread(target=flood, daemon=True)
+    thread.start()
+    try:
+        assert flooded.wait(60)
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            table.disarm()
+        assert thread.is_alive()  # the flood went on all along
+    finally:
+        done.set()
+        thread.join()
+        counters = emulator.stop()
+    assert counters["link"]["junk_datagrams"] > 0
 
 
 # ----- watchdogs, stops, faults -------------------------------------------------------------------------------

@@ -77,8 +77,10 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
     host: subprocess.Popen[str] | None = None
     try:
         # a second host that only listens: allowed by both transports (telemetry goes to every live peer); its
-        # heartbeats keep HEARTBEAT_LOST away, so the stream watchdog (STREAM_SILENT) is the one that fires
-        with open_table(emulator.url, key_file=str(key_file)) as listener:
+        # heartbeats do not feed the watchdog (only the arming host's do), so HEARTBEAT_LOST, the stream watchdog
+        # (STREAM_SILENT) or the buffer running dry (UNDERRUN) stops the table, whichever comes first
+        options = {"system": 254} if transport == "mavlink" else {}  # its own signing stream
+        with open_table(emulator.url, key_file=str(key_file), **options) as listener:
             statuses = listener.statuses()
             host = subprocess.Popen([sys.executable, "-c", HOST_SCRIPT, emulator.url, str(key_file)],
                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -110,11 +112,11 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
     record_property("kill_to_home_ms", to_home_ms)
     print(f"{transport}: kill -> stopping {to_stop_ms:.1f} ms, -> |pose| < 1 mm {to_home_ms:.1f} ms, "
           f"-> faulted {(final.t_ns - killed_at) * 1e-6:.1f} ms (from {moving.pose[0] * 1e3:.1f} mm)")
-    # the buffer (the lead) runs dry or the stream watchdog trips, whichever comes first: the stop begins within
-    # the later of the two after the kill (the last chunk went out just before it)
+    # the buffer (the lead) runs dry or a watchdog trips, whichever comes first: the stop begins within the later
+    # of the two after the kill (the last chunk and heartbeat went out just before it)
     link = LinkSettings()
     assert 0 < to_stop_ms <= (max(link.lead_s, link.watchdog_s) + 0.1) * 1e3
-    assert {"STREAM_SILENT", "UNDERRUN"} & set(final.faults)
+    assert {"STREAM_SILENT", "UNDERRUN", "HEARTBEAT_LOST"} & set(final.faults)
     assert set(final.faults) <= {"STREAM_SILENT", "HEARTBEAT_LOST", "UNDERRUN"} and final.underruns <= 1
     np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # home
     assert max(s.pose[0] for s in after) < moving.pose[0] + 0.005  # decelerated, no run-away or jump

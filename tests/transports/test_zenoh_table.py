@@ -25,7 +25,7 @@ from stream_checks import drive_excerpt, stream_and_check
 from drivers.controller import TableError, TableTimeoutError, open_table
 from drivers.zenoh import ZenohTable
 from protocols.zenoh import Key, KeyExprError, parse_key, session_config, table_accel_selector, table_key
-from protocols.zenoh.auth import TRAILER_BYTES, Received, Signer, Verdict, Verifier
+from protocols.zenoh.auth import FRESHNESS, TRAILER_BYTES, Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
     COMMANDS,
@@ -196,8 +196,20 @@ def test_signatures() -> None:
     assert verdict(forged) is Verdict.BAD_SIGNATURE
     assert verdict(signer.sign(where, message)) is Verdict.SIGNED  # the forgery did not move the stamp
     assert verdict(sign_by_hand(key, where, message, 42, now_us + 10**9)) is Verdict.SIGNED  # by hand = documented
-    assert verdict(sign_by_hand(key, where, message, 7, now_us - 61_000_000)) is Verdict.STALE  # new sender, too old
-    assert verdict(sign_by_hand(key, where, message, 7, now_us - 59_000_000)) is Verdict.SIGNED
+    # a new sender (as every sender is to a controller that restarted): a capture 36 s old is refused (issue 25: it
+    # tilted the plate), one within the few seconds host and controller clocks must agree taken
+    assert verdict(sign_by_hand(key, where, message, 7, now_us - 36_000_000)) is Verdict.STALE
+    assert verdict(sign_by_hand(key, where, message, 8, now_us - round((FRESHNESS + 0.5) * 1e6))) is Verdict.STALE
+    assert verdict(sign_by_hand(key, where, message, 9, now_us - round((FRESHNESS - 1) * 1e6))) is Verdict.SIGNED
+    # replies to the host's own queries (matched to their query by the caller) may come in any order, not stale
+    answer = table_key("lab-a", "clock")
+    first_reply, second_reply = (decode_command(signer.sign(answer, message))[1] for _ in range(2))
+    assert verifier.verify_reply(answer, second_reply) is Verdict.SIGNED
+    assert verifier.verify_reply(answer, first_reply) is Verdict.SIGNED
+    assert verifier.verify_reply(answer, decode_command(sign_by_hand(other, answer, message, 42, now_us))[1]) \
+        is Verdict.BAD_SIGNATURE
+    assert verifier.verify_reply(answer, decode_command(sign_by_hand(key, answer, message, 42,
+                                                                     now_us - 36_000_000))[1]) is Verdict.STALE
 
 
 # ----- the emulator process -----------------------------------------------------------------------------------
@@ -230,7 +242,7 @@ def plain(key_file: Path) -> Iterator[EmulatorProcess]:
 
 class RawHost(table_checks.Host):
     """A host on its own zenoh session: signs with ``key`` if given (as sender ``sender``), publishes heartbeats at
-    20 Hz while ``beating``, collects statuses."""
+    20 Hz while ``beating``, collects statuses (their signatures not checked)."""
 
     per_chunk = SETPOINTS_PER_CHUNK
 
@@ -241,7 +253,7 @@ class RawHost(table_checks.Host):
         self.session = zenoh.open(session_config(connect=[address.endpoint]))
         self.statuses: list[tuple[int, StatusReport]] = []
         self.session.declare_subscriber(table_key(address.table, "status"), lambda s: self.statuses.append(
-            (time.monotonic_ns(), decode_status(s.payload.to_bytes()))))
+            (time.monotonic_ns(), decode_status(split_signed(s.payload.to_bytes()).message))))
         self.querier = self.session.declare_querier(self.keys["command"], timeout=1.0)
         self.setpoints = self.session.declare_publisher(self.keys["setpoints"])
         self.heartbeat = self.session.declare_publisher(self.keys["host-heartbeat"])
@@ -258,7 +270,7 @@ class RawHost(table_checks.Host):
     def _beat(self) -> None:
         while self._running:
             if self.beating:
-                self.heartbeat.put(encode_heartbeat(time.monotonic_ns()))
+                self.heartbeat.put(self.sign("host-heartbeat", encode_heartbeat(time.monotonic_ns())))
             time.sleep(0.05)
 
     def sign(self, kind: str, message: bytes) -> bytes:
@@ -270,7 +282,7 @@ class RawHost(table_checks.Host):
         for _ in range(20):
             for reply in self.querier.get(payload=payload):
                 if reply.ok is not None:
-                    return decode_answer(reply.ok.payload.to_bytes()).result
+                    return decode_answer(split_signed(reply.ok.payload.to_bytes()).message).result
             time.sleep(0.05)
         raise AssertionError("no answer")
 
@@ -380,22 +392,32 @@ def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.M
 def test_tilt_payloads_are_published_and_each_bodys_lost_ones_counted() -> None:
     """TILT publications as received (no session): each becomes a TiltBatch of its body with its timing and angles;
     a skipped seq of a body counts as lost batches of that body only, across the sequence's wrap; an undecodable one
-    is counted as a bad payload."""
+    is counted as a bad payload; one not signed by the controller is dropped and counted."""
+    key = secrets.token_bytes(32)
     table = ZenohTable("zenoh://127.0.0.1:7447/lab-a")
+    table._verifier = Verifier(key)  # what connect() makes
     tilts = table.tilts()
     receive = table._receiver(table._on_tilt)
+    where = table_key("lab-a", "tilt")
+    controller = Signer(key, 5)
 
     class Sample:
         def __init__(self, payload: bytes) -> None:
             self.payload = zenoh.ZBytes(payload)
+            self.key_expr = where
 
     angles = np.linspace(-0.2, 0.9, 10)
     for body, seq in [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]:  # body 0 loses 2^32 - 1, body 7 loses 1, 2
-        receive(Sample(encode_tilt(TiltSamples(body, seq, 5_000_000 * (seq + 1), 5_000_000, angles + body))))
-    receive(Sample(encode_tilt(TiltSamples(0, 2, 0, 1, angles))[:-1]))
+        receive(Sample(controller.sign(where, encode_tilt(TiltSamples(body, seq, 5_000_000 * (seq + 1), 5_000_000,
+                                                                      angles + body)))))
+    receive(Sample(controller.sign(where, encode_tilt(TiltSamples(0, 2, 0, 1, angles))[:-1])))
+    receive(Sample(encode_tilt(TiltSamples(0, 2, 0, 1, angles + 50))))  # unsigned, from another peer
+    receive(Sample(Signer(secrets.token_bytes(32), 5).sign(where, encode_tilt(TiltSamples(0, 2, 0, 1, angles)))))
     got = tilts.drain()
     assert [(b.body_id, b.seq) for b in got] == [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]
     assert table.link_stats()["tilt_batches_lost"] == table.tilt_batches_lost == 3 and table.bad_payloads == 1
+    # an unsigned payload long enough to hold a trailer counts as badly signed (protocols.zenoh.auth.split_signed)
+    assert table.refused == {"refused_unsigned": 0, "refused_bad_signature": 2, "refused_stale": 0}
     np.testing.assert_array_equal(got[3].angles, angles + 7)
     assert (got[3].t_start_ns, got[3].spacing_ns) == (20_000_000, 5_000_000)
 
