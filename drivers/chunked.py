@@ -44,7 +44,7 @@ import math
 import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NoReturn
 
 import numpy as np
 
@@ -59,6 +59,7 @@ from drivers.controller import (
     StreamAbortedError,
     StreamReport,
     TableController,
+    TableError,
     TableStatus,
     TableTimeoutError,
     TiltBatch,
@@ -138,6 +139,21 @@ class ChunkedStreamController(TableController):
         self._next_seq = 0
         self._accel_lost = LostBatches()
         self._tilt_lost = LostBatches()
+
+    refused: dict[str, int]
+    """What the receive path dropped, by reason (``refused_bad_signature``: messages that did not verify, …)."""
+
+    connect_timeout: float
+    """How long :meth:`connect` waits for the controller [s]."""
+
+    def _no_answer(self) -> NoReturn:
+        """Why :meth:`connect` got no answer: another signing key (the controller's messages did not verify), or
+        silence."""
+        if self.refused["refused_bad_signature"]:
+            raise TableError(f"{self.url}: the table controller answers, but {self.refused['refused_bad_signature']} "
+                             "of its messages did not verify with this host's signing key: are host and controller "
+                             "using the same signing key?")
+        raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s")
 
     # ----- the backend's hooks
 

@@ -43,7 +43,7 @@ import secrets
 import threading
 import time
 from collections import deque
-from typing import Any, NoReturn
+from typing import Any
 
 import numpy as np
 
@@ -214,15 +214,6 @@ class MavlinkTable(ChunkedStreamController):
         self._link = None
         self.feedback.close()
         self.heap.release()
-
-    def _no_answer(self) -> NoReturn:
-        """Why :meth:`connect` got no answer: another signing key (the controller's messages did not verify), or
-        silence."""
-        if self.refused["refused_bad_signature"]:
-            raise TableError(f"{self.url}: the table controller answers, but {self.refused['refused_bad_signature']} "
-                             "of its messages did not verify with this host's signing key: are host and controller "
-                             "using the same signing key?")
-        raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s")
 
     def _receive_loop(self) -> None:
         assert self._link is not None

@@ -45,7 +45,6 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import NoReturn
 
 import numpy as np
 import zenoh
@@ -230,15 +229,6 @@ class ZenohTable(ChunkedStreamController):
                 continue
             return tuple(TableBody(k, *body) for k, body in enumerate(bodies))
         return None
-
-    def _no_answer(self) -> NoReturn:
-        """Why :meth:`connect` got no answer: another signing key (the controller's messages did not verify), or
-        silence."""
-        if self.refused["refused_bad_signature"]:
-            raise TableError(f"{self.url}: the table controller answers, but {self.refused['refused_bad_signature']} "
-                             "of its messages did not verify with this host's signing key: are host and controller "
-                             "using the same signing key?")
-        raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s")
 
     def _routes_ready(self) -> bool:
         return bool(self._setpoints.matching_status and self._heartbeat.matching_status
