@@ -10,7 +10,7 @@ Prints one JSON object, each figure beside what it is compared with:
   times on the TIMESYNC-aligned clocks: mean (lead − mean arrival margin − mean send lateness) and worst bound
   (lead − smallest margin, which includes the send lateness); and half the TIMESYNC round trip (min, p50, p99);
 * ``controller_to_host_ms``: status arrival on the host − its controller time stamp (p50, p99): the emulator's
-  batching (a wake every 2 ms) plus the link;
+  batching (a wake every 20 ms at 1x on MAVLink and zenoh, 2 ms on CANopen) plus the link;
 * ``accelerometer``: samples per second received per sensor against the 1 kHz sampling rate, batches lost, samples
   inside the stream against duration × rate;
 * ``emulator``: tick compute time (wall: mean, p99; and the tick thread's CPU time) against the tick budget
@@ -40,7 +40,7 @@ at rest (its first and last pose, both at rest) up to S s, so send timing is mea
 ``--body`` default), in a row along y with :data:`BODY_GAP` between them.
 
 Usage: ``python benchmarks/stream.py [--transport mavlink|zenoh|canopen] [--record fema:NORTHR/MUL009] [--angle 5]
-[--lead 0.05] [--speed 1|max] [--no-1x] [--duration S] [--bodies default|table5|none] [--no-bodies]
+[--lead 1] [--speed 1|max] [--no-1x] [--duration S] [--bodies default|table5|none] [--no-bodies]
 [--dynamics lag|servo]`` (the emulator's legs, docs/table-dynamics.md).
 """
 
@@ -62,7 +62,7 @@ from typing import Any
 import numpy as np
 
 from analysis.body import TABLE_V
-from drivers.controller import StreamAbortedError, open_table
+from drivers.controller import DEFAULT_LEAD, StreamAbortedError, open_table
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess, parse_speed, speed_flags
 from rig.records import load_record
@@ -278,8 +278,8 @@ def main() -> None:
     p.add_argument("--record", default="fema:NORTHR/MUL009")
     p.add_argument("--angle", type=float, default=5.0, help="static tilt [deg]")
     p.add_argument("--lead", type=float,
-                   help="setpoint lead [s, controller time] (default 0.05; CANopen 0.075: it must exceed the "
-                        "drives' target delay and a cycle)")
+                   help="setpoint lead [s, controller time] (default: the rig TOML's [controller] lead_s, 1 s, as a "
+                        "lab plays)")
     p.add_argument("--speed", type=parse_speed, default=1.0,
                    help="emulator speed (controller time per real time), or max: virtual time")
     p.add_argument("--no-1x", action="store_true", help="with --speed max: no 1x run beside it")
@@ -290,7 +290,7 @@ def main() -> None:
     p.add_argument("--dynamics", choices=DYNAMICS, default="lag", help="the emulator's legs (docs/table-dynamics.md)")
     args = p.parse_args()
     bodies = () if args.no_bodies or args.bodies == "none" else table5_bodies() if args.bodies == "table5" else BODIES
-    lead = args.lead if args.lead is not None else 0.075 if args.transport == "canopen" else 0.05
+    lead = args.lead if args.lead is not None else DEFAULT_LEAD
     result = run(args.transport, args.record, args.angle, lead, args.speed, bodies, args.duration, args.dynamics)
     result["dynamics"] = args.dynamics
     if math.isinf(args.speed) and not args.no_1x:

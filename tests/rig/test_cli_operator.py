@@ -104,15 +104,10 @@ def test_after_a_crash_the_recover_hint_and_then_the_resume_hint_work_as_printed
     assert recovered.returncode == 0, recovered.stderr
     hint = re.search(r"continue the session with (rig run .*)$", recovered.stdout, re.MULTILINE)
     assert hint is not None, recovered.stdout
-    done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)
-    # as printed it plays on the session's emulator: 0, or 1 if a 1x stream was starved on a loaded machine (not
-    # the hint's matter), never 2 (a usage error such as "give --table URL")
-    assert done.returncode in (0, 1) and "error:" not in done.stderr, done.stderr + done.stdout
+    done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)  # as printed: on the session's emulator, at 1x
+    assert done.returncode == 0, done.stderr + done.stdout
     runs = read_session(session)["runs"]
-    assert runs[0]["status"] == "interrupted" and len(runs) >= 2 and runs[1]["plan_index"] == 0
-    if done.returncode == 0:
-        assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"),
-                                                                  (1, "completed")]
+    assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"), (1, "completed")]
 
 
 def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, key_file: Path) -> None:
@@ -128,13 +123,10 @@ def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, 
         assert hint is not None and f"--key-file {key_file}" in hint.group(1)
         assert read_session(tmp_path / "s.h5")["attrs"]["table"] == json.dumps({"url": emulator.url})
         done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)
-    # the hint reached the table and played on it: 0, or 1 if a run faulted (a loaded machine can starve the
-    # stream: that is not the hint's matter), never 2 (a usage error: "give --table URL", a missing key)
-    assert done.returncode in (0, 1) and "error:" not in done.stderr, done.stderr + done.stdout
+    assert done.returncode == 0, done.stderr + done.stdout  # the hint reached the table and played on it
     runs = read_session(tmp_path / "s.h5")["runs"]
-    assert runs and {r["attrs"]["table_url"] for r in runs} == {emulator.url}
-    if done.returncode == 0:
-        assert [r["status"] for r in runs] == ["completed", "completed"]
+    assert {r["attrs"]["table_url"] for r in runs} == {emulator.url}
+    assert [r["status"] for r in runs] == ["completed", "completed"]
 
 
 def test_the_services_no_table_message_names_flags_that_exist(tmp_path: Path) -> None:
