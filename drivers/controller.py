@@ -507,9 +507,9 @@ class TableController(ABC):
             remaining = deadline - time.monotonic()
             if self.feedback.wait_for(predicate, max(min(remaining, WAIT_SLICE), 0.0)):
                 return True
+            self.check_link()  # also after the last slice: a caller that waits in short slices still sees it
             if remaining <= WAIT_SLICE:
                 return False
-            self.check_link()
 
     def wait_for_status(self, predicate: Callable[[TableStatus], bool], timeout: float) -> TableStatus:
         """The first status (the latest one included) for which ``predicate`` holds; :class:`TableTimeoutError`

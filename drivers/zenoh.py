@@ -222,8 +222,11 @@ class ZenohTable(ChunkedStreamController):
         for reply in self._session.get(self._keys["bodies"], timeout=timeout):
             if reply.ok is None:
                 continue
+            received = split_signed(reply.ok.payload.to_bytes())
+            if not self._verified(self._keys["bodies"], received, reply=True):
+                continue
             try:
-                bodies = decode_bodies(reply.ok.payload.to_bytes())
+                bodies = decode_bodies(received.message)
             except PayloadError:
                 self.bad_payloads += 1
                 continue

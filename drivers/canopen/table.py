@@ -22,6 +22,12 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
     wait for the drives' states). Raises :class:`~protocols.canopen.BusLoadError` when the rate does not fit.
     """
 
+    def check_link(self) -> None:
+        """Nothing to check by the statuses' age: this master *is* the controller and makes its statuses from the
+        drives' answers, which stop while they are braked or faulted; a drive, sensor or detector that falls silent
+        is caught by the master's own heartbeat consumers (a DRIVE fault, ``silent_drives``), the master's thread
+        failing by :meth:`wait_for_status`'s timeouts."""
+
     def link_stats(self) -> dict[str, Any]:
         """Bus load, rate, cycle lateness, accelerometer samples lost, duplicate overturn events dropped, each
         node's heartbeat age [s] and NMT state, and the EMCY codes received per node."""

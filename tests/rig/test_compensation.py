@@ -12,7 +12,8 @@ from analysis.body import TABLE_V
 from analysis.table.model import TableModel
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate, motion_window
-from rig.compensation.laws import DiagonalLaw
+from rig.compensation.laws import MimoLaw
+from rig.compensation.mimo import estimate
 from rig.compensation.signals import base_accelerations, errors_pct, fall_line
 from rig.drive import prepare_drive
 from rig.records import load_record
@@ -80,17 +81,14 @@ def test_identified_response_matches_the_servo_closed_loop(response):
 
 
 @pytest.mark.parametrize("angle_deg", [0.0, 5.0])
-def test_iteration_converges_on_the_servo_table(response, angle_deg):
-    """A FEMA record uncompensated on the servo table (the first play, at −12 dB): ≥ 20 % fall-line RMS error;
-    ≤ 5 % at the first full-level play (the ramp's plays corrected it on the way up), every played drive inside the
-    table's limits, the error falling at first."""
+def test_iteration_converges_on_the_servo_table(angle_deg):
+    """A FEMA record uncompensated on the coupled servo table (the first play, at −12 dB): ≥ 20 % fall-line RMS
+    error; the MIMO law (the default) halves it by the −6 dB play and brings it to ≤ 5 % within three full-level
+    plays (issue 23's target; 4.6 % measured at 0° and 5°), every played drive inside the table's limits."""
     beta = math.radians(angle_deg)
-    if angle_deg != 5.0:
-        ident = identification_drive(TABLE, beta, duration=40.0, seed=4)
-        force = play_offline(TABLE, ident.poses, payload=PAYLOAD, seed=2)
-        frf = frequency_response(ident.accelerations[:, :3], base_accelerations(force, beta), TABLE.controller_rate)
-    else:
-        frf = response
+    ident = identification_drive(TABLE, beta, duration=40.0, seed=4)
+    measured = base_accelerations(play_offline(TABLE, ident.poses, payload=PAYLOAD, seed=2), beta)
+    matrix = estimate(ident.accelerations[:, :3], measured, TABLE.controller_rate)
     drive = prepare_drive(load_record("fema:NORTHR/MUL009"), angle=beta, table=TABLE, ramps=False, headroom=0.1)
     played = []
 
@@ -98,12 +96,12 @@ def test_iteration_converges_on_the_servo_table(response, angle_deg):
         played.append(d)
         return play_offline(TABLE, d.poses, payload=PAYLOAD, seed=10 + k)
 
-    result = compensate(drive, DiagonalLaw(frf), play, iterations=3)
+    result = compensate(drive, MimoLaw(matrix), play, iterations=3)
     errors = [it.rms_error_pct for it in result.iterations]
     assert [it.level_db for it in result.iterations] == [-12.0, -6.0, 0.0, 0.0, 0.0]
     assert errors[0] >= 20.0
     assert errors[1] < errors[0] / 2
-    assert errors[2] <= 5.0
+    assert min(errors[2:]) <= 5.0 and errors[4] < errors[2]
     assert result.iterations[result.best].rms_error_pct == min(errors[2:])
     for d in played:
         assert TABLE.check_trajectory(d.t, d.poses, d.velocities, d.accelerations) is None

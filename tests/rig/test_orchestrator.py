@@ -78,7 +78,7 @@ def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None
         orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
                                     operator=operator, on_update=seen)
         result: list[OrchestratorState] = []
-        worker = threading.Thread(target=lambda: result.append(orchestrator.run()))
+        worker = threading.Thread(target=lambda: result.append(orchestrator.run()), daemon=True)
         worker.start()
         if during is not None:
             during(orchestrator)

@@ -104,7 +104,7 @@ def test_a_table_link_lost_mid_run_ends_the_run_interrupted_at_once(tiny: Sequen
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(tiny.bodies), key_file=key_file)
     orchestrator = Orchestrator(tiny, emulator.url, log, table_options={"key_file": str(key_file)})
     result: list[OrchestratorState] = []
-    worker = threading.Thread(target=lambda: result.append(orchestrator.run()))
+    worker = threading.Thread(target=lambda: result.append(orchestrator.run()), daemon=True)
     worker.start()
     wait_for(lambda: orchestrator.progress.samples_sent > 500)
     emulator.proc.kill()

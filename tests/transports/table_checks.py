@@ -80,14 +80,15 @@ class Host:
 
 def motion_from_others_is_refused(table: Any, others: tuple[Host, ...],
                                         refused_before: int) -> StreamReport:
-    """Arm ``table`` and stream a 2 s, 1 cm surge; meanwhile each of ``others`` (hosts without the key) sends 10
-    chunks of a wild pose (0.2 m) 20 ms ahead, numbered as the real stream is about to number its own: every one is
-    refused (``refused_before`` counted before), the stream plays on to its end and the table stays within 1 cm. The
-    stream's report."""
+    """Arm ``table`` and stream a 2 s, 1 cm surge (the default lead); meanwhile each of ``others`` (hosts without
+    the key) sends 10 chunks of a wild pose (0.2 m) 20 ms ahead, numbered as the real stream is about to number its
+    own: every one is refused (``refused_before`` counted before), the stream plays on to its end and the table
+    stays within 1 cm. The stream's report."""
     table.arm()
     t, poses = surge(2.0, lambda t: 0.01 * np.sin(2 * np.pi * t))
     result: dict[str, Any] = {}
-    streamer = threading.Thread(target=lambda: result.update(report=table.stream(t, poses, lead=0.05)))
+    streamer = threading.Thread(target=lambda: result.update(report=table.stream(t, poses)),  # the default lead
+                                daemon=True)
     statuses = table.statuses()
     streamer.start()
     playing = table.wait_for_status(lambda s: s.state == "streaming" and s.last_chunk_seq >= 5, 2)

@@ -137,7 +137,7 @@ def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
         except BaseException as exc:
             outcome["error"] = exc
 
-    thread = threading.Thread(target=run)
+    thread = threading.Thread(target=run, daemon=True)  # a test that fails must not keep pytest from exiting
     thread.start()
     return thread, outcome
 

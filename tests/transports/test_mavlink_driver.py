@@ -494,12 +494,11 @@ def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_fil
 # ----- an emulator process that is not scheduled for a while ------------------------------------------------------
 
 
-def test_an_emulator_stopped_for_150_ms_mid_stream_plays_on(key_file: Path) -> None:
-    """The emulator's process stopped (SIGSTOP) for 150 ms in the middle of a 1x stream, as a loaded machine may
-    leave it unscheduled: the host's heartbeats and chunks of those 150 ms wait in its socket, and the endpoint
+def test_an_emulator_stopped_for_300_ms_mid_stream_plays_on(key_file: Path) -> None:
+    """The emulator's process stopped (SIGSTOP) for 300 ms in the middle of a 1x stream, as a loaded machine may
+    leave it unscheduled: the host's heartbeats and chunks of those 300 ms wait in its socket, and the endpoint
     counts them at the times the kernel stamped them (sim_table/mavlink_endpoint.py), so the stream plays to its end
-    with no fault — read at the moment the process ran again, they looked 150 ms late: HEARTBEAT_LOST (100 ms
-    watchdog) and UNDERRUN (75 ms lead)."""
+    with no fault and no underrun; the host, whose link timeout (0.5 s) the stall stays under, goes on."""
     emulator = start_emulator(key_file=key_file)
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
@@ -511,20 +510,20 @@ def test_an_emulator_stopped_for_150_ms_mid_stream_plays_on(key_file: Path) -> N
                 started.wait(10)
                 time.sleep(0.8)
                 emulator.proc.send_signal(signal.SIGSTOP)
-                time.sleep(0.15)
+                time.sleep(0.3)
                 emulator.proc.send_signal(signal.SIGCONT)
 
             staller = threading.Thread(target=stall)
             staller.start()
             try:
-                report = table.stream(t, poses, lead=0.075, on_start=lambda _: started.set())
+                report = table.stream(t, poses, on_start=lambda _: started.set())  # the default lead, 1 s
             finally:
                 staller.join()
             table.disarm()
     finally:
         counters = emulator.stop()
     assert report.final is not None and report.final.faults == () and report.underruns == 0
-    assert counters["faults_raised"] == {} and counters["watchdog_stops"] == 0
-    # the stall happened, longer than the heartbeat watchdog: the emulator caught up on it (its first late tick was
-    # due up to a wake period, 2 ms, after the process stopped)
-    assert counters["timing"]["lag_max_ms"] > 100, counters["timing"]
+    assert counters["faults_raised"] == {} and counters["watchdog_stops"] == 0 and counters["samples_late"] == 0
+    # the stall happened: the emulator caught up on it (its first late tick was due up to a wake period, 20 ms,
+    # after the process stopped)
+    assert counters["timing"]["lag_max_ms"] > 250, counters["timing"]
