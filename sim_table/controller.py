@@ -17,7 +17,9 @@ Reference generation:
   controlled stop: one underrun counted, ``UNDERRUN`` latched, and the table stops as for STOP (the reference
   keeps its velocity and decelerates at the axis limits — Table IV accelerations, the tilt acceleration for
   rotations — to rest, then moves home) and ends ``faulted``. Samples arriving after it are not played: a stream
-  never resumes from a held pose (resuming would jump to where the drive has got to meanwhile).
+  never resumes from a held pose (resuming would jump to where the drive has got to meanwhile). With
+  ``underrun_stops=False`` (the CANopen endpoint's CSP drives, whose master plays the drive one target a SYNC) the
+  reference decelerates to rest and holds instead, and takes up the samples that come again (late ones skipped).
 - **Buffer capacity**: the buffer holds at most ``buffer_capacity`` samples (reported in every status); a chunk
   that does not fit is refused (``chunks_overflow``), as a host that sends further ahead than the buffer holds
   is misconfigured (its lead must stay below the capacity).
@@ -212,18 +214,22 @@ class ControllerCore:
     ``table`` gives the limits; ``tick_ns`` is the tick period [ns, controller time]; ``watchdog_ns`` the silence
     that stops the table [ns, controller time, or of ``link_clock`` when given: a host-monotonic clock [ns] for
     the watchdogs in virtual time]; ``pose`` (6,) where the plate rests at power-up (default home);
-    ``buffer_capacity`` the setpoint samples the buffer holds.
+    ``buffer_capacity`` the setpoint samples the buffer holds; ``underrun_stops`` (below).
     """
 
     def __init__(self, table: TableModel, *, tick_ns: int = 1_000_000, watchdog_ns: int = 100_000_000,
                  pose: np.ndarray | None = None, link_clock: Callable[[], int] | None = None,
-                 buffer_capacity: int = DEFAULT_BUFFER_CAPACITY) -> None:
+                 buffer_capacity: int = DEFAULT_BUFFER_CAPACITY, underrun_stops: bool = True) -> None:
         self.table = table
         self.tick_ns = int(tick_ns)
         self.watchdog_ns = int(watchdog_ns)
         if buffer_capacity < 1:
             raise ValueError(f"buffer_capacity must be >= 1 sample, got {buffer_capacity!r}")
         self.buffer_capacity = int(buffer_capacity)
+        self.underrun_stops = underrun_stops
+        """An underrun is a controlled stop (the default); False: the reference decelerates, holds and takes up the
+        samples that come again — what a CANopen CSP drive does with a missing target, where the master, not this
+        buffer, plays the drive (its one-sample chunks stop whenever it disables the drives)."""
         self._link_clock = link_clock
         self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
         self.state = State.IDLE
@@ -466,6 +472,7 @@ class ControllerCore:
         self._end_ns: int | None = None
         self._last_chunk: int | None = None
         self._received_any = False
+        self._dry = False
 
     def _remember(self, seq: int) -> None:
         self._seen.add(seq)
@@ -494,6 +501,7 @@ class ControllerCore:
         assert self._anchor is not None
         ta, pa = self._anchor
         if buffer:
+            self._dry = False
             tb, pb = buffer[0]
             return pa + (pb - pa) * ((t_ns - ta) / (tb - ta))
         end = self._end_ns
@@ -507,9 +515,17 @@ class ControllerCore:
         if not self._received_any:  # nothing due yet: hold, ready to blend into the first sample
             self._anchor = (t_ns, self._p)
             return self._p
-        self.counters.underruns += 1  # dry before the end: a controlled stop (module docstring)
-        self.raise_fault(Fault.UNDERRUN, t_ns)
-        return self._decelerate(dt)
+        if self.underrun_stops:
+            self.counters.underruns += 1  # dry before the end: a controlled stop (module docstring)
+            self.raise_fault(Fault.UNDERRUN, t_ns)
+            return self._decelerate(dt)
+        if not self._dry:  # a drive's hold (CANopen CSP): decelerate, then take up the targets that come again
+            self._dry = True
+            self.counters.underruns += 1
+            self._latch(Fault.UNDERRUN)
+        pose = self._decelerate(dt)
+        self._anchor = (t_ns, pose)
+        return pose
 
     def _decelerate(self, dt: float) -> np.ndarray:
         """The reference one tick on, its velocity reduced by the axis accelerations (exactly zero at rest)."""

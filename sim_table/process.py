@@ -188,13 +188,14 @@ class Emulator:
         self.virtual = math.isinf(config.speed)
         """Virtual time (``--speed max``, module docstring)."""
         capacity = math.ceil((table.link.buffer_s if config.buffer is None else config.buffer) * table.controller_rate)
+        csp = listen_scheme(config.listen) == "canopen"  # the master plays the drive: its drives hold on a gap
         if self.virtual:
             self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9),
                                        link_clock=time.monotonic_ns, buffer_capacity=capacity)
         else:
             watchdog = table.link.watchdog_s if config.watchdog is None else config.watchdog
             self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(watchdog * config.speed * 1e9),
-                                       buffer_capacity=capacity)
+                                       buffer_capacity=capacity, underrun_stops=not csp)
         self.wake_period_ns = CANOPEN_WAKE_PERIOD_NS if listen_scheme(config.listen) == "canopen" else WAKE_PERIOD_NS
         """The real-time loop's wake-up period [ns] (module docstring)."""
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
