@@ -45,6 +45,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import TypeVar
 
 import numpy as np
 import zenoh
@@ -88,6 +89,8 @@ from protocols.zenoh.table import (
     fault_names,
     parse_table_url,
 )
+
+T = TypeVar("T")
 
 HEARTBEAT_RATE = 50.0
 """Host heartbeats per second. The controller stops the table after 100 ms without one: at 50 Hz that takes five
@@ -220,18 +223,24 @@ class ZenohTable(ChunkedStreamController):
         if self._session is None:
             raise TableError(f"{self.url}: not connected")
         for reply in self._session.get(self._keys["bodies"], timeout=timeout):
-            if reply.ok is None:
-                continue
-            received = split_signed(reply.ok.payload.to_bytes())
-            if not self._verified(self._keys["bodies"], received, reply=True):
-                continue
-            try:
-                bodies = decode_bodies(received.message)
-            except PayloadError:
-                self.bad_payloads += 1
-                continue
-            return tuple(TableBody(k, *body) for k, body in enumerate(bodies))
+            bodies = self._decoded_reply(self._keys["bodies"], reply, decode_bodies)
+            if bodies is not None:
+                return tuple(TableBody(k, *body) for k, body in enumerate(bodies))
         return None
+
+    def _decoded_reply(self, key: str, reply: zenoh.Reply, decode: Callable[[bytes], T]) -> T | None:
+        """The payload of a reply to this host's query on ``key``, decoded; None for an error reply, one not signed
+        by the controller (counted in :attr:`refused`) or one that does not decode (counted in ``bad_payloads``)."""
+        if reply.ok is None:
+            return None
+        received = split_signed(reply.ok.payload.to_bytes())
+        if not self._verified(key, received, reply=True):
+            return None
+        try:
+            return decode(received.message)
+        except PayloadError:
+            self.bad_payloads += 1
+            return None
 
     def _routes_ready(self) -> bool:
         return bool(self._setpoints.matching_status and self._heartbeat.matching_status
@@ -311,15 +320,8 @@ class ZenohTable(ChunkedStreamController):
 
     def _on_clock_reply(self, reply: zenoh.Reply) -> None:
         now = time.monotonic_ns()
-        if reply.ok is None:
-            return
-        received = split_signed(reply.ok.payload.to_bytes())
-        if not self._verified(self._keys["clock"], received, reply=True):
-            return
-        try:
-            answer = decode_clock_reply(received.message)
-        except PayloadError:
-            self.bad_payloads += 1
+        answer = self._decoded_reply(self._keys["clock"], reply, decode_clock_reply)
+        if answer is None:
             return
         if answer.t_send_ns in self._clock_sent:
             self.clock.add(answer.t_send_ns, now, answer.t_controller_ns)
