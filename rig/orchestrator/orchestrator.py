@@ -39,6 +39,7 @@ import numpy as np
 
 from analysis.table.link import BUFFER_MARGIN_S
 from drivers.controller import (
+    DEFAULT_LEAD,
     StreamAbortedError,
     StreamReport,
     TableController,
@@ -61,7 +62,7 @@ from rig.orchestrator.states import (
 from rig.sequence import PlannedRun, Sequence, SequenceError
 from rig.session import SessionError, check_room, is_disk_full, run_needs
 
-LEAD = 1.0
+LEAD = DEFAULT_LEAD
 """How far ahead of its first sample each setpoint chunk is sent [s] where no rig configuration says
 (``[controller] lead_s``; ``analysis.table.link``): a host stall shorter than this never starves the table."""
 
