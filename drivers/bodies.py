@@ -3,8 +3,9 @@ what the host compares with its sequence's bodies before any motion.
 
 The emulator reports its specimens (size and place); a real controller reports a body per overturn-detector
 channel, with the size and place it was configured with (zeros when it knows none: then only the number of bodies
-can be compared). Transports: MAVLink ``SHAKETABLE_BODY``; zenoh the ``bodies`` queryable; CANopen none (the
-detector node's object dictionary does not hold them: `TableController.bodies` returns None there).
+can be compared). Transports: MAVLink ``SHAKETABLE_BODY``; zenoh the ``bodies`` queryable; CANopen the overturn
+detector's object dictionary, read by SDO (``protocols.canopen.sensors``). A controller that does not report them
+(a CANopen detector without the objects) gives None from `TableController.bodies`.
 """
 
 from __future__ import annotations

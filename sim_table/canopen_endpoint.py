@@ -111,10 +111,13 @@ from protocols.canopen import od as drive_od
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
     ACCELEROMETER_NODE_IDS,
+    BODY_COUNT,
+    BODY_RECORDS,
     DETECTOR_NODE_ID,
     EVENT_REPEAT_PERIOD,
     EVENT_REPEATS,
     EVENT_TPDO1,
+    MAX_BODIES,
     OVERTURN_EVENT,
     SAMPLE_DELAY,
     SPECIFIC_FORCE,
@@ -127,7 +130,7 @@ from protocols.canopen.sensors import (
 from sim_table.controller import BRAKED, ControllerCore, Done, Fault, Snapshot
 from sim_table.controller import Command as CoreCommand
 from sim_table.controller import State as CoreState
-from sim_table.endpoint import Action, EndpointOptions
+from sim_table.endpoint import Action, BodyOnPlate, EndpointOptions
 
 TARGET_DELAY = 0.060
 """What the emulated drives declare in 0x2010 [s]: a target is reached this long after the SYNC that latched it."""
@@ -268,7 +271,7 @@ class _Node:
         self.supported = False
         node.add_read_callback(self._read)
 
-    def _read(self, index: int, subindex: int, od: Any) -> int | None:
+    def _read(self, index: int, subindex: int, od: Any) -> float | None:
         """The live value of an object the device computes (None: the object dictionary's)."""
         return None
 
@@ -369,17 +372,25 @@ class _Sensor(_Node):
 
 
 class _Detector(_Node):
-    """The emulated overturn detector and the event it is sending."""
+    """The emulated overturn detector: the event it is sending and the bodies on the plate it holds."""
 
     transmits = EVENT_TPDO1
 
-    def __init__(self, node: canopen.LocalNode) -> None:
+    def __init__(self, node: canopen.LocalNode, bodies: tuple[BodyOnPlate, ...]) -> None:
         super().__init__(node)
+        if len(bodies) > MAX_BODIES:
+            raise ValueError(f"the CANopen overturn detector holds at most {MAX_BODIES} bodies, got {len(bodies)}")
         self.record = event_record(0, 0, 1, 0.0, 0)
+        self.bodies = bodies
 
-    def _read(self, index: int, subindex: int, od: Any) -> int | None:
+    def _read(self, index: int, subindex: int, od: Any) -> float | None:
         if index == OVERTURN_EVENT and 1 <= subindex <= 5:
             return self.record[subindex - 1]
+        if index == BODY_COUNT:
+            return len(self.bodies)
+        k = index - BODY_RECORDS
+        if 0 <= k < MAX_BODIES and 1 <= subindex <= 5:
+            return self.bodies[k][subindex - 1] if k < len(self.bodies) else 0.0
         return None
 
 
@@ -413,7 +424,7 @@ class CanopenEndpoint:
         self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg))) for leg in LEG_NODE_IDS]
         self.sensors = [_Sensor(self.network.create_node(node_id, load_accelerometer_od(node_id)))
                         for node_id in ACCELEROMETER_NODE_IDS[:sensors]]
-        self.detector = _Detector(self.network.create_node(DETECTOR_NODE_ID, load_detector_od()))
+        self.detector = _Detector(self.network.create_node(DETECTOR_NODE_ID, load_detector_od()), options.bodies)
         self._lock = threading.RLock()
         self._legs = Recent(6)
         self._commands = Recent(6)  # the legs' commanded lengths, at the same ticks
@@ -423,6 +434,7 @@ class CanopenEndpoint:
         self._enabled = False  # all six drives operation enabled in CSP: the core follows
         self._next_seq = 0
         self._pose = np.zeros(6)  # the last target pose (forward kinematics' next guess)
+        self._targets: list[int] = []  # the drives' targets [µm] it is the pose of
         self._last_sample_ns = 0
         self._ending = False  # a stream end is queued: what follows waits for the core to play it
         self._faults = Fault(0)
@@ -537,8 +549,11 @@ class CanopenEndpoint:
         if self.stall_chunks:
             self.counters.chunks_stalled += 1
             return
-        lengths = np.array(self.scaling.lengths([d.target for d in self.drives]))
-        self._pose = self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
+        targets = [d.target for d in self.drives]
+        if targets != self._targets:  # held targets (an armed table at rest) need no forward kinematics
+            lengths = np.array(self.scaling.lengths(targets))
+            self._pose = self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
+            self._targets = targets
         seq, pose = self._next_seq, self._pose.copy()
         self._next_seq = (seq + 1) % 2**32
         self._last_sample_ns = due

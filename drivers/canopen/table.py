@@ -3,14 +3,20 @@ motions (:mod:`drivers.canopen.master`) in one `TableController`."""
 
 from __future__ import annotations
 
+import math
 import time
 from typing import Any
 
+import canopen
+
+from drivers.bodies import TableBody
 from drivers.canopen.cycle import SyncCycle
 from drivers.canopen.faults import FaultSupervision
 from drivers.canopen.feedback import FeedbackFrames
 from drivers.canopen.motion import Motions
 from drivers.canopen.setup import SetUp
+from drivers.controller import TableError
+from protocols.canopen.sensors import BODY_COUNT, BODY_RECORDS, MAX_BODIES
 
 
 class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
@@ -27,6 +33,33 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
         drives' answers, which stop while they are braked or faulted; a drive, sensor or detector that falls silent
         is caught by the master's own heartbeat consumers (a DRIVE fault, ``silent_drives``), the master's thread
         failing by :meth:`wait_for_status`'s timeouts."""
+
+    def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
+        """The bodies the overturn detector holds (:mod:`protocols.canopen.sensors`: 0x2201 and the body records
+        from 0x2210), read by SDO, each request waiting at most ``timeout`` [s]; None without a detector on the bus,
+        or from one that does not answer or whose object dictionary holds no bodies (an SDO abort)."""
+        if self._network is None:
+            raise TableError(f"{self.url}: not connected")
+        if self._detector is None:
+            return None
+        sdo = self._detector.node.sdo
+        sdo.RESPONSE_TIMEOUT = timeout
+        try:
+            count = sdo[BODY_COUNT].raw
+            if not 0 <= count <= MAX_BODIES:
+                raise TableError(f"{self.url}: the overturn detector reports {count} bodies (0x{BODY_COUNT:04X}); "
+                                 f"its object dictionary holds at most {MAX_BODIES}")
+            bodies = []
+            for k in range(count):
+                record = sdo[BODY_RECORDS + k]
+                values = [float(record[sub].raw) for sub in range(1, 6)]
+                if not all(math.isfinite(v) and abs(v) < 100.0 for v in values):  # a plate is metres, not hectometres
+                    raise TableError(f"{self.url}: body {k} of the overturn detector (0x{BODY_RECORDS + k:04X}) is "
+                                     f"not a size and place in metres: {values}")
+                bodies.append(TableBody(k, *values))
+        except (canopen.SdoAbortedError, canopen.SdoCommunicationError):
+            return None
+        return tuple(bodies)
 
     def link_stats(self) -> dict[str, Any]:
         """Bus load, rate, cycle lateness, accelerometer samples lost, duplicate overturn events dropped, each

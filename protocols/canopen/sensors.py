@@ -23,6 +23,11 @@ object     type        meaning
 Every event is sent at once and again :data:`EVENT_REPEATS` times :data:`EVENT_REPEAT_PERIOD` apart with the
 same event id (the master keeps the first copy); the age in each copy dates the overturn without a shared clock.
 
+The detector also holds the **bodies on the plate** (``docs/table-controller.md``, Bodies on the plate), read by SDO:
+:data:`BODY_COUNT` (0x2201, UNSIGNED8) the number of bodies, and body ``k`` (its id in overturn events) in the RECORD
+:data:`BODY_RECORDS` ``+ k`` (0x2210 …, at most :data:`MAX_BODIES`), sub 1..5 REAL32: breadth b along the fall line,
+height h, depth, and the centre of its base x, y on the plate [m] (zeros: the detector knows only the channel).
+
 Bus load: an accelerometer's TPDO is cyclic (6 bytes, 115 bits at worst per SYNC) and counts in
 :func:`protocols.canopen.bus_load.cycle_bits`; the detector's frames are events (four 8-byte frames of 135 bits per
 overturn) and, with the heartbeats, fit the fifth of the bus the cyclic limit leaves.
@@ -58,6 +63,12 @@ SAMPLE_DELAY = 0x2101
 """[µs]: the sample in a SYNC's TPDO was taken this long before that SYNC."""
 OVERTURN_EVENT = 0x2200
 """RECORD, sub 1..5: the last overturn event (module docstring)."""
+BODY_COUNT = 0x2201
+"""UNSIGNED8: the number of bodies on the plate (module docstring)."""
+BODY_RECORDS = 0x2210
+"""Body ``k`` is the RECORD at this index + ``k``, sub 1..5: b, h, depth, x, y [m] as REAL32."""
+MAX_BODIES = 16
+"""Most bodies the detector's object dictionary holds."""
 
 FORCE_INCREMENT = 1e-3
 """Specific force per increment [m/s²]."""

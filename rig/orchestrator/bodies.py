@@ -8,7 +8,8 @@ body (the emulator numbers them in the order they were placed, as ``specimen_fla
 - each body's breadth b, height h, depth and place (x, y) on the plate, within :data:`TOLERANCE`, when the table
   reports sizes (not all zero).
 
-A table whose transport does not report bodies (CANopen) is not checked.
+A table that does not report bodies (`TableController.bodies` None: a CANopen detector without the body objects)
+is not checked.
 """
 
 from __future__ import annotations
