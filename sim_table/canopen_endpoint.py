@@ -137,8 +137,8 @@ TARGET_DELAY = 0.060
 
 FEEDBACK_DELAY = 0.004
 """What the emulated drives declare in 0x2011 and the accelerometers in 0x2101 [s]: the position actual value and
-the acceleration sample of a SYNC's TPDO are this much older than the SYNC (two of the emulator loop's 2 ms batches:
-the physics has usually computed that instant when the SYNC is handled, and the answer need not wait)."""
+the acceleration sample of a SYNC's TPDO are this much older than the SYNC (the answer waits for the emulator's batch
+that computes that instant: at most a wake period, ``sim_table.process.CANOPEN_WAKE_PERIOD_NS``)."""
 
 SERIES_GAP = 0.1
 """A SYNC after this long without one [s, real time] starts a new series (a new master, or one that was stopped)."""
