@@ -35,6 +35,7 @@ Rates and margins are fractions (0.05 = 5 percentage points); differences are ra
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -208,14 +209,7 @@ def cases_to_resolve(p1: float, f1: float, p2: float, f2: float, margin: float =
         high *= 2
         if high > MAX_CASES:
             return None
-    low = high // 2
-    while high - low > 1:  # the statistic grows with N at fixed rates: bisect on the first N that resolves
-        mid = (low + high) // 2
-        if resolved(mid):
-            high = mid
-        else:
-            low = mid
-    return high
+    return _first_true(resolved, high // 2, high)  # the statistic grows with N at fixed rates
 
 
 def _likely_counts(n: int, p: float) -> np.ndarray:
@@ -269,9 +263,15 @@ def cases_for_power(p1: float, p2: float | None = None, margin: float = MARGIN, 
         while high > 2 and enough(high // 2):
             high //= 2
         low = high // 2
+    return _first_true(enough, low, high)
+
+
+def _first_true(holds: Callable[[int], bool], low: int, high: int) -> int:
+    """By bisection, an n in (``low``, ``high``] where ``holds(n)`` and not ``holds(n − 1)``, given that ``holds``
+    fails at ``low`` and holds at ``high`` (the first such n when ``holds`` is monotone)."""
     while high - low > 1:
         mid = (low + high) // 2
-        if enough(mid):
+        if holds(mid):
             high = mid
         else:
             low = mid
