@@ -55,6 +55,7 @@ from drivers.controller import (
     CommandRejectedError,
     FaultSource,
     StreamAbortedError,
+    TableController,
     TableStatus,
     TableTimeoutError,
     open_table,
@@ -131,6 +132,11 @@ def emulated(**config: Any) -> Iterator[Emulator]:
         emulator.close()
 
 
+def master(emulator: Emulator, **options: Any) -> TableController:
+    """The CANopen master on the in-process emulator's bus, at :data:`RATE`."""
+    return open_table(emulator.url, rate=RATE, **options)
+
+
 def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
     """Run ``call()`` in a thread; its result or exception lands in the dict."""
     outcome: dict[str, Any] = {}
@@ -153,7 +159,7 @@ def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
 def test_stream_a_prepared_fema_drive_excerpt_on_the_sync_grid() -> None:
     drive = drive_excerpt()
     with emulated(specimens=(parse_body(SLENDER), parse_body(STOCKY))) as emulator:
-        with open_table(emulator.url, rate=RATE) as table:
+        with master(emulator) as table:
             assert isinstance(table, CanopenTable) and table.rate == RATE
             assert table.bus_load == pytest.approx(bus_load(RATE, 6, 1_000_000, accelerometers=1))
             statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
@@ -245,7 +251,7 @@ def test_bus_load_counts_each_accelerometer_tpdo() -> None:
 
 
 def test_arm_tilt_home_disarm_and_the_refusals() -> None:
-    with emulated() as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated() as emulator, master(emulator) as table:
         status = table.status()
         assert isinstance(status, TableStatus) and status.state == "idle" and status.pose.shape == (6,)
         with pytest.raises(CommandRejectedError, match="HOME refused: not accepted in this state"):
@@ -277,16 +283,16 @@ def test_the_overturn_detector_reports_the_bodies_on_the_plate() -> None:
     in body-id order, as REAL32 (1e-7 relative); a plate without bodies reports none; a master told there is no
     detector on the bus has none to ask."""
     slender, stocky = parse_body(SLENDER), parse_body(STOCKY)
-    with emulated(specimens=(slender, stocky)) as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated(specimens=(slender, stocky)) as emulator, master(emulator) as table:
         bodies = table.bodies()
     assert bodies is not None and [b.body_id for b in bodies] == [0, 1]
     expected = [(s.body.b, s.body.h, s.depth, s.x, s.y) for s in (slender, stocky)]
     np.testing.assert_allclose([(b.b, b.h, b.depth, b.x, b.y) for b in bodies], expected, rtol=1e-7, atol=1e-9)
     assert expected[0][3] == 0.4 and expected[1][3] == -0.4  # the places are the ones given
     with emulated() as emulator:
-        with open_table(emulator.url, rate=RATE) as table:
+        with master(emulator) as table:
             assert table.bodies() == ()
-        with open_table(emulator.url, rate=RATE, detector=False) as table:
+        with master(emulator, detector=False) as table:
             assert table.bodies() is None
 
 
@@ -294,7 +300,7 @@ def test_a_stop_while_the_stream_holds_still_aborts_it() -> None:
     """STOP during the drive's leading hold: the plate is at rest, so the stop and its return home pass within a
     status period — the stream still ends as aborted, not as played."""
     t, poses = surge(4.0, lambda t: smooth_ramp(np.maximum(t - 2.0, 0.0), 0.05, 2.0))
-    with emulated() as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated() as emulator, master(emulator) as table:
         table.arm()
         thread, outcome = in_background(lambda: table.stream(t, poses))
         table.wait_for_status(lambda s: s.state == "streaming", 10)
@@ -306,7 +312,7 @@ def test_a_stop_while_the_stream_holds_still_aborts_it() -> None:
 
 def test_stop_decelerates_and_goes_home_emergency_stop_holds() -> None:
     t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))
-    with emulated() as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated() as emulator, master(emulator) as table:
         table.arm()
         thread, outcome = in_background(lambda: table.stream(t, poses))
         table.wait_for_status(lambda s: s.pose[0] > 0.03, 10)
@@ -325,7 +331,7 @@ def test_emcy_from_an_injected_drive_fault_surfaces_as_a_fault() -> None:
     """A drive fault 1 s after the drives were enabled (the core's stream starts with them on CANopen): leg 1 sends
     EMCY 0x5000; the master quick-stops every drive; ARM resets the fault."""
     t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
-    with emulated(drive_fault_at=1.0) as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated(drive_fault_at=1.0) as emulator, master(emulator) as table:
         faults = table.faults()
         table.arm()
         with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
@@ -367,7 +373,7 @@ def test_a_drive_that_missed_the_start_command_is_started_again() -> None:
     command (it missed it, or rebooted) is sent the command again; connecting and arming then work."""
     with emulated() as emulator:
         starts = miss_start_commands(emulator, leg=3, times=1)
-        with open_table(emulator.url, rate=RATE) as table:
+        with master(emulator) as table:
             assert starts[0] == 0 and starts[1:] == [emulator.endpoint.drives[2].node.id]  # broadcast, then leg 3
             assert all(d.node.nmt.state == "OPERATIONAL" for d in emulator.endpoint.drives)
             table.arm()
@@ -375,7 +381,7 @@ def test_a_drive_that_missed_the_start_command_is_started_again() -> None:
 
 
 def test_arm_is_refused_while_a_drive_is_not_operational() -> None:
-    with emulated() as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated() as emulator, master(emulator) as table:
         emulator.endpoint.drives[2].node.nmt.state = "PRE-OPERATIONAL"  # leg 3, as after a reboot
         table.wait_for_status(lambda s: table.link_stats()["nmt_state"][3] == "pre-operational", 1)
         with pytest.raises(CommandFailedError, match=r"ARM refused: leg 3 not NMT operational \(node 1 operational, "
@@ -391,12 +397,12 @@ def test_a_drive_that_never_gets_operational_fails_the_connection_naming_it() ->
         with pytest.raises(TableTimeoutError, match=(
                 rf"not every node reported operational in its heartbeat within 1(\.0)? s \(node 1 operational, "
                 rf".*node {node} pre-operational, node 4 operational")):
-            open_table(emulator.url, rate=RATE, connect_timeout=1.0).connect()
+            master(emulator, connect_timeout=1.0).connect()
         assert len(starts) > 3  # the broadcast, then leg 3 again after each of its heartbeats
 
 
 def test_a_drive_whose_heartbeat_stops_is_a_fault() -> None:
-    with emulated() as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated() as emulator, master(emulator) as table:
         table.arm()
         faults = table.faults()
         emulator.endpoint.drives[2].node.nmt.stop_heartbeat()
@@ -416,7 +422,7 @@ def test_setpoints_that_stop_coming_fault_the_drives_and_the_table_goes_home() -
     """The emulator drops every setpoint 0.5 s after the drives were enabled: its watchdog stops the table (home),
     the drives send EMCY 0x8700 and are in fault reaction meanwhile: stopping, then faulted."""
     t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
-    with emulated(stall_at=0.5) as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated(stall_at=0.5) as emulator, master(emulator) as table:
         table.arm()
         statuses = table.statuses()
         with pytest.raises(StreamAbortedError, match="STREAM_SILENT"):
@@ -437,7 +443,7 @@ def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -
     reaction; the core stops the table, the master quick-stops every drive: the stream aborts, the table ends
     faulted, and the fault event names leg 3 and the code. ARM resets the fault."""
     t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))  # leg 3 lengthens by 53 mm, up to 25 mm/s
-    with emulated(leg_stall=(3, 1.5)) as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated(leg_stall=(3, 1.5)) as emulator, master(emulator) as table:
         assert isinstance(table, CanopenTable) and table.following_error_window_um == 9000
         faults = table.faults()
         table.arm()
@@ -466,7 +472,7 @@ def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -
 def test_injected_loss_and_delay_are_survived() -> None:
     """10 % of the data frames lost (an RPDO a drive latches, a TPDO or EMCY it sends), 5 ms added each way: the
     drives keep their previous targets, the master waits for the states it asks for, accelerometer gaps show."""
-    with emulated(loss=0.1, delay=0.005, seed=3) as emulator, open_table(emulator.url, rate=RATE) as table:
+    with emulated(loss=0.1, delay=0.005, seed=3) as emulator, master(emulator) as table:
         table.arm()
         table.set_tilt(math.radians(0.3))
         table.home()
