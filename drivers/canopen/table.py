@@ -43,7 +43,7 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
         if self._detector is None:
             return None
         sdo = self._detector.node.sdo
-        sdo.RESPONSE_TIMEOUT = timeout
+        configured, sdo.RESPONSE_TIMEOUT = sdo.RESPONSE_TIMEOUT, timeout
         try:
             count = sdo[BODY_COUNT].raw
             if not 0 <= count <= MAX_BODIES:
@@ -59,6 +59,8 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
                 bodies.append(TableBody(k, *values))
         except (canopen.SdoAbortedError, canopen.SdoCommunicationError):
             return None
+        finally:
+            sdo.RESPONSE_TIMEOUT = configured
         return tuple(bodies)
 
     def link_stats(self) -> dict[str, Any]:
