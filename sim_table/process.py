@@ -82,9 +82,10 @@ inside the host's lead (1 s) and link timeout (0.5 s)."""
 
 CANOPEN_WAKE_PERIOD_NS = 10_000_000
 """The wake-up period [ns, real time] on CANopen: its drives answer each SYNC with the physics of that instant, so an
-answer waits for the batch that computes it, at most this long (the master takes the answers as they come; its
-statuses are ten a second). Ten ticks a batch: at two the emulator spent 0.41 ms of CPU a tick, half a core with the
-SYNC handling, and shared with the master in one interpreter (the tests) it left the SYNCs no room."""
+answer waits for the batch that computes it, at most this long (the master takes the answers as they come and
+publishes 50 statuses a second). Ten ticks a batch: with two the emulator spent 0.41 ms of CPU a tick (0.33 with
+four, 0.13 with twenty, idle, measured), and shared with the master in one interpreter (the tests) it left the SYNCs
+no room."""
 
 REST_WAKE_PERIOD_NS = 2_000_000
 """The wake-up period [ns, real time] of virtual time at rest (its ticks run at real time then, a command is taken
