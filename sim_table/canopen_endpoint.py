@@ -53,7 +53,7 @@ stream of one-sample chunks:
   position actual value = the leg's length at ``g_n −`` the feedback delay (0x2011, :data:`FEEDBACK_DELAY`) — and
   each accelerometer's TPDO with the specific force at ``g_n −`` its sample delay (0x2101, the same), both
   interpolated in what the emulator loop gives :meth:`CanopenEndpoint.add_legs` and :meth:`~CanopenEndpoint.add_accel`
-  every tick. When the physics (2 ms batches) has not computed that instant yet, the answer waits until it has
+  every tick. When the physics (10 ms batches) has not computed that instant yet, the answer waits until it has
   (counted: ``feedback_deferred``); the TPDOs carry the SYNC's time stamp, which python-can's ``virtual`` bus passes
   on (``preserve_timestamps``), so the master dates them right. One accelerometer sample per SYNC: a sensor's count
   is duration × SYNC rate.
