@@ -59,7 +59,7 @@ def register(app: typer.Typer) -> None:
         plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
         from analysis.table.model import TableModel, TableModelError
         from rig import __version__
-        from rig.compensation.safety import PredictedLimitError
+        from rig.compensation.safety import LEVEL_STEP_DB, PredictedLimitError
         from rig.compensation.session import LAWS, iterate_on_table
         from rig.drive import DriveError, DriveRefusedError, parse_headroom, prepare_drive
         from rig.drive.file import DriveFileError
@@ -128,6 +128,14 @@ def register(app: typer.Typer) -> None:
                                            levels_db=levels_db, identify_seconds=identify_seconds, note=say)
         except PredictedLimitError as exc:
             print_error(err_console, "error", str(exc))
+            if exc.fits_at_db is not None:
+                levels = [exc.fits_at_db]
+                while levels[-1] + LEVEL_STEP_DB < 0.0:
+                    levels.append(levels[-1] + LEVEL_STEP_DB)
+                ramp = ",".join(f"{level:g}" for level in [*levels, 0.0])
+                again = f"--levels={ramp}" + (" and a new -o file" if output is not None else "")
+                print_error(err_console, "hint", f"run it again with {again} ({session.name} keeps this "
+                                                 "identification and no play)")
             raise typer.Exit(EXIT_REFUSED) from None
         except (SessionError, DriveFileError, OSError, ValueError) as exc:
             fail(str(exc))

@@ -51,7 +51,7 @@ from analysis.table.model import AXES
 from rig.drive import Drive
 
 from .measures import Measures, measure
-from .safety import LEVELS_DB, PredictedLimitError, Response, at_level, check_prediction
+from .safety import LEVELS_DB, PredictedLimitError, Response, at_level, check_prediction, level_that_fits
 from .signals import base_accelerations, errors_pct, fall_line, in_band
 
 Play = Callable[[Drive, int], np.ndarray]
@@ -252,7 +252,8 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
             candidate = drive
             violation = check_prediction(at_level(drive, level_db), law.response)
             if violation is not None:
-                raise PredictedLimitError(f"the drive as prepared at {level_db:g} dB", violation)
+                raise PredictedLimitError(f"the drive as prepared at {level_db:g} dB", violation,
+                                          level_that_fits(drive, law.response, level_db))
         else:
             base, base_factor, measured = played[best]
             error = (base_factor * target - measured) / base_factor

@@ -31,6 +31,12 @@ from rig.drive import Drive
 LEVELS_DB = (-12.0, -6.0, 0.0)
 """Default levels of the first plays [dB of the full drive]."""
 
+LEVEL_STEP_DB = 6.0
+"""Steps in which a lower starting level is looked for when the first is refused [dB]."""
+
+LOWEST_LEVEL_DB = -40.0
+"""The lowest starting level looked for [dB]: below it the accelerometers' noise would swamp the measurement."""
+
 
 class Response(Protocol):
     """An identified response over its ``band`` [Hz]: the predicted output spectrum (n, 3) of an input spectrum
@@ -42,11 +48,16 @@ class Response(Protocol):
 
 
 class PredictedLimitError(RuntimeError):
-    """The plate's predicted response to a drive leaves the table's limits; ``violation`` the first breach."""
+    """The plate's predicted response to a drive leaves the table's limits; ``violation`` the first breach,
+    ``fits_at_db`` the highest level in whole steps of ``LEVEL_STEP_DB`` below the refused one at which it fits
+    (None when none down to ``LOWEST_LEVEL_DB`` does)."""
 
-    def __init__(self, what: str, violation: Violation) -> None:
-        super().__init__(f"{what} not played: its predicted response leaves the table: {violation.message()}")
+    def __init__(self, what: str, violation: Violation, fits_at_db: float | None = None) -> None:
+        fits = ("" if fits_at_db is None else
+                f"; at {fits_at_db:g} dB it fits: start the level ramp there")
+        super().__init__(f"{what} not played: its predicted response leaves the table: {violation.message()}{fits}")
         self.violation = violation
+        self.fits_at_db = fits_at_db
 
 
 def predicted_trajectory(drive: Drive, response: Response) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -69,6 +80,17 @@ def check_prediction(drive: Drive, response: Response) -> Violation | None:
     """The first breach of the table's limits (Table IV, the legs) by the predicted response, or None."""
     poses, velocities, accelerations = predicted_trajectory(drive, response)
     return drive.table.check_trajectory(drive.t, poses, velocities, accelerations)
+
+
+def level_that_fits(drive: Drive, response: Response, refused_db: float) -> float | None:
+    """The highest level ``refused_db`` − k·``LEVEL_STEP_DB`` (k ≥ 1, down to ``LOWEST_LEVEL_DB``) at which the
+    prediction of ``drive`` stays within the table, or None."""
+    level = refused_db - LEVEL_STEP_DB
+    while level >= LOWEST_LEVEL_DB:
+        if check_prediction(at_level(drive, level), response) is None:
+            return level
+        level -= LEVEL_STEP_DB
+    return None
 
 
 def predicted_peak_ratio(drive: Drive, response: Response) -> float:

@@ -16,7 +16,7 @@ from rig.drive.file import load_drive
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 ITERATE = ["fema:KOBE/NIS000", "--angle", "4", "--emulate", "--window", "5,10", "--corner", "1",
-           "--identify-seconds", "10", "--iterations", "1", "--levels", "-6,0"]
+           "--identify-seconds", "10", "--iterations", "1"]
 
 
 def _rig(*args: str) -> subprocess.CompletedProcess[str]:
@@ -32,26 +32,39 @@ def test_iterate_on_the_emulator(tmp_path):
     out = json.loads(done.stdout)
     assert set(out) >= {"iterations", "converged", "drive"} and out["law"] == "mimo"
     errors = [it["rms_error_pct"] for it in out["iterations"]]
-    assert len(errors) == 2 and errors[0] > 10.0 and errors[1] < errors[0]
-    assert [it["level_db"] for it in out["iterations"]] == [-6.0, 0.0]
+    assert len(errors) == 3 and errors[0] > 10.0 and errors[-1] < errors[0]
+    assert [it["level_db"] for it in out["iterations"]] == [-12.0, -6.0, 0.0]
     for it in out["iterations"]:
         assert it["peak_error_pct"] >= 0 and 0 < it["fall_line"]["trac"] <= 1 and it["psa_error_max_pct"] >= 0
         assert set(it["axes"]) == {"surge", "lateral", "heave"} and it["peak_to_limit"] <= 1.0
     with h5py.File(session, "r") as h5:
         runs = sorted(h5["runs"])
-        assert len(runs) == 3 and h5["runs"][runs[0]].attrs["compensation"] == "identify"
+        assert len(runs) == 4 and h5["runs"][runs[0]].attrs["compensation"] == "identify"
         for name, err in zip(runs[1:], errors, strict=True):
             assert h5["runs"][name].attrs["rms_error_pct"] == pytest.approx(err, rel=1e-6)
         group = h5["compensation"]
-        assert group["iterations"].shape == (2,) and group["achieved"].shape[0] == 2
+        assert group["iterations"].shape == (3,) and group["achieved"].shape[0] == 3
         assert group["response"]["surge_coherence"].max() > 0.9 and group["response_matrix"].shape[1:] == (3, 3)
-        assert list(group["iterations"]["level_db"]) == [-6.0, 0.0]
+        assert list(group["iterations"]["level_db"]) == [-12.0, -6.0, 0.0]
     drive = load_drive(out["drive"])
     assert drive.angle == pytest.approx(0.0698, abs=1e-4)
     report = _rig("report", str(session), "-o", str(tmp_path / "s.html"), "--json")
     assert report.returncode == 0, report.stderr
     html = (tmp_path / "s.html").read_text()
     assert "Drive compensation" in html and "coherence" in html and "TRAC" in html
+
+
+@pytest.mark.slow
+def test_a_first_level_whose_predicted_response_leaves_the_table_is_refused_with_the_level_that_fits(tmp_path):
+    """The coupled plate amplifies this excerpt about twice near its surge mode: at -6 dB the prediction passes
+    0.6 g, so nothing is played and the error names the breach and the ramp that fits, which then plays."""
+    session = tmp_path / "s.h5"
+    done = _rig("iterate", *ITERATE, "--levels", "-6,0", "-o", str(session))
+    assert done.returncode == 3, done.stderr
+    assert "as prepared at -6 dB not played" in done.stderr and "(0.600 g)" in done.stderr
+    assert "hint: run it again with --levels=-12,-6,0 and a new -o file" in done.stderr
+    with h5py.File(session, "r") as h5:
+        assert [h5["runs"][name].attrs["compensation"] for name in h5["runs"]] == ["identify"]
 
 
 def test_iterate_refuses_bad_input(tmp_path):

@@ -82,6 +82,7 @@ def test_a_drive_whose_prediction_leaves_the_table_is_not_played(random_drive):
     message = str(caught.value)
     assert not played
     assert f"t = {violation.time:.3f} s" in message and violation.where in message and "exceeds the limit" in message
+    assert caught.value.fits_at_db == -6.0 and "at -6 dB it fits" in message  # 1.25 × ½ < 1 ≤ 1.25
     result = compensate(random_drive, DiagonalLaw(_flat(table_gain), gain=1.0, regularisation=1e-6), play,
                         iterations=1, levels_db=(-12.0, 0.0))
     assert [it.level_db for it in result.iterations] == [-12.0, 0.0]
