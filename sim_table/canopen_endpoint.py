@@ -1,11 +1,13 @@
 """The emulator's CANopen side: the six CiA 402 leg drives, the plate accelerometers and the overturn detector as
 ``canopen.LocalNode``\\ s on one python-can bus (`sim_table.endpoint`; the master is ``drivers.canopen``).
 
-Listen URL ``canopen://CHANNEL?interface=NAME[&accelerometers=N]``: python-can's channel and interface —
-``virtual`` within one process, ``udp_multicast`` (the channel a multicast group) between processes, and then
-**only inside a network namespace** with the group routed to ``lo``: elsewhere the datagrams leave through the
-default interface — and how many of the emulator's sensors are accelerometer nodes (default 1: a second one does
-not fit 1 Mbit/s at 500 Hz). In Python, ``udp_multicast`` carries about 250 Hz between two processes on two
+Listen URL ``canopen://CHANNEL?interface=NAME[&accelerometers=N][&target_delay=S]``: python-can's channel and
+interface — ``virtual`` within one process, ``udp_multicast`` (the channel a multicast group) between processes,
+and then **only inside a network namespace** with the group routed to ``lo``: elsewhere the datagrams leave through
+the default interface —, how many of the emulator's sensors are accelerometer nodes (default 1: a second one does
+not fit 1 Mbit/s at 500 Hz) and the drives' target delay (0x2010, default :data:`TARGET_DELAY`, within
+:data:`TARGET_DELAY_RANGE`): the longest stall of the master, or of this endpoint's own thread, that starves no
+drive. In Python, ``udp_multicast`` carries about 250 Hz between two processes on two
 shared cores (every datagram costs tens of µs at both ends, and each end receives its own as well).
 
 Nodes (:mod:`protocols.canopen`): leg drive k = node k (``leg_drive.eds``), accelerometer i = node 0x21 + i
@@ -40,23 +42,27 @@ stream of one-sample chunks:
   core's watchdogs) → the drives concerned (leg 1; all) enter *fault reaction active* and send EMCY 0x5000, 0x8130
   or 0x8700 while the core stops the table, then *fault* once the legs are braked. The core's STROKE and
   SETPOINT_LIMIT set statusword bit 11 (internal limit active) on every drive.
-- *Following error.* Each enabled drive watches its leg at every SYNC while the core streams, at the instant its
-  TPDO1 reports: following error 0x60F4 = commanded − actual leg length [µm] (the command the physics gave the leg
+- *Following error.* Each enabled drive watches its leg at every tick of the physics while the core streams (its
+  servo loop, not its SYNCs: a late SYNC does not let the error grow further): following error = commanded − actual
+  leg length [µm], reported in 0x60F4 at the instant of each TPDO1 (the command the physics gave the leg
   at that instant, a real drive's position demand; with the legs braked, the leg's own length). Beyond the window
   0x6065 (as the master set it, else the EDS default; 0xFFFFFFFF: off) the drive sets statusword bit 13 (until a
   fault reset), enters *fault reaction active* and sends EMCY 0x8611 (error register: generic), and the core gets a
   DRIVE fault: the table stops as for any drive fault (that drive's fault, not leg 1's). A leg that follows trails
   its command by τ·v (the emulator's τ = 5 ms: at most 4.5 mm at the legs' 0.9 m/s); a seized one
   (``--leg-stall``) falls behind until the window trips. Counted: ``following_errors``, ``following_error_max_um``
-  (largest |0x60F4| of a watched drive).
+  (the largest following error of a watched drive, at any tick).
 - *Feedback.* Every SYNC is answered by each operational drive's TPDO1 — its statusword at the SYNC and the
   position actual value = the leg's length at ``g_n −`` the feedback delay (0x2011, :data:`FEEDBACK_DELAY`) — and
   each accelerometer's TPDO with the specific force at ``g_n −`` its sample delay (0x2101, the same), both
   interpolated in what the emulator loop gives :meth:`CanopenEndpoint.add_legs` and :meth:`~CanopenEndpoint.add_accel`
   every tick. When the physics (10 ms batches) has not computed that instant yet, the answer waits until it has
   (counted: ``feedback_deferred``); the TPDOs carry the SYNC's time stamp, which python-can's ``virtual`` bus passes
-  on (``preserve_timestamps``), so the master dates them right. One accelerometer sample per SYNC: a sensor's count
-  is duration × SYNC rate.
+  on (``preserve_timestamps``), so the master dates them right. A bus that stamps frames when they are received
+  (``udp_multicast``, as a CAN interface does) leaves the master to date an answer by the last SYNC it sent before
+  it: right while both ends answer within the cycle, as real drives do; two Python processes on a busy machine do
+  not always (an answer taken for a later SYNC's is dated that much late). One accelerometer sample per SYNC: a
+  sensor's count is duration × SYNC rate.
 - *Overturns.* The detector sends each event at once and :data:`~protocols.canopen.sensors.EVENT_REPEATS` times
   100 ms apart (real time), each copy with its age.
 - *Heartbeats.* Every node produces them as the master set 0x1017 (canopen's ``NmtSlave``); the master's own
@@ -86,7 +92,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from typing import Any
-from urllib.parse import parse_qs, urlsplit
+from urllib.parse import parse_qs, urlencode, urlsplit, urlunsplit
 
 import can
 import canopen
@@ -133,12 +139,20 @@ from sim_table.controller import State as CoreState
 from sim_table.endpoint import Action, BodyOnPlate, EndpointOptions
 
 TARGET_DELAY = 0.060
-"""What the emulated drives declare in 0x2010 [s]: a target is reached this long after the SYNC that latched it."""
+"""What the emulated drives declare in 0x2010 [s] unless the listen URL sets ``target_delay``: a target is reached
+this long after the SYNC that latched it."""
 
-FEEDBACK_DELAY = 0.004
+TARGET_DELAY_RANGE = (0.010, 2.0)
+"""The target delays [s] the emulated drives can be set to (``target_delay`` in the listen URL)."""
+
+FEEDBACK_DELAY = 0.015
 """What the emulated drives declare in 0x2011 and the accelerometers in 0x2101 [s]: the position actual value and
-the acceleration sample of a SYNC's TPDO are this much older than the SYNC (the answer waits for the emulator's batch
-that computes that instant: at most a wake period, ``sim_table.process.CANOPEN_WAKE_PERIOD_NS``)."""
+the acceleration sample of a SYNC's TPDO are this much older than the SYNC. Longer than the emulator's wake period
+(``sim_table.process.CANOPEN_WAKE_PERIOD_NS``, 10 ms), so the physics has computed that instant when the SYNC comes
+and the answer leaves at once: measured with ``udp_multicast`` at 100 Hz on an idle machine (the two-process
+test, about 330 SYNCs), 4 ms deferred 181–335 answers to the next batch and the master lost 4–61 accelerometer
+samples (an answer after the next SYNC is taken for that one's), 15 ms deferred 0–2 and lost 0–1. An answer still
+waits for a late batch (counted: ``feedback_deferred``)."""
 
 SERIES_GAP = 0.1
 """A SYNC after this long without one [s, real time] starts a new series (a new master, or one that was stopped)."""
@@ -303,8 +317,9 @@ class _Drive(_Node):
 
     receives, transmits = RPDO1, TPDO1
 
-    def __init__(self, node: canopen.LocalNode) -> None:
+    def __init__(self, node: canopen.LocalNode, target_delay: float) -> None:
         super().__init__(node)
+        self.target_delay = target_delay
         self.state = State.SWITCH_ON_DISABLED
         self.previous_word = 0
         self.target = 0
@@ -332,7 +347,7 @@ class _Drive(_Node):
         if index == drive_od.MODES_OF_OPERATION_DISPLAY:
             return self.mode
         if index == drive_od.TARGET_DELAY:
-            return round(TARGET_DELAY * 1e6)
+            return round(self.target_delay * 1e6)
         if index == drive_od.FEEDBACK_DELAY:
             return round(FEEDBACK_DELAY * 1e6)
         return None
@@ -396,18 +411,23 @@ class _Detector(_Node):
 
 class CanopenEndpoint:
     """The controller end of a CANopen bus (module docstring): ``interface``/``channel`` of python-can, ``sensors``
-    accelerometer nodes, the table model (leg scaling, kinematics), ``clock`` host → controller ns, injected
-    ``loss`` and ``delay`` [s] with ``seed``."""
+    accelerometer nodes, the drives' ``target_delay`` [s] (0x2010), the table model (leg scaling, kinematics),
+    ``clock`` host → controller ns, injected ``loss`` and ``delay`` [s] with ``seed``."""
 
-    def __init__(self, url: str, interface: str, channel: str, options: EndpointOptions, sensors: int) -> None:
+    def __init__(self, url: str, interface: str, channel: str, options: EndpointOptions, sensors: int,
+                 target_delay: float = TARGET_DELAY) -> None:
         if not (0.0 <= options.loss < 1.0 and options.delay >= 0.0 and math.isfinite(options.delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {options.loss!r}, {options.delay!r}")
         if not 0 <= sensors <= len(ACCELEROMETER_NODE_IDS):
             raise ValueError(f"CANopen carries at most {len(ACCELEROMETER_NODE_IDS)} accelerometers, got {sensors}")
+        low, high = TARGET_DELAY_RANGE
+        if not (math.isfinite(target_delay) and low <= target_delay <= high):
+            raise ValueError(f"target_delay must be in [{low:g}, {high:g}] s, got {target_delay!r}")
         self.url = url
         self.stall_chunks = False
         """Set by the owner to drop every setpoint from then on (injected stalled stream)."""
         self.counters = BusCounters()
+        self.target_delay = target_delay
         self.table: TableModel = options.table
         self.clock: Callable[[int], int] = options.clock
         if options.clock(10**12) - options.clock(0) != 10**12:
@@ -421,15 +441,16 @@ class CanopenEndpoint:
         keep_stamps = {"preserve_timestamps": True} if interface == "virtual" else {}
         self.network = canopen.Network(can.Bus(interface=interface, channel=channel, **keep_stamps))
         self.network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
-        self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg))) for leg in LEG_NODE_IDS]
+        self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg)), target_delay)
+                       for leg in LEG_NODE_IDS]
         self.sensors = [_Sensor(self.network.create_node(node_id, load_accelerometer_od(node_id)))
                         for node_id in ACCELEROMETER_NODE_IDS[:sensors]]
         self.detector = _Detector(self.network.create_node(DETECTOR_NODE_ID, load_detector_od()), options.bodies)
         self._lock = threading.RLock()
         self._legs = Recent(6)
         self._commands = Recent(6)  # the legs' commanded lengths, at the same ticks
-        self._answers: deque[tuple[int, float, list[int], list[int | None]]] = deque()
-        """SYNCs to answer: (measured, stamp, statuswords, following error windows [µm] of the watching drives)."""
+        self._answers: deque[tuple[int, float, list[int]]] = deque()
+        """SYNCs to answer: (measured, stamp, statuswords)."""
         self._grid: SyncGrid | None = None
         self._enabled = False  # all six drives operation enabled in CSP: the core follows
         self._next_seq = 0
@@ -516,7 +537,7 @@ class CanopenEndpoint:
         elif was_enabled and not self._enabled and any(action is not None for action in actions):
             self._end_stream(host_ns, arrival)
         if self._enabled:
-            self._setpoint(host_ns, arrival, slot + _ns(TARGET_DELAY))
+            self._setpoint(host_ns, arrival, slot + _ns(self.target_delay))
         self._feedback(slot, stamp)
 
     def _sync_grid(self) -> SyncGrid:
@@ -573,19 +594,16 @@ class CanopenEndpoint:
     def _feedback(self, slot: int, stamp: float) -> None:
         """Answer the SYNC in ``slot`` (stamped ``stamp``): each drive's statusword as of now, positions and
         accelerations as of ``slot −`` the feedback delay — at once if the physics has computed that instant, else
-        when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp). Each enabled drive
-        checks its following error at that instant (while the core streams: the legs follow their commands)."""
+        when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp)."""
         follows = self._enabled and not self.stall_chunks and self._core_state is CoreState.STREAMING
         flags = _REMOTE | (_LIMIT_ACTIVE if self._faults & _LIMITS else 0)
         words = [statusword(d.state, flags | (_VOLTAGE if d.state is not State.SWITCH_ON_DISABLED else 0)
                             | (_FOLLOWS if follows and d.state is _ENABLED else 0)
                             | (_FOLLOWING_ERROR if d.following_error_latched else 0)) for d in self.drives]
-        watching = self._core_state is CoreState.STREAMING
-        windows = [d.following_error_window if watching and d.state is _ENABLED else None for d in self.drives]
         if len(self._answers) >= HISTORY:  # the physics stopped (the emulator is closing)
             self._answers.popleft()
             self.counters.answers_dropped += 1
-        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, words, windows))
+        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, words))
         self._answer()
         self.counters.feedback_deferred += bool(self._answers)  # this one waits for the physics
 
@@ -593,21 +611,16 @@ class CanopenEndpoint:
         """Send the waiting answers whose instant the physics has computed, in order."""
         g = self.table.geometry
         while self._answers:
-            measured, stamp, words, windows = self._answers[0]
+            measured, stamp, words = self._answers[0]
             fed = [s.samples.newest_ns for s in self.sensors if s.samples.newest_ns is not None]
             if self._legs.newest_ns is None or min([self._legs.newest_ns, *fed]) < measured:
                 return
             self._answers.popleft()
             legs = np.clip(self._legs.at(measured), g.leg_min, g.leg_max)
             errors = np.rint((self._commands.at(measured) - legs) * 1e6).astype(int).tolist()
-            for drive, word, length, error, window in zip(self.drives, words, legs.tolist(), errors, windows,
-                                                          strict=True):
+            for drive, word, length, error in zip(self.drives, words, legs.tolist(), errors, strict=True):
                 drive.position = self.scaling.position(length)
                 drive.following_error = error
-                if window is not None:
-                    self.counters.following_error_max_um = max(self.counters.following_error_max_um, abs(error))
-                    if abs(error) > window and drive.state is _ENABLED:
-                        word = self._following_error(drive, word)
                 drive.flags = word & ~0x6F
                 self._transmit(drive, Feedback(word, drive.position), stamp)
             for sensor in self.sensors:
@@ -615,9 +628,27 @@ class CanopenEndpoint:
                     sensor.sample = encode_force(sensor.samples.at(measured))
                     self.counters.accel_samples_sent += self._transmit(sensor, sensor.sample, stamp)
 
-    def _following_error(self, drive: _Drive, word: int) -> int:
-        """The drive's following error passed its window: bit 13, fault reaction, EMCY 0x8611, a DRIVE fault of the
-        core (which stops the table); the statusword it answers with."""
+    def _watch_following(self, lengths: np.ndarray, commanded: np.ndarray) -> None:
+        """Each enabled drive watches its following error at every tick of the physics while the core streams, as a
+        drive's servo loop does whatever the SYNCs do (module docstring): the first tick beyond its window trips it."""
+        if self._core_state is not CoreState.STREAMING:
+            return
+        g = self.table.geometry
+        errors = np.rint((commanded - np.clip(lengths, g.leg_min, g.leg_max)) * 1e6).astype(np.int64)
+        for drive, error in zip(self.drives, errors.T, strict=True):
+            window = drive.following_error_window
+            if drive.state is not _ENABLED or window is None:
+                continue
+            beyond = np.flatnonzero(np.abs(error) > window)
+            watched = error[:beyond[0] + 1] if beyond.size else error
+            self.counters.following_error_max_um = max(self.counters.following_error_max_um,
+                                                       int(np.abs(watched).max()))
+            if beyond.size:
+                self._following_error(drive)
+
+    def _following_error(self, drive: _Drive) -> None:
+        """The drive's following error passed its window: bit 13 (shown from the next SYNC's statusword), fault
+        reaction, EMCY 0x8611, a DRIVE fault of the core (which stops the table)."""
         drive.state = State.FAULT_REACTION_ACTIVE
         drive.following_error_latched = True
         self.counters.following_errors += 1
@@ -625,7 +656,6 @@ class CanopenEndpoint:
         now = time.monotonic_ns()
         arrival = self.clock(now)
         self._post(now, arrival, lambda core: core.raise_fault(Fault.DRIVE, arrival))
-        return statusword(State.FAULT_REACTION_ACTIVE, (word & ~0x6F & ~_FOLLOWS) | _FOLLOWING_ERROR)
 
     def _transmit(self, device: _Node, values: tuple[int, ...], stamp: float | None = None) -> bool:
         """Send the node's TPDO1 carrying ``values`` (time stamp ``stamp``, default now); whether it went out (PDOs
@@ -734,6 +764,7 @@ class CanopenEndpoint:
         with self._lock:
             self._commands.extend(t_start_ns, spacing_ns, commanded)
             self._legs.extend(t_start_ns, spacing_ns, lengths)
+            self._watch_following(lengths, commanded)
             self._answer()
 
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None:
@@ -767,9 +798,10 @@ class CanopenEndpoint:
         detector = self.detector
         while self._events and self._events[0][0] <= now:
             due, n, left, event_id, body_id, tilt, t_ns, direction = heapq.heappop(self._events)
-            age = max(0, self.clock(now) - t_ns)
+            stamp, sent = time.time(), time.monotonic_ns()  # the frame's stamp and its age read together: a
+            age = max(0, self.clock(sent) - t_ns)  # thread that waits for its turn in between must not age it
             detector.record = event_record(event_id, body_id, direction, tilt, age)
-            self.counters.overturn_messages_sent += self._transmit(detector, detector.record)
+            self.counters.overturn_messages_sent += self._transmit(detector, detector.record, stamp)
             if left > 1:
                 heapq.heappush(self._events, (due + round(EVENT_REPEAT_PERIOD * 1e9), n, left - 1, event_id,
                                               body_id, tilt, t_ns, direction))
@@ -817,18 +849,26 @@ def _ns(seconds: float) -> int:
 
 
 def open_endpoint(url: str, options: EndpointOptions) -> CanopenEndpoint:
-    """The endpoint for ``canopen://CHANNEL?interface=NAME[&accelerometers=N]`` — `sim_table.endpoint`'s factory.
+    """The endpoint for ``canopen://CHANNEL?interface=NAME[&accelerometers=N][&target_delay=S]`` —
+    `sim_table.endpoint`'s factory.
 
     ``accelerometers`` (default 1) accelerometer nodes carry the emulator's first sensors (more than one does
-    not fit 1 Mbit/s at 500 Hz: :mod:`protocols.canopen.bus_load`)."""
+    not fit 1 Mbit/s at 500 Hz: :mod:`protocols.canopen.bus_load`); ``target_delay`` [s] the drives' 0x2010 (default
+    :data:`TARGET_DELAY`; the master reads it and sends each target that much ahead: a host that may stall longer
+    than 60 ms — the tests' one interpreter for master and emulator on a busy machine — sets more). The endpoint's
+    URL, the master's, leaves ``target_delay`` out (a property of the drives, not of the bus)."""
     parts = urlsplit(url)
     query = {key: values[-1] for key, values in parse_qs(parts.query).items()}
-    unknown = set(query) - {"interface", "accelerometers"}
+    unknown = set(query) - {"interface", "accelerometers", "target_delay"}
     if parts.scheme != "canopen" or not parts.netloc or "interface" not in query or unknown:
         raise ValueError(f"--listen {url!r}: expected canopen://CHANNEL?interface=NAME[&accelerometers=N]"
-                         + (f" (unknown {', '.join(sorted(unknown))})" if unknown else ""))
+                         "[&target_delay=S]" + (f" (unknown {', '.join(sorted(unknown))})" if unknown else ""))
     try:
         sensors = int(query.get("accelerometers", "1"))
+        target_delay = float(query.get("target_delay", TARGET_DELAY))
     except ValueError:
-        raise ValueError(f"--listen {url!r}: accelerometers must be an integer") from None
-    return CanopenEndpoint(url, query["interface"], parts.netloc, options, sensors)
+        raise ValueError(f"--listen {url!r}: accelerometers must be an integer, target_delay a number of seconds") \
+            from None
+    bus_query = urlencode({key: value for key, value in query.items() if key != "target_delay"})
+    bus_url = urlunsplit((parts.scheme, parts.netloc, parts.path, bus_query, ""))
+    return CanopenEndpoint(bus_url, query["interface"], parts.netloc, options, sensors, target_delay)

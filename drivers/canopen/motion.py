@@ -16,6 +16,7 @@ from drivers.canopen.master import DRIVING_STATES, MasterBase
 from drivers.canopen.nodes import NMT_OPERATIONAL
 from drivers.canopen.trajectory import Trajectory
 from drivers.controller import (
+    DEFAULT_LEAD,
     STATUS_TIMEOUT,
     STOPPED_STATES,
     TILT_AXES,
@@ -175,7 +176,7 @@ class Motions(MasterBase):
             self._set_state("emergency_stopped")
         self._status_after(time.monotonic_ns())
 
-    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = 0.075,
+    def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = DEFAULT_LEAD,
                on_progress: Callable[[int, int], None] | None = None,
                on_start: Callable[[int], None] | None = None) -> StreamReport:
         self._check_alive()
@@ -204,7 +205,7 @@ class Motions(MasterBase):
                 on_progress(trajectory.due(self._tau), len(poses))
             next_progress += 100_000_000
         self._check_alive()
-        final = self.wait_for_status(lambda s: s.state != "streaming", 1.0)
+        final = self.wait_for_status(lambda s: s.state != "streaming", STATUS_TIMEOUT)
         if on_progress is not None:
             on_progress(trajectory.due(self._tau) if final.state in STOPPED_STATES else len(poses), len(poses))
         with self._lock:

@@ -19,6 +19,7 @@ from stream_checks import smooth_ramp, surge
 
 from analysis.table.link import LinkSettings
 from drivers.controller import (
+    STATUS_TIMEOUT,
     StreamAbortedError,
     StreamReport,
     TableController,
@@ -171,8 +172,14 @@ def emergency_stop_while_streaming(table: TableController, t: np.ndarray, poses:
     table.emergency_stop()
     streamer.join()
     stopped = table.wait_for_state("emergency_stopped", 1)
-    time.sleep(0.3)
-    after = [s for s in statuses.drain() if s.t_ns >= stopped.t_ns]
+    since = stopped.t_ns
+    if state is not None:  # the table's own state: a master that is the controller (CANopen) reports the stop
+        deadline = time.monotonic() + STATUS_TIMEOUT  # when it sends it, the drives brake at the next SYNC they handle
+        while state() != "emergency_stopped" and time.monotonic() < deadline:
+            time.sleep(0.001)
+        since = time.monotonic_ns()
+    table.wait_for_status(lambda s: s.t_ns >= since + 300_000_000, STATUS_TIMEOUT)
+    after = [s for s in statuses.drain() if s.t_ns >= since]
     assert (state or (lambda: table.status().state))() == "emergency_stopped"
     surges = np.array([s.pose[0] for s in after])
     assert surges.max() - surges.min() < 0.001  # braked within a millimetre: no return home
