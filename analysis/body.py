@@ -260,13 +260,19 @@ TABLE_I: tuple[Body, ...] = tuple(
 """The 12 bodies of the paper's analytical study (Table I)."""
 
 TABLE_V: tuple[Body, ...] = tuple(
-    Body(b=b / 1000, h=h / 1000, depth=d / 1000, mass=m, name=f"T5-{i}")
-    for i, (b, h, d, m) in enumerate(
+    Body(b=b / 1000, h=h / 1000, depth=d / 1000, mass=m, name=f"T5-{i}", b_cg=b_cg / 1000, h_cg=h_cg / 1000)
+    for i, (b, h, d, m, b_cg, h_cg) in enumerate(
         [
-            (99, 493, 201.2, 5.22), (130, 500, 305, 13.11), (152, 500, 301.5, 15.31),
-            (39, 200, 81, 0.36), (49, 200, 109, 0.56), (200, 998, 410, 54.96), (248, 995, 490, 65.14),
+            (99, 493, 201.2, 5.22, 51.5, 243), (130, 500, 305, 13.11, 65, 254),
+            (152, 500, 301.5, 15.31, 76.5, 251.5), (39, 200, 81, 0.36, 19.5, 100), (49, 200, 109, 0.56, 25, 100),
+            (200, 998, 410, 54.96, 100, 495), (248, 995, 490, 65.14, 124, 499),
         ],
         start=1,
     )
 )
-"""The seven bodies of the paper's shake-table campaign (Table V)."""
+"""The seven bodies of the paper's shake-table campaign (Table V): base, height, depth [mm → m], mass [kg] and the
+centre of gravity (b_cg, h_cg) as printed. The paper does not say which base corner b_cg is measured from; here it
+is the −x corner (the uphill one on the tilted plate), the convention of :class:`Body`: body 1's centre of mass is
+then 47.5 mm from its downhill corner (α+ = 11.06°) and 51.5 mm from its uphill one (α− = 11.97°), and body 5's
+24 mm and 25 mm. A lab that mounts a block the other way round uses ``Body.mirrored()`` (in a sequence file, gives
+``b_cg`` itself). Bodies 2, 4, 6 and 7 have b_cg = b/2: alike both ways; 4 is centred altogether."""

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from analysis import AnalysisInputError, Body, simulate, uplift_thresholds
-from analysis.body import G
+from analysis.body import TABLE_V, G
 from analysis.equations import pivot_reactions, plate_gravity, rocking_acceleration, rocking_sliding_acceleration
 from analysis.fast_general import ST_FLIGHT, ST_ROCK, ST_ROCKSLIDE, landing_omega
 from analysis.simulate import check_angle, resolve_restitutions
@@ -59,6 +59,15 @@ def test_table_v_body_1_slenderness_on_each_side() -> None:
     assert T5_1.p_plus == pytest.approx(math.sqrt(G * T5_1.mass * T5_1.r_plus / T5_1.inertia_plus()), rel=1e-14)
     assert T5_1.k_minus == pytest.approx(T5_1.p_minus**2 / G, rel=1e-14)
     assert not T5_1.symmetric and not T5_1.centred
+
+
+def test_table_v_carries_the_papers_centres_of_gravity() -> None:
+    printed = [(99, 493, 51.5, 243), (130, 500, 65, 254), (152, 500, 76.5, 251.5), (39, 200, 19.5, 100),
+               (49, 200, 25, 100), (200, 998, 100, 495), (248, 995, 124, 499)]
+    for body, (b, h, b_cg, h_cg) in zip(TABLE_V, printed, strict=True):
+        assert (body.b, body.h, body.b_cg, body.h_cg) == pytest.approx((b / 1e3, h / 1e3, b_cg / 1e3, h_cg / 1e3))
+        assert body.alpha_plus == pytest.approx(math.atan((b - b_cg) / h_cg), rel=1e-12)
+        assert body.alpha_minus == pytest.approx(math.atan(b_cg / h_cg), rel=1e-12)
 
 
 def test_mirrored_body_swaps_the_sides() -> None:

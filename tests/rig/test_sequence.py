@@ -155,6 +155,15 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     (23, "y = 0.15\nrestitution = 1.2", 24,
      "bodies[2].restitution: expected the body's measured coefficient of restitution, in (0, 1], got 1.2"),
     (23, "y = 0.15\nrestitution = 0", 24, "bodies[2].restitution: expected the body's measured coefficient"),
+    # the centre of gravity: inside the body, b_cg from the -x corner
+    (21, "mass = 0.56\nb_cg = 0.049", 22, "bodies[2].b_cg: expected the centre of gravity from the base's -x "
+                                          "(uphill) corner along +x in metres, inside the body: 0 < b_cg < b = "
+                                          "0.049 m, got 0.049"),
+    (21, "mass = 0.56\nh_cg = 0", 22, "bodies[2].h_cg: expected the centre of gravity above the base in metres, inside "
+                                     "the body: 0 < h_cg < h = 0.2 m, got 0"),
+    (21, 'mass = 0.56\nh_cg = "0.1"', 22, "bodies[2].h_cg: expected the centre of gravity above the base"),
+    (12, "table5 = 4\nb_cg = 0.05", 13, "bodies[1].b_cg: expected the centre of gravity from the base's -x (uphill) "
+                                       "corner along +x in metres, inside the body: 0 < b_cg < b = 0.039 m, got 0.05"),
     # record entries
     (5, '    { record = "fema-nearfield:NORTHR/RRS_032", scale = 1.5 },', 5,
      'records[2].scale: expected "table" or a fixed factor from 0.001 to 1, got 1.5'),
@@ -311,6 +320,17 @@ def test_a_bodys_measured_restitution_is_read_kept_and_given_to_the_emulator(tmp
     assert "restitution" not in flags[1] and flags[3].endswith(";mu=0.8;mass=0.56;restitution=0.85")
     placed = parse_body(flags[3])
     assert placed.restitution == 0.85 and (placed.x, placed.y, placed.friction) == (0.0, 0.15, 0.8)
+
+
+def test_a_body_stands_only_below_its_slenderness_towards_the_low_side(tmp_path: Path) -> None:
+    """A plate tilted towards +x tips a block over its downhill corner at β = α+ = atan((b − b_cg)/h_cg)."""
+    text = BASE.replace("mass = 0.56\n", "mass = 0.56\nb_cg = 0.04\n")  # 9 mm from its downhill corner: α+ = 5.1°
+    seq = load_sequence(write(tmp_path, text.replace("angles_deg = [0, 5]", "angles_deg = [0, 5.5]")))
+    problem = seq.bodies[1].standing_problem(5.5)
+    assert problem is not None and "atan((b − b_cg)/h_cg), towards +x (downhill), = 5.14°" in problem
+    assert seq.bodies[1].standing_problem(5.0) is None
+    error = refused(tmp_path, text.replace("angles_deg = [0, 5]", "angles_deg = [0, 5.5]"), check=True)
+    assert "body 2 (B" in str(error) and "cannot stand at β = 5.5°" in str(error)
 
 
 def test_from_dict_errors_name_the_key_without_a_line() -> None:
