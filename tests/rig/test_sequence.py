@@ -322,6 +322,25 @@ def test_a_bodys_measured_restitution_is_read_kept_and_given_to_the_emulator(tmp
     assert placed.restitution == 0.85 and (placed.x, placed.y, placed.friction) == (0.0, 0.15, 0.8)
 
 
+def test_a_bodys_centre_of_gravity_is_read_kept_and_given_to_the_emulator(tmp_path: Path) -> None:
+    """Table V's centre of gravity comes with table5 = N (and a b_cg given beside it replaces the paper's: the block
+    mounted the other way round); dimensions take b_cg, h_cg; the sequence keeps them, the emulator gets them."""
+    text = BASE.replace("table5 = 4\n", "table5 = 1\n").replace("y = -0.15", "y = -0.25") + "b_cg = 0.026\n"
+    seq = load_sequence(write(tmp_path, text))
+    t5_1, b2 = (b.body for b in seq.bodies)
+    assert t5_1 == TABLE_V[0] and (t5_1.b_cg, t5_1.h_cg) == (0.0515, 0.243)
+    assert (b2.b_cg, b2.h_cg) == (0.026, None) and b2.cg == (0.026, 0.1)
+    data = seq.to_dict()
+    assert data["bodies"][0]["b_cg"] == 0.0515 and "h_cg" not in data["bodies"][1]
+    assert Sequence.from_dict(json.loads(json.dumps(data))).bodies == seq.bodies
+    flags = specimen_flags(seq.bodies)
+    assert flags[1].endswith(";cg=0.0515,0.243") and flags[3].endswith(";cg=0.026,0.1")
+    assert parse_body(flags[1]).body.cg == (0.0515, 0.243)
+    mirrored = load_sequence(write(tmp_path, text.replace("table5 = 1\n", "table5 = 1\nb_cg = 0.0475\n")))
+    assert mirrored.bodies[0].body.cg == (0.0475, 0.243) and mirrored.bodies[0].name == "T5-1"
+    assert mirrored.bodies[0].body.alpha_plus == pytest.approx(TABLE_V[0].alpha_minus)
+
+
 def test_a_body_stands_only_below_its_slenderness_towards_the_low_side(tmp_path: Path) -> None:
     """A plate tilted towards +x tips a block over its downhill corner at β = α+ = atan((b − b_cg)/h_cg)."""
     text = BASE.replace("mass = 0.56\n", "mass = 0.56\nb_cg = 0.04\n")  # 9 mm from its downhill corner: α+ = 5.1°
