@@ -234,15 +234,29 @@ class Body:
 
     @classmethod
     def parse(cls, text: str) -> Body:
-        """Parse ``"0.10x0.50"`` (b x h in metres) as given on the command line."""
-        parts = text.lower().replace("×", "x").split("x")
+        """Parse ``"0.10x0.50"`` (b x h in metres) as given on the command line, optionally with the centre of
+        gravity ``"0.099x0.493;cg=0.0515,0.243"`` (b_cg from the base's −x corner, h_cg above the base [m])."""
+        size, _, option = text.partition(";")
+        parts = size.lower().replace("×", "x").split("x")
         try:
             b, h = (float(v) for v in parts)
         except ValueError:
             raise AnalysisInputError(
                 f"body {text!r}: expected BxH in metres, e.g. 0.10x0.50"
             ) from None
-        return cls(b=b, h=h)
+        if not option:
+            return cls(b=b, h=h)
+        name, _, value = option.partition("=")
+        try:
+            if name.strip() != "cg":
+                raise ValueError
+            b_cg, h_cg = (float(v) for v in value.split(","))
+        except ValueError:
+            raise AnalysisInputError(
+                f"body {text!r}: expected BxH[;cg=BCG,HCG] in metres, e.g. 0.099x0.493;cg=0.0515,0.243 (the centre "
+                "of gravity from the base's -x corner and above the base)"
+            ) from None
+        return cls(b=b, h=h, b_cg=b_cg, h_cg=h_cg)
 
 
 TABLE_I: tuple[Body, ...] = tuple(

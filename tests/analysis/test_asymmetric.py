@@ -118,6 +118,16 @@ def test_housners_single_value_is_refused_where_it_depends_on_the_direction() ->
     assert e_p != pytest.approx(1 - 1.5 * math.sin(tall.alpha_plus) ** 2)  # not the uniform-block formula
 
 
+def test_the_command_line_body_takes_the_centre_of_gravity() -> None:
+    assert Body.parse("0.099x0.493;cg=0.0515,0.243") == Body(0.099, 0.493, b_cg=0.0515, h_cg=0.243)
+    assert Body.parse("0.1x0.5") == Body(0.1, 0.5)
+    for bad in ("0.1x0.5;cg=0.05", "0.1x0.5;mass=3", "0.1x0.5;cg=a,b"):
+        with pytest.raises(AnalysisInputError, match="BxH\\[;cg=BCG,HCG\\]"):
+            Body.parse(bad)
+    with pytest.raises(AnalysisInputError, match="0 < b_cg < b"):
+        Body.parse("0.1x0.5;cg=0.1,0.25")
+
+
 # --------------------------------------------------------------------------------------------------
 # the impact: angular momentum about the landing corner
 

@@ -416,3 +416,23 @@ def test_bad_polarity_is_refused_at_its_line(tmp_path: Path, text: str, line: in
     with pytest.raises(SequenceError, match=message.replace("[", r"\[").replace("]", r"\]")) as err:
         load_sequence(write(tmp_path, text + base))
     assert err.value.line == line
+
+
+def test_rig_study_bodies_take_table_v_and_a_centre_of_gravity(tmp_path: Path) -> None:
+    """``rig study --bodies``: Table V with its centres of gravity, or sizes each with an optional ;cg=BCG,HCG (its
+    comma is not a new body); a saved study keeps them."""
+    from analysis.body import TABLE_I, Body
+    from analysis.study import study
+    from rig.cli.study import parse_bodies
+    from rig.records import load_records
+    from rig.study_file import read_study, write_study
+    from rig.study_summary import study_summary
+
+    assert parse_bodies("table5") == list(TABLE_V) and parse_bodies("table5:1,5") == [TABLE_V[0], TABLE_V[4]]
+    assert parse_bodies("0.099x0.493;cg=0.0515,0.243,0.2x1.0") == [Body(0.099, 0.493, b_cg=0.0515, h_cg=0.243),
+                                                                  Body(0.2, 1.0)]
+    assert parse_bodies("table1:2") == [TABLE_I[1]]
+    res = study([TABLE_V[0], TABLE_I[0]], load_records("fema-farfield")[:1], np.radians([0.0]))
+    saved = read_study(write_study(res, study_summary(res), tmp_path / "s.h5"))
+    assert [(b.b, b.h, b.b_cg, b.h_cg) for b in saved.bodies] == [(0.099, 0.493, 0.0515, 0.243),
+                                                                 (0.04, 0.2, None, None)]
