@@ -9,6 +9,10 @@ towards the downhill side) and ``ay`` (vertical, positive up) are in m/s². θ i
 block relative to the plate: **θ > 0 tips the block towards +x** (rocking on its downhill corner),
 θ < 0 on its uphill corner. ``s`` is the pivot side (+1 downhill corner, −1 uphill corner).
 
+A block whose centre of mass is off its centroid (``analysis.body``: b_cg, h_cg) has a slenderness α± and a
+distance R± from each corner to the centre of mass: every function below that takes a pivot ``s`` takes that
+pivot's α and r (or k = r/(i_g² + r²)); the callers pass α+, R+ for s = +1 and α−, R− for s = −1.
+
 In the plate frame the block feels the effective gravity (per unit mass)::
 
     gx = −ax cos β + (g + ay) sin β     along +x (downhill)
@@ -21,8 +25,8 @@ which keeps an integration step that crosses an impact at full order while the i
     θ'' = r/(i_g² + r²) · (gx cos ψ − s gz sin ψ)                    (Eq. 2 / Eq. 6)
 
 The paper writes Eq. 2 with the opposite sign of β (its x axis points uphill); with β → −β the two
-agree term by term. Uplift from rest towards +x needs gx > gz tan α, i.e. −ax > (g + ay) tan(α − β),
-which is Eq. 1.
+agree term by term. Uplift from rest towards +x needs gx > gz tan α+, i.e. −ax > (g + ay) tan(α+ − β),
+and towards −x −gx > gz tan α−, i.e. ax > (g + ay) tan(α− + β): Eq. 1 (α+ = α− = α for a centred block).
 """
 
 from __future__ import annotations
@@ -57,9 +61,10 @@ def rocking_acceleration_linear(
 
 
 @njit(cache=True, inline="always")
-def uplift_margins(gx: float, gz: float, tan_alpha: float) -> tuple[float, float]:
-    """(m+, m−): positive when the resting block starts rocking towards +x, resp. −x (Eq. 1)."""
-    return gx - gz * tan_alpha, -gx - gz * tan_alpha
+def uplift_margins(gx: float, gz: float, tan_plus: float, tan_minus: float) -> tuple[float, float]:
+    """(m+, m−): positive when the resting block starts rocking towards +x, resp. −x (Eq. 1); ``tan_plus``,
+    ``tan_minus`` = tan α± (the slenderness towards each side, ``analysis.body``)."""
+    return gx - gz * tan_plus, -gx - gz * tan_minus
 
 
 @njit(cache=True, inline="always")

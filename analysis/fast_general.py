@@ -55,10 +55,12 @@ from analysis.general_stages import (
     ST_SLIDE,
     after_reaction,
     break_instant_chain,
+    corner,
     corner_impact_velocity,
     enter_stage,
     flight_entry,
     friction_tips,
+    geometry,
     landing_omega,
     lean_offset,
     leave_rest,
@@ -84,8 +86,8 @@ ILLINOIS_ITER = 40
 
 
 @njit(cache=True)
-def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, alpha: float,
-               mu: float, has_vertical: bool) -> tuple[float, int]:
+def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, alpha_p: float,
+               alpha_m: float, mu: float, has_vertical: bool) -> tuple[float, int]:
     """Earliest time ≥ t at which the resting block leaves rest, and how (EXIT_*); (inf, 0) if never.
 
     The margins (uplift ±, slide ±, lift-off) are linear in t inside a sample interval; after the
@@ -94,24 +96,24 @@ def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, s
     the line the integration uses there (``fast_rocking.step_window``).
     """
     n = ax.shape[0]
-    ca, sa = math.cos(alpha), math.sin(alpha)
-    tips = friction_tips(mu, math.tan(alpha))
+    ca_p, sa_p, ca_m, sa_m = math.cos(alpha_p), math.sin(alpha_p), math.cos(alpha_m), math.sin(alpha_m)
+    tips_p, tips_m = friction_tips(mu, math.tan(alpha_p)), friction_tips(mu, math.tan(alpha_m))
     i = int(t / dt)
     if i < n - 1 and (i + 1) * dt - t <= 1e-12 * dt:  # as step_window: the next interval's line
         i += 1
     if i >= n - 1:
-        m1, m2, m3, m4, m5 = rest_margins(0.0, 0.0, cb, sb, ca, sa, mu)
-        kind = rest_exit(m1, m2, m3, m4, m5, tips)
+        m1, m2, m3, m4, m5 = rest_margins(0.0, 0.0, cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
+        kind = rest_exit(m1, m2, m3, m4, m5, tips_p, tips_m)
         return (t, kind) if kind != EXIT_NONE else (math.inf, EXIT_NONE)
     t0 = t
     while i < n - 1:
         a1y = ay[i + 1] if has_vertical else 0.0
-        b1, b2, b3, b4, b5 = rest_margins(ax[i + 1], a1y, cb, sb, ca, sa, mu)
-        if t0 == t or rest_exit(b1, b2, b3, b4, b5, tips) != EXIT_NONE:
+        b1, b2, b3, b4, b5 = rest_margins(ax[i + 1], a1y, cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
+        if t0 == t or rest_exit(b1, b2, b3, b4, b5, tips_p, tips_m) != EXIT_NONE:
             sx = (ax[i + 1] - ax[i]) / dt
             a0y, sy = (ay[i], (a1y - ay[i]) / dt) if has_vertical else (0.0, 0.0)
-            t_x, kind = rest_leave(t0, (i + 1) * dt, i * dt, ax[i], sx, a0y, sy, ax[i + 1], a1y, cb, sb, ca,
-                                   sa, mu, tips)
+            t_x, kind = rest_leave(t0, (i + 1) * dt, i * dt, ax[i], sx, a0y, sy, ax[i + 1], a1y, cb, sb, ca_p,
+                                   sa_p, ca_m, sa_m, mu, tips_p, tips_m)
             if kind != EXIT_NONE:
                 return t_x, kind
         i += 1
@@ -270,24 +272,29 @@ def _flight_state(tau: float, theta: float, omega: float, v: float, z: float, w:
 
 @njit(cache=True, inline="always")
 def _gap(tau: float, theta: float, omega: float, v: float, z: float, w: float, gx0: float, gx1: float,
-         gz0: float, gz1: float, alpha: float, r: float, psi_ref: float) -> float:
-    """Height of the lowest corner above the plate after τ of flight.
+         gz0: float, gz1: float, alpha_p: float, r_p: float, alpha_m: float, r_m: float, psi_ref: float,
+         r_ref: float) -> float:
+    """Height of the lowest corner (sign θ) above the plate after τ of flight.
 
-    In FLIGHT ``z`` is ζ = z − r cos ψ_ref, the height of the centre of mass over its height at
-    lift-off (ψ_ref = α − |θ| then), so that the gap ζ − r (cos ψ − cos ψ_ref) is free of
-    cancellation right after lift-off (where it grows like τ²)."""
+    In FLIGHT ``z`` is ζ = z − r_ref cos ψ_ref, the height of the centre of mass over its height at
+    lift-off (ψ_ref = α − |θ| then, r_ref and α that lowest corner's), so that the gap ζ − r (cos ψ − cos ψ_ref)
+    is free of cancellation right after lift-off (where it grows like τ²). Once θ has changed sign (an
+    off-centre centre of mass: the other corner, r ≠ r_ref) it is ζ − (r cos ψ − r_ref cos ψ_ref)."""
     th, _, zz, _ = _flight_state(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1)
+    alpha, r = (alpha_p, r_p) if th >= 0.0 else (alpha_m, r_m)
     psi = alpha - abs(th)
-    return zz + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
+    if r == r_ref:
+        return zz + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
+    return zz - (r * math.cos(psi) - r_ref * math.cos(psi_ref))
 
 
 @njit(cache=True)
 def _locate_landing(lo: float, hi: float, theta: float, omega: float, v: float, z: float, w: float,
-                    gx0: float, gx1: float, gz0: float, gz1: float, alpha: float, r: float, psi_ref: float,
-                    H: float) -> float:
+                    gx0: float, gx1: float, gz0: float, gz1: float, alpha_p: float, r_p: float, alpha_m: float,
+                    r_m: float, psi_ref: float, r_ref: float, H: float) -> float:
     """Illinois on the gap in (lo, hi], gap(lo) > 0 ≥ gap(hi): the landing time (hi side)."""
-    f_lo = _gap(lo, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
-    f_hi = _gap(hi, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+    f_lo = _gap(lo, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m, psi_ref, r_ref)
+    f_hi = _gap(hi, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m, psi_ref, r_ref)
     side = 0
     for _ in range(ILLINOIS_ITER):
         if hi - lo <= 1e-12 * H or f_hi == f_lo:
@@ -295,7 +302,7 @@ def _locate_landing(lo: float, hi: float, theta: float, omega: float, v: float, 
         x = (lo * f_hi - hi * f_lo) / (f_hi - f_lo)
         if not (lo < x < hi):
             x = 0.5 * (lo + hi)
-        fx = _gap(x, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+        fx = _gap(x, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m, psi_ref, r_ref)
         if fx <= 0.0:
             hi, f_hi = x, fx
             if side == 1:
@@ -314,11 +321,12 @@ def _locate_landing(lo: float, hi: float, theta: float, omega: float, v: float, 
 
 
 @njit(cache=True, inline="always")
-def _flight_shift(tau: float, theta: float, omega: float, v: float, gx0: float, gx1: float, alpha: float,
-                  r: float) -> float:
+def _flight_shift(tau: float, theta: float, omega: float, v: float, gx0: float, gx1: float, alpha_p: float,
+                  r_p: float, alpha_m: float, r_m: float) -> float:
     """Change of u over τ of flight: the centre of mass's (v' = gx0 + gx1 τ) plus the lean offset's."""
-    return (v * tau + (0.5 * gx0 + gx1 * tau / 6.0) * tau * tau + lean_offset(theta + omega * tau, alpha, r)
-            - lean_offset(theta, alpha, r))
+    return (v * tau + (0.5 * gx0 + gx1 * tau / 6.0) * tau * tau
+            + lean_offset(theta + omega * tau, alpha_p, r_p, alpha_m, r_m)
+            - lean_offset(theta, alpha_p, r_p, alpha_m, r_m))
 
 
 @njit(cache=True)
@@ -366,26 +374,29 @@ def _first_root(c0: float, c1: float, c2: float, H: float) -> float:
 
 @njit(cache=True)
 def simulate_general(
-    ax: np.ndarray, ay: np.ndarray, dt: float, alpha: float, r: float, ig2: float, beta: float, e: float,
-    mu: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float, theta0: float, omega0: float,
-    has_vertical: bool,
+    ax: np.ndarray, ay: np.ndarray, dt: float, alpha_p: float, r_p: float, alpha_m: float, r_m: float, ig2: float,
+    beta: float, e_p: float, e_m: float, mu: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float,
+    theta0: float, omega0: float, has_vertical: bool,
 ) -> tuple[int, float, float, int, float, int, int, bool, float, float, float]:
     """Run one scene of the general model. Returns (direction, t_overturn, theta_max, impacts, t_end,
     status, steps, settled_by_prescreen) as :func:`analysis.fast_rocking.simulate_rocking`, then the
     slide (u_peak, u_end, t_slide): the largest |u| [m], u at the end [m] and the time the base or
     the pivot slid [s], u the slide displacement along +x (see ``docs/general-model.md``,
-    *Slide displacement*); impacts counts corner impacts and landings. ``r`` half-diagonal [m],
-    ``ig2`` i_g² [m²], ``mu`` friction, ``has_vertical``: ``ay`` is not all zero (else the scan does not read it)."""
+    *Slide displacement*); impacts counts corner impacts and landings. ``alpha_p``, ``r_p`` (``alpha_m``,
+    ``r_m``): the slenderness and the distance to the centre of mass [m] of the +x (−x) corner; ``ig2`` i_g² [m²];
+    ``e_p`` (``e_m``): the angular-velocity ratio at an impact that ends rocking on the +x (−x) corner; ``mu``
+    friction, ``has_vertical``: ``ay`` is not all zero (else the scan does not read it)."""
     n = ax.shape[0]
     t_rec = (n - 1) * dt
     t_stop = t_rec + t_after
-    cb, sb, ta = math.cos(beta), math.sin(beta), math.tan(alpha)
-    k = r / (ig2 + r * r)
-    ca = math.cos(alpha)
+    cb, sb = math.cos(beta), math.sin(beta)
+    geo = geometry(alpha_p, r_p, alpha_m, r_m, ig2)
+    k_p, k_m, ca_p = geo[2], geo[7], geo[4]
     h = dt / n_sub
     t = 0.0
     theta, omega, v, z, w = theta0, omega0, 0.0, 0.0, 0.0
-    psi_ref = alpha
+    psi_ref, r_ref = alpha_p, r_p
+    alpha, r, k, e = alpha_p, r_p, k_p, e_p  # the pivot's corner: set where ROCK/ROCKSLIDE integrates
     s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
     slip = 1.0
     stage = ST_REST if (theta0 == 0.0 and omega0 == 0.0) else ST_ROCK
@@ -407,14 +418,14 @@ def simulate_general(
         if it > it_max:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False, u_peak, u, t_slide
         if stage == ST_REST:
-            t_x, kind = _next_exit(ax, ay, dt, t, cb, sb, alpha, mu, has_vertical)
+            t_x, kind = _next_exit(ax, ay, dt, t, cb, sb, alpha_p, alpha_m, mu, has_vertical)
             if kind == EXIT_NONE:
                 return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan, u_peak, u, t_slide
             first_scan = False
             t = t_x
             theta = omega = v = w = 0.0
             jam = False
-            stage, s, slip, z = leave_rest(kind, s, slip, z, r, ca)
+            stage, s, slip, z = leave_rest(kind, s, slip, z, r_p, ca_p)
             fresh = True
             if t == t_last:
                 instant += 1
@@ -443,8 +454,8 @@ def simulate_general(
         # ---- entry conditions (instant transitions)
         if fresh:
             fresh = False
-            new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref = enter_stage(
-                stage, hold, jam, theta, omega, v, w, z, s, slip, psi_ref, gx0, gz0, alpha, r, ig2, k, mu, ta, ca)
+            new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref, r_ref = enter_stage(
+                stage, hold, jam, theta, omega, v, w, z, s, slip, psi_ref, r_ref, gx0, gz0, geo, ig2, mu)
             if new != stage:
                 stage = new
                 fresh = True
@@ -487,7 +498,7 @@ def simulate_general(
             else:
                 v += a0 * tau_z + 0.5 * a1 * tau_z * tau_z
                 t += tau_z
-                stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
+                stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r_p * ca_p
             fresh = True
             if t == t_last:
                 instant += 1
@@ -507,36 +518,38 @@ def simulate_general(
                 tau, event = (fall_plus - theta) / omega, 1
             elif -th1 >= fall_minus and omega < 0.0:
                 tau, event = (-fall_minus - theta) / omega, 1
-            g1 = _gap(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+            g1 = _gap(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m, psi_ref, r_ref)
             if g1 <= 0.0:
-                g0 = _gap(0.0, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref)
+                g0 = _gap(0.0, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m, psi_ref, r_ref)
                 lo = -1.0
                 if g0 > 0.0 and not was_fresh:
                     lo = 0.0
                 else:  # just lifted off (gap 0): find the hop, if any
                     u = 0.5
                     for _ in range(40):
-                        if _gap(u * tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref) > 0.0:
+                        if _gap(u * tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m,
+                                psi_ref, r_ref) > 0.0:
                             lo = u * tau
                             break
                         u *= 0.5
                 if lo < 0.0:
                     tau_l = 0.0
                 else:
-                    tau_l = _locate_landing(lo, tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha, r, psi_ref, H)
+                    tau_l = _locate_landing(lo, tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m,
+                                            r_m, psi_ref, r_ref, H)
                 tau, event = tau_l, 2
             th1, v1, z1, w1 = _flight_state(tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1)
             theta_max = max(theta_max, abs(th1))
             if event == 1:
                 d = 1 if omega > 0.0 else -1
                 fall = fall_plus if d > 0 else fall_minus
-                u += _flight_shift(tau, theta, omega, v, gx0, gx1, alpha, r)
+                u += _flight_shift(tau, theta, omega, v, gx0, gx1, alpha_p, r_p, alpha_m, r_m)
                 u_peak = max(u_peak, abs(u))
                 return (d, t + tau, max(theta_max, fall), impacts, t + tau, OVERTURNED, steps, False, u_peak, u,
                         t_slide)
             if tau > 0.0:
                 instant = 0
-            u += _flight_shift(tau, theta, omega, v, gx0, gx1, alpha, r)
+            u += _flight_shift(tau, theta, omega, v, gx0, gx1, alpha_p, r_p, alpha_m, r_m)
             u_peak = max(u_peak, abs(u))
             t += tau
             theta, v, z, w = th1, v1, z1, w1
@@ -549,8 +562,9 @@ def simulate_general(
                     else:
                         stage, slip = ST_SLIDE, (1.0 if v > 0.0 else -1.0)
                 else:
-                    omega = landing_omega(theta, omega, v, w, alpha, r, ig2)
                     s = 1.0 if theta > 0.0 else -1.0
+                    alpha, r, _, _, _ = corner(geo, s)
+                    omega = landing_omega(theta, omega, v, w, alpha, r, ig2)
                     stage, v, jam = ST_ROCK, 0.0, False
                 fresh = True
                 if t == t_last:
@@ -560,6 +574,11 @@ def simulate_general(
 
         # ================================================================== ROCK / ROCKSLIDE
         rs = stage == ST_ROCKSLIDE
+        # the pivot's corner (the body's sides differ when its centre of mass is off the middle)
+        if s > 0.0:
+            alpha, r, k, e = alpha_p, r_p, k_p, e_p
+        else:
+            alpha, r, k, e = alpha_m, r_m, k_m, e_m
         # a short return flight after an impact: sum it analytically (chattering); it ends in rest
         if theta == 0.0 and omega != 0.0:
             if rs:

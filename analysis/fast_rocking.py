@@ -14,6 +14,10 @@ Rocking is integrated with classical RK4 on a grid of ``n_sub`` steps per sample
 the input is smooth inside every step); impacts and overturns are located on the step's cubic
 Hermite interpolant and the state at an impact is re-integrated with an RK4 step of that length.
 
+A block whose centre of mass is off its centroid rocks on each corner with that corner's slenderness α±,
+factor k± = R±/(i_g² + R±²) and impact ratio e± (``analysis.body``): the engine holds the current pivot's three
+numbers and changes them only when the pivot changes (uplift, impact), so a step costs what it always did.
+
 Inputs are in SI (m/s²); ``ax``/``ay`` carry one extra trailing zero sample, after which the input
 is zero: the free motion is followed for ``t_after`` seconds more or until rest/overturn.
 """
@@ -59,11 +63,21 @@ def _rk4(
     return theta1, omega1
 
 
+@njit(cache=True, inline="always")
+def pivot(s: float, alpha_p: float, k_p: float, e_p: float, alpha_m: float, k_m: float, e_m: float
+          ) -> tuple[float, float, float]:
+    """(α, k, e) of the pivot ``s``: the + corner's for s > 0, else the − corner's."""
+    if s > 0.0:
+        return alpha_p, k_p, e_p
+    return alpha_m, k_m, e_m
+
+
 @njit(cache=True)
 def _next_uplift(
-    ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, ta: float
+    ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, ta_p: float, ta_m: float
 ) -> tuple[float, float]:
-    """Earliest time ≥ t at which Eq. 1 is reached, and the side (+1/−1); (inf, 0) if never."""
+    """Earliest time ≥ t at which Eq. 1 is reached (tan α± = ``ta_p``, ``ta_m``), and the side (+1/−1);
+    (inf, 0) if never."""
     n = ax.shape[0]
     i = int(t / dt)
     if i >= n - 1:
@@ -72,7 +86,7 @@ def _next_uplift(
     ax_a = ax[i] + (ax[i + 1] - ax[i]) * frac
     ay_a = ay[i] + (ay[i + 1] - ay[i]) * frac
     gx, gz = plate_gravity(ax_a, ay_a, cb, sb)
-    mp_a, mm_a = uplift_margins(gx, gz, ta)
+    mp_a, mm_a = uplift_margins(gx, gz, ta_p, ta_m)
     if mp_a > 0.0:
         return t, 1.0
     if mm_a > 0.0:
@@ -80,7 +94,7 @@ def _next_uplift(
     t_a = t
     while i < n - 1:
         gx, gz = plate_gravity(ax[i + 1], ay[i + 1], cb, sb)
-        mp_b, mm_b = uplift_margins(gx, gz, ta)
+        mp_b, mm_b = uplift_margins(gx, gz, ta_p, ta_m)
         t_b = (i + 1) * dt
         if mp_b > 0.0 or mm_b > 0.0:
             tp = t_a + (t_b - t_a) * mp_a / (mp_a - mp_b) if mp_b > 0.0 else math.inf
@@ -122,22 +136,26 @@ def step_window(
 
 @njit(cache=True)
 def simulate_rocking(
-    ax: np.ndarray, ay: np.ndarray, dt: float, alpha: float, k: float, beta: float, e: float,
-    n_sub: int, t_after: float, fall_plus: float, fall_minus: float, theta0: float, omega0: float,
+    ax: np.ndarray, ay: np.ndarray, dt: float, alpha_p: float, k_p: float, alpha_m: float, k_m: float,
+    beta: float, e_p: float, e_m: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float,
+    theta0: float, omega0: float,
 ) -> tuple[int, float, float, int, float, int, int, bool]:
     """Run one scene. Returns (direction, t_overturn, theta_max, impacts, t_end, status, steps,
     settled_by_prescreen); t_end is the overturn time, or the time the body last came to rest.
-    ``fall_plus``/``fall_minus``: |θ| that counts as overturned towards +x/−x (π/2 for a fall;
-    α − β / α + β for the static criterion)."""
+    ``alpha_p``, ``k_p`` (``alpha_m``, ``k_m``): slenderness and k = R/(i_g² + R²) rocking on the +x (−x)
+    corner; ``e_p`` (``e_m``): the angular-velocity ratio at an impact that ends rocking on the +x (−x)
+    corner. ``fall_plus``/``fall_minus``: |θ| that counts as overturned towards +x/−x (π/2 for a fall;
+    α+ − β / α− + β for the static criterion)."""
     n = ax.shape[0]
     t_rec = (n - 1) * dt
     t_stop = t_rec + t_after
-    cb, sb, ta = math.cos(beta), math.sin(beta), math.tan(alpha)
+    cb, sb, ta_p, ta_m = math.cos(beta), math.sin(beta), math.tan(alpha_p), math.tan(alpha_m)
     h = dt / n_sub
     t = 0.0
     theta, omega = theta0, omega0
     resting = theta0 == 0.0 and omega0 == 0.0
     s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
+    alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
     theta_max = abs(theta0)
     impacts = 0
     steps = 0
@@ -145,11 +163,12 @@ def simulate_rocking(
     t_rest = 0.0
     while True:
         if resting:
-            t_up, side = _next_uplift(ax, ay, dt, t, cb, sb, ta)
+            t_up, side = _next_uplift(ax, ay, dt, t, cb, sb, ta_p, ta_m)
             if side == 0.0:
                 return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan
             first_scan = False
             t, s, theta, omega, resting = t_up, side, 0.0, 0.0, False
+            alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
         first_scan = False
         if t >= t_stop:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
@@ -166,6 +185,7 @@ def simulate_rocking(
                     resting, omega, t_rest = True, 0.0, t
                 else:
                     s = -s
+                    alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
                 continue
         theta1, omega1 = _rk4(theta, omega, t, H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
         steps += 1
@@ -189,6 +209,7 @@ def simulate_rocking(
                 resting, omega, t_rest = True, 0.0, t
             else:
                 s = -s
+                alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
             continue
         if omega * omega1 < 0.0:
             c3, c2, c1, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)

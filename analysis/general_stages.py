@@ -13,6 +13,13 @@ Conventions are those of :mod:`analysis.equations`: θ [rad] positive rocking on
 (``s`` = +1), ψ = α − s θ, ``slip`` = ±1 the sign of the pivot's sliding velocity ``v`` [m/s] along the
 plate, ``z``/``w`` [m, m/s] the centre of mass's height and vertical velocity in flight, ``gx``/``gz``
 [m/s²] the plate-frame gravity minus input (:func:`analysis.equations.plate_gravity`).
+
+Each corner has its own slenderness α± and distance R± to the centre of mass (``analysis.body``: they differ
+when the centre of mass is off the middle). A function of one pivot ``s`` takes that pivot's ``alpha`` and
+``r`` (and ``k`` = r/(i_g² + r²)); those that may meet either corner take the body's ``geo``
+(:func:`geometry`: α, R, k, tan α, cos α of the + corner, then of the − corner). A landing or the lean of a
+block in flight is on the corner sign θ, the lowest one; at θ = 0 both corners give the resting height of the
+centre of mass, h_cg = R± cos α±.
 """
 
 from __future__ import annotations
@@ -55,6 +62,26 @@ TIE = 1e-12
 
 
 # --------------------------------------------------------------------------------------------------
+# the two corners
+
+
+@njit(cache=True)
+def geometry(alpha_p: float, r_p: float, alpha_m: float, r_m: float, ig2: float
+             ) -> tuple[float, float, float, float, float, float, float, float, float, float]:
+    """``geo``: (α, R, k, tan α, cos α) of the + corner, then of the − corner; k = R/(i_g² + R²)."""
+    return (alpha_p, r_p, r_p / (ig2 + r_p * r_p), math.tan(alpha_p), math.cos(alpha_p),
+            alpha_m, r_m, r_m / (ig2 + r_m * r_m), math.tan(alpha_m), math.cos(alpha_m))
+
+
+@njit(cache=True, inline="always")
+def corner(geo: tuple, s: float) -> tuple[float, float, float, float, float]:
+    """(α, R, k, tan α, cos α) of the corner ``s`` (+1: the + corner; else the − corner)."""
+    if s > 0.0:
+        return geo[0], geo[1], geo[2], geo[3], geo[4]
+    return geo[5], geo[6], geo[7], geo[8], geo[9]
+
+
+# --------------------------------------------------------------------------------------------------
 # transitions
 
 
@@ -89,7 +116,8 @@ def corner_impact_velocity(v: float, omega_minus: float, e: float, r: float, alp
 
 @njit(cache=True)
 def landing_omega(theta: float, omega: float, v: float, w: float, alpha: float, r: float, ig2: float) -> float:
-    """θ' after a plastic, sticking landing on the corner s = sign θ (angular momentum about it)."""
+    """θ' after a plastic, sticking landing on the corner s = sign θ (angular momentum about it); ``alpha``, ``r``
+    that corner's."""
     s = 1.0 if theta > 0.0 else -1.0
     psi = alpha - abs(theta)
     dx = -s * r * math.sin(psi)
@@ -99,14 +127,16 @@ def landing_omega(theta: float, omega: float, v: float, w: float, alpha: float, 
 
 
 @njit(cache=True, inline="always")
-def lean_offset(theta: float, alpha: float, r: float) -> float:
-    """u − x_G [m]: the slide displacement u (docs/general-model.md, *Slide displacement*) is where the
-    base centre lies once the block is laid flat about the corner it leans on (sign θ), x_G the centre
-    of mass: sign θ · r (sin(α − |θ|) − sin α); 0 when flat, continuous through θ = 0."""
+def lean_offset(theta: float, alpha_p: float, r_p: float, alpha_m: float, r_m: float) -> float:
+    """u − x_G + const [m]: the slide displacement u (docs/general-model.md, *Slide displacement*) is where the
+    base centre lies once the block is laid flat about the corner it leans on (s = sign θ), x_G the centre
+    of mass: s · R_s (sin(α_s − |θ|) − sin α_s) (+ b/2 − b_cg, a constant, left out: u is only ever moved by
+    differences of this); 0 when flat, continuous through θ = 0."""
     if theta == 0.0:
         return 0.0
-    sg = 1.0 if theta > 0.0 else -1.0
-    return sg * r * (math.sin(alpha - abs(theta)) - math.sin(alpha))
+    if theta > 0.0:
+        return r_p * (math.sin(alpha_p - theta) - math.sin(alpha_p))
+    return -1.0 * r_m * (math.sin(alpha_m + theta) - math.sin(alpha_m))
 
 
 @njit(cache=True)
@@ -182,40 +212,49 @@ def rock_exit(theta: float, omega: float, s: float, gx: float, gz: float, alpha:
 
 
 @njit(cache=True, inline="always")
-def rest_margins(ax_: float, ay_: float, cb: float, sb: float, ca: float, sa: float, mu: float
-                 ) -> tuple[float, float, float, float, float]:
-    """The five REST margins (> 0: that exit is reached): uplift +/− (Eq. 1 times cos α, written as
+def rest_margins(ax_: float, ay_: float, cb: float, sb: float, ca_p: float, sa_p: float, ca_m: float, sa_m: float,
+                 mu: float) -> tuple[float, float, float, float, float]:
+    """The five REST margins (> 0: that exit is reached): uplift +/− (Eq. 1 times cos α±, written as
     the rocking equation's θ'' at θ = 0 over k, so that a positive margin always starts a rotation —
-    the tan α form can be positive by rounding while θ'' is 0), slide +/−, lift-off (−gz)."""
+    the tan α form can be positive by rounding while θ'' is 0; ``ca_p``/``sa_p`` = cos α+, sin α+, ``ca_m``/
+    ``sa_m`` the − corner's), slide +/−, lift-off (−gz)."""
     gx, gz = plate_gravity(ax_, ay_, cb, sb)
-    return gx * ca - gz * sa, -gx * ca - gz * sa, gx - mu * gz, -gx - mu * gz, -gz
+    return gx * ca_p - gz * sa_p, -gx * ca_m - gz * sa_m, gx - mu * gz, -gx - mu * gz, -gz
 
 
 @njit(cache=True, inline="always")
 def friction_tips(mu: float, ta: float) -> bool:
-    """μ > tan α = b/h beyond the tie band ``TIE``: a block pushed past its thresholds rocks (its
-    REST exits are the uplifts) and friction tips a sliding block over its leading corner. At the tie
-    (|μ − b/h| within ``TIE`` b/h) and below, it slides (docs/general-model.md, *Ties*)."""
+    """μ > tan α = b/h beyond the tie band ``TIE``: a block pushed past its threshold towards a corner
+    rocks on it (that REST exit is the uplift) and friction tips a block sliding towards that corner over
+    it. At the tie (|μ − b/h| within ``TIE`` b/h) and below, it slides (docs/general-model.md, *Ties*).
+    Per corner: ``ta`` = tan α± = d±/h_cg of the corner the push or the slide goes towards."""
     return mu > ta * (1.0 + TIE)
 
 
 @njit(cache=True, inline="always")
-def rest_exit(m1: float, m2: float, m3: float, m4: float, m5: float, tips: bool) -> int:
-    """The exit among the positive margins: lift-off first; then, when friction tips
-    (:func:`friction_tips`) and g_z > 0, the uplifts (m1/m2), else the slides (m3/m4). Mathematically an uplift
-    margin > 0 implies the slide margin > 0 when μ ≤ b/h, and a slide margin > 0 implies the uplift
-    when μ > b/h, so the other pair only decides by rounding: it is not read."""
+def rest_exit(m1: float, m2: float, m3: float, m4: float, m5: float, tips_p: bool, tips_m: bool) -> int:
+    """The exit among the positive margins: lift-off first; then towards +x, when friction tips on the + corner
+    (``tips_p``, :func:`friction_tips`) and g_z > 0, the uplift m1, else the slide m3; then towards −x the same
+    with ``tips_m``, m2 and m4. Mathematically an uplift margin > 0 implies that side's slide margin > 0 when
+    μ ≤ tan α±, and a slide margin > 0 implies the uplift when μ > tan α±, so the other margin only decides by
+    rounding: it is not read."""
     if m5 > 0.0:
         return EXIT_FLIGHT
-    if tips and m5 < 0.0:  # a weightless block (g_z = 0) has no normal force to pivot on: it slides
-        return EXIT_ROCK_PLUS if m1 > 0.0 else (EXIT_ROCK_MINUS if m2 > 0.0 else EXIT_NONE)
-    return EXIT_SLIDE_PLUS if m3 > 0.0 else (EXIT_SLIDE_MINUS if m4 > 0.0 else EXIT_NONE)
+    # a weightless block (g_z = 0) has no normal force to pivot on: it slides
+    if tips_p and m5 < 0.0:
+        if m1 > 0.0:
+            return EXIT_ROCK_PLUS
+    elif m3 > 0.0:
+        return EXIT_SLIDE_PLUS
+    if tips_m and m5 < 0.0:
+        return EXIT_ROCK_MINUS if m2 > 0.0 else EXIT_NONE
+    return EXIT_SLIDE_MINUS if m4 > 0.0 else EXIT_NONE
 
 
 @njit(cache=True)
 def rest_leave(t0: float, t1: float, tl: float, a0x: float, sx: float, a0y: float, sy: float, a1x: float,
-               a1y: float, cb: float, sb: float, ca: float, sa: float, mu: float, tips: bool
-               ) -> tuple[float, int]:
+               a1y: float, cb: float, sb: float, ca_p: float, sa_p: float, ca_m: float, sa_m: float, mu: float,
+               tips_p: bool, tips_m: bool) -> tuple[float, int]:
     """When and how a block resting at ``t0`` [s] leaves rest before ``t1`` on one sample interval:
     (time, EXIT_*), or (inf, EXIT_NONE) if it stays.
 
@@ -228,16 +267,18 @@ def rest_leave(t0: float, t1: float, tl: float, a0x: float, sx: float, a0y: floa
     is the uplift margin, the slide's acceleration times slip the slide margin) and cannot fall back
     into rest at the same instant. A time within 2e-12 of the interval's length of ``t1`` is ``t1``.
     """
-    ma = rest_margins(a0x + sx * (t0 - tl), a0y + sy * (t0 - tl), cb, sb, ca, sa, mu)
-    kind = rest_exit(ma[0], ma[1], ma[2], ma[3], ma[4], tips)
+    ma = rest_margins(a0x + sx * (t0 - tl), a0y + sy * (t0 - tl), cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
+    kind = rest_exit(ma[0], ma[1], ma[2], ma[3], ma[4], tips_p, tips_m)
     if kind != EXIT_NONE:
         return t0, kind
-    mb = rest_margins(a1x, a1y, cb, sb, ca, sa, mu)
-    kind_b = rest_exit(mb[0], mb[1], mb[2], mb[3], mb[4], tips)
+    mb = rest_margins(a1x, a1y, cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
+    kind_b = rest_exit(mb[0], mb[1], mb[2], mb[3], mb[4], tips_p, tips_m)
     if kind_b == EXIT_NONE:
         return math.inf, EXIT_NONE
     tc = math.inf
     for j in range(5):
+        # the margins rest_exit reads: lift-off, each side's uplift where friction tips there, else its slide
+        tips = tips_p if j % 2 == 0 else tips_m
         if (j == 4 or (j < 2) == tips) and mb[j] > 0.0:
             tc = min(tc, t0 + (t1 - t0) * ma[j] / (ma[j] - mb[j]))
     t = max(tc, t0)
@@ -246,8 +287,8 @@ def rest_leave(t0: float, t1: float, tl: float, a0x: float, sx: float, a0y: floa
     for _ in range(2100):  # doubling steps from one ulp reach t1 well within this
         if t1 - t <= snap:
             break
-        m = rest_margins(a0x + sx * (t - tl), a0y + sy * (t - tl), cb, sb, ca, sa, mu)
-        kind = rest_exit(m[0], m[1], m[2], m[3], m[4], tips)
+        m = rest_margins(a0x + sx * (t - tl), a0y + sy * (t - tl), cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
+        kind = rest_exit(m[0], m[1], m[2], m[3], m[4], tips_p, tips_m)
         if kind != EXIT_NONE:
             return t, kind
         d = max(2.0 * d, abs(t) * 2.3e-16, 5e-324)
@@ -258,7 +299,8 @@ def rest_leave(t0: float, t1: float, tl: float, a0x: float, sx: float, a0y: floa
 @njit(cache=True)
 def leave_rest(kind: int, s: float, slip: float, z: float, r: float, ca: float) -> tuple[int, float, float, float]:
     """The stage a resting block enters through the exit ``kind`` (EXIT_*, not EXIT_NONE):
-    (stage, s, slip, z). Lift-off starts a flight from the resting height z = r cos α (``ca`` = cos α);
+    (stage, s, slip, z). Lift-off starts a flight from the resting height z = r cos α = h_cg (``ca`` = cos α,
+    either corner's ``r`` and ``ca``);
     uplift ± starts rocking on the pivot s = ±1; a slide ± starts sliding with slip = ±1."""
     if kind == EXIT_FLIGHT:
         return ST_FLIGHT, s, slip, r * ca
@@ -293,29 +335,32 @@ def break_instant_chain(stage: int, theta: float, omega: float, v: float, s: flo
 
 @njit(cache=True)
 def enter_stage(stage: int, hold: bool, jam: bool, theta: float, omega: float, v: float, w: float, z: float,
-                s: float, slip: float, psi_ref: float, gx0: float, gz0: float, alpha: float, r: float,
-                ig2: float, k: float, mu: float, ta: float, ca: float
-                ) -> tuple[int, float, float, float, float, float, float, float, bool, bool, float]:
+                s: float, slip: float, psi_ref: float, r_ref: float, gx0: float, gz0: float, geo: tuple,
+                ig2: float, mu: float
+                ) -> tuple[int, float, float, float, float, float, float, float, bool, bool, float, float]:
     """The entry conditions of a stage just entered (transitions that take no time).
 
-    Returns (new stage, theta, omega, v, w, z, s, slip, hold, jam, psi_ref); ``new`` = ``stage`` when
+    Returns (new stage, theta, omega, v, w, z, s, slip, hold, jam, psi_ref, r_ref); ``new`` = ``stage`` when
     the block stays (the state may still change: ROCK may set ``jam``/``hold``, FLIGHT measures ``z``
-    as ζ from the lift-off height from here on and sets ``psi_ref`` = α − |θ|). ``gx0``/``gz0``: the
-    plate-frame gravity now; ``ta`` = tan α, ``ca`` = cos α, ``k`` = r/(i_g² + r²).
+    as ζ from the lift-off height from here on and sets ``psi_ref`` = α − |θ| and ``r_ref`` = R of the corner
+    sign θ, the lowest, + at θ = 0). ``gx0``/``gz0``: the plate-frame gravity now; ``geo`` the two corners
+    (:func:`geometry`).
 
-    * SLIDE: lifts off if gz < 0; with μ > tan α friction tips the block over its leading corner at
-      once (ROCKSLIDE), or the slide jams (Painlevé: REST);
+    * SLIDE: lifts off if gz < 0; with μ > tan α of its leading corner (the corner ``slip``) friction tips
+      the block over that corner at once (ROCKSLIDE), or the slide jams (Painlevé: REST);
     * ROCK (not held): :func:`rock_exit` — slides (ROCKSLIDE), flies, sticks (``jam``) or is held;
     * ROCKSLIDE: :func:`rockslide_entry` — lifts off (FLIGHT) or, Painlevé, sticks (ROCK, ``jam``).
     """
     new = stage
+    alpha, r, k, _, _ = corner(geo, s)
     if stage == ST_SLIDE:
+        a_l, r_l, _, ta_l, _ = corner(geo, slip)  # the leading corner
         if gz0 < 0.0:  # the lift-off margin −gz of REST: at gz = 0 the weightless block slides
             new = ST_FLIGHT
             theta = omega = w = 0.0
-            z = r * ca
-        elif friction_tips(mu, ta):  # friction tips the sliding block over its leading corner at once
-            code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, alpha, r, ig2, mu)
+            z = geo[1] * geo[4]
+        elif friction_tips(mu, ta_l):  # friction tips the sliding block over its leading corner at once
+            code = rockslide_entry(0.0, 0.0, v, slip, slip, gx0, gz0, a_l, r_l, ig2, mu)
             if code == 0:
                 new, s, theta, omega = ST_ROCKSLIDE, slip, 0.0, 0.0
             elif code == 2:  # Painlevé: the slide jams
@@ -339,9 +384,10 @@ def enter_stage(stage: int, hold: bool, jam: bool, theta: float, omega: float, v
         elif code == 2:
             new, v, jam = ST_ROCK, 0.0, True
     elif stage == ST_FLIGHT:  # from here on z is ζ, measured from the lift-off height
-        psi_ref = alpha - abs(theta)
-        z -= r * math.cos(psi_ref)
-    return new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref
+        a_l, r_ref, _, _, _ = corner(geo, -1.0 if theta < 0.0 else 1.0)  # the lowest corner
+        psi_ref = a_l - abs(theta)
+        z -= r_ref * math.cos(psi_ref)
+    return new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref, r_ref
 
 
 @njit(cache=True)

@@ -8,7 +8,9 @@ uplift is the exact root of Eq. 1's margin, which is linear inside a sample inte
 
 Conventions as in :mod:`analysis.equations`; inputs here are in m/s² on an explicit time grid
 ``t`` (non-decreasing; a repeated time is a jump in the input, e.g. a rectangular pulse).
-After the last sample the input is zero.
+After the last sample the input is zero. A block whose centre of mass is off its centroid takes each
+corner's slenderness, k and impact ratio (``alpha``/``k``/``restitution`` for the +x corner, the ``*_minus``
+ones for the −x corner; ``analysis.body``).
 """
 
 from __future__ import annotations
@@ -84,16 +86,30 @@ def simulate_rocking_reference(
     omega0: float = 0.0,
     linearised: bool = False,
     history: bool = False,
+    alpha_minus: float | None = None,
+    k_minus: float | None = None,
+    restitution_minus: float | None = None,
 ) -> ReferenceOutcome:
-    """One scene of the rocking model (Eq. 2), or of its linearisation (Housner's linear model)."""
+    """One scene of the rocking model (Eq. 2), or of its linearisation (Housner's linear model).
+
+    ``alpha``, ``k``, ``restitution``: slenderness, k = R/(i_g² + R²) and the impact's angular-velocity ratio
+    rocking on the +x corner (the impact that ends that rocking); ``alpha_minus``, ``k_minus``,
+    ``restitution_minus`` the −x corner's (None: the same as the +x corner's, a centred block)."""
     acc_fn = rocking_acceleration_linear if linearised else rocking_acceleration
     # the same equations as the compiled engine, called as plain Python (no dispatch per call)
     acc_py, gravity_py = acc_fn.py_func, plate_gravity.py_func
-    cb, sb, ta_ = math.cos(beta), math.sin(beta), math.tan(alpha)
+    alpha_m = alpha if alpha_minus is None else alpha_minus
+    k_m = k if k_minus is None else k_minus
+    e_m = restitution if restitution_minus is None else restitution_minus
+
+    def pivot(side: float) -> tuple[float, float, float]:
+        """(α, k, e) rocking on the corner ``side``."""
+        return (alpha, k, restitution) if side > 0 else (alpha_m, k_m, e_m)
+
+    cb, sb = math.cos(beta), math.sin(beta)
     inp = _Input(t, ax, ay)
     t_stop = t[-1] + t_after
     trace = Trace()
-    e = restitution
     theta, omega = theta0, omega0
     resting = theta0 == 0.0 and omega0 == 0.0
     s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
@@ -101,9 +117,9 @@ def simulate_rocking_reference(
     now = t[0]
     i = 0
     # margins are linear in time inside an interval: the uplift condition is exact
-    uplift_tan = ta_ if not linearised else alpha
+    uplift_tan = (math.tan(alpha), math.tan(alpha_m)) if not linearised else (alpha, alpha_m)
     gx_all, gz_all = plate_gravity(ax, ay, cb, sb)
-    mp_all, mm_all = uplift_margins(gx_all, gz_all, uplift_tan)
+    mp_all, mm_all = uplift_margins(gx_all, gz_all, *uplift_tan)
     positive = np.flatnonzero((mp_all > 0) | (mm_all > 0))
 
     while True:
@@ -122,8 +138,8 @@ def simulate_rocking_reference(
                 continue
             gxa, gza = plate_gravity(a0x + sx * (now - t_a), a0y + sy * (now - t_a), cb, sb)
             gxb, gzb = plate_gravity(a0x + sx * (t_b - t_a), a0y + sy * (t_b - t_a), cb, sb)
-            mpa, mma = uplift_margins(gxa, gza, uplift_tan)
-            mpb, mmb = uplift_margins(gxb, gzb, uplift_tan)
+            mpa, mma = uplift_margins(gxa, gza, *uplift_tan)
+            mpb, mmb = uplift_margins(gxb, gzb, *uplift_tan)
             cands = []
             if mpa > 0:
                 cands.append((now, 1.0))
@@ -140,9 +156,10 @@ def simulate_rocking_reference(
             now, s = min(cands)
             # the root of the margin, nudged past rounding until the rocking equation itself
             # (cos/sin where the margin has tan) pushes the block out on side s
+            alpha_s, k_s, _ = pivot(s)
             for _ in range(10_000):
                 gx, gz = plate_gravity(a0x + sx * (now - t_a), a0y + sy * (now - t_a), cb, sb)
-                if s * acc_fn(0.0, s, gx, gz, alpha, k) > 0.0 or now >= t_b:
+                if s * acc_fn(0.0, s, gx, gz, alpha_s, k_s) > 0.0 or now >= t_b:
                     break
                 now = float(np.nextafter(now, math.inf))
             theta, omega, resting = 0.0, 0.0, False
@@ -152,11 +169,13 @@ def simulate_rocking_reference(
 
         side = s
         fall = fall_plus if side > 0 else fall_minus
+        alpha_s, k_s, e = pivot(side)
 
         def rhs(tt: float, y: np.ndarray, side: float = side, t_a: float = t_a, a0x: float = a0x,
-                sx: float = sx, a0y: float = a0y, sy: float = sy) -> list[float]:
+                sx: float = sx, a0y: float = a0y, sy: float = sy, alpha_s: float = alpha_s,
+                k_s: float = k_s) -> list[float]:
             gx, gz = gravity_py(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
-            return [y[1], acc_py(y[0], side, gx, gz, alpha, k)]
+            return [y[1], acc_py(y[0], side, gx, gz, alpha_s, k_s)]
 
         def ev_impact(tt: float, y: np.ndarray, side: float = side, t0: float = now) -> float:
             # θ = 0 at a restart is where the flight begins, not a return: count it as just
@@ -205,7 +224,7 @@ def simulate_rocking_reference(
             omega_plus = e * omega_minus
             trace.impacts.append((t_imp, omega_minus, omega_plus))
             theta = 0.0
-            if e == 0.0 or _settles(omega_plus, now, inp, i, side, cb, sb, alpha, k, acc_fn):
+            if e == 0.0 or _settles(omega_plus, now, inp, i, side, cb, sb, *pivot(-side)[:2], acc_fn):
                 resting, omega, trace.t_rest = True, 0.0, now
             else:
                 s, omega = -side, omega_plus
@@ -214,12 +233,12 @@ def simulate_rocking_reference(
 
 
 def _margin_ends(now: float, t_a: float, t_b: float, a0x: float, sx: float, a0y: float, sy: float,
-                 cb: float, sb: float, tan_alpha: float, side: float) -> float:
+                 cb: float, sb: float, tan_alpha: tuple[float, float], side: float) -> float:
     """First time after ``now`` in [now, t_b] at which Eq. 1's margin on ``side`` (linear in time
-    here) is no longer positive; t_b if it stays positive."""
+    here; ``tan_alpha`` = (tan α+, tan α−)) is no longer positive; t_b if it stays positive."""
     def margin(tt: float) -> float:
         gx, gz = plate_gravity.py_func(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
-        mp, mm = uplift_margins.py_func(gx, gz, tan_alpha)
+        mp, mm = uplift_margins.py_func(gx, gz, *tan_alpha)
         return mp if side > 0 else mm
 
     m0, m1 = margin(now), margin(t_b)
@@ -231,8 +250,9 @@ def _margin_ends(now: float, t_a: float, t_b: float, a0x: float, sx: float, a0y:
 
 def _settles(omega: float, now: float, inp: _Input, i: int, side: float, cb: float, sb: float,
              alpha: float, k: float, acc_fn) -> bool:
-    """Chattering: the next flight on the new pivot is shorter than 1e-9 s (the impact sequence
-    has converged to its accumulation point within that), or the rebound speed is negligible."""
+    """Chattering: the next flight on the new pivot (−``side``, whose α and k are ``alpha``, ``k``) is shorter
+    than 1e-9 s (the impact sequence has converged to its accumulation point within that), or the rebound
+    speed is negligible."""
     if abs(omega) < 1e-12:
         return True
     t_a, _, a0x, sx, a0y, sy = inp.interval(i)

@@ -41,10 +41,12 @@ from analysis.general_stages import (
     ST_SLIDE,
     after_reaction,
     break_instant_chain,
+    corner,
     corner_impact_velocity,
     enter_stage,
     flight_entry,
     friction_tips,
+    geometry,
     landing_omega,
     lean_offset,
     leave_rest,
@@ -110,21 +112,30 @@ def simulate_general_reference(
     theta0: float = 0.0,
     omega0: float = 0.0,
     history: bool = False,
+    alpha_minus: float | None = None,
+    r_minus: float | None = None,
+    restitution_minus: float | None = None,
 ) -> ReferenceOutcome:
-    """One scene of the general model. ``r`` half-diagonal [m], ``ig2`` i_g² [m²], ``friction`` μ."""
+    """One scene of the general model. ``alpha``, ``r`` [m]: the slenderness and the distance to the centre of
+    mass of the +x corner (the half-diagonal of a centred block), ``alpha_minus``, ``r_minus`` the −x corner's
+    (None: the same); ``restitution`` (``restitution_minus``): the angular-velocity ratio at an impact that ends
+    rocking on the +x (−x) corner; ``ig2`` i_g² [m²], ``friction`` μ."""
     return _Scene(t, ax, ay, alpha, r, ig2, beta, restitution, friction, t_after, fall_plus, fall_minus,
-                  history).run(theta0, omega0)
+                  history, alpha if alpha_minus is None else alpha_minus, r if r_minus is None else r_minus,
+                  restitution if restitution_minus is None else restitution_minus).run(theta0, omega0)
 
 
 class _Scene:
     def __init__(self, t: np.ndarray, ax: np.ndarray, ay: np.ndarray, alpha: float, r: float, ig2: float,
                  beta: float, e: float, mu: float, t_after: float, fall_plus: float, fall_minus: float,
-                 history: bool) -> None:
+                 history: bool, alpha_m: float, r_m: float, e_m: float) -> None:
         self.t, self.inp = np.asarray(t, dtype=float), _Input(np.asarray(t, float), np.asarray(ax, float),
                                                                np.asarray(ay, float))
         self.alpha, self.r, self.ig2, self.e, self.mu = alpha, r, ig2, e, mu
-        self.k = r / (ig2 + r * r)
-        self.cb, self.sb, self.ta = math.cos(beta), math.sin(beta), math.tan(alpha)
+        self.alpha_m, self.r_m, self.e_m = alpha_m, r_m, e_m
+        # the two corners: (α, R, k, tan α, cos α) of the + corner, then the − corner's (general_stages.geometry)
+        self.geo = geometry.py_func(alpha, r, alpha_m, r_m, ig2)
+        self.cb, self.sb = math.cos(beta), math.sin(beta)
         self.fall_plus, self.fall_minus = fall_plus, fall_minus
         self.t_stop = float(self.t[-1]) + t_after
         self.history = history
@@ -150,9 +161,15 @@ class _Scene:
         tr.pivot.extend([s] * len(ts))
         tr.u.extend(u.tolist())
 
+    def pivot(self, s: float) -> tuple[float, float, float, float]:
+        """(α, R, k, e) of the corner ``s``: e the angular-velocity ratio at an impact that ends rocking on it."""
+        alpha, r, k, _, _ = corner(self.geo, s)
+        return alpha, r, k, (self.e if s > 0 else self.e_m)
+
     def run(self, theta0: float, omega0: float) -> ReferenceOutcome:
-        alpha, r, ig2, e, mu, k = self.alpha, self.r, self.ig2, self.e, self.mu, self.k
-        cb, sb, ta = self.cb, self.sb, self.ta
+        ig2, mu, geo = self.ig2, self.mu, self.geo
+        alpha_p, r_p, alpha_m, r_m = self.alpha, self.r, self.alpha_m, self.r_m
+        cb, sb = self.cb, self.sb
         t, inp, trace = self.t, self.inp, self.trace
         t_stop = self.t_stop
         theta, omega, v, z, w = theta0, omega0, 0.0, 0.0, 0.0
@@ -167,9 +184,9 @@ class _Scene:
         i = 0
         n_iter = 0
         max_iter = 20 * len(t) + 20_000
-        ca, sa = math.cos(alpha), math.sin(alpha)
-        tips = friction_tips(mu, ta)
-        psi_ref = alpha
+        ca_p, sa_p, ca_m, sa_m = math.cos(alpha_p), math.sin(alpha_p), math.cos(alpha_m), math.sin(alpha_m)
+        tips_p, tips_m = friction_tips(mu, geo[3]), friction_tips(mu, geo[8])
+        psi_ref, r_ref = alpha_p, r_p
 
         def done(direction: int, t_o: float | None, status: str, t_end: float) -> ReferenceOutcome:
             return ReferenceOutcome(direction, t_o, theta_max, t_end, status, trace)
@@ -189,13 +206,14 @@ class _Scene:
             # ============================================================ REST: exact exit
             if stage == ST_REST:
                 if t_b == math.inf:
-                    kind = rest_exit(*rest_margins(0.0, 0.0, cb, sb, ca, sa, mu), tips)
+                    kind = rest_exit(*rest_margins(0.0, 0.0, cb, sb, ca_p, sa_p, ca_m, sa_m, mu), tips_p, tips_m)
                     if kind == EXIT_NONE:
                         return done(0, None, "rest", trace.t_rest)
                     t_x = now
                 else:
                     t_x, kind = rest_leave(now, t_b, t_a, a0x, sx, a0y, sy, float(inp.ax[i + 1]),
-                                           float(inp.ay[i + 1]), cb, sb, ca, sa, mu, tips)
+                                           float(inp.ay[i + 1]), cb, sb, ca_p, sa_p, ca_m, sa_m, mu, tips_p,
+                                           tips_m)
                     if kind == EXIT_NONE:
                         now = t_b
                         i += 1
@@ -203,7 +221,7 @@ class _Scene:
                 now = t_x
                 theta = omega = v = w = 0.0
                 jam = False
-                stage, s, slip, z = leave_rest(kind, s, slip, z, r, ca)
+                stage, s, slip, z = leave_rest(kind, s, slip, z, r_p, ca_p)
                 fresh = True
                 instant = instant + 1 if now == t_last else 0
                 t_last = now
@@ -229,9 +247,8 @@ class _Scene:
             # ---- entry conditions (instant transitions)
             if fresh:
                 fresh = False
-                new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref = enter_stage(
-                    stage, hold, jam, theta, omega, v, w, z, s, slip, psi_ref, gx0, gz0, alpha, r, ig2, k, mu, ta,
-                    ca)
+                new, theta, omega, v, w, z, s, slip, hold, jam, psi_ref, r_ref = enter_stage(
+                    stage, hold, jam, theta, omega, v, w, z, s, slip, psi_ref, r_ref, gx0, gz0, geo, ig2, mu)
                 if new != stage:
                     stage = new
                     fresh = True
@@ -269,14 +286,15 @@ class _Scene:
                                 events=[ev_stop, ev_lift])
                 n_pts = sol.t.size
                 zeros = np.zeros(n_pts)
-                self._record(sol.t, zeros, zeros, sol.y[0], np.full(n_pts, r * ca), zeros, ST_SLIDE, s, sol.y[1])
+                self._record(sol.t, zeros, zeros, sol.y[0], np.full(n_pts, r_p * ca_p), zeros, ST_SLIDE, s,
+                             sol.y[1])
                 if sol.t_events[0].size and (not sol.t_events[1].size or sol.t_events[0][0] <= sol.t_events[1][0]):
                     now, v, u = float(sol.t_events[0][0]), 0.0, float(sol.y_events[0][0][1])
                     stage, trace.t_rest = ST_REST, now
                     transition(now)
                 elif sol.t_events[1].size:
                     now, v, u = float(sol.t_events[1][0]), float(sol.y_events[1][0][0]), float(sol.y_events[1][0][1])
-                    stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r * ca
+                    stage, theta, omega, w, z = ST_FLIGHT, 0.0, 0.0, 0.0, r_p * ca_p
                     transition(now)
                 else:
                     now, v, u = t_end, float(sol.y[0, -1]), float(sol.y[1, -1])
@@ -290,12 +308,17 @@ class _Scene:
                     gx, gz = grav(tt)
                     return [y[1], 0.0, gx, y[4], -gz, y[2]]
 
-                def ev_land(tt: float, y: np.ndarray, psi_ref: float = psi_ref, t0: float = now) -> float:
-                    # gap of the lowest corner, ζ − r (cos ψ − cos ψ_ref): no cancellation at lift-off
+                def ev_land(tt: float, y: np.ndarray, psi_ref: float = psi_ref, r_ref: float = r_ref,
+                            t0: float = now) -> float:
+                    # gap of the lowest corner (sign θ), ζ − r (cos ψ − cos ψ_ref): no cancellation at lift-off;
+                    # ζ − (r cos ψ − r_ref cos ψ_ref) once θ has changed sign on a body with unlike corners
                     if tt == t0:
                         return _AT_START
+                    alpha, r = (alpha_p, r_p) if y[0] >= 0.0 else (alpha_m, r_m)
                     psi = alpha - abs(y[0])
-                    return y[3] + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
+                    if r == r_ref:
+                        return y[3] + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
+                    return y[3] - (r * math.cos(psi) - r_ref * math.cos(psi_ref))
 
                 ev_land.terminal, ev_land.direction = True, -1
 
@@ -307,20 +330,23 @@ class _Scene:
 
                 ev_fp.terminal, ev_fp.direction = True, 1
                 ev_fm.terminal, ev_fm.direction = True, 1
-                sol = solve_ivp(rhs_flight, (now, t_end), [theta, omega, v, z, w, u - lean_offset(theta, alpha, r)],
+                def lean(th: float) -> float:
+                    return lean_offset(th, alpha_p, r_p, alpha_m, r_m)
+
+                sol = solve_ivp(rhs_flight, (now, t_end), [theta, omega, v, z, w, u - lean(theta)],
                                 method="DOP853", rtol=RTOL, atol=ATOL, events=[ev_land, ev_fp, ev_fm])
-                self._record(sol.t, sol.y[0], sol.y[1], sol.y[2], sol.y[3] + r * math.cos(psi_ref), sol.y[4],
-                             ST_FLIGHT, s, sol.y[5] + np.array([lean_offset(th, alpha, r) for th in sol.y[0]]))
+                self._record(sol.t, sol.y[0], sol.y[1], sol.y[2], sol.y[3] + r_ref * math.cos(psi_ref), sol.y[4],
+                             ST_FLIGHT, s, sol.y[5] + np.array([lean(th) for th in sol.y[0]]))
                 theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
                 evs = [(float(te[0]), j) for j, te in enumerate(sol.t_events) if te.size]
                 if not evs:
                     theta, omega, v, z, w, x_g = (float(x) for x in sol.y[:, -1])
-                    u = x_g + lean_offset(theta, alpha, r)
+                    u = x_g + lean(theta)
                     now = t_end
                     continue
                 t_ev, j = min(evs)
                 y = sol.y_events[j][0]
-                u = float(y[5]) + lean_offset(float(y[0]), alpha, r)
+                u = float(y[5]) + lean(float(y[0]))
                 trace.slide_peak, trace.slide_residual = max(trace.slide_peak, abs(u)), u
                 if j > 0:
                     d = 1 if j == 1 else -1
@@ -336,10 +362,10 @@ class _Scene:
                     else:
                         stage, slip = ST_SLIDE, (1.0 if v > 0.0 else -1.0)
                 else:
-                    om_p = landing_omega(theta, omega, v, w, alpha, r, ig2)
+                    s = 1.0 if theta > 0.0 else -1.0
+                    om_p = landing_omega(theta, omega, v, w, *corner(geo, s)[:2], ig2)
                     trace.impacts.append((now, omega, om_p))
                     omega = om_p
-                    s = 1.0 if theta > 0.0 else -1.0
                     stage, v, jam = ST_ROCK, 0.0, False
                 transition(now)
                 continue
@@ -347,6 +373,7 @@ class _Scene:
             # ============================================================ ROCK / ROCKSLIDE
             rs = stage == ST_ROCKSLIDE
             side, sl = s, slip
+            alpha, r, k, e = self.pivot(side)  # the pivot's corner
             fall = self.fall_plus if side > 0 else self.fall_minus
             if stage == ST_ROCK and jam:
                 f, _, _ = rock_margin(theta, omega, side, gx0, gz0, alpha, r, k, mu)
@@ -357,12 +384,14 @@ class _Scene:
             hold = False
 
             if rs:
-                def rhs(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> list[float]:
+                def rhs(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
+                        r: float = r) -> list[float]:
                     gx, gz = grav(tt)
                     th_dd, x_dd, _ = rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)
                     return [y[1], th_dd, x_dd, y[2]]
             else:
-                def rhs(tt: float, y: np.ndarray, side: float = side) -> list[float]:
+                def rhs(tt: float, y: np.ndarray, side: float = side, alpha: float = alpha,
+                        k: float = k) -> list[float]:
                     gx, gz = grav(tt)
                     return [y[1], rocking_acceleration(y[0], side, gx, gz, alpha, k)]
 
@@ -385,11 +414,13 @@ class _Scene:
                 def ev_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
                     return sl * y[2] if tt != t0 else _AT_START
 
-                def ev_lift(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> float:
+                def ev_lift(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
+                            r: float = r) -> float:
                     gx, gz = grav(tt)
                     return -rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)[2]
 
-                def ev_painleve(tt: float, y: np.ndarray, side: float = side, sl: float = sl) -> float:
+                def ev_painleve(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
+                                r: float = r) -> float:
                     return rs_denominator(y[0], side, sl, alpha, r, ig2, mu) - DEN_MIN * (ig2 + r * r)
 
                 ev_stop.terminal, ev_stop.direction = True, -1
@@ -399,7 +430,8 @@ class _Scene:
                 y0 = [theta, omega, v, u]
             else:
                 if not hold_now:
-                    def ev_react(tt: float, y: np.ndarray, side: float = side, jam_now: bool = jam_now) -> float:
+                    def ev_react(tt: float, y: np.ndarray, side: float = side, jam_now: bool = jam_now,
+                                 alpha: float = alpha, r: float = r, k: float = k) -> float:
                         gx, gz = grav(tt)
                         f, _, rn = rock_margin(y[0], y[1], side, gx, gz, alpha, r, k, mu)
                         return -rn if jam_now else f
@@ -471,10 +503,11 @@ class _Scene:
         rebound speed is negligible."""
         if abs(omega) < 1e-12:
             return True
+        alpha, r, k, _ = self.pivot(side)
         if v == 0.0:
-            acc = rocking_acceleration(0.0, side, gx, gz, self.alpha, self.k)
+            acc = rocking_acceleration(0.0, side, gx, gz, alpha, k)
         else:
-            acc = rocking_sliding_acceleration(0.0, omega, side, 1.0 if v > 0.0 else -1.0, gx, gz, self.alpha,
-                                               self.r, self.ig2, self.mu)[0]
+            acc = rocking_sliding_acceleration(0.0, omega, side, 1.0 if v > 0.0 else -1.0, gx, gz, alpha,
+                                               r, self.ig2, self.mu)[0]
         return side * acc < 0.0 and 2.0 * abs(omega) / abs(acc) < CHATTER
 

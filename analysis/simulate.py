@@ -72,8 +72,20 @@ class SimulationResult:
         return d
 
 
+def resolve_restitutions(body: Body, restitution: float | str) -> tuple[float, float]:
+    """(e+, e−): the angular-velocity ratio at an impact that ends rocking on the +x corner, and on the −x corner.
+    ``"housner"``: Housner's, from angular momentum about the landing corner (``Body.housner_restitutions``: the two
+    differ when the centre of mass is off the middle); a number in [0, 1] (a measured restitution) is used both
+    ways, as given."""
+    if isinstance(restitution, str) and restitution.lower() == "housner":
+        return body.housner_restitutions()
+    e = resolve_restitution(body, restitution)
+    return e, e
+
+
 def resolve_restitution(body: Body, restitution: float | str) -> float:
-    """A number in [0, 1], or ``"housner"`` for 1 − 1.5 sin²α."""
+    """A number in [0, 1], or ``"housner"`` for 1 − 1.5 sin²α (a body whose two impacts are alike; else
+    :func:`resolve_restitutions`)."""
     if isinstance(restitution, str):
         if restitution.lower() == "housner":
             return body.housner_restitution()
@@ -89,13 +101,20 @@ def resolve_restitution(body: Body, restitution: float | str) -> float:
 
 
 def check_angle(body: Body, beta: float) -> None:
-    """The body must be able to stand on the plate: |β| < α."""
+    """The body must be able to stand on the plate: −α− < β < α+ (|β| < α for a symmetric body)."""
     if not math.isfinite(beta):
         raise AnalysisInputError(f"angle beta must be finite, got {beta}")
-    if abs(beta) >= body.alpha:
+    if body.symmetric:
+        if abs(beta) >= body.alpha_plus:
+            raise AnalysisInputError(
+                f"body {body.label()} cannot stand at beta = {math.degrees(beta):.3f} deg: "
+                f"|beta| must be below its slenderness alpha = {math.degrees(body.alpha_plus):.3f} deg"
+            )
+    elif not -body.alpha_minus < beta < body.alpha_plus:
         raise AnalysisInputError(
-            f"body {body.label()} cannot stand at beta = {math.degrees(beta):.3f} deg: "
-            f"|beta| must be below its slenderness alpha = {math.degrees(body.alpha):.3f} deg"
+            f"body {body.label()} cannot stand at beta = {math.degrees(beta):.3f} deg: beta must be below its "
+            f"slenderness towards +x (downhill), alpha+ = {math.degrees(body.alpha_plus):.3f} deg, and above minus "
+            f"its slenderness towards -x, -alpha- = {-math.degrees(body.alpha_minus):.3f} deg"
         )
 
 
@@ -118,19 +137,19 @@ def check_dt(dt: float) -> float:
 
 def fall_angles(body: Body, beta: float, criterion: Criterion) -> tuple[float, float]:
     """|θ| counted as overturned towards +x and −x: π/2 (the body falls), or the static criterion:
-    the centre of mass passes over the pivot, α − β downhill and α + β uphill."""
+    the centre of mass passes over the pivot, α+ − β downhill and α− + β uphill."""
     if criterion == "fall":
         return 0.5 * math.pi, 0.5 * math.pi
     if criterion == "static":
-        return body.alpha - beta, body.alpha + beta
+        return body.alpha_plus - beta, body.alpha_minus + beta
     raise AnalysisInputError(f"criterion must be 'fall' or 'static', got {criterion!r}")
 
 
 def substeps(body: Body, dt: float, step: float) -> int:
-    """RK4 steps per sample interval so that p·h ≤ ``step``."""
+    """RK4 steps per sample interval so that p·h ≤ ``step`` on either corner (p the larger of p±)."""
     if not (step > 0 and math.isfinite(step)):
         raise AnalysisInputError(f"step (p·h) must be > 0, got {step}")
-    return max(1, math.ceil(body.p * dt / step - 1e-9))
+    return max(1, math.ceil(max(body.p_plus, body.p_minus) * dt / step - 1e-9))
 
 
 def simulate(
@@ -157,7 +176,8 @@ def simulate(
 
     ``model``: ``"rocking"`` (Eq. 2) or ``"general"`` (Eqs. 3–10, friction ``friction``).
     ``solver``: ``"fast"`` (compiled RK4, step p·h ≤ ``step``) or ``"reference"`` (DOP853, exact events).
-    ``restitution``: angular-velocity ratio at impact; 0 = plastic (paper), ``"housner"`` or a number.
+    ``restitution``: angular-velocity ratio at impact; 0 = plastic (paper), ``"housner"`` (per impact direction
+    for a body whose centre of mass is off the middle: ``Body.housner_restitutions``) or a number (both ways).
     ``criterion``: ``"fall"`` (|θ| reaches π/2) or ``"static"`` (passing α ∓ β).
     ``t_after``: seconds of free motion followed after the record (zero input) before giving up.
     ``theta0``/``omega0``: initial rotation [rad] and rate [rad/s] (free-rocking studies).
@@ -174,7 +194,7 @@ def simulate(
     if ay.shape != ax.shape:
         raise AnalysisInputError(f"acc_v has {ay.size} samples, acc_h has {ax.size}: they must match")
     check_angle(body, beta)
-    e = resolve_restitution(body, restitution)
+    e = resolve_restitutions(body, restitution)
     fall_plus, fall_minus = fall_angles(body, beta, criterion)
     if not (friction > 0 and math.isfinite(friction)):
         raise AnalysisInputError(f"friction must be a finite coefficient > 0, got {friction}")
@@ -206,44 +226,46 @@ def _status_name(code: int) -> str:
     return ("rest", "overturned", "undecided")[code]
 
 
-def _fast(body: Body, model: str, ax: np.ndarray, ay: np.ndarray, dt: float, beta: float, e: float,
-          friction: float, t_after: float, fall_plus: float, fall_minus: float, theta0: float,
-          omega0: float, n_sub: int, has_vertical: bool) -> SimulationResult:
-    k = body.r / (body.i_g**2 + body.r**2)
+def _fast(body: Body, model: str, ax: np.ndarray, ay: np.ndarray, dt: float, beta: float,
+          e: tuple[float, float], friction: float, t_after: float, fall_plus: float, fall_minus: float,
+          theta0: float, omega0: float, n_sub: int, has_vertical: bool) -> SimulationResult:
     if model == "rocking":
         from analysis.fast_rocking import simulate_rocking
 
         d, t_o, th_max, imp, t_end, status, _, pre = simulate_rocking(
-            ax, ay, dt, body.alpha, k, beta, e, n_sub, t_after, fall_plus, fall_minus, theta0, omega0)
+            ax, ay, dt, body.alpha_plus, body.k_plus, body.alpha_minus, body.k_minus, beta, e[0], e[1], n_sub,
+            t_after, fall_plus, fall_minus, theta0, omega0)
         slide = (0.0, 0.0, 0.0)
     else:
         from analysis.fast_general import simulate_general
 
         d, t_o, th_max, imp, t_end, status, _, pre, *slide = simulate_general(
-            ax, ay, dt, body.alpha, body.r, body.i_g**2, beta, e, friction, n_sub, t_after,
-            fall_plus, fall_minus, theta0, omega0, has_vertical)
+            ax, ay, dt, body.alpha_plus, body.r_plus, body.alpha_minus, body.r_minus, body.i_g**2, beta, e[0],
+            e[1], friction, n_sub, t_after, fall_plus, fall_minus, theta0, omega0, has_vertical)
     return SimulationResult(int(d), None if math.isnan(t_o) else float(t_o), float(th_max),
                             _status_name(status), float(t_end), int(imp), model, "fast", bool(pre),
                             *(float(x) for x in slide))
 
 
 def _reference(body: Body, model: str, t: np.ndarray, ax: np.ndarray, ay: np.ndarray, beta: float,
-               e: float, friction: float, t_after: float, fall_plus: float, fall_minus: float,
+               e: tuple[float, float], friction: float, t_after: float, fall_plus: float, fall_minus: float,
                theta0: float, omega0: float, linearised: bool, history: bool) -> SimulationResult:
     if model == "rocking":
         from analysis.reference import simulate_rocking_reference
 
         out = simulate_rocking_reference(
-            t, ax, ay, alpha=body.alpha, k=body.r / (body.i_g**2 + body.r**2), beta=beta, restitution=e,
+            t, ax, ay, alpha=body.alpha_plus, k=body.k_plus, beta=beta, restitution=e[0],
             t_after=t_after, fall_plus=fall_plus, fall_minus=fall_minus, theta0=theta0, omega0=omega0,
-            linearised=linearised, history=history)
+            linearised=linearised, history=history, alpha_minus=body.alpha_minus, k_minus=body.k_minus,
+            restitution_minus=e[1])
     else:
         from analysis.reference_general import simulate_general_reference
 
         out = simulate_general_reference(
-            t, ax, ay, alpha=body.alpha, r=body.r, ig2=body.i_g**2, beta=beta, restitution=e,
+            t, ax, ay, alpha=body.alpha_plus, r=body.r_plus, ig2=body.i_g**2, beta=beta, restitution=e[0],
             friction=friction, t_after=t_after, fall_plus=fall_plus, fall_minus=fall_minus,
-            theta0=theta0, omega0=omega0, history=history)
+            theta0=theta0, omega0=omega0, history=history, alpha_minus=body.alpha_minus, r_minus=body.r_minus,
+            restitution_minus=e[1])
     tr = out.trace
     slide = (tr.slide_peak, tr.slide_residual, tr.slide_time) if model == "general" else (0.0, 0.0, 0.0)
     return SimulationResult(out.direction, out.t_overturn, out.theta_max, out.status, out.t_end,

@@ -25,7 +25,7 @@ from analysis.simulate import (
     check_angle,
     check_dt,
     check_record,
-    resolve_restitution,
+    resolve_restitutions,
     substeps,
 )
 
@@ -171,7 +171,8 @@ def check_study_inputs(bodies: Sequence[Body], records: Sequence[RecordLike], an
                        signs: Sequence[int], restitution: float | str, criterion: str) -> np.ndarray:
     """The checks of a study's arguments other than the records' samples (`checked_records`), before any work:
     model, non-empty bodies/records/angles [rad], signs, every body standing at every angle, criterion. Returns
-    each body's coefficient of restitution; raises :class:`AnalysisInputError` naming what is wrong."""
+    each body's coefficients of restitution (bodies, 2): at an impact ending rocking on the +x corner, and on the
+    −x corner (``simulate.resolve_restitutions``); raises :class:`AnalysisInputError` naming what is wrong."""
     if model not in ("rocking", "general"):
         raise AnalysisInputError(f"model must be 'rocking' or 'general', got {model!r}")
     if not bodies or not records or angles.size == 0:
@@ -181,7 +182,7 @@ def check_study_inputs(bodies: Sequence[Body], records: Sequence[RecordLike], an
     for body in bodies:
         for beta in angles:
             check_angle(body, float(beta))
-    e = np.array([resolve_restitution(b, restitution) for b in bodies])
+    e = np.array([resolve_restitutions(b, restitution) for b in bodies]).reshape(len(bodies), 2)
     if criterion not in ("fall", "static"):
         raise AnalysisInputError(f"criterion must be 'fall' or 'static', got {criterion!r}")
     return e
@@ -247,9 +248,11 @@ def study(
     n_scenes = scene_body.size
     order = np.random.default_rng(seed).permutation(n_scenes)
 
-    alpha = np.array([b.alpha for b in bodies])
-    r = np.array([b.r for b in bodies])
+    alpha_p, alpha_m = np.array([b.alpha_plus for b in bodies]), np.array([b.alpha_minus for b in bodies])
+    r_p, r_m = np.array([b.r_plus for b in bodies]), np.array([b.r_minus for b in bodies])
+    k_p, k_m = np.array([b.k_plus for b in bodies]), np.array([b.k_minus for b in bodies])
     ig2 = np.array([b.i_g**2 for b in bodies])
+    e_p, e_m = np.ascontiguousarray(e[:, 0]), np.ascontiguousarray(e[:, 1])
     n_sub = np.array([[substeps(b, dt, step) for b in bodies] for dt in dts_arr], dtype=np.int64)
     out_f = np.full((n_scenes, 2), np.nan)
     out_i = np.zeros((n_scenes, 5), dtype=np.int64)
@@ -260,13 +263,13 @@ def study(
         from analysis.batch import run_rocking
 
         run_rocking(ax, ay, offsets, lengths, dts_arr, scene_series, scene_body, scene_beta, order,
-                    alpha, r / (ig2 + r * r), n_sub, e, float(t_after), static, out_f, out_i)
+                    alpha_p, k_p, alpha_m, k_m, n_sub, e_p, e_m, float(t_after), static, out_f, out_i)
     else:
         from analysis.batch_general import run_general_kernel
 
         run_general_kernel(ax, ay, offsets, lengths, dts_arr, scene_series, scene_body, scene_beta, order,
-                           alpha, r, ig2, n_sub, e, float(friction), np.array(has_v), float(t_after),
-                           static, out_f, out_i)
+                           alpha_p, r_p, alpha_m, r_m, ig2, n_sub, e_p, e_m, float(friction), np.array(has_v),
+                           float(t_after), static, out_f, out_i)
     seconds = time.perf_counter() - t0
 
     signs_arr = np.array(signs)

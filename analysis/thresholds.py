@@ -6,8 +6,11 @@ A body resting on the plate starts to rock **towards +x (downhill)** when the gr
 *uphill* by more than ``a_plus`` (a_x < −a_plus), and **towards −x (uphill)** when it accelerates
 downhill by more than ``a_minus`` (a_x > a_minus):
 
-    a_plus  = (g + a_y) · tan(α − β) = (g + a_y)(b/h − tan β)/(1 + (b/h) tan β)   (paper Eq. 1)
-    a_minus = (g + a_y) · tan(α + β)
+    a_plus  = (g + a_y) · tan(α+ − β) = (g + a_y)(tan α+ − tan β)/(1 + tan α+ tan β)   (paper Eq. 1)
+    a_minus = (g + a_y) · tan(α− + β)
+
+α± is the slenderness towards each side (``analysis.body``: atan of the centre of mass's horizontal distance to
+that corner over its height; both atan(b/h) for a centred block, and then tan α+ = b/h as the paper writes it).
 """
 
 from __future__ import annotations
@@ -21,12 +24,13 @@ from analysis.body import Body, G
 def uplift_thresholds(
     body: Body, beta: float, acc_v: ArrayLike = 0.0, g: float = G
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Return (a_plus, a_minus): horizontal accelerations [same unit as g] that start rocking.
+    """Return (a_plus, a_minus): horizontal accelerations [same unit as g] that start rocking towards +x
+    (the ground accelerating uphill, −x, by a_plus) and towards −x (downhill by a_minus).
 
     ``acc_v`` is the upward vertical ground acceleration (scalar or array), same unit as ``g``.
     """
     gv = g + np.asarray(acc_v, dtype=float)
-    return gv * np.tan(body.alpha - beta), gv * np.tan(body.alpha + beta)
+    return gv * np.tan(body.alpha_plus - beta), gv * np.tan(body.alpha_minus + beta)
 
 
 def exceeds_threshold(

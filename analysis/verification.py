@@ -163,7 +163,7 @@ def stressed_scenes(bodies: Sequence[Body], records: Sequence[RecordLike], n: in
         i = int(rng.integers(len(records)))
         rec = records[i]
         acc_h = float(rng.choice([1.0, -1.0])) * np.asarray(rec.acc_h, dtype=float)
-        beta = min(math.radians(float(rng.uniform(0.0, 10.0))), 0.95 * body.alpha)
+        beta = min(math.radians(float(rng.uniform(0.0, 10.0))), 0.95 * body.alpha_plus)
         mu = float(rng.uniform(0.1, 0.6))
         acc_v = None
         if rng.random() < 0.5:
@@ -253,7 +253,9 @@ def compare_stressed(scenes: Sequence[StressedScene], *, processes: int | None =
 def free_rocking_energy_growth(body: Body, amplitude: float, *, step: float, model: str = "general",
                                t_free: float = 60.0) -> float:
     """Relative energy gained in ``t_free`` seconds of free rocking with e = 1 (no loss at impact) on
-    a level plate, released from rest at θ0 = ``amplitude`` [rad], fast engine at ``step`` (p·h).
+    a level plate, released from rest at θ0 = ``amplitude`` [rad], fast engine at ``step`` (p·h). For a body whose
+    two corners are alike (``Body.symmetric``: an off-centre one returns to a different amplitude on its other side,
+    V15).
 
     The exact motion keeps its energy, k g cos(α − |θ|) + ω²/2 per unit of i_g² + r²: every half
     cycle returns to |θ| = θ0. The figure is the potential energy above rest at the largest |θ| the

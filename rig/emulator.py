@@ -41,6 +41,8 @@ def specimen_flags(bodies: Iterable[PlacedBody]) -> list[str]:
             options.append(f"mass={body.mass!r}")
         if placed.restitution is not None:
             options.append(f"restitution={placed.restitution!r}")
+        if not body.centred:
+            options.append("cg={!r},{!r}".format(*body.cg))
         flags += ["--body", f"{body.b!r}x{body.h!r}@{placed.x!r},{placed.y!r};" + ";".join(options)]
     return flags
 

@@ -4,8 +4,9 @@ Layout (any HDF5 tool reads it; h5py: ``h5py.File(path)["direction"][()]``):
 
 * root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), ``model``,
   ``restitution`` (text: a number or ``housner``), ``friction`` (float), ``records`` (JSON list of names),
-  ``bodies`` (JSON list of ``{"b", "h", "name"}``, metres), ``angles_deg`` (float64 array, degrees),
-  ``signs`` (int array: +1 the record as given, −1 negated), ``seconds`` (the study's wall time [s]),
+  ``bodies`` (JSON list of ``{"b", "h", "name"}`` and, where given, ``"b_cg"``, ``"h_cg"``, metres),
+  ``angles_deg`` (float64 array, degrees), ``signs`` (int array: +1 the record as given, −1 negated),
+  ``seconds`` (the study's wall time [s]),
   ``scenes``, ``where`` (``"local"`` or the Dask scheduler's address) and ``summary`` (JSON text of the
   ``rig study --json`` object);
 * ``direction``: int8 (bodies, records, signs, angles): +1 overturned towards the low side, −1 towards
@@ -118,7 +119,9 @@ def _write_contents(h5: Any, res: StudyResult, summary: dict[str, Any]) -> None:
     h5.attrs["restitution"] = str(res.settings.get("restitution", 0.0))
     h5.attrs["friction"] = float(res.settings.get("friction", math.nan))
     h5.attrs["records"] = _json(list(res.records))
-    h5.attrs["bodies"] = _json([{"b": b.b, "h": b.h, "name": b.name} for b in res.bodies])
+    h5.attrs["bodies"] = _json([{"b": b.b, "h": b.h, "name": b.name,
+                                 **({} if b.b_cg is None else {"b_cg": b.b_cg}),
+                                 **({} if b.h_cg is None else {"h_cg": b.h_cg})} for b in res.bodies])
     h5.attrs["angles_deg"] = np.degrees(np.asarray(res.angles, dtype=float))
     h5.attrs["signs"] = np.asarray(res.signs, dtype=np.int8)
     h5.attrs["seconds"] = float(res.seconds)
@@ -174,7 +177,8 @@ class SavedStudy:
 
     @property
     def bodies(self) -> list[Body]:
-        return [Body(b=d["b"], h=d["h"], name=d.get("name", "")) for d in self.attrs["bodies"]]
+        return [Body(b=d["b"], h=d["h"], name=d.get("name", ""), b_cg=d.get("b_cg"), h_cg=d.get("h_cg"))
+                for d in self.attrs["bodies"]]
 
     @property
     def records(self) -> list[str]:

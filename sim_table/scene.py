@@ -22,10 +22,13 @@ bodies' reactions change the plate's motion by nothing measurable, and the plate
 body through the contact constraint within the same step, so friction drags the bodies and a tilting plate
 tilts them.
 
-Specimens are free uniform boxes of the body's ``b`` (along plate x), depth (along y) and ``h``, standing
-on the plate's top surface. Their contacts with the plate take the specimen's friction μ and damping
-ratio (geom ``priority``: the specimen's parameters win over the plate's), condim 3: Coulomb sliding friction
-only, as in the paper's models (a box resting on an edge or a face already gets several contact points).
+Specimens are free boxes of the body's ``b`` (along plate x), depth (along y) and ``h``, standing on the plate's
+top surface; a body whose centre of mass is off its centroid (``Body.b_cg``, ``h_cg``: from the base's −x
+corner, and above the base) carries it there, with the uniform box's moment of inertia about it (the analysis's
+assumption, ``analysis.body``), through an explicit ``<inertial>`` (a centred body keeps the box geom's own).
+Their contacts with the plate take the specimen's friction μ and damping ratio (geom ``priority``: the
+specimen's parameters win over the plate's), condim 3: Coulomb sliding friction only, as in the paper's models
+(a box resting on an edge or a face already gets several contact points).
 :class:`ContactSettings` holds the time step and the contact model.
 """
 
@@ -38,6 +41,7 @@ from dataclasses import dataclass
 import mujoco
 
 from analysis.body import Body, G
+from analysis.errors import AnalysisInputError
 
 PLATE_THICKNESS = 0.1
 """Thickness of the plate box [m] (its top surface is the plate frame's z = 0)."""
@@ -143,8 +147,20 @@ class Specimen:
 
     @property
     def housner_restitution(self) -> float:
-        """Housner's coefficient of restitution 1 − 1.5 sin²α of the body [-] (what its contact dissipates)."""
-        return 1.0 - 1.5 * math.sin(self.body.alpha) ** 2
+        """Housner's coefficient of restitution 1 − 1.5 sin²α of the body [-] (what its contact dissipates), the
+        lower of the two directions' (:attr:`housner_restitutions`) for a body whose centre of mass is off the
+        middle."""
+        if self.body.centred:
+            return 1.0 - 1.5 * math.sin(self.body.alpha) ** 2
+        return min(self.body.housner_restitutions())
+
+    @property
+    def housner_restitutions(self) -> tuple[float, float]:
+        """Housner's ratio per impact direction [-]: at an impact ending rocking on the +x corner, and on the −x
+        corner (``Body.housner_restitutions``; 1 − 1.5 sin²α both ways for a centred body)."""
+        if self.body.centred:
+            return self.housner_restitution, self.housner_restitution
+        return self.body.housner_restitutions()
 
     @property
     def depth(self) -> float:
@@ -165,25 +181,36 @@ class Specimen:
 
 
 def parse_body(text: str) -> Specimen:
-    """``BxH[@X,Y][;depth=D][;mass=M][;mu=F][;restitution=E]`` (the emulator's ``--body``): a block b × h [m] whose
-    base centre stands at plate (x, y) [m] (default the centre), optionally its depth [m], mass [kg], friction
-    coefficient μ and measured restitution e (:class:`Specimen`'s defaults); :class:`SpecimenError` names what is
+    """``BxH[@X,Y][;depth=D][;mass=M][;mu=F][;restitution=E][;cg=BCG,HCG]`` (the emulator's ``--body``): a block
+    b × h [m] whose base centre stands at plate (x, y) [m] (default the centre), optionally its depth [m], mass [kg],
+    friction coefficient μ, measured restitution e (:class:`Specimen`'s defaults) and centre of gravity (b_cg from
+    the base's −x corner, h_cg above the base [m]; default the middle); :class:`SpecimenError` names what is
     wrong."""
     head, *options = text.split(";")
     size, _, place = head.partition("@")
     body = Body.parse(size)
     try:
         x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
-        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)}
+        pairs = [(name.strip(), value) for name, _, value in (o.partition("=") for o in options)]
+        cg = [tuple(float(v) for v in value.split(",")) for name, value in pairs if name == "cg"]
+        extra = {name: float(value) for name, value in pairs if name != "cg"}
+        if any(len(c) != 2 for c in cg):
+            raise ValueError
     except ValueError:
-        raise SpecimenError(f"--body {text!r}: expected BxH@X,Y[;depth=D][;mass=M][;mu=F][;restitution=E] in "
-                            "metres and kg, e.g. 0.05x0.50@0.3,0;depth=0.1;mass=5") from None
+        raise SpecimenError(f"--body {text!r}: expected BxH@X,Y[;depth=D][;mass=M][;mu=F][;restitution=E]"
+                            "[;cg=BCG,HCG] in metres and kg, e.g. 0.05x0.50@0.3,0;depth=0.1;mass=5;cg=0.026,0.24"
+                            ) from None
     unknown = set(extra) - {"depth", "mass", "mu", "restitution"}
     if unknown:
         raise SpecimenError(f"--body {text!r}: unknown option(s) {', '.join(sorted(unknown))} "
-                            "(depth, mass, mu, restitution)")
-    if "depth" in extra or "mass" in extra:
-        body = Body(body.b, body.h, depth=extra.get("depth"), mass=extra.get("mass"), name=body.name)
+                            "(depth, mass, mu, restitution, cg)")
+    if "depth" in extra or "mass" in extra or cg:
+        b_cg, h_cg = cg[-1] if cg else (None, None)
+        try:
+            body = Body(body.b, body.h, depth=extra.get("depth"), mass=extra.get("mass"), name=body.name, b_cg=b_cg,
+                        h_cg=h_cg)
+        except AnalysisInputError as exc:
+            raise SpecimenError(f"--body {text!r}: {exc}") from None
     options = {"friction": extra["mu"]} if "mu" in extra else {}
     return Specimen(body, x=x, y=y, restitution=extra.get("restitution"), **options)
 
@@ -224,8 +251,16 @@ def _plate_joints() -> str:
 def _specimen_body(i: int, s: Specimen, contact: ContactSettings) -> str:
     hb, hd, hh = 0.5 * s.body.b, 0.5 * s.depth, 0.5 * s.body.h
     solimp = " ".join(repr(v) for v in contact.solimp)
+    inertial = ""
+    if not s.body.centred:  # the centre of mass off the box's centre, the uniform box's inertia about it
+        b_cg, h_cg = s.body.cg
+        m, (b, d, h) = s.mass, (s.body.b, s.depth, s.body.h)
+        diag = (m * (d * d + h * h) / 12.0, m * (b * b + h * h) / 12.0, m * (b * b + d * d) / 12.0)
+        inertial = (f'      <inertial pos="{b_cg - hb!r} 0 {h_cg - hh!r}" mass="{m!r}" '
+                    f'diaginertia="{" ".join(repr(v) for v in diag)}"/>\n')
     return (
         f'    <body name="specimen{i}" pos="{s.x!r} {s.y!r} {hh!r}">\n'
+        f"{inertial}"
         f"      <freejoint/>\n"
         f'      <geom type="box" size="{hb!r} {hd!r} {hh!r}" mass="{s.mass!r}" priority="1" condim="3"\n'
         f'            friction="{s.friction!r} 0 0" solref="{contact.time_constant!r} {s.damping_ratio!r}"'

@@ -11,28 +11,30 @@ body that sticks to the plate rides with it exactly (resetting the plate's pose 
 body by a·dt²/2 per step, 0.24 mm/s at 0.1 g). Feed the plate's true, smooth state, not noisy measurements:
 the bodies feel the curve's second difference.
 
-A body's **angle** θ [rad] is its rotation about the plate's y axis relative to the plate, read from its
-height axis expressed in the plate frame (components ``ex, ez``): ``θ = atan2(ex, ez)``, > 0 when its top
-has moved towards the plate's +x (downhill). A body has **overturned** when
-``|θ| ≥ min(α + overturn_margin, π/2 − 0.05)``: its centre of mass is ``overturn_margin`` (default
-:data:`OVERTURN_MARGIN`, 0.8 rad) past its base corner on a level plate, and still 0.62 rad past the point
-of no return (α + β, relative to the plate, towards the high side) at the table's 10° tilt: to bring it back
-the plate would need a horizontal acceleration above about g·tan 0.62 = 0.7 g, beyond Table IV's 0.6 g.
-The threshold is reached by a body that is falling, lies on its side, or leans on a fallen neighbour; it is
-passed a few tenths of a second before the body lands (the analytical models time the overturn at
-|θ| = π/2). The direction is ``sign(θ)``: +1 towards +x (the low side), −1 towards the high side. Each body
+A body's **angle** θ [rad] is its rotation about the plate's y axis relative to the plate, read from its height
+axis expressed in the plate frame (components ``ex, ez``): ``θ = atan2(ex, ez)``, > 0 when its top has moved
+towards the plate's +x (downhill). A body has **overturned** when
+``|θ| ≥ min(α + overturn_margin, π/2 − 0.05)``, α its slenderness towards the side it leans to (α± of
+``analysis.body``: they differ when its centre of mass is off the middle): its centre of mass is
+``overturn_margin`` (default :data:`OVERTURN_MARGIN`, 0.8 rad) past its base corner on a level plate, and still
+0.62 rad past the point of no return (α + β, relative to the plate, towards the high side) at the table's 10°
+tilt: to bring it back the plate would need a horizontal acceleration above about g·tan 0.62 = 0.7 g, beyond
+Table IV's 0.6 g. The threshold is reached by a body that is falling, lies on its side, or leans on a fallen
+neighbour; it is passed a few tenths of a second before the body lands (the analytical models time the overturn
+at |θ| = π/2). The direction is ``sign(θ)``: +1 towards +x (the low side), −1 towards the high side. Each body
 is reported once per placement. Falls along the plate's y (sideways) are outside this measure: the paper's
 bodies are at least twice as deep as wide so that they do not happen.
 
-**Impacts** (the impact model). A body's rocking impacts are its contact's: MuJoCo's soft contact with
-damping ratio 1 dissipates about what Housner's rigid impact does (restitution 1 − 1.5 sin²α, within a few per
-cent: ``rig specimens check``). A body whose :attr:`~sim_table.scene.Specimen.restitution` e is set (a value
-measured on the lab's block) has every impact scaled to it: when θ passes through 0 after the body has leaned
-at least :data:`IMPACT_LEAN` since its previous impact, its velocity relative to the plate (linear and angular:
-the rotation about its new pivot, rigidly) is multiplied by e / (1 − 1.5 sin²α) at the end of that physics
-step. The impact map is linear in the velocities, so the ratio of angular velocities across the impact becomes
-e times the contact's own ratio over Housner's. A body standing still (its contact jitter stays below 1e-5 rad)
-and a fallen body are left alone.
+**Impacts** (the impact model). A body's rocking impacts are its contact's: MuJoCo's soft contact with damping
+ratio 1 dissipates about what Housner's rigid impact does (restitution 1 − 1.5 sin²α, within a few per cent:
+``rig specimens check``). A body whose :attr:`~sim_table.scene.Specimen.restitution` e is set (a value measured
+on the lab's block) has every impact scaled to it: when θ passes through 0 after the body has leaned at least
+:data:`IMPACT_LEAN` since its previous impact, its velocity relative to the plate (linear and angular: the
+rotation about its new pivot, rigidly) is multiplied by e / (1 − 1.5 sin²α) at the end of that physics step — by
+e over Housner's ratio of that impact direction (``Body.housner_restitutions``) for a body whose centre of mass
+is off the middle. The impact map is linear in the velocities, so the ratio of angular velocities across the
+impact becomes e times the contact's own ratio over Housner's. A body standing still (its contact jitter stays
+below 1e-5 rad) and a fallen body are left alone.
 
 The scene is also each body's **tilt sensor** (the overturn detector's channel): after every :meth:`advance`
 or :meth:`~SpecimenScene.advance_many`, :attr:`~SpecimenScene.sample_angles` holds θ of every body at each
@@ -89,8 +91,9 @@ class SpecimenScene:
         self.contact = contact or ContactSettings()
         self.model = build_model(self.specimens, self.contact)
         self.data = mujoco.MjData(self.model)
-        self.thresholds = np.array([min(s.body.alpha + overturn_margin, LYING) for s in self.specimens])
-        """|θ| at which each specimen counts as overturned [rad]."""
+        self.thresholds = np.array([[min(s.body.alpha_plus + overturn_margin, LYING),
+                                     min(s.body.alpha_minus + overturn_margin, LYING)] for s in self.specimens])
+        """|θ| at which each specimen counts as overturned [rad], (n, 2): leaning towards +x (column 0) or −x."""
         self._order = np.array(PLATE_QPOS_ORDER)
         self._plate = self.model.body("plate").id
         self._bodies = np.array([self.model.body(f"specimen{i}").id for i in range(len(self.specimens))])
@@ -180,7 +183,7 @@ class SpecimenScene:
             if self._impacts.active:
                 hit = self._impacts.first(theta, self._standing)
                 if hit is not None:
-                    self._restitute(hit[1])
+                    self._restitute(hit[1], hit[2])
             if self._standing.any():
                 found.extend(self._detect_steps(np.array([d.time]), theta, dt))
                 self._theta = theta[0]
@@ -275,24 +278,25 @@ class SpecimenScene:
                 parts.append(states)
                 angle_parts.append(angles)
                 break
-            step, bodies = hit
+            step, bodies, sides = hit
             mujoco.mj_setState(m, d, states[step], spec)
-            self._restitute(bodies)
+            self._restitute(bodies, sides)
             mujoco.mj_getState(m, d, states[step], spec)
             parts.append(states[:step + 1])
             angle_parts.append(angles[:step + 1])
             start += step + 1
         return np.vstack(parts), np.vstack(angle_parts)
 
-    def _restitute(self, bodies: np.ndarray) -> None:
+    def _restitute(self, bodies: np.ndarray, sides: np.ndarray) -> None:
         """Scale the velocity relative to the plate of each of ``bodies`` (indices) by its impact factor
-        (module docstring), in :attr:`data`, and bring the derived quantities up to date."""
+        (module docstring) for an impact ending its rocking on the corner ``sides`` (±1, one per body), in
+        :attr:`data`, and bring the derived quantities up to date."""
         m, d = self.model, self.data
         mujoco.mj_forward(m, d)
         plate = np.empty(6)  # angular, then linear velocity of the plate's origin, world frame
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, self._plate, plate, 0)
-        for i in bodies:
-            k, body, dof = self._impacts.factor[i], self._bodies[i], self._dofs[i]
+        for i, side in zip(bodies, sides, strict=True):
+            k, body, dof = self._impacts.factor[i, 0 if side > 0 else 1], self._bodies[i], self._dofs[i]
             rotation = d.xmat[body].reshape(3, 3)
             carried = plate[3:] + np.cross(plate[:3], d.xpos[body] - d.xpos[self._plate])
             spin = rotation @ d.qvel[dof + 3:dof + 6]
@@ -307,9 +311,10 @@ class SpecimenScene:
         previous = np.vstack([self._theta[None, :], angles[:-1]])
         for step in range(len(angles)):
             theta = angles[step]
-            for i in np.flatnonzero(self._standing & (np.abs(theta) >= self.thresholds)):
+            threshold = np.where(theta >= 0.0, self.thresholds[:, 0], self.thresholds[:, 1])
+            for i in np.flatnonzero(self._standing & (np.abs(theta) >= threshold)):
                 a0, a1 = abs(previous[step, i]), abs(theta[i])
-                fraction = min(1.0, max(0.0, (self.thresholds[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
+                fraction = min(1.0, max(0.0, (threshold[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
                 events.append(Overturn(step_times[step] - (1.0 - fraction) * dt, int(i), 1 if theta[i] > 0 else -1))
                 self._standing[i] = False
             if not self._standing.any():
@@ -325,7 +330,7 @@ class SpecimenScene:
     def specimen_places(self) -> np.ndarray:
         """Point of the plate under each specimen's centre of mass, (n, 2) [m, plate frame x, y]."""
         d = self.data
-        local = (d.xpos[self._bodies] - d.xpos[self._plate]) @ d.xmat[self._plate].reshape(3, 3)
+        local = (d.xipos[self._bodies] - d.xpos[self._plate]) @ d.xmat[self._plate].reshape(3, 3)
         return local[:, :2]
 
     def detections(self) -> list[Overturn]:
@@ -337,10 +342,12 @@ class _Impacts:
     """The rocking impacts of the bodies whose restitution is set (the impact model, module docstring)."""
 
     def __init__(self, specimens: Sequence[Specimen]) -> None:
-        self.factor = np.array([math.nan if s.restitution is None else s.restitution / s.housner_restitution
-                                for s in specimens])
-        """Velocity factor of each body's impacts: restitution / Housner's (NaN: the contact's own)."""
-        self.bodies = np.flatnonzero(np.isfinite(self.factor))
+        self.factor = np.array([(math.nan, math.nan) if s.restitution is None else
+                                tuple(s.restitution / e for e in s.housner_restitutions) for s in specimens]
+                               ).reshape(len(specimens), 2)
+        """Velocity factor of each body's impacts, (n, 2): restitution / Housner's of an impact ending its rocking on
+        the +x corner (column 0), on the −x corner (column 1); NaN: the contact's own."""
+        self.bodies = np.flatnonzero(np.isfinite(self.factor[:, 0]))
         self.active = bool(self.bodies.size)
         self._side = np.zeros(self.bodies.size)
         self._lean = np.zeros(self.bodies.size)
@@ -350,9 +357,10 @@ class _Impacts:
         self._side = np.sign(angles[self.bodies])
         self._lean = np.abs(angles[self.bodies])
 
-    def first(self, angles: np.ndarray, standing: np.ndarray) -> tuple[int, np.ndarray] | None:
+    def first(self, angles: np.ndarray, standing: np.ndarray) -> tuple[int, np.ndarray, np.ndarray] | None:
         """Follow the bodies through the steps' ``angles`` (steps, n) [rad] up to the first step at which a standing
-        body impacts; (that step, the indices of the bodies impacting in it), or None after the last step."""
+        body impacts; (that step, the indices of the bodies impacting in it, the corner each was rocking on: ±1),
+        or None after the last step."""
         theta = angles[:, self.bodies]
         steps = len(theta)
         side = np.sign(theta)
@@ -370,8 +378,9 @@ class _Impacts:
         hit = crossed & (sides[:-1] != 0) & (lean[:-1] >= IMPACT_LEAN) & standing[self.bodies]
         rows = np.flatnonzero(hit.any(axis=1))
         at = int(rows[0]) if rows.size else steps - 1
+        before = sides[at]  # the side each body was on before this step: the corner the impact ends rocking on
         self._side, self._lean = sides[at + 1], lean[at + 1]
-        return (at, self.bodies[hit[at]]) if rows.size else None
+        return (at, self.bodies[hit[at]], before[hit[at]]) if rows.size else None
 
 
 def _specimen_angles(qpos: np.ndarray, count: int) -> np.ndarray:

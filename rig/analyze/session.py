@@ -64,13 +64,15 @@ def observed_directions(detections: list[dict[str, Any]]) -> dict[int, tuple[int
 
 
 def body_of(row: dict[str, Any]) -> Body:
-    """A session ``bodies`` row → `analysis.Body` (uniform block; depth and mass carried when given)."""
+    """A session ``bodies`` row → `analysis.Body` (depth, mass and the centre of gravity b_cg, h_cg carried when
+    given; else the middle: the uniform block, as in files written before they were recorded)."""
     def optional(value: Any) -> float | None:
         v = float(value)
         return v if math.isfinite(v) and v > 0 else None
 
     return Body(b=float(row["b"]), h=float(row["h"]), depth=optional(row["depth"]), mass=optional(row["mass"]),
-                name=str(row.get("name", "")))
+                name=str(row.get("name", "")), b_cg=optional(row.get("b_cg", math.nan)),
+                h_cg=optional(row.get("h_cg", math.nan)))
 
 
 def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor: str | None = None,

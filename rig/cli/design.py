@@ -115,6 +115,9 @@ def design(
     """The smallest plate inclination whose controlled-overturning rate reaches CONFIDENCE."""
     try:
         parsed = Body.parse(body)
+        if not parsed.centred:
+            raise AnalysisInputError(f"body {body!r}: the design equations (Eqs. 11, 13) are fitted to uniform blocks "
+                                     "(centre of mass in the middle): give BxH without ;cg=")
         eq = cast("Equation", equation.value)
         fitted = study_coefficients(study, eq) if study is not None else None
         result = design_result(parsed, confidence, eq, fitted)

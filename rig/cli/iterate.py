@@ -160,7 +160,7 @@ def register(app: typer.Typer) -> None:
 
 
 def _bodies(specs: list[str]) -> list[dict[str, Any]]:
-    """Session body rows of ``--body`` specs (the emulator's ``BxH@X,Y[;depth=D][;mass=M][;mu=F]``)."""
+    """Session body rows of ``--body`` specs (the emulator's ``BxH@X,Y[;depth=D][;mass=M][;mu=F][;cg=BCG,HCG]``)."""
     from analysis import Body
 
     rows = []
@@ -169,7 +169,8 @@ def _bodies(specs: list[str]) -> list[dict[str, Any]]:
         size, _, place = head.partition("@")
         body = Body.parse(size)
         x, y = (float(v) for v in place.split(",")) if place else (0.0, 0.0)
-        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)}
+        extra = {name.strip(): float(value) for name, _, value in (o.partition("=") for o in options)
+                 if name.strip() != "cg"}  # the centre of gravity: the emulator's, not the session row's
         rows.append({"body_id": k, "name": f"body {k}", "b": body.b, "h": body.h,
                      "depth": extra.get("depth", 2 * body.b), "mass": extra.get("mass", math.nan), "x": x, "y": y})
     return rows

@@ -26,9 +26,10 @@ def register(app: typer.Typer) -> None:
     @specimens.command("check")
     def check_cmd(
         body: Annotated[list[str] | None, typer.Option(
-            metavar="BxH[;restitution=E]",
-            help="a body b×h [m], e.g. 0.1x0.5, optionally its measured restitution: '0.1x0.5;restitution=0.85' "
-                 "(repeatable)")] = None,
+            metavar="BxH[;restitution=E][;cg=BCG,HCG]",
+            help="a body b×h [m], e.g. 0.1x0.5, optionally its measured restitution: '0.1x0.5;restitution=0.85', "
+                 "and its centre of gravity (b_cg from the base's -x corner, h_cg above the base [m]): "
+                 "'0.099x0.493;cg=0.0515,0.243' (repeatable)")] = None,
         table5: Annotated[bool, typer.Option("--table5", help="the paper's seven Table V bodies")] = False,
         sequence: Annotated[Path | None, typer.Option(metavar="SEQUENCE.toml",
                                                       help="the bodies of a sequence file, with their friction and "
@@ -37,10 +38,12 @@ def register(app: typer.Typer) -> None:
         friction: Annotated[float, typer.Option(help="friction coefficient μ between body and plate")] = 0.8,
         as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
     ) -> None:
-        """Free-rocking restitution against Housner's 1 − 1.5 sin²α (or the body's measured value, set with
+        """On each side of each body: the free-rocking restitution against Housner's (1 − 1.5 sin²α, per impact
+        direction for a centre of mass off the middle; or the body's measured value, set with
         ``--body "BxH;restitution=E"`` or in the sequence), the quarter period against its closed form, the
-        accelerations that start rocking towards each side at the tilt against Eq. 1, and the sliding onset against
-        μ, measured in the emulator's specimen model (MuJoCo, 1 ms step)."""
+        acceleration that starts rocking towards that side at the tilt against Eq. 1 and the slenderness it shows
+        against the body's α+ / α−; and the sliding onset against μ, measured in the emulator's specimen model
+        (MuJoCo, 1 ms step)."""
         args = [sys.executable, "-m", "sim_table.characterise", "--tilt", repr(tilt), "--friction", repr(friction)]
         for b in body or []:
             args += ["--body", b]

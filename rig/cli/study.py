@@ -41,23 +41,31 @@ def parse_angles(text: str) -> list[float]:
 
 
 def parse_bodies(text: str) -> list[Body]:
-    """``table1``, ``table1:1,4,12`` (1-based), or ``0.10x0.50,0.2x1.0``."""
-    from analysis.body import TABLE_I, Body
+    """``table1``, ``table1:1,4,12`` (1-based), ``table5`` (Table V, with its centres of gravity), ``table5:1,4``, or
+    ``0.10x0.50,0.2x1.0`` (each optionally ``;cg=BCG,HCG``: ``0.099x0.493;cg=0.0515,0.243,0.2x1.0``)."""
+    import re
+
+    from analysis.body import TABLE_I, TABLE_V, Body
 
     try:
-        if text.lower().startswith("table1"):
-            _, _, sel = text.partition(":")
-            if not sel:
-                return list(TABLE_I)
-            return [TABLE_I[int(i) - 1] for i in sel.split(",")]
-        return [Body.parse(t) for t in text.split(",")]
+        for name, table in (("table1", TABLE_I), ("table5", TABLE_V)):
+            if text.lower().startswith(name):
+                _, _, sel = text.partition(":")
+                if not sel:
+                    return list(table)
+                return [table[int(i) - 1] for i in sel.split(",")]
+        # a comma starts a new body where the next item is a size BxH (not the second number of a cg pair)
+        return [Body.parse(t) for t in re.split(r",(?=[^,;]*[x×])", text)]
     except (ValueError, IndexError) as exc:
-        fail(f"--bodies {text!r}: {exc}; expected 'table1', 'table1:1,4' or '0.10x0.50,…'")
+        fail(f"--bodies {text!r}: {exc}; expected 'table1', 'table1:1,4', 'table5', 'table5:1,4' or "
+             "'0.10x0.50[;cg=BCG,HCG],…'")
 
 
 def simulate_cmd(
     record: Annotated[str, typer.Argument(help="a record file (.AT2, .txt, .csv, .h5, H1+H2[+UP]) or SUITE:NAME")],
-    body: Annotated[str, typer.Option(help="BxH in metres, e.g. 0.10x0.50")],
+    body: Annotated[str, typer.Option(help="BxH in metres, e.g. 0.10x0.50, optionally with the centre of gravity "
+                                           "(b_cg from the -x corner, h_cg above the base): "
+                                           "0.099x0.493;cg=0.0515,0.243")],
     angle: Annotated[float, typer.Option(help="plate inclination β [deg]")] = 0.0,
     model: Annotated[str, typer.Option(help="rocking | general")] = "rocking",
     solver: Annotated[str, typer.Option(help="fast | reference")] = "fast",
@@ -86,8 +94,9 @@ def simulate_cmd(
                        solver=solver, restitution=restitution, friction=friction, criterion=criterion)
     except (RecordError, AnalysisInputError) as exc:
         fail(str(exc))
-    out = {**res.to_dict(), "record": rec.name, "body": {"b": b.b, "h": b.h}, "angle_deg": angle,
-           "sign": sign}
+    out = {**res.to_dict(), "record": rec.name,
+           "body": {"b": b.b, "h": b.h, **({} if b.centred else {"b_cg": b.cg[0], "h_cg": b.cg[1]})},
+           "angle_deg": angle, "sign": sign}
     if as_json:
         emit_json(out)
         return
@@ -99,7 +108,8 @@ def simulate_cmd(
 
 def study_cmd(
     records: Annotated[str, typer.Option(help="fema | fema-farfield | fema-nearfield | SUITE:NAME | file")],
-    bodies: Annotated[str, typer.Option(help="table1, table1:1,4 or BxH,BxH")] = "table1",
+    bodies: Annotated[str, typer.Option(help="table1, table1:1,4, table5 (with its centres of gravity), table5:1,4 or "
+                                             "BxH[;cg=BCG,HCG],BxH")] = "table1",
     angles: Annotated[str, typer.Option(help="degrees: '0:7:0.5' or '0,4,5'")] = "0:7:0.5",
     model: Annotated[str, typer.Option(help="rocking | general")] = "rocking",
     restitution: Annotated[str, typer.Option(help="0 (plastic), 'housner' or a number")] = "0",

@@ -445,7 +445,8 @@ class Orchestrator:
 
     def _bodies(self) -> list[dict[str, Any]]:
         return [{"body_id": b.body_id, "name": b.name, "b": b.body.b, "h": b.body.h, "depth": b.depth,
-                 "mass": b.body.mass if b.body.mass is not None else float("nan"), "x": b.x, "y": b.y}
+                 "mass": b.body.mass if b.body.mass is not None else float("nan"), "x": b.x, "y": b.y,
+                 "b_cg": b.body.b_cg, "h_cg": b.body.h_cg}
                 for b in self.sequence.bodies]
 
     # ----- progress -------------------------------------------------------------------------------------

@@ -42,7 +42,7 @@ seconds, ``_hz`` Hz. Top-level keys come first: in TOML every key after a ``[sec
     ask_detections = false                    # ask which bodies overturned and which way
 
     [[bodies]]                                # one table per body; body_id 1, 2, … in file order
-    table5 = 4                                # the paper's Table V body 4 (b, h, depth, mass) …
+    table5 = 4                                # the paper's Table V body 4 (b, h, depth, mass, b_cg, h_cg) …
     x = 0.0                                   # centre of the base on the plate, +x downhill [m]
     y = -0.2
     [[bodies]]
@@ -51,6 +51,8 @@ seconds, ``_hz`` Hz. Top-level keys come first: in TOML every key after a ``[sec
     h = 0.200                                 # height [m]
     depth = 0.109                             # along the plate's y [m]
     mass = 0.56                               # [kg]
+    b_cg = 0.025                              # centre of gravity from the -x (uphill) corner [m], optional …
+    h_cg = 0.100                              # … and above the base [m] (default b/2, h/2)
     x = 0.0
     y = 0.2
     friction = 0.8                            # μ body–plate, default 0.8

@@ -112,7 +112,8 @@ class PlacedBody:
     """One body at its place on the plate.
 
     ``body_id`` is its 1-based position in the file (stable: the session file's ``body_id``); ``body`` its
-    dimensions b (along the fall line), h, depth [m] and mass [kg]; ``x``, ``y`` [m] the centre of its base
+    dimensions b (along the fall line), h, depth [m], mass [kg] and centre of gravity (``Body.b_cg``, from the
+    base's −x corner, and ``Body.h_cg``; None: the middle); ``x``, ``y`` [m] the centre of its base
     in the plate frame (x along the fall line, +x downhill); ``friction`` μ [-] between body and plate;
     ``restitution`` [-]: its coefficient of restitution as measured in the lab (ratio of angular velocities
     across a rocking impact), which the emulated specimen's impacts reproduce, or None (the emulator's contact:
@@ -144,13 +145,15 @@ class PlacedBody:
     def standing_problem(self, angle_deg: float) -> str | None:
         """Why the body cannot stand still on a plate tilted by ``angle_deg`` [deg], or None if it can.
 
-        A uniform block tips over once β ≥ α = atan(b/h) and slides once tan β ≥ μ.
+        A block tips over downhill once β ≥ α₊, its slenderness towards +x (atan(b/h) for a centred block,
+        atan((b − b_cg)/h_cg) in general), and slides once tan β ≥ μ.
         """
         beta = math.radians(angle_deg)
-        alpha = math.degrees(self.body.alpha)
+        alpha = math.degrees(self.body.alpha_plus)
         what = f"body {self.body_id} ({self.name}, b = {self.body.b:g} m, h = {self.body.h:g} m)"
-        if beta >= self.body.alpha:
-            return (f"{what} cannot stand at β = {angle_deg:g}°: its slenderness angle α = atan(b/h) = "
+        formula = "atan(b/h)" if self.body.centred else "atan((b − b_cg)/h_cg), towards +x (downhill),"
+        if beta >= self.body.alpha_plus:
+            return (f"{what} cannot stand at β = {angle_deg:g}°: its slenderness angle α = {formula} = "
                     f"{alpha:.2f}°, and a block tips over once β ≥ α (expected β < {alpha:.2f}°)")
         if math.tan(beta) >= self.friction:
             return (f"{what} would slide at β = {angle_deg:g}°: tan β = {math.tan(beta):.3f} ≥ friction μ = "
@@ -161,6 +164,7 @@ class PlacedBody:
         b = self.body
         return {"body_id": self.body_id, "name": b.name, "b": b.b, "h": b.h, "depth": self.depth,
                 "mass": b.mass, "x": self.x, "y": self.y, "friction": self.friction,
+                **({} if b.b_cg is None else {"b_cg": b.b_cg}), **({} if b.h_cg is None else {"h_cg": b.h_cg}),
                 **({} if self.restitution is None else {"restitution": self.restitution})}
 
 

@@ -43,7 +43,8 @@ SCHEMA = "shaketable-rig/sequence/1"
 
 TOP_KEYS = ("name", "description", "table_url", "repetitions", "angles_deg", "polarity", "records", "records_from",
             "bodies", "rig", "plate", "drive", "operator", "schema", "source")
-BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "x", "y", "friction", "restitution")
+BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "b_cg", "h_cg", "x", "y", "friction",
+             "restitution")
 DIMENSIONS = ("b", "h", "depth", "mass")
 RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive", "polarity")
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz", "polarity")
@@ -252,10 +253,23 @@ class _Reader(TomlChecker):
                                  "not both")
             paper = TABLE_V[self.integer(table["table5"], (*path, "table5"), 1, len(TABLE_V)) - 1]
             dims = {"b": paper.b, "h": paper.h, "depth": paper.depth, "mass": paper.mass}
+            cg = {"b_cg": paper.b_cg, "h_cg": paper.h_cg}
             name = name or paper.name
         else:
             dims = {key: self.quantity(self.require(table, path, key, f"{RANGES[key][2]} (or table5 = N)"),
                                        (*path, key), key) for key in DIMENSIONS}
+            cg = {"b_cg": None, "h_cg": None}
+        # the centre of gravity: b_cg from the base's -x (uphill) corner, h_cg above the base (analysis.body);
+        # given with table5 = N it replaces the paper's (a block mounted the other way round: b_cg = b − b_cg)
+        for key, side, words in (("b_cg", "b", "from the base's -x (uphill) corner along +x"),
+                                 ("h_cg", "h", "above the base")):
+            if key in table:
+                what = (f"the centre of gravity {words} in metres, inside the body: 0 < {key} < {side} = "
+                        f"{dims[side]:g} m")
+                value = self.number(table[key], (*path, key), low=0.0, what=what)
+                if value >= dims[side]:
+                    raise self.error((*path, key), f"expected {what}, got {shown(table[key])}")
+                cg[key] = value
         place = {key: self.number(self.require(table, path, key, "a number in metres (plate frame, +x downhill)"),
                                   (*path, key), what="a finite number in metres") for key in ("x", "y")}
         friction = DEFAULT_FRICTION
@@ -265,7 +279,8 @@ class _Reader(TomlChecker):
         if "restitution" in table:
             restitution = self.number(table["restitution"], (*path, "restitution"), low=0.0, high=1.0,
                                       what="the body's measured coefficient of restitution, in (0, 1]")
-        body = Body(b=dims["b"], h=dims["h"], depth=dims["depth"], mass=dims["mass"], name=name or f"body {body_id}")
+        body = Body(b=dims["b"], h=dims["h"], depth=dims["depth"], mass=dims["mass"], name=name or f"body {body_id}",
+                    **cg)
         return PlacedBody(body_id=body_id, body=body, x=place["x"], y=place["y"], friction=friction,
                           restitution=restitution)
 

@@ -323,7 +323,8 @@ class SessionLog:
         for body in bodies:
             values = [schema.finite(body[key], f"body {key}") for key in ("b", "h", "depth", "mass", "x", "y")]
             name = schema.fixed_text(str(body.get("name", "")), schema.NAME_LEN)
-            rows.append((int(body["body_id"]), *values, name))
+            cg = [math.nan if body.get(key) is None else float(body[key]) for key in ("b_cg", "h_cg")]  # NaN: middle
+            rows.append((int(body["body_id"]), *values, name, *cg))
         return np.array(rows, dtype=schema.BODY)
 
     def finish_run(self, info: RunInfo, status: str, attrs: Mapping[str, Any]) -> RunInfo:

@@ -31,7 +31,9 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
 * ``pose`` (K, 7): measured table pose from the controller's status feedback, columns as ``commanded``;
 * ``detections``: compound `DETECTION`: t [s], body_id, direction (+1 towards the low side, −1 towards the
   high side, 0 none), source (``"sensor"`` | ``"operator"``);
-* ``bodies``: compound `BODY`: body_id, b, h, depth [m], mass [kg], x, y [m, plate frame], name;
+* ``bodies``: compound `BODY`: body_id, b, h, depth [m], mass [kg], x, y [m, plate frame], name, b_cg, h_cg [m]:
+  the centre of gravity from the base's −x corner and above the base (``analysis.Body``), NaN where the sequence
+  did not give it (the middle; files written before have neither field);
 * ``faults``: compound `FAULT`: t [s], name, detail; ``events``: compound `EVENT`: t [s], text.
 
 Text fields of the compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field size
@@ -81,7 +83,7 @@ def _text(n: int) -> np.dtype:
 
 DETECTION = np.dtype([("t", "<f8"), ("body_id", "<i4"), ("direction", "i1"), ("source", _text(SOURCE_LEN))])
 BODY = np.dtype([("body_id", "<i4"), ("b", "<f8"), ("h", "<f8"), ("depth", "<f8"), ("mass", "<f8"),
-                 ("x", "<f8"), ("y", "<f8"), ("name", _text(NAME_LEN))])
+                 ("x", "<f8"), ("y", "<f8"), ("name", _text(NAME_LEN)), ("b_cg", "<f8"), ("h_cg", "<f8")])
 FAULT = np.dtype([("t", "<f8"), ("name", _text(NAME_LEN)), ("detail", _text(TEXT_LEN))])
 EVENT = np.dtype([("t", "<f8"), ("text", _text(TEXT_LEN))])
 

@@ -328,8 +328,8 @@ def test_sliding_down_an_incline_from_rest() -> None:
         assert res.slide_time == pytest.approx(2.5, rel=1e-12)
     # with tan β < μ the same block stays put, and the pre-screen alone settles it
     d, _, th, imp, t_end, status, steps, pre, *_ = simulate_general(
-        np.append(acc, 0.0) * G, np.zeros(51), DT, SLIDER.alpha, SLIDER.r, SLIDER.i_g**2, beta, 0.0, 0.35, 4, 2.0,
-        math.pi / 2, math.pi / 2, 0.0, 0.0, False)
+        np.append(acc, 0.0) * G, np.zeros(51), DT, SLIDER.alpha, SLIDER.r, SLIDER.alpha, SLIDER.r, SLIDER.i_g**2, beta,
+        0.0, 0.0, 0.35, 4, 2.0, math.pi / 2, math.pi / 2, 0.0, 0.0, False)
     assert (d, status, steps, pre, imp, th, t_end) == (0, REST, 0, True, 0, 0.0, 0.0)
 
 

@@ -60,14 +60,14 @@ def test_rest_exits_read_one_pair_of_margins() -> None:
     """Friction tips → the uplifts decide, else the slides: never the other pair by rounding. The
     last margin is −g_z: lift-off when > 0; at g_z = 0 exactly the block slides even when friction
     tips (no normal force to pivot on)."""
-    assert rest_exit(1.0, 0.0, -1e-300, 0.0, -1.0, True) == EXIT_ROCK_PLUS
-    assert rest_exit(0.0, 1.0, 0.0, -1.0, -1.0, True) == EXIT_ROCK_MINUS
-    assert rest_exit(0.0, 0.0, 1.0, 0.0, -1.0, True) == EXIT_NONE
-    assert rest_exit(1.0, 0.0, 0.0, 0.0, -1.0, False) == EXIT_NONE
-    assert rest_exit(0.0, 0.0, 1.0, 0.0, -1.0, False) == EXIT_SLIDE_PLUS
-    assert rest_exit(0.0, 0.0, 0.0, 1.0, -1.0, False) == EXIT_SLIDE_MINUS
-    assert rest_exit(1.0, 0.0, 1.0, 0.0, 0.0, True) == EXIT_SLIDE_PLUS
-    assert rest_exit(1.0, 0.0, 1.0, 0.0, 1e-300, True) == EXIT_FLIGHT
+    assert rest_exit(1.0, 0.0, -1e-300, 0.0, -1.0, True, True) == EXIT_ROCK_PLUS
+    assert rest_exit(0.0, 1.0, 0.0, -1.0, -1.0, True, True) == EXIT_ROCK_MINUS
+    assert rest_exit(0.0, 0.0, 1.0, 0.0, -1.0, True, True) == EXIT_NONE
+    assert rest_exit(1.0, 0.0, 0.0, 0.0, -1.0, False, False) == EXIT_NONE
+    assert rest_exit(0.0, 0.0, 1.0, 0.0, -1.0, False, False) == EXIT_SLIDE_PLUS
+    assert rest_exit(0.0, 0.0, 0.0, 1.0, -1.0, False, False) == EXIT_SLIDE_MINUS
+    assert rest_exit(1.0, 0.0, 1.0, 0.0, 0.0, True, True) == EXIT_SLIDE_PLUS
+    assert rest_exit(1.0, 0.0, 1.0, 0.0, 1e-300, True, True) == EXIT_FLIGHT
 
 
 @pytest.mark.parametrize("tips", [True, False])
@@ -83,8 +83,8 @@ def test_the_block_leaves_rest_where_the_stage_it_enters_accelerates(tips: bool)
     for i in range(200):  # the issue's ramp −0.05 g/s sampled at 0.01 s, and shifted copies of it
         t_a, dt = 5.99 + i * 1e-4, 0.01
         a0, slope = -0.05 * G * t_a, -0.05 * G
-        t_x, kind = rest_leave(t_a, t_a + dt, t_a, a0, slope, 0.0, 0.0, a0 + slope * dt, 0.0, 1.0, 0.0, ca, sa, mu,
-                               tips)
+        t_x, kind = rest_leave(t_a, t_a + dt, t_a, a0, slope, 0.0, 0.0, a0 + slope * dt, 0.0, 1.0, 0.0, ca, sa, ca,
+                               sa, mu, tips, tips)
         if kind == EXIT_NONE:
             continue
         hits += 1
@@ -93,9 +93,9 @@ def test_the_block_leaves_rest_where_the_stage_it_enters_accelerates(tips: bool)
             assert kind == EXIT_ROCK_PLUS and rocking_acceleration(0.0, 1.0, gx, gz, alpha, k) > 0.0
         else:
             assert kind == EXIT_SLIDE_PLUS and sliding_acceleration(1.0, gx, gz, mu) > 0.0
-        root = t_a + dt * rest_margins(a0, 0.0, 1.0, 0.0, ca, sa, mu)[0 if tips else 2] / (
-            rest_margins(a0, 0.0, 1.0, 0.0, ca, sa, mu)[0 if tips else 2]
-            - rest_margins(a0 + slope * dt, 0.0, 1.0, 0.0, ca, sa, mu)[0 if tips else 2])
+        root = t_a + dt * rest_margins(a0, 0.0, 1.0, 0.0, ca, sa, ca, sa, mu)[0 if tips else 2] / (
+            rest_margins(a0, 0.0, 1.0, 0.0, ca, sa, ca, sa, mu)[0 if tips else 2]
+            - rest_margins(a0 + slope * dt, 0.0, 1.0, 0.0, ca, sa, ca, sa, mu)[0 if tips else 2])
         assert abs(t_x - max(root, t_a)) < 1e-13  # from the interval's start if it is already past
     assert hits > 0
 

@@ -34,6 +34,28 @@ def test_a_table_v_body_matches_the_closed_forms(index: int) -> None:
     assert result.uplift_g["low"] < result.uplift_g["high"]  # the tilt favours the low side (Eq. 1)
 
 
+def test_an_off_centre_table_v_body_shows_each_sides_slenderness_and_impact() -> None:
+    """T5-1 as printed (centre of mass 47.5 mm from its +x corner, 51.5 mm from its −x corner, 243 mm up): the uplift
+    on each side at 5° meets Eq. 1 with that side's α (α+ = 11.06°, α− = 11.97°; the centred block's 11.36° would be
+    5 % off on the low side), the slenderness it shows on each side is the body's within 0.15°, and the
+    free-rocking restitution and quarter period on each side meet Housner's per direction and the linearised closed
+    form with that side's p."""
+    body = TABLE_V[0]
+    result = characterise(Specimen(body, friction=0.8), TILT)
+    errors = result.errors()
+    assert result.slenderness_deg == pytest.approx({"plus": 11.0603, "minus": 11.9659}, abs=1e-4)
+    assert abs(errors["uplift_low"]) < 0.02 and abs(errors["uplift_high"]) < 0.02, result
+    assert abs(errors["slenderness_plus_deg"]) < 0.15 and abs(errors["slenderness_minus_deg"]) < 0.15, result
+    measured = result.slenderness_measured_deg
+    assert measured["minus"] - measured["plus"] == pytest.approx(11.9659 - 11.0603, abs=0.3)
+    centred_low = math.tan(body.alpha - TILT)
+    assert abs(result.uplift_g["low"] / centred_low - 1.0) > 0.03  # not the centred block's threshold
+    assert (result.restitution_housner, result.restitution_housner_minus) == body.housner_restitutions()
+    assert abs(errors["restitution"]) < 0.05 and abs(errors["restitution_minus"]) < 0.05, result
+    assert abs(errors["quarter_period"]) < 0.02 and abs(errors["quarter_period_minus"]) < 0.02, result
+    assert (result.b_cg, result.h_cg) == (0.0515, 0.243)
+
+
 @pytest.mark.parametrize("index", [0, 2])  # T5-1 and T5-3: Housner's e 0.94 and 0.87
 def test_the_restitution_read_at_the_impacts_matches_the_one_read_from_the_amplitudes(index: int) -> None:
     """`analysis.restitution` (what ``rig analyze --restitution fit`` uses: rates across each impact from the
@@ -74,9 +96,9 @@ def test_a_set_restitution_holds_at_every_impact_of_the_free_rocking() -> None:
     over the whole decay, and each amplitude is the closed-form one of the previous times e (energy conserved
     between impacts), not only the first."""
     specimen = Specimen(TABLE_V[0], restitution=0.85)
-    alpha, p = specimen.body.alpha, specimen.body.p
+    body = specimen.body  # its centre of mass is off the middle: each corner's α and p (α+ on the release side)
     scene = SpecimenScene([specimen])
-    scene.place(leans=[0.5 * alpha])
+    scene.place(leans=[0.5 * body.alpha_plus])
     times = np.arange(1, 4001) * 1e-3
     still = np.zeros((times.size, 6))
     parts = []
@@ -89,12 +111,13 @@ def test_a_set_restitution_holds_at_every_impact_of_the_free_rocking() -> None:
     assert fit.value == pytest.approx(0.85, rel=0.05)
     crossings = np.flatnonzero(np.sign(angles[1:]) != np.sign(angles[:-1]))
     peaks = [float(np.abs(angles[a:b]).max()) for a, b in itertools.pairwise(crossings)][:4]
-    peaks.insert(0, 0.5 * alpha)
+    peaks.insert(0, 0.5 * body.alpha_plus)
 
-    def rate(amplitude: float) -> float:  # |θ'| at θ = 0 after rising to ``amplitude`` (energy conservation)
+    def rate(amplitude: float, n: int) -> float:  # |θ'| at θ = 0 after rising to ``amplitude`` on the n-th lean
+        alpha, p = (body.alpha_plus, body.p_plus) if n % 2 == 0 else (body.alpha_minus, body.p_minus)
         return p * math.sqrt(2.0 * (math.cos(alpha - amplitude) - math.cos(alpha)))
 
-    ratios = [rate(after) / rate(before) for before, after in itertools.pairwise(peaks)]
+    ratios = [rate(after, n + 1) / rate(before, n) for n, (before, after) in enumerate(itertools.pairwise(peaks))]
     assert len(ratios) == 4 and all(r == pytest.approx(0.85, rel=0.05) for r in ratios), ratios
 
 
@@ -142,7 +165,7 @@ def test_a_restitution_outside_the_model_is_refused() -> None:
         Specimen(TABLE_V[0], restitution=1.2)
     with pytest.raises(ValueError, match="too stocky for the impact model"):
         parse_body("1.0x0.6;restitution=0.5")
-    with pytest.raises(ValueError, match=r"unknown option\(s\) e \(depth, mass, mu, restitution\)"):
+    with pytest.raises(ValueError, match=r"unknown option\(s\) e \(depth, mass, mu, restitution, cg\)"):
         parse_body("0.1x0.5;e=0.5")
 
 
@@ -150,9 +173,11 @@ def test_a_restitution_outside_the_model_is_refused() -> None:
 def test_light_bodies_stand_still_on_a_tilted_plate(index: int) -> None:
     """With MuJoCo's default solver tolerance (1e-8) these bodies chattered on a 5° plate at rest (|θ| up to
     0.03 rad, creeping millimetres downhill): the plate's armature dominated Newton's cost."""
-    scene, largest = at_rest_on_the_tilt(Specimen(TABLE_V[index], friction=0.8))
+    body = TABLE_V[index]
+    scene, largest = at_rest_on_the_tilt(Specimen(body, friction=0.8))
     assert largest < 1e-4
-    assert abs(scene.specimen_places()[0, 0]) < 1e-4
+    # the point under its centre of mass, b_cg − b/2 from the base's centre (T5-5: 0.5 mm), has not crept
+    assert abs(scene.specimen_places()[0, 0] - (body.cg[0] - 0.5 * body.b)) < 1e-4
 
 
 @pytest.mark.integration

@@ -49,7 +49,22 @@ RATE = 1000.0
 # ---------------------------------------------------------------------------------------------------- helpers
 def body_row(body_id: int, body: Body) -> dict[str, Any]:
     return {"body_id": body_id, "b": body.b, "h": body.h, "depth": body.depth or 0.1, "mass": body.mass or 1.0,
-            "x": 0.0, "y": 0.0, "name": body.name}
+            "x": 0.0, "y": 0.0, "name": body.name, "b_cg": body.b_cg, "h_cg": body.h_cg}
+
+
+def test_a_session_body_row_gives_the_body_with_its_centre_of_gravity(tmp_path: Path) -> None:
+    """The session keeps each body's b_cg, h_cg (NaN: the middle) and the analysis models that body; a row of a file
+    written before (no b_cg, h_cg) is the centred block."""
+    from rig.analyze.session import body_of
+
+    path = write_session(tmp_path / "cg.h5", [{"angle_deg": 0.0, "commanded": np.zeros((3, 7)),
+                                               "bodies": [body_row(1, TABLE_V[0]), body_row(2, TABLE_I[0])],
+                                               "accel": {"0": np.zeros((3, 4))}}])
+    rows = read_session(path)["runs"][0]["bodies"]
+    assert body_of(rows[0]) == TABLE_V[0] and body_of(rows[0]).alpha_plus < body_of(rows[0]).alpha_minus
+    assert body_of(rows[1]) == dataclasses.replace(TABLE_I[0], depth=0.1, mass=1.0)
+    old = {key: value for key, value in rows[0].items() if key not in ("b_cg", "h_cg")}
+    assert body_of(old).centred and body_of(old).b == TABLE_V[0].b
 
 
 def specific_force(commanded: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

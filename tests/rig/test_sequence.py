@@ -155,6 +155,15 @@ def test_paper_campaign_every_drive_is_inside_the_table() -> None:
     (23, "y = 0.15\nrestitution = 1.2", 24,
      "bodies[2].restitution: expected the body's measured coefficient of restitution, in (0, 1], got 1.2"),
     (23, "y = 0.15\nrestitution = 0", 24, "bodies[2].restitution: expected the body's measured coefficient"),
+    # the centre of gravity: inside the body, b_cg from the -x corner
+    (21, "mass = 0.56\nb_cg = 0.049", 22, "bodies[2].b_cg: expected the centre of gravity from the base's -x "
+                                          "(uphill) corner along +x in metres, inside the body: 0 < b_cg < b = "
+                                          "0.049 m, got 0.049"),
+    (21, "mass = 0.56\nh_cg = 0", 22, "bodies[2].h_cg: expected the centre of gravity above the base in metres, inside "
+                                     "the body: 0 < h_cg < h = 0.2 m, got 0"),
+    (21, 'mass = 0.56\nh_cg = "0.1"', 22, "bodies[2].h_cg: expected the centre of gravity above the base"),
+    (12, "table5 = 4\nb_cg = 0.05", 13, "bodies[1].b_cg: expected the centre of gravity from the base's -x (uphill) "
+                                       "corner along +x in metres, inside the body: 0 < b_cg < b = 0.039 m, got 0.05"),
     # record entries
     (5, '    { record = "fema-nearfield:NORTHR/RRS_032", scale = 1.5 },', 5,
      'records[2].scale: expected "table" or a fixed factor from 0.001 to 1, got 1.5'),
@@ -313,6 +322,36 @@ def test_a_bodys_measured_restitution_is_read_kept_and_given_to_the_emulator(tmp
     assert placed.restitution == 0.85 and (placed.x, placed.y, placed.friction) == (0.0, 0.15, 0.8)
 
 
+def test_a_bodys_centre_of_gravity_is_read_kept_and_given_to_the_emulator(tmp_path: Path) -> None:
+    """Table V's centre of gravity comes with table5 = N (and a b_cg given beside it replaces the paper's: the block
+    mounted the other way round); dimensions take b_cg, h_cg; the sequence keeps them, the emulator gets them."""
+    text = BASE.replace("table5 = 4\n", "table5 = 1\n").replace("y = -0.15", "y = -0.25") + "b_cg = 0.026\n"
+    seq = load_sequence(write(tmp_path, text))
+    t5_1, b2 = (b.body for b in seq.bodies)
+    assert t5_1 == TABLE_V[0] and (t5_1.b_cg, t5_1.h_cg) == (0.0515, 0.243)
+    assert (b2.b_cg, b2.h_cg) == (0.026, None) and b2.cg == (0.026, 0.1)
+    data = seq.to_dict()
+    assert data["bodies"][0]["b_cg"] == 0.0515 and "h_cg" not in data["bodies"][1]
+    assert Sequence.from_dict(json.loads(json.dumps(data))).bodies == seq.bodies
+    flags = specimen_flags(seq.bodies)
+    assert flags[1].endswith(";cg=0.0515,0.243") and flags[3].endswith(";cg=0.026,0.1")
+    assert parse_body(flags[1]).body.cg == (0.0515, 0.243)
+    mirrored = load_sequence(write(tmp_path, text.replace("table5 = 1\n", "table5 = 1\nb_cg = 0.0475\n")))
+    assert mirrored.bodies[0].body.cg == (0.0475, 0.243) and mirrored.bodies[0].name == "T5-1"
+    assert mirrored.bodies[0].body.alpha_plus == pytest.approx(TABLE_V[0].alpha_minus)
+
+
+def test_a_body_stands_only_below_its_slenderness_towards_the_low_side(tmp_path: Path) -> None:
+    """A plate tilted towards +x tips a block over its downhill corner at β = α+ = atan((b − b_cg)/h_cg)."""
+    text = BASE.replace("mass = 0.56\n", "mass = 0.56\nb_cg = 0.04\n")  # 9 mm from its downhill corner: α+ = 5.1°
+    seq = load_sequence(write(tmp_path, text.replace("angles_deg = [0, 5]", "angles_deg = [0, 5.5]")))
+    problem = seq.bodies[1].standing_problem(5.5)
+    assert problem is not None and "atan((b − b_cg)/h_cg), towards +x (downhill), = 5.14°" in problem
+    assert seq.bodies[1].standing_problem(5.0) is None
+    error = refused(tmp_path, text.replace("angles_deg = [0, 5]", "angles_deg = [0, 5.5]"), check=True)
+    assert "body 2 (B" in str(error) and "cannot stand at β = 5.5°" in str(error)
+
+
 def test_from_dict_errors_name_the_key_without_a_line() -> None:
     data = load_sequence(EXAMPLES / "quick.toml").to_dict()
     data["bodies"][1]["h"] = -1.0
@@ -377,3 +416,23 @@ def test_bad_polarity_is_refused_at_its_line(tmp_path: Path, text: str, line: in
     with pytest.raises(SequenceError, match=message.replace("[", r"\[").replace("]", r"\]")) as err:
         load_sequence(write(tmp_path, text + base))
     assert err.value.line == line
+
+
+def test_rig_study_bodies_take_table_v_and_a_centre_of_gravity(tmp_path: Path) -> None:
+    """``rig study --bodies``: Table V with its centres of gravity, or sizes each with an optional ;cg=BCG,HCG (its
+    comma is not a new body); a saved study keeps them."""
+    from analysis.body import TABLE_I, Body
+    from analysis.study import study
+    from rig.cli.study import parse_bodies
+    from rig.records import load_records
+    from rig.study_file import read_study, write_study
+    from rig.study_summary import study_summary
+
+    assert parse_bodies("table5") == list(TABLE_V) and parse_bodies("table5:1,5") == [TABLE_V[0], TABLE_V[4]]
+    assert parse_bodies("0.099x0.493;cg=0.0515,0.243,0.2x1.0") == [Body(0.099, 0.493, b_cg=0.0515, h_cg=0.243),
+                                                                  Body(0.2, 1.0)]
+    assert parse_bodies("table1:2") == [TABLE_I[1]]
+    res = study([TABLE_V[0], TABLE_I[0]], load_records("fema-farfield")[:1], np.radians([0.0]))
+    saved = read_study(write_study(res, study_summary(res), tmp_path / "s.h5"))
+    assert [(b.b, b.h, b.b_cg, b.h_cg) for b in saved.bodies] == [(0.099, 0.493, 0.0515, 0.243),
+                                                                 (0.04, 0.2, None, None)]

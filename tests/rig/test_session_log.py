@@ -70,7 +70,8 @@ def _commanded(plan: int) -> np.ndarray:
     return np.column_stack([t, *(np.sin(t + i + plan) * 0.01 for i in range(6))])
 
 
-BODIES = [{"body_id": 1, "b": 0.10, "h": 0.50, "depth": 0.10, "mass": 4.0, "x": 0.20, "y": -0.1, "name": "B1"},
+BODIES = [{"body_id": 1, "b": 0.10, "h": 0.50, "depth": 0.10, "mass": 4.0, "x": 0.20, "y": -0.1, "name": "B1",
+           "b_cg": 0.052, "h_cg": 0.24},
           {"body_id": 2, "b": 0.05, "h": 0.30, "depth": 0.05, "mass": 1.0, "x": -0.2, "y": 0.1}]
 
 
@@ -341,7 +342,10 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
     assert r["sensors"] == ["plate", "body1"] and r["status"] == "completed"
     assert r["detections"] == [{"t": 0.2, "body_id": 1, "direction": 1, "source": "sensor"},
                                {"t": 0.3, "body_id": 2, "direction": -1, "source": "operator"}]
-    assert r["bodies"][1] == {**BODIES[1], "name": ""}
+    assert r["bodies"][0] == BODIES[0]  # with its centre of gravity
+    no_cg = {key: value for key, value in r["bodies"][1].items() if key not in ("b_cg", "h_cg")}
+    assert no_cg == {**BODIES[1], "name": ""} and math.isnan(r["bodies"][1]["b_cg"]) and math.isnan(
+        r["bodies"][1]["h_cg"])  # not given: NaN, the middle
     assert r["faults"][0]["name"] == "underrun" and r["faults"][0]["detail"].endswith("é")
     assert len(r["faults"][0]["detail"].encode()) <= 512
     assert r["events"] == [{"t": 0.0, "text": "state: streaming"}]
