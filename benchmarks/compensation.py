@@ -11,9 +11,10 @@ and 5 % response-spectrum error, the full-level plays needed to reach ≤ 5 % fa
 achieved acceleration / its Table IV limit over every play (≤ 1 for a play inside the limits) and the time per play.
 
 **How the table is played.** By default offline: ``sim_table.offline.play_offline`` runs the emulator's own
-physics — the legs as ``rig emulate --dynamics servo`` (today's plant: six equal legs, each carrying a sixth of the
-plate and the bodies' mass), the plate track, the accelerometers with their noise — on the drive's 1 kHz samples,
-without a transport or a clock: virtual time, every play as fast as the machine computes it. With ``--emulator``
+physics — the legs as ``rig emulate --dynamics servo`` (the rigid plate with the bodies' mass on the six legs along
+their axes: its surge and lateral modes near 4.2 Hz), the plate track, the accelerometers with their noise — on
+the drive's 1 kHz samples, without a transport or a clock: virtual time, every play as fast as the machine computes
+it. With ``--emulator``
 each case runs instead through ``rig iterate``'s own path (``rig.compensation.session``) on an emulator process at
 ``--speed max`` (virtual time, MAVLink on loopback, the seven bodies in MuJoCo); under heavy load the stream's
 watchdog can stop a play, which the case then records.
