@@ -61,8 +61,11 @@ stream of one-sample chunks:
   on (``preserve_timestamps``), so the master dates them right. A bus that stamps frames when they are received
   (``udp_multicast``, as a CAN interface does) leaves the master to date an answer by the last SYNC it sent before
   it: right while both ends answer within the cycle, as real drives do; two Python processes on a busy machine do
-  not always (an answer taken for a later SYNC's is dated that much late). One accelerometer sample per SYNC: a
-  sensor's count is duration × SYNC rate.
+  not always (an answer taken for a later SYNC's would be dated that much late). So where the bus has room for it
+  the master turns the SYNC counter on (0x1019) and maps the answered SYNC's counter into the TPDOs
+  (``TPDO1_COUNTED``, ``ACCEL_TPDO1_COUNTED`` in :mod:`protocols.canopen`): every answer here then carries the
+  counter of the SYNC it answers, and the master dates it by that. One accelerometer sample per SYNC: a sensor's
+  count is duration × SYNC rate.
 - *Overturns.* The detector sends each event at once and :data:`~protocols.canopen.sensors.EVENT_REPEATS` times
   100 ms apart (real time), each copy with its age.
 - *Heartbeats.* Every node produces them as the master set 0x1017 (canopen's ``NmtSlave``); the master's own
@@ -104,8 +107,8 @@ from protocols.canopen import (
     MASTER_NODE_ID,
     RPDO1,
     TPDO1,
+    TPDO1_COUNTED,
     Command,
-    Feedback,
     LegScaling,
     PdoSpec,
     State,
@@ -116,6 +119,7 @@ from protocols.canopen import (
 from protocols.canopen import od as drive_od
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
+    ACCEL_TPDO1_COUNTED,
     ACCELEROMETER_NODE_IDS,
     BODY_COUNT,
     BODY_RECORDS,
@@ -179,6 +183,7 @@ _FOLLOWS, _LIMIT_ACTIVE = int(StatusBit.FOLLOWS_TARGET), int(StatusBit.INTERNAL_
 _FOLLOWING_ERROR = int(StatusBit.FOLLOWING_ERROR)
 _FAULTED = (State.FAULT, State.FAULT_REACTION_ACTIVE)
 _WINDOW_OFF = 0xFFFF_FFFF
+_COUNTED = (TPDO1_COUNTED, ACCEL_TPDO1_COUNTED)
 """0x6065 value that switches the following-error supervision off (CiA 402)."""
 
 
@@ -273,16 +278,18 @@ class Recent:
 
 
 class _Node:
-    """One emulated node: its ``LocalNode``, the PDO maps it supports (``receives``/``transmits``: the specs of its
-    RPDO1/TPDO1), and whether it read the maps the master wrote since NMT last changed its state."""
+    """One emulated node: its ``LocalNode``, the PDO maps it supports (``receives``: the spec of its RPDO1;
+    ``transmit_maps``: those its TPDO1 may hold, the master chooses), the one the master mapped in TPDO1
+    (``transmits``), and whether it read the maps the master wrote since NMT last changed its state."""
 
     receives: PdoSpec | None = None
-    transmits: PdoSpec | None = None
+    transmit_maps: tuple[PdoSpec, ...] = ()
 
     def __init__(self, node: canopen.LocalNode) -> None:
         self.node = node
         self.mapped = False
         self.supported = False
+        self.transmits: PdoSpec | None = None
         node.add_read_callback(self._read)
 
     def _read(self, index: int, subindex: int, od: Any) -> float | None:
@@ -295,15 +302,21 @@ class _Node:
 
     def pdos(self) -> bool:
         """Whether the node's PDOs work: operational, and the maps the master wrote (read on the first call since
-        NMT started it) are the ones the device supports (its PDO specs; another map gets no PDO traffic)."""
+        NMT started it) are ones the device supports (its PDO specs; another map gets no PDO traffic)."""
         if not self.operational:
             return False
         if not self.mapped:
             self.node.pdo.read()
             self.mapped = True
-            maps = ((self.node.rpdo.map.get(1), self.receives), (self.node.tpdo.map.get(1), self.transmits))
-            self.supported = all(_maps(pdo_map, spec) for pdo_map, spec in maps if spec is not None)
+            rpdo, tpdo = self.node.rpdo.map.get(1), self.node.tpdo.map.get(1)
+            self.transmits = next((spec for spec in self.transmit_maps if _maps(tpdo, spec)), None)
+            self.supported = (self.receives is None or _maps(rpdo, self.receives)) and (
+                not self.transmit_maps or self.transmits is not None)
         return self.supported
+
+    def counted(self) -> bool:
+        """Whether the TPDO1 the master mapped carries the answered SYNC's counter (last object, UNSIGNED8)."""
+        return self.transmits in _COUNTED
 
 
 def _maps(pdo_map: Any, spec: PdoSpec) -> bool:
@@ -315,7 +328,7 @@ def _maps(pdo_map: Any, spec: PdoSpec) -> bool:
 class _Drive(_Node):
     """One emulated leg drive: CiA 402 state, latched setpoint, the position it reports."""
 
-    receives, transmits = RPDO1, TPDO1
+    receives, transmit_maps = RPDO1, (TPDO1, TPDO1_COUNTED)
 
     def __init__(self, node: canopen.LocalNode, target_delay: float) -> None:
         super().__init__(node)
@@ -371,7 +384,7 @@ class _Drive(_Node):
 class _Sensor(_Node):
     """One emulated plate accelerometer: the samples of its sensor and the one it sends."""
 
-    transmits = ACCEL_TPDO1
+    transmit_maps = (ACCEL_TPDO1, ACCEL_TPDO1_COUNTED)
 
     def __init__(self, node: canopen.LocalNode) -> None:
         super().__init__(node)
@@ -389,7 +402,7 @@ class _Sensor(_Node):
 class _Detector(_Node):
     """The emulated overturn detector: the event it is sending and the bodies on the plate it holds."""
 
-    transmits = EVENT_TPDO1
+    transmit_maps = (EVENT_TPDO1,)
 
     def __init__(self, node: canopen.LocalNode, bodies: tuple[BodyOnPlate, ...]) -> None:
         super().__init__(node)
@@ -449,8 +462,8 @@ class CanopenEndpoint:
         self._lock = threading.RLock()
         self._legs = Recent(6)
         self._commands = Recent(6)  # the legs' commanded lengths, at the same ticks
-        self._answers: deque[tuple[int, float, list[int]]] = deque()
-        """SYNCs to answer: (measured, stamp, statuswords)."""
+        self._answers: deque[tuple[int, float, int, list[int]]] = deque()
+        """SYNCs to answer: (measured, stamp, SYNC counter, statuswords)."""
         self._grid: SyncGrid | None = None
         self._enabled = False  # all six drives operation enabled in CSP: the core follows
         self._next_seq = 0
@@ -494,14 +507,16 @@ class CanopenEndpoint:
         a drive answers at once; this thread may have had to wait for the interpreter)."""
         now = time.monotonic_ns()
         arrived = min(now, now - round((time.time() - timestamp) * 1e9))
+        counter = data[0] if len(data) == 1 else 0  # CiA 301: the SYNC counter, when 0x1019 is on
         with self._lock:
             self.counters.sync_handling_max_us = max(self.counters.sync_handling_max_us, (now - arrived) * 1e-3)
             latched = [self._latch(drive) for drive in self.drives]
             if self.delay_ns:
                 delay = self.delay_ns
-                self._hold(now + delay, lambda: self._sync(arrived + delay, timestamp + delay * 1e-9, latched))
+                self._hold(now + delay,
+                           lambda: self._sync(arrived + delay, timestamp + delay * 1e-9, counter, latched))
             else:
-                self._sync(arrived, timestamp, latched)
+                self._sync(arrived, timestamp, counter, latched)
 
     def _latch(self, drive: _Drive) -> tuple[int, int] | None:
         """The (controlword, target) of the drive's last RPDO1; None if its PDOs do not work (not operational, or
@@ -515,9 +530,10 @@ class CanopenEndpoint:
         setpoint = RPDO1.decode(bytes(rx.data))
         return setpoint.controlword, setpoint.target_position
 
-    def _sync(self, host_ns: int, stamp: float, latched: list[tuple[int, int] | None]) -> None:
-        """One SYNC, arrived at host time ``host_ns`` (``stamp`` [s, wall clock]) with the drives' latched RPDOs
-        (module docstring); the TPDOs answering it carry ``stamp``."""
+    def _sync(self, host_ns: int, stamp: float, counter: int, latched: list[tuple[int, int] | None]) -> None:
+        """One SYNC, arrived at host time ``host_ns`` (``stamp`` [s, wall clock]) carrying ``counter`` (0: none)
+        with the drives' latched RPDOs (module docstring); the TPDOs answering it carry ``stamp`` (and the counter,
+        where the master mapped it)."""
         arrival = self.clock(host_ns)
         grid = self._sync_grid()
         slot, new_series = grid.place(arrival)
@@ -538,7 +554,7 @@ class CanopenEndpoint:
             self._end_stream(host_ns, arrival)
         if self._enabled:
             self._setpoint(host_ns, arrival, slot + _ns(self.target_delay))
-        self._feedback(slot, stamp)
+        self._feedback(slot, stamp, counter)
 
     def _sync_grid(self) -> SyncGrid:
         """The grid of the cycle period the master set (0x1006 [µs]; a new grid when it changes)."""
@@ -591,10 +607,11 @@ class CanopenEndpoint:
         period = self._sync_grid().period_ns
         self._post(host_ns, arrival, lambda core: core.chunk(seq, due, period, pose[None, :], True, True, arrival))
 
-    def _feedback(self, slot: int, stamp: float) -> None:
-        """Answer the SYNC in ``slot`` (stamped ``stamp``): each drive's statusword as of now, positions and
-        accelerations as of ``slot −`` the feedback delay — at once if the physics has computed that instant, else
-        when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp)."""
+    def _feedback(self, slot: int, stamp: float, counter: int) -> None:
+        """Answer the SYNC in ``slot`` (stamped ``stamp``, carrying ``counter``): each drive's statusword as of now,
+        positions and accelerations as of ``slot −`` the feedback delay — at once if the physics has computed that
+        instant, else when it has (:meth:`add_legs`, :meth:`add_accel`; the TPDOs keep the SYNC's stamp and
+        counter)."""
         follows = self._enabled and not self.stall_chunks and self._core_state is CoreState.STREAMING
         flags = _REMOTE | (_LIMIT_ACTIVE if self._faults & _LIMITS else 0)
         words = [statusword(d.state, flags | (_VOLTAGE if d.state is not State.SWITCH_ON_DISABLED else 0)
@@ -603,7 +620,7 @@ class CanopenEndpoint:
         if len(self._answers) >= HISTORY:  # the physics stopped (the emulator is closing)
             self._answers.popleft()
             self.counters.answers_dropped += 1
-        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, words))
+        self._answers.append((slot - _ns(FEEDBACK_DELAY), stamp, counter, words))
         self._answer()
         self.counters.feedback_deferred += bool(self._answers)  # this one waits for the physics
 
@@ -611,7 +628,7 @@ class CanopenEndpoint:
         """Send the waiting answers whose instant the physics has computed, in order."""
         g = self.table.geometry
         while self._answers:
-            measured, stamp, words = self._answers[0]
+            measured, stamp, counter, words = self._answers[0]
             fed = [s.samples.newest_ns for s in self.sensors if s.samples.newest_ns is not None]
             if self._legs.newest_ns is None or min([self._legs.newest_ns, *fed]) < measured:
                 return
@@ -622,11 +639,11 @@ class CanopenEndpoint:
                 drive.position = self.scaling.position(length)
                 drive.following_error = error
                 drive.flags = word & ~0x6F
-                self._transmit(drive, Feedback(word, drive.position), stamp)
+                self._transmit(drive, (word, drive.position), stamp, counter)
             for sensor in self.sensors:
                 if sensor.samples.newest_ns is not None:
                     sensor.sample = encode_force(sensor.samples.at(measured))
-                    self.counters.accel_samples_sent += self._transmit(sensor, sensor.sample, stamp)
+                    self.counters.accel_samples_sent += self._transmit(sensor, sensor.sample, stamp, counter)
 
     def _watch_following(self, lengths: np.ndarray, commanded: np.ndarray) -> None:
         """Each enabled drive watches its following error at every tick of the physics while the core streams, as a
@@ -657,13 +674,14 @@ class CanopenEndpoint:
         arrival = self.clock(now)
         self._post(now, arrival, lambda core: core.raise_fault(Fault.DRIVE, arrival))
 
-    def _transmit(self, device: _Node, values: tuple[int, ...], stamp: float | None = None) -> bool:
-        """Send the node's TPDO1 carrying ``values`` (time stamp ``stamp``, default now); whether it went out (PDOs
-        working, TPDO1 enabled, not lost)."""
+    def _transmit(self, device: _Node, values: tuple[int, ...], stamp: float | None = None, counter: int = 0) -> bool:
+        """Send the node's TPDO1 carrying ``values`` (and ``counter``, the answered SYNC's, where the master mapped
+        it) stamped ``stamp`` (default now); whether it went out (PDOs working, TPDO1 enabled, not lost)."""
         if not device.pdos() or not device.node.tpdo[1].enabled:
             return False
         assert device.transmits is not None
-        return self._send(device.node.tpdo[1].cob_id, device.transmits.encode(values), stamp)
+        payload = device.transmits.encode((*values, counter) if device.counted() else values)
+        return self._send(device.node.tpdo[1].cob_id, payload, stamp)
 
     def _on_nmt(self, can_id: int, data: bytearray, timestamp: float) -> None:
         """After the nodes took an NMT command: PDO maps are read again once operational; a drive that stops being

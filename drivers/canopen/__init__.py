@@ -62,11 +62,19 @@ faults            an EMCY (0x8130 → HEARTBEAT_LOST: the drives lost this maste
                   drive's fault reaction runs (the table's own, e.g. the emulator's return home), then ``faulted``.
 ================  ================================================================================================
 
-**Time.** On CANopen the controller is this master: controller time is its clock (host monotonic ns). A frame
-answers the last SYNC sent before its time stamp (python-can's: the receive time, or on the ``virtual`` bus the
-sender's); a status reports the pose of the newest SYNC all six drives answered, measured at that SYNC's time minus
-the feedback delay; an accelerometer sample is from its SYNC's time minus the sample delay, so a sensor's count is
-duration × SYNC rate; an overturn happened its age before its frame.
+**Time.** On CANopen the controller is this master: controller time is its clock (host monotonic ns). Where the bus
+has room for it (:attr:`~drivers.canopen.master.MasterBase.sync_counter`: the counted cycle within the 80 % limit,
+e.g. 400 Hz or less with one accelerometer at 1 Mbit/s, not the default 500 Hz) the master turns the SYNC counter on
+(0x1019 = 240 on every drive and accelerometer: each SYNC carries 1..240) and maps the answered SYNC's counter into
+their TPDOs (``TPDO1_COUNTED``, ``ACCEL_TPDO1_COUNTED``): a frame answers the last SYNC sent before its time stamp
+that carried its counter, so an answer that comes late — a drive, or an emulator process, held up for up to 240
+cycles — is still dated by its own SYNC. Without the counter a frame answers the last SYNC sent before its time
+stamp (python-can's: the receive time, or on the ``virtual`` bus the sender's): exact for drives that answer within
+the cycle, as real CSP drives do. An answer for a SYNC whose status is out already is kept from the statuses, an
+accelerometer sample for an index had (or counted lost) already is dropped (``accel_samples_stale``). A status
+reports the pose of the newest SYNC all six drives answered, measured at that SYNC's time minus the feedback delay;
+an accelerometer sample is from its SYNC's time minus the sample delay, so a sensor's count is duration × SYNC rate;
+an overturn happened its age before its frame.
 
 **Authentication.** CAN has none and neither does CANopen: this transport relies on the bus being a private cable
 between the lab host and the table (nothing else attached, not bridged to a network). Nothing is signed, and the

@@ -63,7 +63,7 @@ class SyncCycle(MasterBase):
             send(RPDO1.cob_id(link.node.id), RPDO1.encode(setpoint))
         with self._lock:
             self._syncs.append((time.time(), index, deadline))
-        send(SYNC_COB_ID, b"")
+        send(SYNC_COB_ID, bytes([self._sync_counter(index)]) if self.sync_counter else b"")
         if heartbeat:
             send(_HEARTBEAT_COB_ID + MASTER_NODE_ID, bytes([NMT_OPERATIONAL]))
         with self._lock:

@@ -14,8 +14,7 @@ from drivers.canopen.faults import FAULT_ORDER
 from drivers.canopen.master import MasterBase
 from drivers.canopen.nodes import DriveLink, SensorLink
 from drivers.controller import AccelBatch, Detection, TableStatus
-from protocols.canopen import TPDO1
-from protocols.canopen.sensors import ACCEL_TPDO1, EVENT_TPDO1, decode_force, event_age_ns, event_tilt
+from protocols.canopen.sensors import EVENT_TPDO1, ForceSample, decode_force, event_age_ns, event_tilt
 
 STATUS_RATE = 50.0
 """Statuses per second (and one at every state change)."""
@@ -27,28 +26,35 @@ ACCEL_BATCH = 25
 class FeedbackFrames(MasterBase):
     """The PDO callbacks of the network's thread, and the poses and statuses of the frames they collect."""
 
-    def _answered(self, timestamp: float) -> tuple[int, int] | None:
-        """(index, deadline [ns]) of the SYNC a frame with this time stamp answered: the last one sent before it."""
+    def _answered(self, timestamp: float, counter: int | None) -> int | None:
+        """The index of the SYNC a frame with this time stamp answered: the last one sent before it — with
+        ``counter`` (the SYNC counter the frame names), the last such one that carried it."""
         with self._lock:
-            for wall, index, deadline in reversed(self._syncs):
-                if wall <= timestamp:
-                    return index, deadline
+            for wall, index, _ in reversed(self._syncs):
+                if wall <= timestamp and (counter is None or self._sync_counter(index) == counter):
+                    return index
         return None
 
     def _on_drive(self, link: DriveLink, pdo_map: Any) -> None:
-        feedback = TPDO1.decode(bytes(pdo_map.data))
-        answered = self._answered(pdo_map.timestamp)
+        feedback = self.drive_tpdo.decode(bytes(pdo_map.data))
+        index = self._answered(pdo_map.timestamp, feedback[2] if self.sync_counter else None)
+        if index is None:
+            return
         with self._lock:
-            link.statusword, link.position = feedback.statusword, feedback.position_actual
-            if answered is not None:
-                self._frames.setdefault(answered[0], {})[self._drives.index(link)] = feedback.position_actual
+            if index > link.answered:  # a later SYNC's answer already told its newer state
+                link.statusword, link.position, link.answered = feedback.statusword, feedback.position_actual, index
+            if index > self._framed:  # else its SYNC's status is out: it came too late for it
+                self._frames.setdefault(index, {})[self._drives.index(link)] = feedback.position_actual
 
     def _on_accel(self, sensor: SensorLink, pdo_map: Any) -> None:
-        answered = self._answered(pdo_map.timestamp)
-        if answered is None:
+        sample = self.accel_tpdo.decode(bytes(pdo_map.data))
+        index = self._answered(pdo_map.timestamp, sample[3] if self.sync_counter else None)
+        if index is None:
             return
-        force = decode_force(ACCEL_TPDO1.decode(bytes(pdo_map.data)))
-        index = answered[0]
+        if sensor.next_index is not None and index < sensor.next_index:  # its SYNC's sample came (or was lost) before
+            sensor.stale += 1
+            return
+        force = decode_force(ForceSample(*sample[:3]))
         if sensor.next_index is not None and index != sensor.next_index:
             self._publish_accel(sensor)
             sensor.lost += max(0, index - sensor.next_index)
@@ -100,6 +106,7 @@ class FeedbackFrames(MasterBase):
                     if (deadline := self._deadline(index)) is not None]
         for old in [i for i in self._frames if i <= complete[-1]]:
             del self._frames[old]
+        self._framed = complete[-1]
         self._status_owed = False
         return statuses
 

@@ -19,8 +19,20 @@ from analysis.table.moves import Move, axis_limits
 from drivers.canopen.nodes import DriveLink, NodeLink, SensorLink
 from drivers.canopen.trajectory import Trajectory
 from drivers.controller import FaultSource, TableController, TableError
-from protocols.canopen import DEFAULT_RATE_HZ, LEG_NODE_IDS, LegScaling, check_bus_load, cycle_period_us
-from protocols.canopen.sensors import ACCELEROMETER_NODE_IDS
+from protocols.canopen import (
+    DEFAULT_LIMIT,
+    DEFAULT_RATE_HZ,
+    LEG_NODE_IDS,
+    TPDO1,
+    TPDO1_COUNTED,
+    LegScaling,
+    PdoSpec,
+    bus_load,
+    check_bus_load,
+    cycle_period_us,
+)
+from protocols.canopen.od import SYNC_COUNTER_MAX
+from protocols.canopen.sensors import ACCEL_TPDO1, ACCEL_TPDO1_COUNTED, ACCELEROMETER_NODE_IDS
 
 DEFAULT_BITRATE = 1_000_000
 """Bus bitrate [bit/s] unless the URL or an option says otherwise."""
@@ -68,6 +80,18 @@ class MasterBase(TableController):
             raise ValueError(f"accelerometers must be 0..{len(ACCELEROMETER_NODE_IDS)}, got {count}")
         self.bus_load = check_bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, accelerometers=count)
         """Worst-case share of the bitrate the cycle takes."""
+        counted = bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, count, counted=True) <= DEFAULT_LIMIT
+        self.sync_counter = SYNC_COUNTER_MAX if counted else 0
+        """The SYNC counter's overflow value (0x1019) the master sets, 0 when off: on wherever the bus has room for
+        the counter in SYNC and the answered SYNC's in every TPDO (:mod:`protocols.canopen.pdo_maps`), so an answer
+        is dated by the SYNC it names however late it arrives (up to ``sync_counter`` cycles); off, by the last SYNC
+        sent before its receive time, exact for drives that answer within the cycle."""
+        if counted:
+            self.bus_load = bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, count, counted=True)
+        self.drive_tpdo: PdoSpec = TPDO1_COUNTED if counted else TPDO1
+        """The map of the drives' TPDO1."""
+        self.accel_tpdo: PdoSpec = ACCEL_TPDO1_COUNTED if counted else ACCEL_TPDO1
+        """The map of the accelerometers' TPDO1."""
         self.period_ns = cycle_period_us(self.rate) * 1000
         self.table = table or TableModel()
         geometry = self.table.geometry
@@ -117,6 +141,7 @@ class MasterBase(TableController):
         # feedback (under _lock)
         self._syncs: deque[tuple[float, int, int]] = deque(maxlen=512)  # (wall time sent, index, deadline ns)
         self._frames: dict[int, dict[int, int]] = {}  # SYNC index -> {leg index: position}
+        self._framed = -1  # the newest SYNC whose frame made the statuses: older answers came too late
         self._measured = np.zeros(6)
         self._played: Trajectory | None = None  # the last trajectory streamed to its end
         self.late_cycles = 0
@@ -142,6 +167,10 @@ class MasterBase(TableController):
         self._state = state
         if state != "stopping":
             self._homing_after_stop = False
+
+    def _sync_counter(self, index: int) -> int:
+        """The counter SYNC ``index`` carries (0: none)."""
+        return index % self.sync_counter + 1 if self.sync_counter else 0
 
     def _deadline(self, index: int) -> int | None:
         """The deadline [ns] of SYNC ``index`` (None once forgotten: 512 cycles back)."""

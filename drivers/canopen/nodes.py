@@ -41,6 +41,7 @@ class DriveLink(NodeLink):
         super().__init__(node)
         self.statusword: int | None = None
         self.position = 0
+        self.answered = -1  # the SYNC whose answer gave statusword and position
         self.word = 0
 
     @property
@@ -58,3 +59,4 @@ class SensorLink(NodeLink):
         self.next_index: int | None = None
         self.seq = 0
         self.lost = 0
+        self.stale = 0  # samples dropped: their SYNC's index was had, or counted lost, already

@@ -17,14 +17,12 @@ from protocols.canopen import (
     LEG_NODE_IDS,
     MASTER_NODE_ID,
     RPDO1,
-    TPDO1,
     configure,
     heartbeat_consumer_entry,
     velocity_increments,
 )
 from protocols.canopen import od as drive_od
 from protocols.canopen.sensors import (
-    ACCEL_TPDO1,
     ACCELEROMETER_NODE_IDS,
     DETECTOR_NODE_ID,
     EVENT_TPDO1,
@@ -120,6 +118,7 @@ class SetUp(MasterBase):
                 raise TableError(f"{self.url}: node {node.id} is not a CiA 402 servo drive with CSP")
             sdo[drive_od.PRODUCER_HEARTBEAT_TIME].raw = heartbeat_ms
             sdo[drive_od.CONSUMER_HEARTBEAT_TIME][1].raw = consumer
+            sdo[drive_od.SYNC_COUNTER_OVERFLOW].raw = self.sync_counter
             sdo[drive_od.COMMUNICATION_CYCLE_PERIOD].raw = self.period_ns // 1000
             low, high = self.scaling.software_position_limits
             sdo[drive_od.SOFTWARE_POSITION_LIMIT][1].raw = low
@@ -129,7 +128,7 @@ class SetUp(MasterBase):
             sdo[drive_od.MODES_OF_OPERATION].raw = drive_od.MODE_CYCLIC_SYNCHRONOUS_POSITION
             if sdo[drive_od.MODES_OF_OPERATION_DISPLAY].raw != drive_od.MODE_CYCLIC_SYNCHRONOUS_POSITION:
                 raise TableError(f"{self.url}: drive {node.id} did not take cyclic synchronous position mode")
-            for pdo_map, spec in ((node.rpdo[1], RPDO1), (node.tpdo[1], TPDO1)):
+            for pdo_map, spec in ((node.rpdo[1], RPDO1), (node.tpdo[1], self.drive_tpdo)):
                 configure(pdo_map, spec, node.id)
                 pdo_map.save()
             delays.add((sdo[drive_od.TARGET_DELAY].raw, sdo[drive_od.FEEDBACK_DELAY].raw))
@@ -143,7 +142,8 @@ class SetUp(MasterBase):
         for sensor in self._sensors:
             sdo = self._sdo(sensor.node, deadline)
             sdo[drive_od.PRODUCER_HEARTBEAT_TIME].raw = heartbeat_ms
-            configure(sensor.node.tpdo[1], ACCEL_TPDO1, sensor.node.id)
+            sdo[drive_od.SYNC_COUNTER_OVERFLOW].raw = self.sync_counter
+            configure(sensor.node.tpdo[1], self.accel_tpdo, sensor.node.id)
             sensor.node.tpdo[1].save()
             sample_delays.add(sdo[SAMPLE_DELAY].raw)
             sensor.node.tpdo[1].add_callback(lambda pdo_map, sensor=sensor: self._on_accel(sensor, pdo_map))

@@ -17,6 +17,10 @@ for SDO, heartbeats, NMT, EMCY and the overturn detector's events; it admits up 
 Plate accelerometers (:mod:`protocols.canopen.sensors`) add one 6-byte TPDO each to every cycle: with one,
 1435 + 115 = 1550 bits, 77.5 % at 500 Hz (up to 516 Hz within the limit); two need 1665 bits, 83.25 % at 500 Hz,
 over the limit (400 Hz: 66.6 %).
+
+With the SYNC counter (``counted``: :data:`~protocols.canopen.pdo_maps.TPDO1_COUNTED`), SYNC carries a byte (65 bits)
+and every TPDO one more (7 bytes: 125 bits): six axes and one accelerometer take 65 + 6 × 240 + 125 = 1630 bits,
+81.5 % at 500 Hz (over the limit: the master then dates answers by their receive time) and 40.75 % at 250 Hz.
 """
 
 from __future__ import annotations
@@ -24,8 +28,8 @@ from __future__ import annotations
 import math
 import numbers
 
-from protocols.canopen.pdo_maps import RPDO1, TPDO1
-from protocols.canopen.sensors import ACCEL_TPDO1
+from protocols.canopen.pdo_maps import RPDO1, TPDO1, TPDO1_COUNTED
+from protocols.canopen.sensors import ACCEL_TPDO1, ACCEL_TPDO1_COUNTED
 
 DEFAULT_RATE_HZ = 500
 """SYNC (setpoint) rate of the leg drives [Hz]."""
@@ -34,7 +38,10 @@ DEFAULT_LIMIT = 0.8
 """Largest fraction of the bitrate the cyclic traffic may take."""
 
 SYNC_BYTES = 0
-"""SYNC carries no counter (0x1019 absent)."""
+"""SYNC without a counter (0x1019 = 0)."""
+
+COUNTED_SYNC_BYTES = 1
+"""SYNC with its counter (0x1019 > 0)."""
 
 
 class BusLoadError(ValueError):
@@ -49,13 +56,17 @@ def frame_bits(data_bytes: int) -> int:
     return stuffed + 13 + (stuffed - 1) // 4
 
 
-def cycle_bits(axes: int, accelerometers: int = 0) -> int:
+def cycle_bits(axes: int, accelerometers: int = 0, counted: bool = False) -> int:
     """Worst-case bits of one SYNC cycle with ``axes`` drives and ``accelerometers`` plate accelerometers: SYNC, one
-    RPDO1 and one TPDO1 per axis, one ACCEL_TPDO1 per accelerometer."""
+    RPDO1 and one TPDO1 per axis, one ACCEL_TPDO1 per accelerometer; ``counted``: SYNC with its counter and the
+    TPDOs with the answered SYNC's (module docstring)."""
     if isinstance(axes, bool) or not isinstance(axes, int) or axes < 1:
         raise BusLoadError(f"axes must be a positive integer, got {axes!r}")
     if isinstance(accelerometers, bool) or not isinstance(accelerometers, int) or accelerometers < 0:
         raise BusLoadError(f"accelerometers must be a non-negative integer, got {accelerometers!r}")
+    if counted:
+        return (frame_bits(COUNTED_SYNC_BYTES) + axes * (frame_bits(RPDO1.size) + frame_bits(TPDO1_COUNTED.size))
+                + accelerometers * frame_bits(ACCEL_TPDO1_COUNTED.size))
     return (frame_bits(SYNC_BYTES) + axes * (frame_bits(RPDO1.size) + frame_bits(TPDO1.size))
             + accelerometers * frame_bits(ACCEL_TPDO1.size))
 
@@ -66,10 +77,10 @@ def _positive(value: float, what: str) -> float:
     return float(value)
 
 
-def bus_load(rate_hz: float, axes: int, bitrate: float, accelerometers: int = 0) -> float:
+def bus_load(rate_hz: float, axes: int, bitrate: float, accelerometers: int = 0, counted: bool = False) -> float:
     """Fraction of ``bitrate`` [bit/s] the cycle takes at ``rate_hz`` [Hz] with ``axes`` drives and
-    ``accelerometers`` (may exceed 1)."""
-    return cycle_bits(axes, accelerometers) * _positive(rate_hz, "rate_hz") / _positive(bitrate, "bitrate")
+    ``accelerometers`` (may exceed 1); ``counted`` as :func:`cycle_bits`."""
+    return cycle_bits(axes, accelerometers, counted) * _positive(rate_hz, "rate_hz") / _positive(bitrate, "bitrate")
 
 
 def max_rate_hz(axes: int, bitrate: float, limit: float = DEFAULT_LIMIT, accelerometers: int = 0) -> float:

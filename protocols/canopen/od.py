@@ -60,11 +60,21 @@ TARGET_DELAY = 0x2010
 drive: one cycle, the next SYNC). The master computes each target for its SYNC's time plus this."""
 FEEDBACK_DELAY = 0x2011
 """Manufacturer-specific, [µs]: the position actual value in TPDO1 was measured this long before its SYNC."""
+ANSWERED_SYNC = 0x2012
+"""Manufacturer-specific UNSIGNED8, PDO-mappable: the counter of the SYNC the drive's TPDO1 answers (0 when the SYNC
+carries none). Mapped by :data:`~protocols.canopen.pdo_maps.TPDO1_COUNTED`, it makes every answer say which SYNC it
+answers, however late it arrives."""
+SYNC_COUNTER_OVERFLOW = 0x1019
+"""UNSIGNED8 (CiA 301): the SYNC counter's overflow value: 0, a SYNC without data; 2..240, every SYNC carries a
+counter counting 1, 2, … up to this value, then from 1 again."""
 
 # ----- values -------------------------------------------------------------------------------------------
 
 DEVICE_TYPE_CIA402_SERVO = 0x0002_0192
 """0x1000 of a CiA 402 servo drive: profile number 402 (0x0192) in the low word, type 0x02 (servo) above."""
+
+SYNC_COUNTER_MAX = 240
+"""The largest SYNC counter overflow value CiA 301 allows (0x1019): the counter's period in SYNCs."""
 
 MODE_CYCLIC_SYNCHRONOUS_POSITION = 8
 """0x6060/0x6061 value of cyclic synchronous position mode (CSP)."""

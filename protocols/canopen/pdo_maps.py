@@ -11,7 +11,14 @@ PDO       bytes  content
 ========  =====  ==============================================================================
 RPDO1     6      controlword 0x6040 (UNSIGNED16), target position 0x607A (INTEGER32, increments)
 TPDO1     6      statusword 0x6041 (UNSIGNED16), position actual value 0x6064 (INTEGER32, increments)
+TPDO1     7      as above, then the answered SYNC's counter 0x2012 (UNSIGNED8): :data:`TPDO1_COUNTED`
 ========  =====  ==============================================================================
+
+**Answers that say which SYNC they answer.** A master dates a TPDO by the last SYNC it sent before the frame's
+receive time stamp: exact for a drive that answers within the cycle, wrong for one that answers later (an emulated
+drive on a busy host). With the SYNC counter on (0x1019, CiA 301: each SYNC carries a counter 1..overflow) and
+:data:`TPDO1_COUNTED` mapped, every answer carries its SYNC's counter, so the master dates it however late it comes
+(up to a counter period). It costs a byte per SYNC and per TPDO (:mod:`protocols.canopen.bus_load`).
 
 Following error actual value 0x60F4 (INTEGER32) is not in TPDO1: with it the PDO would need 10 bytes of
 the 8 a CAN frame holds, and a second TPDO per axis costs about 40 % more bus time per cycle
@@ -61,6 +68,15 @@ class Feedback(NamedTuple):
 
     statusword: int
     position_actual: int
+
+
+class CountedFeedback(NamedTuple):
+    """TPDO1_COUNTED: statusword (0x6041), position actual value (0x6064) [increments] and the counter of the SYNC
+    it answers (0x2012; 0 when that SYNC carried none)."""
+
+    statusword: int
+    position_actual: int
+    sync_counter: int
 
 
 R = TypeVar("R", bound=tuple)  # the NamedTuple a PDO decodes to
@@ -148,8 +164,14 @@ TPDO1: PdoSpec[Feedback] = PdoSpec(
     objects=(MappedObject(od.STATUSWORD, 0, 16, False), MappedObject(od.POSITION_ACTUAL_VALUE, 0, 32, True)))
 """Drive → master on every SYNC: statusword and position actual value."""
 
+TPDO1_COUNTED: PdoSpec[CountedFeedback] = PdoSpec(
+    "TPDO1", receive=False, number=1, record=CountedFeedback,
+    objects=(*TPDO1.objects, MappedObject(od.ANSWERED_SYNC, 0, 8, False)))
+"""Drive → master on every SYNC: statusword, position actual value and the answered SYNC's counter."""
+
 PDO_MAPS: tuple[PdoSpec, ...] = (RPDO1, TPDO1)
-"""Every PDO the leg drives use."""
+"""The leg drives' PDO maps as their EDS defaults (a master that dates answers by counter maps
+:data:`TPDO1_COUNTED` in TPDO1's place)."""
 
 
 def configure(pdo_map: canopen.pdo.PdoMap, spec: PdoSpec, node_id: int) -> None:

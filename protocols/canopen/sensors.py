@@ -5,7 +5,8 @@
 plate frame (x along the fall line, +x downhill, z up; at rest on a level plate ``(0, 0, +9.81)``) and transmits
 :data:`ACCEL_TPDO1` on every SYNC (transmission type 1): x, y, z as INTEGER16 of :data:`FORCE_INCREMENT` = 1 mm/s²
 (±32.767 m/s², beyond that the value saturates). The sample in the TPDO of a SYNC was taken :data:`SAMPLE_DELAY`
-(0x2101, µs) before that SYNC.
+(0x2101, µs) before that SYNC. With the SYNC counter on, a master maps :data:`ACCEL_TPDO1_COUNTED` instead: the
+sample, then the answered SYNC's counter :data:`ANSWERED_SYNC` (0x2102, UNSIGNED8; :mod:`protocols.canopen.pdo_maps`).
 
 The **overturn detector** is node :data:`DETECTOR_NODE_ID` (0x30), ``overturn_detector.eds``. Its
 :data:`EVENT_TPDO1` is event-driven (transmission type 254) and carries one overturn, little-endian:
@@ -61,6 +62,8 @@ SPECIFIC_FORCE = 0x2100
 """ARRAY, sub 1..3: specific force x, y, z [:data:`FORCE_INCREMENT`], INTEGER16."""
 SAMPLE_DELAY = 0x2101
 """[µs]: the sample in a SYNC's TPDO was taken this long before that SYNC."""
+ANSWERED_SYNC = 0x2102
+"""UNSIGNED8, PDO-mappable: the counter of the SYNC the TPDO answers (0 when the SYNC carries none)."""
 OVERTURN_EVENT = 0x2200
 """RECORD, sub 1..5: the last overturn event (module docstring)."""
 BODY_COUNT = 0x2201
@@ -93,6 +96,15 @@ class ForceSample(NamedTuple):
     z: int
 
 
+class CountedForceSample(NamedTuple):
+    """ACCEL_TPDO1_COUNTED: specific force x, y, z [increments of 1 mm/s²] and the answered SYNC's counter."""
+
+    x: int
+    y: int
+    z: int
+    sync_counter: int
+
+
 class EventRecord(NamedTuple):
     """EVENT_TPDO1: event id, body id, direction, tilt [increments of 10 µrad], age [increments of 100 µs]."""
 
@@ -107,6 +119,11 @@ ACCEL_TPDO1: PdoSpec[ForceSample] = PdoSpec(
     "ACCEL_TPDO1", receive=False, number=1, record=ForceSample,
     objects=tuple(MappedObject(SPECIFIC_FORCE, axis, 16, True) for axis in (1, 2, 3)))
 """Accelerometer → master on every SYNC: one sample of the specific force."""
+
+ACCEL_TPDO1_COUNTED: PdoSpec[CountedForceSample] = PdoSpec(
+    "ACCEL_TPDO1", receive=False, number=1, record=CountedForceSample,
+    objects=(*ACCEL_TPDO1.objects, MappedObject(ANSWERED_SYNC, 0, 8, False)))
+"""Accelerometer → master on every SYNC: one sample and the answered SYNC's counter."""
 
 EVENT_TPDO1: PdoSpec[EventRecord] = PdoSpec(
     "EVENT_TPDO1", receive=False, number=1, record=EventRecord, transmission_type=254,

@@ -34,6 +34,7 @@ from protocols.canopen import (
     PDO_MAPS,
     RPDO1,
     TPDO1,
+    TPDO1_COUNTED,
     BusLoadError,
     Command,
     Feedback,
@@ -170,6 +171,9 @@ def test_pdo_maps_layout() -> None:
     assert [o.mapping_entry for o in RPDO1.objects] == [0x6040_0010, 0x607A_0020]
     assert [o.mapping_entry for o in TPDO1.objects] == [0x6041_0010, 0x6064_0020]
     assert RPDO1.size == TPDO1.size == 6
+    assert [o.mapping_entry for o in TPDO1_COUNTED.objects] == [0x6041_0010, 0x6064_0020, 0x2012_0008]
+    assert TPDO1_COUNTED.size == 7 and TPDO1_COUNTED.mapping_index == 0x1A00
+    assert TPDO1_COUNTED.decode(TPDO1_COUNTED.encode((0x1237, -5, 240))) == (0x1237, -5, 240)
     assert RPDO1.cob_id(5) == 0x205 and TPDO1.cob_id(5) == 0x185
     assert RPDO1.cob_id_entry(5) == 0x205 and TPDO1.cob_id_entry(5) == 0x4000_0185
 

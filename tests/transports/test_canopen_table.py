@@ -63,6 +63,8 @@ from drivers.controller import (
     open_table,
 )
 from protocols.canopen import (
+    TPDO1,
+    TPDO1_COUNTED,
     BusLoadError,
     PdoError,
     State,
@@ -75,6 +77,7 @@ from protocols.canopen import (
 from protocols.canopen import od as drive_od
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
+    ACCEL_TPDO1_COUNTED,
     ACCELEROMETER_EDS_PATH,
     ACCELEROMETER_NODE_IDS,
     DETECTOR_EDS_PATH,
@@ -176,7 +179,8 @@ def test_stream_a_prepared_fema_drive_excerpt_on_the_sync_grid() -> None:
     with emulated(specimens=(parse_body(SLENDER), parse_body(STOCKY))) as emulator:
         with master(emulator) as table:
             assert isinstance(table, CanopenTable) and table.rate == RATE
-            assert table.bus_load == pytest.approx(bus_load(RATE, 6, 1_000_000, accelerometers=1))
+            assert table.bus_load == pytest.approx(bus_load(RATE, 6, 1_000_000, accelerometers=1, counted=True))
+            assert table.sync_counter == drive_od.SYNC_COUNTER_MAX  # room for it: answers name their SYNC
             statuses, accel, detections = table.statuses(), table.accelerations(), table.detections()
             tilts = table.tilts()
             table.arm()
@@ -248,8 +252,8 @@ def test_a_rate_beyond_the_bus_is_refused_with_the_bus_load() -> None:
         open_table("canopen://nowhere?interface=virtual", accelerometers=2)
     with pytest.raises(BusLoadError, match=r"155\.0% of 500000 bit/s"):
         open_table("canopen://nowhere?interface=virtual&bitrate=500000")
-    assert open_table("canopen://nowhere?interface=virtual&rate=400", accelerometers=2).bus_load == pytest.approx(
-        0.666)
+    counted = open_table("canopen://nowhere?interface=virtual&rate=400", accelerometers=2)
+    assert counted.bus_load == pytest.approx(0.702)  # 66.6 % plain: room for the SYNC counter, 1755 bits a cycle
     assert open_table("canopen://nowhere?interface=virtual").bus_load == pytest.approx(0.775)
 
 
@@ -501,6 +505,43 @@ def test_injected_loss_and_delay_are_survived() -> None:
     assert link["rpdos_lost"] > 0 and link["frames_not_sent"] > 0 and lost > 0 and link["emcy_sent"] == 0
 
 
+def test_the_sync_counter_is_on_where_the_bus_has_room_for_it() -> None:
+    """At the default 500 Hz with one accelerometer the counted cycle (1630 bits, 81.5 %) is over the 80 % limit:
+    the counter stays off and the cycle is the plain 1550 bits; at 400 Hz it fits (65.2 %) and is on."""
+    plain = CanopenTable("canopen://x?interface=virtual")
+    assert plain.sync_counter == 0 and plain.bus_load == pytest.approx(0.775)
+    assert (plain.drive_tpdo, plain.accel_tpdo) == (TPDO1, ACCEL_TPDO1)
+    counted = CanopenTable("canopen://x?interface=virtual&rate=400")
+    assert counted.sync_counter == 240 and counted.bus_load == pytest.approx(1630 * 400 / 1e6)
+    assert (counted.drive_tpdo, counted.accel_tpdo) == (TPDO1_COUNTED, ACCEL_TPDO1_COUNTED)
+
+
+def test_answers_that_come_late_are_dated_by_the_sync_they_name() -> None:
+    """Every SYNC answered 120 ms late (12 cycles at 100 Hz, as an emulator process left unscheduled that long
+    answers), its TPDOs stamped then: dated by the last SYNC sent before them, statuses would be 120 ms late (the
+    sine's 0.02 m · 2π/1.5 s × 0.12 s = 10 mm off) and samples taken twice; dated by the counter each answer carries,
+    the statuses follow the command within the legs' lag and every sample comes once, one per SYNC."""
+    with emulated(delay=0.12) as emulator, master(emulator) as table:
+        statuses, accel = table.statuses(), table.accelerations()
+        table.arm()
+        t = np.arange(1501) * 1e-3
+        poses = np.zeros((len(t), 6))
+        poses[:, 0] = 0.02 * np.sin(2 * np.pi * t / 1.5)
+        report = table.stream(t, poses)
+        time.sleep(0.5)  # the answers of the stream's last SYNCs, 120 ms late
+        stats = table.link_stats()
+        during = [s for s in statuses.drain() if report.t_start_ns <= s.t_ns <= report.t_end_ns]
+        batches = accel.drain()
+    assert report.final.state == "armed" and report.final.faults == ()
+    assert len(during) >= 0.95 * report.duration * STATUS_RATE
+    error = max(abs(s.pose[0] - 0.02 * np.sin(2 * np.pi * (s.t_ns - report.t_start_ns) * 1e-9 / 1.5))
+                for s in during)
+    assert error <= TAU * 2 * np.pi / 1.5 * 0.02 * 1.02 + POSE_NOISE, error
+    sampled = np.concatenate([b.times_ns() for b in batches])
+    assert np.all(np.diff(sampled) == round(1e9 / RATE)), np.unique(np.diff(sampled))  # once each, none missing
+    assert stats["accel_samples_lost"] == 0 and stats["accel_samples_stale"] == 0
+
+
 # ----- across processes: udp_multicast inside a network namespace -------------------------------------------------
 
 _NETNS_SETUP = "ip link set lo up && ip route add 224.0.0.0/4 dev lo"
@@ -621,6 +662,9 @@ def test_sensor_eds_pdo_defaults_are_the_pdo_maps_and_start_disabled(load: Any, 
 def test_sensor_pdo_layouts() -> None:
     assert ACCEL_TPDO1.size == 6 and ACCEL_TPDO1.transmission_type == 1
     assert [o.mapping_entry for o in ACCEL_TPDO1.objects] == [0x2100_0110, 0x2100_0210, 0x2100_0310]
+    assert [o.mapping_entry for o in ACCEL_TPDO1_COUNTED.objects] == [*(o.mapping_entry for o in ACCEL_TPDO1.objects),
+                                                                      0x2102_0008]
+    assert ACCEL_TPDO1_COUNTED.size == 7
     assert EVENT_TPDO1.size == 8 and EVENT_TPDO1.transmission_type == 254
     assert [o.mapping_entry for o in EVENT_TPDO1.objects] == [0x2200_0110, 0x2200_0208, 0x2200_0308, 0x2200_0410,
                                                               0x2200_0510]
