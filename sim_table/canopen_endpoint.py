@@ -117,6 +117,7 @@ from protocols.canopen import (
     transition,
 )
 from protocols.canopen import od as drive_od
+from protocols.canopen.receive_buffer import widen_receive_buffer
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
     ACCEL_TPDO1_COUNTED,
@@ -452,7 +453,9 @@ class CanopenEndpoint:
         g = self.table.geometry
         self.scaling = LegScaling(g.leg_min, g.leg_max)
         keep_stamps = {"preserve_timestamps": True} if interface == "virtual" else {}
-        self.network = canopen.Network(can.Bus(interface=interface, channel=channel, **keep_stamps))
+        bus = can.Bus(interface=interface, channel=channel, **keep_stamps)
+        widen_receive_buffer(bus)  # a stall of this process loses no frame (protocols.canopen.receive_buffer)
+        self.network = canopen.Network(bus)
         self.network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
         self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg)), target_delay)
                        for leg in LEG_NODE_IDS]

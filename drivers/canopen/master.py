@@ -110,6 +110,8 @@ class MasterBase(TableController):
         """The drives' feedback delay (0x2011) [ns]: a TPDO's position was measured this long before its SYNC."""
         self.sample_delay_ns = 0
         """The accelerometers' sample delay (0x2101) [ns]."""
+        self.receive_buffer_bytes = 0
+        """The bus socket's receive buffer [bytes] (:mod:`protocols.canopen.receive_buffer`; 0: not a socket)."""
         self._network: canopen.Network | None = None
         self._drives: list[DriveLink] = []
         self._sensors: list[SensorLink] = []

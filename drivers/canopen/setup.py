@@ -22,6 +22,7 @@ from protocols.canopen import (
     velocity_increments,
 )
 from protocols.canopen import od as drive_od
+from protocols.canopen.receive_buffer import widen_receive_buffer
 from protocols.canopen.sensors import (
     ACCELEROMETER_NODE_IDS,
     DETECTOR_NODE_ID,
@@ -50,7 +51,9 @@ class SetUp(MasterBase):
         if self._network is not None:
             return
         self.heap.hold()
-        network = canopen.Network(can.Bus(interface=self.interface, channel=self.channel, bitrate=self.bitrate))
+        bus = can.Bus(interface=self.interface, channel=self.channel, bitrate=self.bitrate)
+        self.receive_buffer_bytes = widen_receive_buffer(bus)
+        network = canopen.Network(bus)
         network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
         self._network = network
         try:

@@ -65,8 +65,9 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
 
     def link_stats(self) -> dict[str, Any]:
         """Bus load, rate, cycle lateness, accelerometer samples lost and stale (their SYNC's sample was had or
-        counted lost already: dropped), the SYNC counter's overflow value (0: off), duplicate overturn events
-        dropped, each node's heartbeat age [s] and NMT state, and the EMCY codes received per node."""
+        counted lost already: dropped), the SYNC counter's overflow value (0: off), the receive buffer [bytes],
+        duplicate overturn events dropped, each node's heartbeat age [s] and NMT state, and the EMCY codes received
+        per node."""
         now = time.monotonic_ns()
         links = self._links()
         return {"rate_hz": self.rate, "bitrate": self.bitrate, "bus_load": self.bus_load,
@@ -74,7 +75,7 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
                 "late_cycles": self.late_cycles, "lateness_max_s": self.lateness_max_ns * 1e-9,
                 "accel_samples_lost": sum(s.lost for s in self._sensors),
                 "accel_samples_stale": sum(s.stale for s in self._sensors),
-                "sync_counter": self.sync_counter,
+                "sync_counter": self.sync_counter, "receive_buffer_bytes": self.receive_buffer_bytes,
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "heartbeat_age_s": {link.node.id: link.heartbeat_age(now) for link in links},
                 "nmt_state": self.nmt_states(),

@@ -6,15 +6,18 @@ from __future__ import annotations
 
 import configparser
 import json
+import os
 import queue
 import shlex
 import shutil
+import socket
 import subprocess
 import sys
 import textwrap
 import threading
 import uuid
 from collections.abc import Iterator
+from pathlib import Path
 
 import can
 import canopen
@@ -64,6 +67,7 @@ from protocols.canopen import (
     velocity_increments,
 )
 from protocols.canopen import od as objects
+from protocols.canopen.receive_buffer import widen_receive_buffer
 
 NODE = 3
 WAIT = 5.0
@@ -642,3 +646,42 @@ def test_udp_multicast_between_processes_in_a_network_namespace() -> None:
     done = subprocess.run(["unshare", "--net", "sh", "-c", script], capture_output=True, text=True, timeout=60)
     assert done.returncode == 0, done.stderr
     assert json.loads(done.stdout) == {"heartbeat": "PRE-OPERATIONAL", "device_type": 0x00020192, "mode": 8}
+
+
+# ----- the receive buffer of a datagram bus -------------------------------------------------------------------------
+
+
+class _SocketBus(can.BusABC):
+    """A bus whose file descriptor is a real UDP socket on loopback (as python-can's udp_multicast's is)."""
+
+    def __init__(self, sock: socket.socket) -> None:
+        super().__init__(channel="loopback")
+        self.sock = sock
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        raise NotImplementedError
+
+    def _recv_internal(self, timeout: float | None) -> tuple[None, bool]:
+        return None, False
+
+    def fileno(self) -> int:
+        return self.sock.fileno()
+
+
+@pytest.mark.integration  # a UDP socket on loopback
+def test_the_receive_buffer_of_a_datagram_bus_is_widened_and_a_queue_is_left_alone() -> None:
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
+        sock.bind(("127.0.0.1", 0))
+        bus = _SocketBus(sock)
+        size, rmem_max = 1 << 20, int(Path("/proc/sys/net/core/rmem_max").read_text())
+        granted = widen_receive_buffer(bus, size)
+        assert granted == sock.getsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF)  # the bus's own socket
+        # the kernel doubles what it grants: all of it where forcing is permitted (CAP_NET_ADMIN), else to rmem_max
+        assert granted in (2 * size, 2 * min(size, rmem_max))
+        assert sock.fileno() >= 0  # and it stays open
+        bus.shutdown()
+    virtual = can.Bus(interface="virtual", channel=f"queue-{os.getpid()}")
+    try:
+        assert widen_receive_buffer(virtual) == 0
+    finally:
+        virtual.shutdown()

@@ -75,6 +75,7 @@ from protocols.canopen import (
     max_rate_hz,
 )
 from protocols.canopen import od as drive_od
+from protocols.canopen.receive_buffer import RECEIVE_BUFFER_BYTES
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
     ACCEL_TPDO1_COUNTED,
@@ -143,6 +144,15 @@ TARGET_DELAY_S = 0.5
 """The emulated drives' target delay (0x2010) in these tests [s]: the master sends each target this much ahead, so a
 stall of the shared interpreter shorter than that starves no drive (measured on 2 cores beside two busy processes
 and an fsync writer: the master's cycle up to 0.4 s late; with the drives' 60 ms the tests failed there)."""
+
+
+UDP_TARGET_DELAY_S = 1.0
+"""The target delay of the emulated drives across processes [s]: each process alone on a shared core can be left
+unscheduled for a while (measured beside two busy processes and an fsync writer, 2 cores: SYNCs read from the
+emulator's socket up to 0.4 s after the kernel stamped them, and 0.5 s underran the drives in one of three runs)."""
+
+UDP_LEAD_S = 1.5
+"""The host's lead across processes [s]: it must exceed the drives' target delay and a cycle."""
 
 
 STOP_TIMEOUT = STATUS_TIMEOUT
@@ -536,7 +546,7 @@ def test_answers_that_come_late_are_dated_by_the_sync_they_name() -> None:
     assert len(during) >= 0.95 * report.duration * STATUS_RATE
     error = max(abs(s.pose[0] - 0.02 * np.sin(2 * np.pi * (s.t_ns - report.t_start_ns) * 1e-9 / 1.5))
                 for s in during)
-    assert error <= TAU * 2 * np.pi / 1.5 * 0.02 * 1.02 + POSE_NOISE, error
+    assert error <= TAU * 2 * np.pi / 1.5 * 0.02 * 1.02 + 1e-3, error  # the lag (0.43 mm); misdated: 10 mm
     sampled = np.concatenate([b.times_ns() for b in batches])
     assert np.all(np.diff(sampled) == round(1e9 / RATE)), np.unique(np.diff(sampled))  # once each, none missing
     assert stats["accel_samples_lost"] == 0 and stats["accel_samples_stale"] == 0
@@ -556,21 +566,21 @@ with open_table({url!r}, rate={rate}) as table:
     t = np.arange(1501) * 1e-3
     poses = np.zeros((len(t), 6))
     poses[:, 0] = 0.02 * np.sin(2 * np.pi * t / 1.5)
-    report = table.stream(t, poses)
+    report = table.stream(t, poses, lead={lead})
     table.home()
     table.disarm()
-    time.sleep(0.3)  # the drives' last target played: the emulator's core disarms too
+    time.sleep({settle})  # the drives' last target played (their target delay): the emulator's core disarms too
     during = [s for s in statuses.drain() if report.t_start_ns <= s.t_ns <= report.t_end_ns]
     error = max(abs(s.pose[0] - 0.02 * np.sin(2 * np.pi * (s.t_ns - report.t_start_ns) * 1e-9 / 1.5))
                 for s in during)
-    batches = accel.drain()
+    batches, stats = accel.drain(), table.link_stats()
     sampled = np.concatenate([b.times_ns() for b in batches]) if batches else np.zeros(0, dtype=np.int64)
     sampled = sampled[(sampled >= report.t_start_ns) & (sampled <= report.t_end_ns)]
     print(json.dumps({{"final": report.final.state, "faults": list(report.final.faults),
                       "status_times": [s.t_ns - report.t_start_ns for s in during],
                       "sample_times": (sampled - report.t_start_ns).tolist(),
                       "duration": report.duration, "error": error, "state": table.status().state,
-                      "samples_lost": table.link_stats()["accel_samples_lost"]}}))
+                      "samples_lost": stats["accel_samples_lost"], "rcvbuf": stats["receive_buffer_bytes"]}}))
 """
 
 
@@ -591,9 +601,10 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     key = tmp_path / "key"
     key.write_text(secrets.token_hex(32))
     host = tmp_path / "host.py"
-    host.write_text(textwrap.dedent(_HOST.format(url=url, rate=UDP_RATE)))
+    settle = UDP_TARGET_DELAY_S + 0.3
+    host.write_text(textwrap.dedent(_HOST.format(url=url, rate=UDP_RATE, lead=UDP_LEAD_S, settle=settle)))
     counters = tmp_path / "counters.json"
-    emulator = shlex.join([sys.executable, "-m", "sim_table", "--listen", f"{url}&target_delay={TARGET_DELAY_S}",
+    emulator = shlex.join([sys.executable, "-m", "sim_table", "--listen", f"{url}&target_delay={UDP_TARGET_DELAY_S}",
                            "--key-file", str(key),
                            "--counters", str(counters)])
     log = tmp_path / "emulator.log"
@@ -605,6 +616,7 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     assert done.returncode == 0, done.stderr + log.read_text()
     result = json.loads(done.stdout)
     assert result["final"] == "armed" and result["faults"] == [] and result["state"] == "idle"
+    assert result["rcvbuf"] >= 2 * RECEIVE_BUFFER_BYTES  # root in the namespace: beyond rmem_max (the kernel doubles)
     # Statuses at 50 Hz of the SYNCs' time and accelerometer samples at the SYNC rate, from one end of the stream to
     # the other: the master counts every sample missing from the stream as lost, and no gap may reach its consumer
     # time of a node's heartbeat — a node silent that long would have faulted the table, and the stream ended armed
@@ -620,7 +632,7 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
         assert np.all(np.diff(times) % round(1e9 / UDP_RATE) == 0)  # on the SYNC grid
     missing = round(result["duration"] * UDP_RATE) - len(result["sample_times"])
     assert missing <= result["samples_lost"] + 1, (missing, result["samples_lost"])  # +1: the stream's last SYNC
-    assert result["error"] <= TAU * 2 * math.pi / 1.5 * 0.02 * 1.02 + 1e-3, result  # lag, and a frame answered late
+    assert result["error"] <= TAU * 2 * math.pi / 1.5 * 0.02 * 1.02 + 1e-3, result  # the lag (0.43 mm) and 1 mm
 
 
 # ----- the sensor nodes' wire formats -----------------------------------------------------------------------------
