@@ -21,7 +21,9 @@ stream of one-sample chunks:
 
 - *SYNC clock.* A SYNC counts as arrived at its frame's time stamp: a drive answers a SYNC at once, while this
   endpoint's bus thread may have had to wait its turn for the interpreter (counted: ``sync_handling_max_us``).
-  SYNC n of a series (a new series starts after a silence longer than :data:`SERIES_GAP`) is placed at
+  SYNC n of a series (a new series starts after a silence longer than :data:`SERIES_GAP`, or — with the SYNC
+  counter on — when the counter does not continue the last SYNC's; a pause of the master's cycle then keeps the
+  series, and the counter's step counts SYNCs lost on the way) is placed at
   ``g_n = φ + n·T``: T the cycle period 0x1006, φ following the earliest arrivals (the least
   delayed SYNC shows the master's cycle; a later one was held up and keeps its slot), as a drive's PLL does.
   Counting is exact because the master never skips a SYNC (a late cycle goes out late).
@@ -219,23 +221,39 @@ class BusCounters:
 
 class SyncGrid:
     """Places the SYNCs of a series on the master's cycle: SYNC n at ``φ + n·period`` [ns, controller time]
-    (module docstring). ``gap_ns``: a silence that starts a new series."""
+    (module docstring). ``gap_ns``: a silence that starts a new series; ``overflow``: the SYNC counter's overflow
+    value (0x1019; 0: SYNCs carry no counter)."""
 
-    def __init__(self, period_ns: int, gap_ns: int) -> None:
+    def __init__(self, period_ns: int, gap_ns: int, overflow: int = 0) -> None:
         self.period_ns = period_ns
         self.gap_ns = gap_ns
+        self.overflow = overflow
         self._phase = 0
         self._count = -1
         self._last: int | None = None
+        self._counter = 0
 
-    def place(self, arrival_ns: int) -> tuple[int, bool]:
-        """The slot [ns] of a SYNC that arrived at ``arrival_ns``, and whether it starts a new series."""
-        new = self._last is None or arrival_ns - self._last > self.gap_ns
-        self._last = arrival_ns
+    def place(self, arrival_ns: int, counter: int = 0) -> tuple[int, bool]:
+        """The slot [ns] of a SYNC that arrived at ``arrival_ns`` carrying ``counter`` (1..overflow; 0: none), and
+        whether it starts a new series. Without a counter a silence longer than ``gap_ns`` starts one. With it, a
+        SYNC whose counter continues the last one's stays in the series however long the silence before it (the
+        master was held up, or SYNCs were lost on the way: the count moves on by the counter's step) unless half
+        the counter's period passed; one whose counter does not follow (the same counter again, or a step the time
+        since the last SYNC cannot hold: a new master counting from 1) starts a new series."""
+        step = 1
+        if self._last is None:
+            new = True
+        elif self.overflow and counter and self._counter:
+            step = (counter - self._counter) % self.overflow
+            since = arrival_ns - self._last  # a step of k means k − 1 SYNCs lost: they take (k − 1) cycles to send
+            new = step == 0 or since > self.overflow * self.period_ns // 2 or since < (step - 1) * self.period_ns
+        else:
+            new = arrival_ns - self._last > self.gap_ns
+        self._last, self._counter = arrival_ns, counter
         if new:
             self._count, self._phase = 0, arrival_ns
             return arrival_ns, True
-        self._count += 1
+        self._count += step
         drifted = self._phase + round(DRIFT * self.period_ns)
         earliest = self._phase - self.period_ns // 2  # a slot never moves back by half a cycle or more
         self._phase = max(min(drifted, arrival_ns - self._count * self.period_ns), earliest)
@@ -539,7 +557,7 @@ class CanopenEndpoint:
         where the master mapped it)."""
         arrival = self.clock(host_ns)
         grid = self._sync_grid()
-        slot, new_series = grid.place(arrival)
+        slot, new_series = grid.place(arrival, counter)
         self.counters.syncs += 1
         self.counters.sync_series += new_series
         self.counters.sync_delay_max_us = max(self.counters.sync_delay_max_us, (arrival - slot) * 1e-3)
@@ -560,13 +578,13 @@ class CanopenEndpoint:
         self._feedback(slot, stamp, counter)
 
     def _sync_grid(self) -> SyncGrid:
-        """The grid of the cycle period the master set (0x1006 [µs]; a new grid when it changes)."""
+        """The grid of the cycle period and SYNC counter the master set (0x1006 [µs], 0x1019; a new grid when
+        either changes)."""
         node = self.drives[0].node
-        period_us = node.object_dictionary[drive_od.COMMUNICATION_CYCLE_PERIOD].decode_raw(
-            node.get_data(drive_od.COMMUNICATION_CYCLE_PERIOD, 0))
-        period = period_us * 1000
-        if self._grid is None or self._grid.period_ns != period:
-            self._grid = SyncGrid(period, _ns(SERIES_GAP))
+        period, overflow = (node.object_dictionary[index].decode_raw(node.get_data(index, 0))
+                            for index in (drive_od.COMMUNICATION_CYCLE_PERIOD, drive_od.SYNC_COUNTER_OVERFLOW))
+        if self._grid is None or (self._grid.period_ns, self._grid.overflow) != (period * 1000, overflow):
+            self._grid = SyncGrid(period * 1000, _ns(SERIES_GAP), overflow)
         return self._grid
 
     def _step(self, drive: _Drive, setpoint: tuple[int, int] | None) -> Command | None:

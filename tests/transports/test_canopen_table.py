@@ -723,6 +723,26 @@ def test_sync_grid_keeps_the_masters_cycle_through_late_syncs() -> None:
     assert abs(slots[-1] - 999 * 1_000_050) < 1_000_000 // 2
 
 
+def test_with_the_sync_counter_a_paused_master_keeps_its_series_and_lost_syncs_are_counted() -> None:
+    period, creep = 10_000_000, 5 * 1_000  # the phase creeps later by DRIFT · period = 1 µs a SYNC at most
+    grid = SyncGrid(period, 100_000_000, overflow=240)
+
+    def placed(arrival: int, counter: int, slot: int) -> None:
+        got, new = grid.place(arrival, counter)
+        assert not new and abs(got - slot) <= creep, (got, slot)
+
+    assert grid.place(0, 239) == (0, True)
+    placed(period, 240, period)
+    placed(3 * period + 1_000, 2, 3 * period)  # counter 1 lost on the way: counted
+    held = 3 * period + 300_000_000
+    placed(held, 3, 4 * period)  # held up 0.3 s, the counter goes on: the SYNC keeps its slot
+    placed(held + 100, 4, 5 * period)  # its late successor, sent at once
+    assert grid.place(held + 200, 1)[1]  # a step of 237 in 0.1 µs: a new master counting from 1
+    assert grid.place(held + period, 1) == (held + period, True)  # the same counter again: a new series
+    without = SyncGrid(period, 100_000_000)
+    assert without.place(0) == (0, True) and without.place(300_000_000)[1]  # no counter: the silence decides
+
+
 def test_recent_interpolates_between_evenly_spaced_samples() -> None:
     recent = Recent(2, capacity=4)
     assert recent.newest_ns is None
