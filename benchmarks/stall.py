@@ -19,8 +19,9 @@ each beside what it is compared with:
   lead, which the buffer would otherwise still play.
 
 CANopen is not run: its master, in the host process, *is* the controller (it plays the drive itself and sends
-each leg drive a target per SYNC), so a stalled host stops the SYNC; the emulated drives hold 60 ms of targets
-(their target delay), and cyclic synchronous position tolerates no longer host stall (``docs/table-controller.md``).
+each leg drive a target per SYNC), so a stalled host stops the SYNC; the emulated drives hold their target delay
+of targets (60 ms by default, up to 2 s with the listen URL's ``target_delay=S``), and cyclic synchronous position
+tolerates no longer host stall (``docs/table-controller.md``, stall tolerance per transport).
 
 Usage: ``python benchmarks/stall.py [--transport mavlink|zenoh|all] [--fractions 0.1,0.5,0.9]``.
 """
