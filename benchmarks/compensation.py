@@ -8,7 +8,9 @@ roll-back), three full-level plays at most. Per case and law: the uncompensated 
 prepared at −12 dB, and the predicted peak / limit the drive as prepared would have had at full level — what the
 first play did before every play was checked), every play's level and errors per axis and along the fall line, TRAC
 and 5 % response-spectrum error, the full-level plays needed to reach ≤ 5 % fall-line RMS error, the largest
-achieved acceleration / its Table IV limit over every play (≤ 1 for a play inside the limits) and the time per play.
+achieved acceleration / its Table IV limit over every play (≤ 1 for a play inside the limits) and the time per play;
+offline also each play's predicted peak acceleration / its limit (the response the play was checked on,
+``predicted_peak_to_limit``) and, in the summary, the largest ratio of achieved to predicted peak.
 
 **How the table is played.** By default offline: ``sim_table.offline.play_offline`` runs the emulator's own
 physics — the legs as ``rig emulate --dynamics servo`` (the rigid plate with the bodies' mass on the six legs along
