@@ -8,7 +8,9 @@ roll-back), three full-level plays at most. Per case and law: the uncompensated 
 prepared at −12 dB, and the predicted peak / limit the drive as prepared would have had at full level — what the
 first play did before every play was checked), every play's level and errors per axis and along the fall line, TRAC
 and 5 % response-spectrum error, the full-level plays needed to reach ≤ 5 % fall-line RMS error, the largest
-achieved acceleration / its Table IV limit over every play (≤ 1 for a play inside the limits) and the time per play.
+achieved acceleration / its Table IV limit over every play (≤ 1 for a play inside the limits) and the time per play;
+offline also each play's predicted peak acceleration / its limit (the response the play was checked on,
+``predicted_peak_to_limit``) and, in the summary, the largest ratio of achieved to predicted peak.
 
 **How the table is played.** By default offline: ``sim_table.offline.play_offline`` runs the emulator's own
 physics — the legs as ``rig emulate --dynamics servo`` (the rigid plate with the bodies' mass on the six legs along
@@ -60,9 +62,12 @@ FINE_PCT = 2.0
 LAWS = ("diagonal", "mimo")
 
 
-def _outcome(result: Compensation, drive: Drive, predicted_full: float) -> dict[str, Any]:
-    """One law's JSON on one case."""
+def _outcome(result: Compensation, drive: Drive, predicted_full: float, forecasts: list[float] | None = None
+             ) -> dict[str, Any]:
+    """One law's JSON on one case; ``forecasts`` each play's predicted peak acceleration / its limit (offline)."""
     plays = [it.to_json() for it in result.iterations]
+    if forecasts is not None:
+        plays = [p | {"predicted_peak_to_limit": f} for p, f in zip(plays, forecasts, strict=True)]
     full = [it for it in result.iterations if it.level_db == 0.0]
     reached = next((k + 1 for k, it in enumerate(full) if it.rms_error_pct <= TARGET_PCT), None)
     return {
@@ -70,7 +75,8 @@ def _outcome(result: Compensation, drive: Drive, predicted_full: float) -> dict[
                           "level_db": result.iterations[0].level_db,
                           "predicted_peak_to_limit_at_full_level": predicted_full},
         "plays": [{key: p[key] for key in ("level_db", "rms_error_pct", "peak_error_pct", "axes", "psa_error_max_pct",
-                                           "psa_error_mean_pct", "peak_to_limit", "gain", "seconds")}
+                                           "psa_error_mean_pct", "peak_to_limit", "predicted_peak_to_limit",
+                                           "gain", "seconds") if key in p}
                   | {"trac": p["fall_line"]["trac"]} for p in plays],
         "rms_error_pct_by_play": [round(it.rms_error_pct, 3) for it in result.iterations],
         "full_level_plays_to_5_pct": reached,
@@ -106,14 +112,19 @@ def _offline(args: argparse.Namespace, table: TableModel, payload: float, specs:
             predicted = predicted_peak_ratio(drive, matrix)
             for name in LAWS:
                 law = DiagonalLaw(diagonal) if name == "diagonal" else MimoLaw(matrix)
+                forecasts: list[float] = []
+
+                def play(d: Drive, i: int, k: int = k, law: DiagonalLaw | MimoLaw = law,
+                         forecasts: list[float] = forecasts) -> np.ndarray:
+                    forecasts.append(predicted_peak_ratio(d, law.response))  # the response the play was checked on
+                    return play_offline(table, d.poses, payload=payload, seed=100 * k + i)
+
                 try:
-                    result = compensate(drive, law, lambda d, i, k=k: play_offline(
-                        table, d.poses, payload=payload, seed=100 * k + i), iterations=args.iterations,
-                        levels_db=levels)
+                    result = compensate(drive, law, play, iterations=args.iterations, levels_db=levels)
                 except PredictedLimitError as exc:
                     case[name] = {"refused": str(exc)}
                     continue
-                case[name] = _outcome(result, drive, predicted)
+                case[name] = _outcome(result, drive, predicted, forecasts)
             cases.append(case)
             print(json.dumps({"progress": spec, "angle_deg": angle_deg,
                               **{n: case[n].get("rms_error_pct_by_play") for n in LAWS}}), flush=True,
@@ -180,6 +191,9 @@ def _summary(cases: list[dict[str, Any]], iterations: int) -> dict[str, Any]:
                                                                     for d in done) if done else None,
             "largest_peak_to_limit_any_play": max((d["largest_peak_to_limit"] for d in done), default=None),
             "seconds_per_play_mean": statistics.mean(d["seconds_per_play"] for d in done) if done else None,
+            "achieved_over_predicted_peak_max": max((p["peak_to_limit"] / p["predicted_peak_to_limit"] for d in done
+                                                     for p in d["plays"] if "predicted_peak_to_limit" in p),
+                                                    default=None),
         }
     predicted = [c["mimo"]["uncompensated"]["predicted_peak_to_limit_at_full_level"] for c in cases
                  if "plays" in c.get("mimo", {})]

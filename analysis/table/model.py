@@ -520,6 +520,28 @@ class TableModel:
         ``limit (1 + rtol)``. Ties at one sample: legs before axes before tilts, then by index, then in the
         order just listed.
         """
+        return self._first_breach(t, poses, velocities, accelerations, _AXIS_QUANTITIES, rtol)
+
+    def check_command(self, t: np.ndarray, poses: np.ndarray, velocities: np.ndarray | None = None,
+                      accelerations: np.ndarray | None = None, *, rtol: float = 1e-9) -> Violation | None:
+        """The first sample of a *command* (the setpoints a drive streams) that leaves what the table enforces on
+        its commands, or None: as :meth:`check_trajectory` but of the translational axes only the displacement.
+
+        The controller clips a setpoint to the per-axis displacement envelope and the tilt angle, each leg's
+        command to its stroke, and each leg's servo-valve saturates at the leg speed (``sim_table.dynamics``:
+        |w| ≤ leg_speed, the feed-forward of the command's leg rate): those a command must respect to be played
+        as written. Table IV's velocity and acceleration are the *plate's* (the response's): a compensated drive
+        asks more acceleration than it gets where the table attenuates, and nothing in the table limits a
+        command's acceleration — its response is what must stay within Table IV
+        (``rig.compensation.safety.check_prediction``). Arguments and result as :meth:`check_trajectory`.
+        """
+        return self._first_breach(t, poses, velocities, accelerations, ("displacement",), rtol)
+
+    def _first_breach(self, t: np.ndarray, poses: np.ndarray, velocities: np.ndarray | None,
+                      accelerations: np.ndarray | None, quantities: tuple[str, ...], rtol: float
+                      ) -> Violation | None:
+        """:meth:`check_trajectory` checking of the translational axes only ``quantities`` (of
+        :data:`_AXIS_QUANTITIES`; the others unbounded)."""
         t, poses, velocities, accelerations = _trajectory(t, poses, velocities, accelerations)
         leg_rates_from_gradient = velocities is None
         if velocities is None:
@@ -527,8 +549,8 @@ class TableModel:
         if accelerations is None:
             accelerations = np.gradient(velocities, t, axis=0)
         g, lim = self.geometry, self.limits
-        axis_bounds = np.array([[getattr(lim.axis(name), q) for q in ("displacement", "velocity", "acceleration")]
-                                for name in AXES])
+        axis_bounds = np.array([[getattr(lim.axis(name), q) if q in quantities else math.inf
+                                 for q in _AXIS_QUANTITIES] for name in AXES])
         leg_rates = None
         if leg_rates_from_gradient:
             leg_rates = np.gradient(self.leg_lengths(poses), t, axis=0)

@@ -39,7 +39,7 @@ def register(app: typer.Typer) -> None:
         drive_out: Annotated[Path | None, typer.Option("--drive-out", help="the compensated drive file (default: "
                                                        "SESSION.drive.h5)")] = None,
         gain: Annotated[float | None, typer.Option(help="gain of each correction, 0 to 1.5 (default: the law's, "
-                                                   "mimo 1 falling to 0.3 at 45 Hz, diagonal 0.8)")] = None,
+                                                   "mimo 1 up to 50 Hz, diagonal 0.8)")] = None,
         tolerance: Annotated[float, typer.Option(help="stop at this fall-line RMS error, percent")] = 0.0,
         identify_seconds: Annotated[float, typer.Option(help="length of the identification drive in seconds")] = 60.0,
         window: Annotated[str | None, typer.Option(help="play only T0,T1 (seconds) of the record")] = None,

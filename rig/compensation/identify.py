@@ -47,11 +47,14 @@ class FrequencyResponse:
     band: tuple[float, float]
 
     def at(self, freqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """H (n, 3) and coherence (n, 3) interpolated linearly (real and imaginary parts) at ``freqs`` [Hz]."""
-        h = np.column_stack([np.interp(freqs, self.f, self.h[:, k].real) + 1j * np.interp(freqs, self.f,
-                                                                                        self.h[:, k].imag)
+        """H (n, 3) and coherence (n, 3) interpolated linearly (real and imaginary parts) at ``freqs`` [Hz] between
+        the identified lines (those inside the band), the nearest one's value beyond them: the zeroes outside the
+        band never enter (``MimoResponse.at``)."""
+        known = (self.f >= self.band[0]) & (self.f <= self.band[1])
+        f, h_known, coherence = self.f[known], self.h[known], self.coherence[known]
+        h = np.column_stack([np.interp(freqs, f, h_known[:, k].real) + 1j * np.interp(freqs, f, h_known[:, k].imag)
                              for k in range(3)])
-        coh = np.column_stack([np.interp(freqs, self.f, self.coherence[:, k]) for k in range(3)])
+        coh = np.column_stack([np.interp(freqs, f, coherence[:, k]) for k in range(3)])
         return h, coh
 
     def apply(self, freqs: np.ndarray, spectrum: np.ndarray) -> np.ndarray:

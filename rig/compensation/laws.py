@@ -8,11 +8,13 @@ are played through the same loop (``rig.compensation.iteration``: level ramp, pr
   re-estimated, only the axes the record drives corrected;
 - :class:`MimoLaw` — the response matrix (``rig.compensation.mimo``), the Tikhonov inverse scaled per line to
   σ_max², each output's error weighted by its multiple coherence, a frequency-dependent gain ``gain`` up to
-  ``knee_hz`` falling log-linearly to ``gain_high`` at ``band_high`` (the highest lines have the smallest table gain,
-  so the inverse amplifies the measurement noise in the error most there: with 1 up to 45 Hz the fall-line error
-  settled at 3.4 % on H-BCR_233, with 0.3 at 45 Hz at 1.5 %), the matrix re-estimated from every play's own drive
-  and response, all three axes corrected (an axis the record leaves at rest is driven to cancel the cross-coupling
-  into it).
+  ``knee_hz`` falling log-linearly to ``gain_high`` at ``band_high`` — by default flat, 1 up to 50 Hz (the identified
+  band's and the error's upper edge). The roll-off (0.3 at 45 Hz until 2026-11-27) was set on the uncoupled plant
+  with ε = 0.01, where 1 up to 45 Hz left H-BCR_233 at 3.4 % against 1.5 %; on the coupled plate with ε = 0.001 the
+  error it left above 30 Hz dominated (LANDERS/LCN_329 at 5°: 4 % of the target's RMS above 30 Hz after three
+  full-level plays, 5.7 % in all; flat to 50 Hz: 1.7 %, H-BCR_233 1.2 %) while the coherence weighting already
+  holds back what the noise dominates. The matrix is re-estimated from every play's own drive and response, all
+  three axes corrected (an axis the record leaves at rest is driven to cancel the cross-coupling into it).
 """
 
 from __future__ import annotations
@@ -61,9 +63,9 @@ class MimoLaw:
 
     response: MimoResponse
     gain: float = 1.0
-    gain_high: float = 0.3
+    gain_high: float = 1.0
     knee_hz: float = 20.0
-    band_high: float = 45.0
+    band_high: float = 50.0
     regularisation: float = REGULARISATION
     name: str = "mimo"
 

@@ -7,6 +7,12 @@ columns and their derivatives); attributes ``schema``, ``record``, ``angle_rad``
 ``rig_config`` (JSON, the table model it was iterated on), ``compensation`` (JSON: the iterations' errors, the
 session file). Written under a temporary name and linked into place: the name appears with a whole file or not at
 all, and an existing file is never replaced.
+
+**Reading it back** checks the drive as a command (``TableModel.check_command``: the displacement envelope, the
+tilt, the legs' stroke and speed — what the table enforces on its setpoints). A compensated drive may ask more than
+Table IV's acceleration (or velocity) of an axis where the table attenuates (``rig.compensation.iteration``): such
+a drive is taken only when its ``compensation`` record shows it played at full level with the plate's achieved
+acceleration within Table IV; any other drive is held to all of Table IV as well.
 """
 
 from __future__ import annotations
@@ -93,7 +99,21 @@ def load_drive(path: str | os.PathLike[str], table: TableModel | None = None, *,
                   corner_frequency=float(attrs["corner_frequency_hz"]), record_start=float(attrs["record_start"]),
                   motion=tuple(float(x) for x in attrs["motion"]), peaks=json.loads(attrs["peaks"]),
                   highpass_pga_ratio={}, components=tuple(json.loads(attrs["components"])), table=table)
-    violation = table.check_trajectory(drive.t, drive.poses, drive.velocities, drive.accelerations)
+    violation = table.check_command(drive.t, drive.poses, drive.velocities, drive.accelerations)
+    if violation is None and not _played_inside_table_iv(json.loads(attrs["compensation"])):
+        violation = table.check_trajectory(drive.t, drive.poses, drive.velocities, drive.accelerations)
     if violation is not None:
         raise DriveRefusedError(drive.record, violation)
     return drive
+
+
+def _played_inside_table_iv(compensation: dict[str, Any]) -> bool:
+    """Whether the file's ``compensation`` record shows its drive (the ``best`` play) played at full level with the
+    plate's achieved acceleration within Table IV (``peak_to_limit`` ≤ 1)."""
+    plays = compensation.get("iterations")
+    best = compensation.get("best")
+    if not isinstance(plays, list) or not isinstance(best, int) or not 0 <= best < len(plays):
+        return False
+    play = plays[best]
+    return (isinstance(play, dict) and play.get("level_db") == 0.0
+            and isinstance(play.get("peak_to_limit"), float) and play["peak_to_limit"] <= 1.0)

@@ -330,6 +330,31 @@ def test_first_surge_acceleration_violation(given_derivatives: bool) -> None:
         assert abs(v.time - t[i]) <= 2e-4 and v.value < -0.6 * G
 
 
+def test_a_command_is_held_to_the_envelope_and_the_legs_not_to_table_iv_accelerations() -> None:
+    """``check_command``: the 5 Hz surge sine of 7 mm (6.9 m/s² > 0.6 g, 0.22 m/s) passes — nothing in the table
+    limits a command's acceleration; a 0.3 m surge excursion leaves the ±0.25 m envelope the controller clips to,
+    at the first sample past it; 1.1 m/s of heave (Table IV's 0.3 m/s, but the legs' 0.9 m/s) is refused for the
+    legs, not the axis."""
+    amplitude, w = 0.007, 2 * math.pi * 5
+    t = np.arange(0.0, 0.2, 1e-4)
+    poses, velocities, accelerations = (np.zeros((t.size, 6)) for _ in range(3))
+    poses[:, 0] = amplitude * np.sin(w * t)
+    velocities[:, 0] = amplitude * w * np.cos(w * t)
+    accelerations[:, 0] = -amplitude * w**2 * np.sin(w * t)
+    assert MODEL.check_trajectory(t, poses, velocities, accelerations).quantity == "acceleration"
+    assert MODEL.check_command(t, poses, velocities, accelerations) is None
+    far = np.zeros((t.size, 6))
+    far[:, 0] = 0.3 * t / t[-1]
+    i = np.searchsorted(far[:, 0], 0.25 * (1 + 1e-9), side="right")
+    v = MODEL.check_command(t, far)
+    assert (v.time, v.where, v.quantity, v.value, v.limit) == (t[i], "surge", "displacement", far[i, 0], 0.25)
+    fast = np.zeros((t.size, 6))
+    fast[:, 2] = 1.1 * t
+    v = MODEL.check_command(t, fast, np.gradient(fast, t, axis=0))
+    assert (v.where, v.quantity, v.limit) == ("leg 1", "speed", MODEL.geometry.leg_speed)
+    assert MODEL.check_trajectory(t, fast, np.gradient(fast, t, axis=0)).where == "leg 1"  # legs before axes
+
+
 def test_first_tilt_angle_violation_and_the_tolerance() -> None:
     """Pitch ramps 0 → 12° over 60 s: 10° (1 + 1e-10) at t = 50 s does not count, the next sample does."""
     t = np.linspace(0.0, 60.0, 6001)

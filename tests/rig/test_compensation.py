@@ -83,8 +83,11 @@ def test_identified_response_matches_the_servo_closed_loop(response):
 @pytest.mark.parametrize("angle_deg", [0.0, 5.0])
 def test_iteration_converges_on_the_servo_table(angle_deg):
     """A FEMA record uncompensated on the coupled servo table (the first play, at −12 dB): ≥ 20 % fall-line RMS
-    error; the MIMO law (the default) halves it by the −6 dB play and brings it to ≤ 5 % within three full-level
-    plays (issue 23's target; 4.6 % measured at 0° and 5°), every played drive inside the table's limits."""
+    error; the MIMO law (the default) halves it by the −6 dB play and brings it to ≤ 2.5 % within three full-level
+    plays (issue 23's target is 5 %; 1.4 and 1.3 % measured at 0° and 5° with ε = 0.001 and the flat gain to 50 Hz,
+    4.6 % with ε = 0.01), every
+    played command within what the table enforces
+    (``TableModel.check_command``) and the plate's achieved acceleration within Table IV."""
     beta = math.radians(angle_deg)
     ident = identification_drive(TABLE, beta, duration=40.0, seed=4)
     measured = base_accelerations(play_offline(TABLE, ident.poses, payload=PAYLOAD, seed=2), beta)
@@ -101,10 +104,10 @@ def test_iteration_converges_on_the_servo_table(angle_deg):
     assert [it.level_db for it in result.iterations] == [-12.0, -6.0, 0.0, 0.0, 0.0]
     assert errors[0] >= 20.0
     assert errors[1] < errors[0] / 2
-    assert min(errors[2:]) <= 5.0 and errors[4] < errors[2]
+    assert min(errors[2:]) <= 2.5 and errors[4] < errors[2]
     assert result.iterations[result.best].rms_error_pct == min(errors[2:])
-    for d in played:
-        assert TABLE.check_trajectory(d.t, d.poses, d.velocities, d.accelerations) is None
+    for d in played:  # the commands within what the table enforces, the plate's response within Table IV
+        assert TABLE.check_command(d.t, d.poses, d.velocities, d.accelerations) is None
     assert max(it.measures.peak_to_limit for it in result.iterations) <= 1.0
     motion, window = motion_window(drive)
     outside = np.ones(len(drive.t), bool)

@@ -12,7 +12,7 @@ from scipy import signal
 
 from analysis.body import G
 from analysis.table.model import TableModel
-from rig.compensation.identify import identification_drive
+from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import compensate
 from rig.compensation.laws import MimoLaw
 from rig.compensation.mimo import estimate, tikhonov_inverse
@@ -118,3 +118,22 @@ def test_one_exact_step_on_a_noiseless_linear_plant_converges():
     assert before > 20.0
     assert after < 1.0
     assert result.iterations[1].measures.fall_line["trac"] > 0.9999
+
+
+def test_the_response_between_the_band_edge_and_the_first_identified_line_is_that_line():
+    """A table that doubles every motion, identified over 0.5–50 Hz with 4096-sample segments (lines every
+    0.244 Hz: 0.488 Hz outside the band, 0.732 Hz the first inside): at 0.5 and 0.6 Hz the matrix and the per-axis
+    response are 2, as at 0.732 Hz — not a ramp from the zero kept outside the band (0.1 at 0.5 Hz) — with the
+    coherence of that line; and so is the prediction the safety check makes there."""
+    x = np.random.default_rng(5).normal(size=(60_000, 3))
+    matrix = estimate(x, 2.0 * x, RATE, band=(0.5, 50.0))
+    diagonal = frequency_response(x, 2.0 * x, RATE, band=(0.5, 50.0))
+    assert matrix.f[2] < 0.5 < matrix.f[3]
+    freqs = np.array([0.5, 0.6, matrix.f[3]])
+    h, coherence = matrix.at(freqs)
+    assert h == pytest.approx(np.broadcast_to(2.0 * np.eye(3), (3, 3, 3)), abs=1e-9)
+    assert coherence == pytest.approx(np.ones((3, 3)))
+    h, coherence = diagonal.at(freqs)
+    assert h == pytest.approx(np.full((3, 3), 2.0), abs=1e-9) and coherence == pytest.approx(np.ones((3, 3)))
+    spectrum = np.ones((3, 3), complex)
+    assert matrix.apply(freqs, spectrum) == pytest.approx(2.0 * spectrum)

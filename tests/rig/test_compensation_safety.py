@@ -10,17 +10,19 @@ import math
 
 import numpy as np
 import pytest
+from scipy.signal import windows
 from typer.testing import CliRunner
 
 from analysis.body import G
 from analysis.table.model import AXES, TableModel
 from rig.cli import app
 from rig.compensation.identify import FrequencyResponse, identification_drive
-from rig.compensation.iteration import compensate, error_window
+from rig.compensation.iteration import compensate, error_window, refusal
 from rig.compensation.laws import DiagonalLaw
 from rig.compensation.measures import measure, trac
 from rig.compensation.safety import PredictedLimitError, at_level, check_prediction, predicted_trajectory
-from rig.drive import DriveError, parse_headroom, prepare_drive
+from rig.drive import DriveError, DriveRefusedError, parse_headroom, prepare_drive
+from rig.drive.file import load_drive, save_drive
 from rig.records import load_record
 from rig.sequence import SequenceError, load_sequence
 
@@ -90,6 +92,78 @@ def test_a_drive_whose_prediction_leaves_the_table_is_not_played(random_drive):
     for it in result.iterations:
         assert it.measures.peak_to_limit <= 1.0
     assert result.iterations[-1].rms_error_pct < 1.0
+
+
+def _sine(drive, frequency: float, acceleration: float, axis: str = "surge"):
+    """``drive``'s time base carrying only a sine on ``axis`` of ``frequency`` [Hz] and peak ``acceleration``
+    [m/s²] under a Tukey envelope (0.5 s ramps), its velocity and acceleration the gradients of its displacement."""
+    omega = 2.0 * math.pi * frequency
+    envelope = np.zeros(len(drive.t))
+    start, end = (round(x * drive.rate) for x in drive.motion)
+    envelope[start:end] = windows.tukey(end - start, alpha=2 * 0.5 * drive.rate / (end - start))
+    poses = np.zeros_like(drive.poses)
+    poses[:, AXES.index(axis)] = acceleration / omega**2 * envelope * np.sin(omega * drive.t)
+    velocities = np.gradient(poses, axis=0) * drive.rate
+    accelerations = np.gradient(velocities, axis=0) * drive.rate
+    return dataclasses.replace(drive, poses=poses, velocities=velocities, accelerations=accelerations,
+                               components=(axis,))
+
+
+def test_a_command_beyond_table_iv_whose_response_stays_inside_is_played(random_drive):
+    """A 15 Hz surge target of 0.5 g on a table that halves every motion at 15 Hz: the exact correction commands
+    1.0 g (beyond Table IV's 0.6 g, 1.1 mm, 0.12 m/s), its predicted response is 0.5 g — it is played, the plate's
+    achieved acceleration stays within Table IV and reaches the target. The same command on a table that passes
+    0.7 of it (0.7 g predicted) is refused with the time, axis, predicted value and limit; one whose legs would
+    need more than their speed is refused for the legs, whatever the response."""
+    target = _sine(random_drive, 15.0, 0.5 * G)
+    limit = TABLE.limits.surge.acceleration
+    played = []
+
+    def play(drive, _index):  # the table that halves every motion: specific force a − g, plate level
+        played.append(drive)
+        force = 0.5 * drive.accelerations[:, :3]
+        force[:, 2] += G
+        return force
+
+    result = compensate(target, DiagonalLaw(_flat(0.5), gain=1.0, regularisation=1e-6), play, iterations=2,
+                        levels_db=(0.0,))
+    commanded = np.abs(played[-1].accelerations[:, 0]).max()
+    assert commanded > 1.6 * limit  # the command asks 1.0 g …
+    violation = TABLE.check_trajectory(played[-1].t, played[-1].poses, played[-1].velocities,
+                                       played[-1].accelerations)
+    assert violation is not None and violation.quantity == "acceleration"  # … which Table IV would have refused
+    assert all(it.measures.peak_to_limit <= 1.0 for it in result.iterations)
+    assert result.iterations[0].rms_error_pct == pytest.approx(50.0) and result.iterations[-1].rms_error_pct < 5.0
+    command = played[-1]
+    assert TABLE.check_command(command.t, command.poses, command.velocities, command.accelerations) is None
+
+    too_much = refusal(command, DiagonalLaw(_flat(0.7)))
+    predicted = check_prediction(command, _flat(0.7))
+    assert predicted is not None and predicted.where == "surge" and predicted.quantity == "acceleration"
+    assert limit < abs(predicted.value) <= 0.7 * commanded * 1.01 and predicted.limit == limit  # the first breach
+    assert too_much == f"its predicted response leaves the table: {predicted.message()}"
+    assert f"at t = {predicted.time:.3f} s surge acceleration" in too_much and "limit ±5.8860 m/s²" in too_much
+
+    fast = _sine(random_drive, 5.0, 36.0, "heave")  # 1.15 m/s of heave: the legs beyond their 0.9 m/s
+    assert TABLE.check_command(fast.t, fast.poses).quantity == "speed"
+    legs = refusal(fast, DiagonalLaw(_flat(0.1)))  # its predicted response (0.37 g, 0.11 m/s) would fit
+    assert check_prediction(fast, _flat(0.1)) is None
+    assert legs is not None and legs.startswith("the command leaves the table: at t = ") and "leg" in legs
+    assert "speed" in legs
+
+
+def test_a_drive_file_beyond_table_iv_needs_its_full_level_play_inside(tmp_path, random_drive):
+    """A compensated drive whose command asks 1.0 g is read back when its record shows its full-level play with
+    the plate within Table IV; without that record it is held to Table IV and refused, naming the breach."""
+    command = _sine(random_drive, 15.0, 1.0 * G)
+    played = {"best": 1, "iterations": [{"level_db": -6.0, "peak_to_limit": 0.4},
+                                        {"level_db": 0.0, "peak_to_limit": 0.85}]}
+    back = load_drive(save_drive(tmp_path / "played.h5", command, played), TABLE)
+    assert np.array_equal(back.accelerations, command.accelerations)
+    beyond = {"best": 1, "iterations": [played["iterations"][0], {"level_db": 0.0, "peak_to_limit": 1.02}]}
+    for name, record in (("unplayed.h5", {}), ("beyond.h5", beyond)):
+        with pytest.raises(DriveRefusedError, match=r"at t = [0-9.]+ s surge acceleration .* exceeds the limit"):
+            load_drive(save_drive(tmp_path / name, command, record), TABLE)
 
 
 def test_at_level_scales_the_translations_only(random_drive):
