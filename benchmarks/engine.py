@@ -20,7 +20,8 @@ Measured in one run on this machine:
 With ``--baseline DIR`` (a checkout of the code to compare with, e.g. a worktree of main), the paper-scale
 study is also timed from DIR's code and from this one alternately, ``--repeats`` times each, each run in its own
 process (warmed up first), in the same run of this script: the medians and the speed-up are reported
-(``paper_scale_study_vs_baseline``), so that both figures see the same load.
+(``paper_scale_study_vs_baseline``), so that both figures see the same load, with how the two codes' outputs
+differ scene by scene.
 
 Usage: ``python benchmarks/engine.py [--quick] [--models rocking,general] [--baseline DIR [--repeats N]]``
 """
@@ -33,6 +34,7 @@ import math
 import os
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import asdict
 from pathlib import Path
@@ -70,31 +72,52 @@ angles = np.radians(np.arange(0.0, 7.0 + 1e-9, 0.5))
 records = load_records("fema")
 study(TABLE_I[:2], records[:2], angles[:2], model=sys.argv[2])
 res = study(TABLE_I, records, angles, model=sys.argv[2])
+np.savez(sys.argv[3], direction=res.direction, status=res.status, t_overturn=res.t_overturn,
+         theta_max=res.theta_max, steps=res.steps, impacts=res.impacts)
 print(json.dumps({"wall_s": res.seconds, "rk4_steps": int(res.steps.sum()), "scenes": res.scenes}))
 """
 
 
-def timed_study(code: Path, model: str) -> dict:
-    """The paper-scale study's wall time [s] and RK4 steps with the code at ``code``, in a fresh process."""
-    out = subprocess.run([sys.executable, "-c", TIMED_STUDY, str(code), model], check=True, capture_output=True,
-                         text=True, cwd=code)
+def timed_study(code: Path, model: str, outputs: Path) -> dict:
+    """The paper-scale study's wall time [s] and RK4 steps with the code at ``code``, in a fresh process; its
+    per-scene outputs go to ``outputs`` (.npz)."""
+    out = subprocess.run([sys.executable, "-c", TIMED_STUDY, str(code), model, str(outputs)], check=True,
+                         capture_output=True, text=True, cwd=code)
     return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def output_differences(a: Path, b: Path) -> dict:
+    """How two runs of the paper-scale study differ scene by scene (direction, status, overturn time [s],
+    largest rotation [rad] of the scenes that both leave at rest, steps, impacts)."""
+    x, y = np.load(a), np.load(b)
+    both = (x["status"] == 1) & (y["status"] == 1)
+    rest = (x["status"] == 0) & (y["status"] == 0)
+    return {"scenes_other_direction": int(np.count_nonzero(x["direction"] != y["direction"])),
+            "scenes_other_status": int(np.count_nonzero(x["status"] != y["status"])),
+            "t_overturn_max_difference_s": float(np.max(np.abs(x["t_overturn"][both] - y["t_overturn"][both]),
+                                                        initial=0.0)),
+            "theta_max_max_difference_rad_at_rest": float(np.max(np.abs(x["theta_max"][rest] - y["theta_max"][rest]),
+                                                                 initial=0.0)),
+            "scenes_other_steps": int(np.count_nonzero(x["steps"] != y["steps"])),
+            "scenes_other_impacts": int(np.count_nonzero(x["impacts"] != y["impacts"]))}
 
 
 def versus_baseline(model: str, baseline: Path, repeats: int) -> dict:
     """The paper-scale study timed with this code and with ``baseline``'s, alternately ``repeats`` times each
     (same load on both): medians [s], every run, and the speed-up (baseline median over this median)."""
     runs: dict[str, list[dict]] = {"this": [], "baseline": []}
-    for _ in range(repeats):
-        runs["baseline"].append(timed_study(baseline, model))
-        runs["this"].append(timed_study(HERE, model))
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeats):
+            runs["baseline"].append(timed_study(baseline, model, Path(tmp, "baseline.npz")))
+            runs["this"].append(timed_study(HERE, model, Path(tmp, "this.npz")))
+        differences = output_differences(Path(tmp, "baseline.npz"), Path(tmp, "this.npz"))
     med = {k: float(np.median([r["wall_s"] for r in v])) for k, v in runs.items()}
     return {"unit": "s wall, 36,000 scenes, all cores", "baseline_code": str(baseline),
             "this_median_s": round(med["this"], 3), "baseline_median_s": round(med["baseline"], 3),
             "this_runs_s": [round(r["wall_s"], 3) for r in runs["this"]],
             "baseline_runs_s": [round(r["wall_s"], 3) for r in runs["baseline"]],
             "this_rk4_steps": runs["this"][0]["rk4_steps"], "baseline_rk4_steps": runs["baseline"][0]["rk4_steps"],
-            "speedup": round(med["baseline"] / med["this"], 2),
+            "speedup": round(med["baseline"] / med["this"], 2), "outputs_this_vs_baseline": differences,
             "compared": "baseline median over this median, alternating runs in one run of this script"}
 
 
