@@ -14,6 +14,7 @@ import math
 
 import numpy as np
 import pytest
+from newton_euler import newton_euler, rot
 
 from analysis.body import Body, G
 from analysis.envelope import block_bounds
@@ -46,41 +47,6 @@ def stages(trace: GeneralTrace) -> set[int]:
 # the equations, against an independent Newton–Euler solve
 
 
-def _rot(theta: float) -> np.ndarray:
-    """Clockwise rotation by θ (θ > 0 tips the block towards +x)."""
-    c, s = math.cos(theta), math.sin(theta)
-    return np.array([[c, s], [-s, c]])
-
-
-def _newton_euler(theta, omega, s, gx, gz, b, h, ig2, slip=None, mu=0.0):
-    """Solve for (θ'', pivot acceleration, R_t, R_n) per unit mass; ``slip`` None: the pivot sticks.
-
-    Geometry from rotation matrices: the centre of mass sits at d = Rot(θ)·(−s b/2, h/2) from the
-    pivot; d'' = θ'' Rot'(θ)·d0 + θ'² Rot''(θ)·d0. Newton: x_p'' e_x + d'' = (gx, −gz) + R.
-    Euler about the centre of mass (counter-clockwise positive, θ is clockwise):
-    −i_g² θ'' = (−d) × R.
-    """
-    d0 = np.array([-s * b / 2, h / 2])
-    c, sn = math.cos(theta), math.sin(theta)
-    d = _rot(theta) @ d0
-    d1 = np.array([[-sn, c], [-c, -sn]]) @ d0  # dRot/dθ · d0
-    d2 = np.array([[-c, -sn], [sn, -c]]) @ d0  # d²Rot/dθ² · d0
-    # unknowns u = (θ'', xp'', Rt, Rn)
-    A = np.zeros((4, 4))
-    rhs = np.zeros(4)
-    A[0] = [d1[0], 1.0, -1.0, 0.0]
-    rhs[0] = gx - omega**2 * d2[0]
-    A[1] = [d1[1], 0.0, 0.0, -1.0]
-    rhs[1] = -gz - omega**2 * d2[1]
-    # −ig2 θ'' = (−d)_x R_n − (−d)_z R_t
-    A[2] = [ig2, 0.0, d[1], -d[0]]
-    if slip is None:
-        A[3] = [0.0, 1.0, 0.0, 0.0]
-    else:
-        A[3] = [0.0, 0.0, 1.0, mu * slip]
-    return np.linalg.solve(A, rhs)
-
-
 def test_stage_equations_match_an_independent_newton_euler_solve() -> None:
     rng = np.random.default_rng(7)
     for _ in range(200):
@@ -93,7 +59,7 @@ def test_stage_equations_match_an_independent_newton_euler_solve() -> None:
         omega = rng.uniform(-4.0, 4.0)
         gx, gz = plate_gravity(rng.uniform(-8, 8), rng.uniform(-5, 5), math.cos(0.1), math.sin(0.1))
         # sticking pivot: Eq. 6 and the reactions
-        tdd, xdd, rt, rn = _newton_euler(theta, omega, s, gx, gz, b, h, ig2)
+        tdd, xdd, rt, rn = newton_euler(theta, omega, s, gx, gz, body)
         assert xdd == pytest.approx(0.0, abs=1e-12)
         add = rocking_acceleration(theta, s, gx, gz, alpha, k)
         assert add == pytest.approx(tdd, rel=1e-9, abs=1e-9)
@@ -101,7 +67,7 @@ def test_stage_equations_match_an_independent_newton_euler_solve() -> None:
         assert (rt2, rn2) == pytest.approx((rt, rn), rel=1e-9, abs=1e-9)
         # sliding pivot: Eqs. 9–10
         slip, mu = float(rng.choice([-1.0, 1.0])), rng.uniform(0.05, 1.0)
-        tdd, xdd, rt, rn = _newton_euler(theta, omega, s, gx, gz, b, h, ig2, slip, mu)
+        tdd, xdd, rt, rn = newton_euler(theta, omega, s, gx, gz, body, slip, mu)
         got = rocking_sliding_acceleration(theta, omega, s, slip, gx, gz, alpha, r, ig2, mu)
         assert got == pytest.approx((tdd, xdd, rn), rel=1e-8, abs=1e-8)
 
@@ -162,7 +128,7 @@ def test_landing_conserves_angular_momentum_about_the_corner_and_loses_energy() 
         om_p = landing_omega(theta, omega, v, w, alpha, r, ig2)
         s = math.copysign(1.0, theta)
         # centre of mass from the landing corner, by rotating the rest geometry
-        d = _rot(theta) @ np.array([-s * body.b / 2, body.h / 2])
+        d = rot(theta) @ np.array([-s * body.b / 2, body.h / 2])
         # after: rotation about the corner, v_cm = ω_z × d with ω_z = −θ'
         vz_cm = np.array([om_p * d[1], -om_p * d[0]])  # (−ω_z d_z, ω_z d_x) with ω_z = −θ'
         h_before = ig2 * (-omega) + d[0] * w - d[1] * v
