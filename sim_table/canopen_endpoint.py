@@ -167,8 +167,11 @@ SERIES_GAP = 0.1
 DRIFT = 1e-4
 """How fast the SYNC grid may drift later [s per s]: the master's clock may run slower than the controller's."""
 
-HISTORY = 512
-"""Ticks of leg lengths and accelerations kept for the feedback (512 ms at 1 kHz)."""
+HISTORY = 4096
+"""Ticks of leg lengths and accelerations kept for the feedback (4.1 s at 1 kHz). A SYNC is answered with the
+values of its instant, however late this process handles it, while that instant is kept: with 512 ticks, SYNCs
+handled 0.6–1.2 s late (the emulator's process unscheduled that long beside busy processes) were answered with the
+oldest kept values instead, a plate 4–17 mm ahead of where it was."""
 
 SYNC_COB_ID = 0x80
 _NMT_COB_ID = 0x000
@@ -209,6 +212,9 @@ class BusCounters:
     feedback_deferred: int = 0
     """SYNCs answered late, when the physics had computed the instant they report (the TPDOs keep their stamp)."""
     answers_dropped: int = 0
+    answers_forgotten: int = 0
+    """SYNCs handled after the instant they report had left the history (:data:`HISTORY`): not answered, so the
+    master counts their samples lost rather than being told a later position."""
     accel_samples_sent: int = 0
     emcy_sent: int = 0
     following_errors: int = 0
@@ -275,6 +281,14 @@ class Recent:
         self._times[rows] = t_start_ns + spacing_ns * np.arange(len(block), dtype=np.int64)
         self._values[rows] = block
         self._written += len(block)
+
+    @property
+    def oldest_ns(self) -> int | None:
+        """Time of the oldest sample kept [ns] (None before the first)."""
+        if not self._written:
+            return None
+        return int(self._times[self._written % len(self._times)] if self._written > len(self._times)
+                   else self._times[0])
 
     @property
     def newest_ns(self) -> int | None:
@@ -654,6 +668,10 @@ class CanopenEndpoint:
             if self._legs.newest_ns is None or min([self._legs.newest_ns, *fed]) < measured:
                 return
             self._answers.popleft()
+            kept = [s.samples.oldest_ns for s in self.sensors if s.samples.oldest_ns is not None]
+            if max([self._legs.oldest_ns or 0, *kept]) > measured:  # its instant has left the history
+                self.counters.answers_forgotten += 1
+                continue
             legs = np.clip(self._legs.at(measured), g.leg_min, g.leg_max)
             errors = np.rint((self._commands.at(measured) - legs) * 1e6).astype(int).tolist()
             for drive, word, length, error in zip(self.drives, words, legs.tolist(), errors, strict=True):

@@ -745,10 +745,10 @@ def test_with_the_sync_counter_a_paused_master_keeps_its_series_and_lost_syncs_a
 
 def test_recent_interpolates_between_evenly_spaced_samples() -> None:
     recent = Recent(2, capacity=4)
-    assert recent.newest_ns is None
+    assert recent.newest_ns is None and recent.oldest_ns is None
     recent.extend(1_000, 1_000, np.array([[0.0, 1.0], [2.0, 3.0]]))
     recent.extend(3_000, 1_000, np.array([[4.0, 5.0], [6.0, 7.0], [8.0, 9.0]]))  # the oldest falls out
-    assert recent.newest_ns == 5_000
+    assert recent.newest_ns == 5_000 and recent.oldest_ns == 2_000
     np.testing.assert_allclose(recent.at(4_500), [7.0, 8.0])
     np.testing.assert_allclose(recent.at(5_000), [8.0, 9.0])
     np.testing.assert_allclose(recent.at(500), [2.0, 3.0])  # before the oldest kept: the oldest
