@@ -309,15 +309,21 @@ def test_first_leg_speed_violation() -> None:
     assert abs(by_gradient.time - t[i]) <= 1e-3 + 1e-12
 
 
-@pytest.mark.parametrize("given_derivatives", [True, False])
-def test_first_surge_acceleration_violation(given_derivatives: bool) -> None:
-    """5 Hz surge sine of 7 mm: peak acceleration 6.9 m/s² > 0.6 g; displacement and velocity are fine."""
-    amplitude, w = 0.007, 2 * math.pi * 5
+def _surge_sine(amplitude: float, w: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """0.2 s at 10 kHz of a surge sine ``amplitude`` [m] at ``w`` [rad/s]: times, poses, velocities, accelerations."""
     t = np.arange(0.0, 0.2, 1e-4)
     poses, velocities, accelerations = (np.zeros((t.size, 6)) for _ in range(3))
     poses[:, 0] = amplitude * np.sin(w * t)
     velocities[:, 0] = amplitude * w * np.cos(w * t)
     accelerations[:, 0] = -amplitude * w**2 * np.sin(w * t)
+    return t, poses, velocities, accelerations
+
+
+@pytest.mark.parametrize("given_derivatives", [True, False])
+def test_first_surge_acceleration_violation(given_derivatives: bool) -> None:
+    """5 Hz surge sine of 7 mm: peak acceleration 6.9 m/s² > 0.6 g; displacement and velocity are fine."""
+    amplitude, w = 0.007, 2 * math.pi * 5
+    t, poses, velocities, accelerations = _surge_sine(amplitude, w)
     crossing = math.asin(0.6 * G / (amplitude * w**2)) / w
     i = np.searchsorted(t, crossing, side="right")
     if given_derivatives:
@@ -336,11 +342,7 @@ def test_a_command_is_held_to_the_envelope_and_the_legs_not_to_table_iv_accelera
     at the first sample past it; 1.1 m/s of heave (Table IV's 0.3 m/s, but the legs' 0.9 m/s) is refused for the
     legs, not the axis."""
     amplitude, w = 0.007, 2 * math.pi * 5
-    t = np.arange(0.0, 0.2, 1e-4)
-    poses, velocities, accelerations = (np.zeros((t.size, 6)) for _ in range(3))
-    poses[:, 0] = amplitude * np.sin(w * t)
-    velocities[:, 0] = amplitude * w * np.cos(w * t)
-    accelerations[:, 0] = -amplitude * w**2 * np.sin(w * t)
+    t, poses, velocities, accelerations = _surge_sine(amplitude, w)
     assert MODEL.check_trajectory(t, poses, velocities, accelerations).quantity == "acceleration"
     assert MODEL.check_command(t, poses, velocities, accelerations) is None
     far = np.zeros((t.size, 6))
