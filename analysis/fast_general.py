@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from analysis import hermite
+from analysis.envelope import BLOCK, block_slack, margin_bound
 from analysis.equations import (
     plate_gravity,
     rocking_sliding_acceleration,
@@ -85,15 +86,30 @@ ILLINOIS_ITER = 40
 # REST
 
 
+@njit(cache=True, inline="always")
+def _block_quiet(b: np.ndarray, cb: float, sb: float, ca_p: float, sa_p: float, ca_m: float, sa_m: float, mu: float,
+                 has_vertical: bool) -> bool:
+    """No sample of the block ``b`` (its extremes of a_x, a_y) has a REST margin above zero
+    (``general_stages.rest_margins``: m = u g_x + w g_z for each (u, w) below)."""
+    y_max, y_min = (b[2], b[3]) if has_vertical else (0.0, 0.0)
+    lim = block_slack(b[0], b[1], y_max, y_min)
+    return (margin_bound(ca_p, -sa_p, cb, sb, b[0], b[1], y_max, y_min) < lim
+            and margin_bound(-ca_m, -sa_m, cb, sb, b[0], b[1], y_max, y_min) < lim
+            and margin_bound(1.0, -mu, cb, sb, b[0], b[1], y_max, y_min) < lim
+            and margin_bound(-1.0, -mu, cb, sb, b[0], b[1], y_max, y_min) < lim
+            and margin_bound(0.0, -1.0, cb, sb, b[0], b[1], y_max, y_min) < lim)
+
+
 @njit(cache=True)
-def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, sb: float, alpha_p: float,
-               alpha_m: float, mu: float, has_vertical: bool) -> tuple[float, int]:
+def _next_exit(ax: np.ndarray, ay: np.ndarray, env: np.ndarray, dt: float, t: float, cb: float, sb: float,
+               alpha_p: float, alpha_m: float, mu: float, has_vertical: bool) -> tuple[float, int]:
     """Earliest time ≥ t at which the resting block leaves rest, and how (EXIT_*); (inf, 0) if never.
 
     The margins (uplift ±, slide ±, lift-off) are linear in t inside a sample interval; after the
     record the input is zero and they are constant. The scan reads the samples; the interval where a
     margin turns positive is resolved by :func:`analysis.general_stages.rest_leave` (the tie rule) on
-    the line the integration uses there (``fast_rocking.step_window``).
+    the line the integration uses there (``fast_rocking.step_window``). Blocks of samples (``env``, the
+    record's ``envelope.block_bounds``) where none of the five margins can turn positive are jumped.
     """
     n = ax.shape[0]
     ca_p, sa_p, ca_m, sa_m = math.cos(alpha_p), math.sin(alpha_p), math.cos(alpha_m), math.sin(alpha_m)
@@ -107,6 +123,12 @@ def _next_exit(ax: np.ndarray, ay: np.ndarray, dt: float, t: float, cb: float, s
         return (t, kind) if kind != EXIT_NONE else (math.inf, EXIT_NONE)
     t0 = t
     while i < n - 1:
+        j = i + 1
+        if t0 != t and j % BLOCK == 0 and j + BLOCK <= n and _block_quiet(env[j // BLOCK], cb, sb, ca_p, sa_p, ca_m,
+                                                                         sa_m, mu, has_vertical):
+            i = j + BLOCK - 1
+            t0 = i * dt
+            continue
         a1y = ay[i + 1] if has_vertical else 0.0
         b1, b2, b3, b4, b5 = rest_margins(ax[i + 1], a1y, cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
         if t0 == t or rest_exit(b1, b2, b3, b4, b5, tips_p, tips_m) != EXIT_NONE:
@@ -374,9 +396,9 @@ def _first_root(c0: float, c1: float, c2: float, H: float) -> float:
 
 @njit(cache=True)
 def simulate_general(
-    ax: np.ndarray, ay: np.ndarray, dt: float, alpha_p: float, r_p: float, alpha_m: float, r_m: float, ig2: float,
-    beta: float, e_p: float, e_m: float, mu: float, n_sub: int, t_after: float, fall_plus: float, fall_minus: float,
-    theta0: float, omega0: float, has_vertical: bool,
+    ax: np.ndarray, ay: np.ndarray, env: np.ndarray, dt: float, alpha_p: float, r_p: float, alpha_m: float,
+    r_m: float, ig2: float, beta: float, e_p: float, e_m: float, mu: float, n_sub: int, t_after: float,
+    fall_plus: float, fall_minus: float, theta0: float, omega0: float, has_vertical: bool,
 ) -> tuple[int, float, float, int, float, int, int, bool, float, float, float]:
     """Run one scene of the general model. Returns (direction, t_overturn, theta_max, impacts, t_end,
     status, steps, settled_by_prescreen) as :func:`analysis.fast_rocking.simulate_rocking`, then the
@@ -385,7 +407,8 @@ def simulate_general(
     *Slide displacement*); impacts counts corner impacts and landings. ``alpha_p``, ``r_p`` (``alpha_m``,
     ``r_m``): the slenderness and the distance to the centre of mass [m] of the +x (−x) corner; ``ig2`` i_g² [m²];
     ``e_p`` (``e_m``): the angular-velocity ratio at an impact that ends rocking on the +x (−x) corner; ``mu``
-    friction, ``has_vertical``: ``ay`` is not all zero (else the scan does not read it)."""
+    friction, ``has_vertical``: ``ay`` is not all zero (else the scan does not read it); ``env``:
+    ``envelope.block_bounds(ax, ay)`` (the rest scan jumps blocks where no exit can be reached)."""
     n = ax.shape[0]
     t_rec = (n - 1) * dt
     t_stop = t_rec + t_after
@@ -418,7 +441,7 @@ def simulate_general(
         if it > it_max:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False, u_peak, u, t_slide
         if stage == ST_REST:
-            t_x, kind = _next_exit(ax, ay, dt, t, cb, sb, alpha_p, alpha_m, mu, has_vertical)
+            t_x, kind = _next_exit(ax, ay, env, dt, t, cb, sb, alpha_p, alpha_m, mu, has_vertical)
             if kind == EXIT_NONE:
                 return 0, math.nan, theta_max, impacts, t_rest, REST, steps, first_scan, u_peak, u, t_slide
             first_scan = False
@@ -650,10 +673,11 @@ def simulate_general(
         ev = 0
         tau_ev = H
         c3, c2, c1h, c0 = hermite.coefficients(theta, omega, theta1, omega1, H)
-        u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
+        u_top = -1.0  # where |θ| peaks in the step: found only where it is read (impact, reaction event, turn)
         if s * theta1 >= fall:
             tau_ev, ev = hermite.crossing(c3, c2, c1h, c0, s, fall, 0.0) * H, 1
         elif s * theta1 < 0.0 or (theta1 == 0.0 and s * omega1 < 0.0):
+            u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
             tau_ev, ev = hermite.crossing(c3, c2, c1h, c0, s, 0.0, u_top) * H, 2
         if ev != 0:
             if rs:
@@ -701,6 +725,8 @@ def simulate_general(
                 _, th_r, om_r, _, _ = _rock_f(tau_r, 0, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k,
                                               mu, cb, sb)
                 v_r = 0.0
+            if u_top < 0.0:
+                u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
             if u_top * H <= tau_r:
                 theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
             theta_max = max(theta_max, abs(th_r))
@@ -766,6 +792,7 @@ def simulate_general(
             t_last = t
             continue
         if omega * omega1 < 0.0:
+            u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
             theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
         theta_max = max(theta_max, abs(theta1))
         if rs:

@@ -229,18 +229,21 @@ def _status_name(code: int) -> str:
 def _fast(body: Body, model: str, ax: np.ndarray, ay: np.ndarray, dt: float, beta: float,
           e: tuple[float, float], friction: float, t_after: float, fall_plus: float, fall_minus: float,
           theta0: float, omega0: float, n_sub: int, has_vertical: bool) -> SimulationResult:
+    from analysis.envelope import block_bounds
+
+    env = block_bounds(ax, ay)
     if model == "rocking":
         from analysis.fast_rocking import simulate_rocking
 
         d, t_o, th_max, imp, t_end, status, _, pre = simulate_rocking(
-            ax, ay, dt, body.alpha_plus, body.k_plus, body.alpha_minus, body.k_minus, beta, e[0], e[1], n_sub,
+            ax, ay, env, dt, body.alpha_plus, body.k_plus, body.alpha_minus, body.k_minus, beta, e[0], e[1], n_sub,
             t_after, fall_plus, fall_minus, theta0, omega0)
         slide = (0.0, 0.0, 0.0)
     else:
         from analysis.fast_general import simulate_general
 
         d, t_o, th_max, imp, t_end, status, _, pre, *slide = simulate_general(
-            ax, ay, dt, body.alpha_plus, body.r_plus, body.alpha_minus, body.r_minus, body.i_g**2, beta, e[0],
+            ax, ay, env, dt, body.alpha_plus, body.r_plus, body.alpha_minus, body.r_minus, body.i_g**2, beta, e[0],
             e[1], friction, n_sub, t_after, fall_plus, fall_minus, theta0, omega0, has_vertical)
     return SimulationResult(int(d), None if math.isnan(t_o) else float(t_o), float(th_max),
                             _status_name(status), float(t_end), int(imp), model, "fast", bool(pre),

@@ -16,6 +16,7 @@ import numpy as np
 
 from analysis import design
 from analysis.body import Body, G
+from analysis.envelope import block_bounds
 from analysis.errors import AnalysisInputError
 from analysis.simulate import (
     DEFAULT_FRICTION,
@@ -40,6 +41,9 @@ class RecordLike(Protocol):
 
 
 STATUS = ("rest", "overturned", "undecided")
+CHUNK = 16
+"""Scenes a thread of the compiled batch takes at a time (dynamic scheduling: a thread slowed by other work on
+the machine takes fewer, instead of the others waiting for its fixed share)."""
 
 
 def cor_counts(direction: np.ndarray) -> dict:
@@ -239,6 +243,9 @@ def study(
     ax = np.concatenate(ax_parts)
     ay = np.concatenate(ay_parts)
     dts_arr = np.array(dts)
+    env_parts = [block_bounds(x, y) for x, y in zip(ax_parts, ay_parts, strict=True)]
+    env = np.concatenate(env_parts)
+    env_offsets = np.concatenate(([0], np.cumsum([e_.shape[0] for e_ in env_parts])[:-1])).astype(np.int64)
     n_series = len(dts)
 
     nb, nr, ns, na = len(bodies), len(records), len(signs), angles_arr.size
@@ -258,19 +265,23 @@ def study(
     out_i = np.zeros((n_scenes, 5), dtype=np.int64)
     static = criterion == "static"
 
+    from numba import set_parallel_chunksize
+
+    previous = set_parallel_chunksize(CHUNK)
     t0 = time.perf_counter()
     if model == "rocking":
         from analysis.batch import run_rocking
 
-        run_rocking(ax, ay, offsets, lengths, dts_arr, scene_series, scene_body, scene_beta, order,
+        run_rocking(ax, ay, offsets, lengths, env, env_offsets, dts_arr, scene_series, scene_body, scene_beta, order,
                     alpha_p, k_p, alpha_m, k_m, n_sub, e_p, e_m, float(t_after), static, out_f, out_i)
     else:
         from analysis.batch_general import run_general_kernel
 
-        run_general_kernel(ax, ay, offsets, lengths, dts_arr, scene_series, scene_body, scene_beta, order,
-                           alpha_p, r_p, alpha_m, r_m, ig2, n_sub, e_p, e_m, float(friction), np.array(has_v),
+        run_general_kernel(ax, ay, offsets, lengths, env, env_offsets, dts_arr, scene_series, scene_body, scene_beta,
+                           order, alpha_p, r_p, alpha_m, r_m, ig2, n_sub, e_p, e_m, float(friction), np.array(has_v),
                            float(t_after), static, out_f, out_i)
     seconds = time.perf_counter() - t0
+    set_parallel_chunksize(previous)
 
     signs_arr = np.array(signs)
     return StudyResult(

@@ -17,7 +17,13 @@ Measured in one run on this machine:
 * energy added by the fast engine over 60 s of free rocking with e = 1, per step p·h (the bound
   stated in tests/analysis/test_general.py, ``ENERGY_BOUND``).
 
-Usage: ``python benchmarks/engine.py [--quick] [--models rocking,general]``
+With ``--baseline DIR`` (a checkout of the code to compare with, e.g. a worktree of main), the paper-scale
+study is also timed from DIR's code and from this one alternately, ``--repeats`` times each, each run in its own
+process (warmed up first), in the same run of this script: the medians and the speed-up are reported
+(``paper_scale_study_vs_baseline``), so that both figures see the same load, with how the two codes' outputs
+differ scene by scene.
+
+Usage: ``python benchmarks/engine.py [--quick] [--models rocking,general] [--baseline DIR [--repeats N]]``
 """
 
 from __future__ import annotations
@@ -26,8 +32,12 @@ import argparse
 import json
 import math
 import os
+import subprocess
+import sys
+import tempfile
 import time
 from dataclasses import asdict
+from pathlib import Path
 
 import numpy as np
 
@@ -48,6 +58,67 @@ ANGLES = np.radians(np.arange(0.0, 7.0 + 1e-9, 0.5))
 AGREEMENT_ANGLES = np.radians([0.0, 3.0, 5.0, 7.0])
 PAPER_TABLE_II = [50, 59, 67, 75, 81, 85, 89, 92, 94, 95, 96, 97, 97, 97, 98]
 STEPS = [0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625]
+
+
+HERE = Path(__file__).resolve().parents[1]
+TIMED_STUDY = """
+import json, sys
+sys.path.insert(0, sys.argv[1])
+import numpy as np
+from analysis import TABLE_I
+from analysis.study import study
+from rig.records import load_records
+angles = np.radians(np.arange(0.0, 7.0 + 1e-9, 0.5))
+records = load_records("fema")
+study(TABLE_I[:2], records[:2], angles[:2], model=sys.argv[2])
+res = study(TABLE_I, records, angles, model=sys.argv[2])
+np.savez(sys.argv[3], direction=res.direction, status=res.status, t_overturn=res.t_overturn,
+         theta_max=res.theta_max, steps=res.steps, impacts=res.impacts)
+print(json.dumps({"wall_s": res.seconds, "rk4_steps": int(res.steps.sum()), "scenes": res.scenes}))
+"""
+
+
+def timed_study(code: Path, model: str, outputs: Path) -> dict:
+    """The paper-scale study's wall time [s] and RK4 steps with the code at ``code``, in a fresh process; its
+    per-scene outputs go to ``outputs`` (.npz)."""
+    out = subprocess.run([sys.executable, "-c", TIMED_STUDY, str(code), model, str(outputs)], check=True,
+                         capture_output=True, text=True, cwd=code)
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def output_differences(a: Path, b: Path) -> dict:
+    """How two runs of the paper-scale study differ scene by scene (direction, status, overturn time [s],
+    largest rotation [rad] of the scenes that both leave at rest, steps, impacts)."""
+    x, y = np.load(a), np.load(b)
+    both = (x["status"] == 1) & (y["status"] == 1)
+    rest = (x["status"] == 0) & (y["status"] == 0)
+    return {"scenes_other_direction": int(np.count_nonzero(x["direction"] != y["direction"])),
+            "scenes_other_status": int(np.count_nonzero(x["status"] != y["status"])),
+            "t_overturn_max_difference_s": float(np.max(np.abs(x["t_overturn"][both] - y["t_overturn"][both]),
+                                                        initial=0.0)),
+            "theta_max_max_difference_rad_at_rest": float(np.max(np.abs(x["theta_max"][rest] - y["theta_max"][rest]),
+                                                                 initial=0.0)),
+            "scenes_other_steps": int(np.count_nonzero(x["steps"] != y["steps"])),
+            "scenes_other_impacts": int(np.count_nonzero(x["impacts"] != y["impacts"]))}
+
+
+def versus_baseline(model: str, baseline: Path, repeats: int) -> dict:
+    """The paper-scale study timed with this code and with ``baseline``'s, alternately ``repeats`` times each
+    (same load on both): medians [s], every run, and the speed-up (baseline median over this median)."""
+    runs: dict[str, list[dict]] = {"this": [], "baseline": []}
+    with tempfile.TemporaryDirectory() as tmp:
+        for _ in range(repeats):
+            runs["baseline"].append(timed_study(baseline, model, Path(tmp, "baseline.npz")))
+            runs["this"].append(timed_study(HERE, model, Path(tmp, "this.npz")))
+        differences = output_differences(Path(tmp, "baseline.npz"), Path(tmp, "this.npz"))
+    med = {k: float(np.median([r["wall_s"] for r in v])) for k, v in runs.items()}
+    return {"unit": "s wall, 36,000 scenes, all cores", "baseline_code": str(baseline),
+            "this_median_s": round(med["this"], 3), "baseline_median_s": round(med["baseline"], 3),
+            "this_runs_s": [round(r["wall_s"], 3) for r in runs["this"]],
+            "baseline_runs_s": [round(r["wall_s"], 3) for r in runs["baseline"]],
+            "this_rk4_steps": runs["this"][0]["rk4_steps"], "baseline_rk4_steps": runs["baseline"][0]["rk4_steps"],
+            "speedup": round(med["baseline"] / med["this"], 2), "outputs_this_vs_baseline": differences,
+            "compared": "baseline median over this median, alternating runs in one run of this script"}
 
 
 def sample_scenes(records: list, n: int, seed: int) -> list[tuple]:
@@ -159,13 +230,21 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="smaller agreement set and samples")
     ap.add_argument("--models", default="rocking,general")
+    ap.add_argument("--baseline", type=Path, help="a checkout to time the paper-scale study against")
+    ap.add_argument("--repeats", type=int, default=3, help="runs of each side with --baseline")
+    ap.add_argument("--only-timing", action="store_true", help="with --baseline: only the timed comparison")
     args = ap.parse_args()
     records = load_records("fema")
     report: dict = {"benchmark": "analysis engines", "machine_cores": os.cpu_count(), "records": len(records),
                     "models": {}}
     studies: dict = {}
     for model in args.models.split(","):
-        entry: dict = {"paper_scale_study": paper_study(model, records, studies)}
+        if args.baseline is not None:
+            report["models"][model] = {"paper_scale_study_vs_baseline": versus_baseline(model, args.baseline.resolve(),
+                                                                                        args.repeats)}
+            if args.only_timing:
+                continue
+        entry: dict = {**report["models"].get(model, {}), "paper_scale_study": paper_study(model, records, studies)}
         sample = sample_scenes(records, 20 if args.quick else 60, seed=1)
         ref_s = reference_time(model, sample)
         fast_s = entry["paper_scale_study"]["wall_s"] / entry["paper_scale_study"]["scenes"]
@@ -186,7 +265,7 @@ def main() -> None:
         if model == "general":
             entry["stressed_agreement"] = stressed(records, args.quick)
         report["models"][model] = entry
-        print(json.dumps({"progress": model, "done": True}), flush=True, file=__import__("sys").stderr)
+        print(json.dumps({"progress": model, "done": True}), flush=True, file=sys.stderr)
     if {"rocking", "general"} <= studies.keys():
         report["general_vs_rocking"] = general_vs_rocking(studies["rocking"], studies["general"])
     print(json.dumps(report, indent=1, default=lambda o: None if isinstance(o, float) and math.isnan(o) else o))

@@ -17,6 +17,7 @@ import pytest
 from newton_euler import newton_euler, rot
 
 from analysis.body import Body, G
+from analysis.envelope import block_bounds
 from analysis.equations import pivot_reactions, plate_gravity, rocking_acceleration, rocking_sliding_acceleration
 from analysis.fast_general import (
     REST,
@@ -293,9 +294,10 @@ def test_sliding_down_an_incline_from_rest() -> None:
         assert res.slide_peak == pytest.approx(u_end, rel=1e-9)
         assert res.slide_time == pytest.approx(2.5, rel=1e-12)
     # with tan β < μ the same block stays put, and the pre-screen alone settles it
+    ax = np.append(acc, 0.0) * G
     d, _, th, imp, t_end, status, steps, pre, *_ = simulate_general(
-        np.append(acc, 0.0) * G, np.zeros(51), DT, SLIDER.alpha, SLIDER.r, SLIDER.alpha, SLIDER.r, SLIDER.i_g**2, beta,
-        0.0, 0.0, 0.35, 4, 2.0, math.pi / 2, math.pi / 2, 0.0, 0.0, False)
+        ax, np.zeros(51), block_bounds(ax, np.zeros(51)), DT, SLIDER.alpha, SLIDER.r, SLIDER.alpha, SLIDER.r,
+        SLIDER.i_g**2, beta, 0.0, 0.0, 0.35, 4, 2.0, math.pi / 2, math.pi / 2, 0.0, 0.0, False)
     assert (d, status, steps, pre, imp, th, t_end) == (0, REST, 0, True, 0, 0.0, 0.0)
 
 
