@@ -17,7 +17,7 @@ import pytest
 from hypothesis import HealthCheck, assume, given, note, settings
 from hypothesis import strategies as st
 
-from analysis import Body, exceeds_threshold, simulate
+from analysis import TABLE_V, Body, exceeds_threshold, simulate
 from analysis.body import G
 from analysis.equations import plate_gravity, rocking_acceleration, sliding_acceleration
 from analysis.general_stages import (
@@ -117,6 +117,24 @@ def test_uplift_margin_exactly_zero_where_rocking_starts() -> None:
         assert res.status == truth.status == "undecided"  # still rocking when the record ends (t_after 0)
         assert res.theta_max == pytest.approx(truth.theta_max, rel=1e-6 if solver == "fast" else 1e-9)
         assert res.slide_time == 0.0
+
+
+def test_rocking_on_a_rounded_1_ms_grid_goes_on_to_the_end_of_the_record() -> None:
+    """A 1 kHz record whose interval reads 0.0010000000000000002 s (the rig's sample clock, rounded): Table V
+    body 1 rocks 20 s on a 0.25 g, 3 Hz sine with e = 0.9. The rocking kernel compiled with fused multiply-adds
+    held t at 16.002000000000002 for ever (an exact product where the step grid needs the rounded one: a step
+    of zero length; a whole ``rig analyze`` of a tap hung on it). Both fast engines must rock on to the end of
+    the record (t_after 0: ``undecided``, still rocking) with the reference solver's largest angle and impacts."""
+    dt = 0.0010000000000000002
+    acc = 0.25 * np.sin(2 * np.pi * 3.0 * np.arange(0, 20.0, 0.001))
+    t_end = acc.size * dt  # the engines add one trailing zero sample
+    truth = simulate(TABLE_V[0], acc, dt, model="rocking", solver="reference", restitution=0.9, t_after=0.0)
+    assert truth.status == "undecided" and truth.t_end == pytest.approx(t_end) and truth.impacts > 100
+    for model in ("rocking", "general"):
+        res = simulate(TABLE_V[0], acc, dt, model=model, solver="fast", restitution=0.9, t_after=0.0)
+        assert res.status == "undecided" and res.t_end == pytest.approx(t_end, abs=1e-9), (model, res)
+        assert res.impacts == truth.impacts, (model, res.impacts, truth.impacts)
+        assert res.theta_max == pytest.approx(truth.theta_max, rel=1e-3), (model, res.theta_max, truth.theta_max)
 
 
 def test_a_weightless_block_slides_instead_of_looping_in_place() -> None:
