@@ -115,7 +115,7 @@ def _next_exit(ax: np.ndarray, ay: np.ndarray, env: np.ndarray, dt: float, t: fl
     ca_p, sa_p, ca_m, sa_m = math.cos(alpha_p), math.sin(alpha_p), math.cos(alpha_m), math.sin(alpha_m)
     tips_p, tips_m = friction_tips(mu, math.tan(alpha_p)), friction_tips(mu, math.tan(alpha_m))
     i = int(t / dt)
-    if i < n - 1 and (i + 1) * dt - t <= 1e-12 * dt:  # as step_window: the next interval's line
+    if i < n - 1 and (i + 1) * dt <= t + 1e-12 * dt:  # as step_window: the next interval's line
         i += 1
     if i >= n - 1:
         m1, m2, m3, m4, m5 = rest_margins(0.0, 0.0, cb, sb, ca_p, sa_p, ca_m, sa_m, mu)
