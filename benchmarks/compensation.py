@@ -59,17 +59,21 @@ from sim_table.offline import play_offline
 
 TARGET_PCT = 5.0
 FINE_PCT = 2.0
+TARGET_PLAYS = 3
+"""Full-level plays the issue's ≤ 5 % target allows (``--iterations`` may allow more, to see where ≤ 2 % is
+reached)."""
 LAWS = ("diagonal", "mimo")
 
 
-def _outcome(result: Compensation, drive: Drive, predicted_full: float, forecasts: list[float] | None = None
-             ) -> dict[str, Any]:
-    """One law's JSON on one case; ``forecasts`` each play's predicted peak acceleration / its limit (offline)."""
+def _plays_to(full: list[Any], pct: float) -> int | None:
+    """The number of full-level plays it took to reach ``pct`` fall-line RMS error, or None."""
+    return next((k + 1 for k, it in enumerate(full) if it.rms_error_pct <= pct), None)
+
+
+def _outcome(result: Compensation, predicted_full: float) -> dict[str, Any]:
+    """One law's JSON on one case."""
     plays = [it.to_json() for it in result.iterations]
-    if forecasts is not None:
-        plays = [p | {"predicted_peak_to_limit": f} for p, f in zip(plays, forecasts, strict=True)]
     full = [it for it in result.iterations if it.level_db == 0.0]
-    reached = next((k + 1 for k, it in enumerate(full) if it.rms_error_pct <= TARGET_PCT), None)
     return {
         "uncompensated": {"rms_error_pct": result.iterations[0].rms_error_pct,
                           "level_db": result.iterations[0].level_db,
@@ -79,7 +83,8 @@ def _outcome(result: Compensation, drive: Drive, predicted_full: float, forecast
                                            "gain", "seconds") if key in p}
                   | {"trac": p["fall_line"]["trac"]} for p in plays],
         "rms_error_pct_by_play": [round(it.rms_error_pct, 3) for it in result.iterations],
-        "full_level_plays_to_5_pct": reached,
+        "full_level_plays_to_5_pct": _plays_to(full, TARGET_PCT),
+        "full_level_plays_to_2_pct": _plays_to(full, FINE_PCT),
         "best_full_level_rms_error_pct": min((it.rms_error_pct for it in full), default=None),
         "largest_peak_to_limit": max(it.measures.peak_to_limit for it in result.iterations),
         "seconds_per_play": statistics.mean(it.seconds for it in result.iterations),
@@ -112,11 +117,8 @@ def _offline(args: argparse.Namespace, table: TableModel, payload: float, specs:
             predicted = predicted_peak_ratio(drive, matrix)
             for name in LAWS:
                 law = DiagonalLaw(diagonal) if name == "diagonal" else MimoLaw(matrix)
-                forecasts: list[float] = []
 
-                def play(d: Drive, i: int, k: int = k, law: DiagonalLaw | MimoLaw = law,
-                         forecasts: list[float] = forecasts) -> np.ndarray:
-                    forecasts.append(predicted_peak_ratio(d, law.response))  # the response the play was checked on
+                def play(d: Drive, i: int, k: int = k) -> np.ndarray:
                     return play_offline(table, d.poses, payload=payload, seed=100 * k + i)
 
                 try:
@@ -124,7 +126,7 @@ def _offline(args: argparse.Namespace, table: TableModel, payload: float, specs:
                 except PredictedLimitError as exc:
                     case[name] = {"refused": str(exc)}
                     continue
-                case[name] = _outcome(result, drive, predicted, forecasts)
+                case[name] = _outcome(result, predicted)
             cases.append(case)
             print(json.dumps({"progress": spec, "angle_deg": angle_deg,
                               **{n: case[n].get("rms_error_pct_by_play") for n in LAWS}}), flush=True,
@@ -164,7 +166,7 @@ def _emulator(args: argparse.Namespace, table: TableModel, specs: list[str], scr
                                                software_version="benchmark", bodies=bodies, law=name,
                                                iterations=args.iterations, levels_db=levels,
                                                identify_seconds=args.identify_seconds)
-                    case[name] = _outcome(outcome.result, drive, math.nan)
+                    case[name] = _outcome(outcome.result, math.nan)
                 except (RuntimeError, OSError) as exc:
                     case[name] = {"failed": str(exc)}
                 finally:
@@ -181,10 +183,13 @@ def _summary(cases: list[dict[str, Any]], iterations: int) -> dict[str, Any]:
         out[name] = {
             "cases": len(cases), "played": len(done),
             "refused_or_failed": len(cases) - len(done),
-            f"reached_{TARGET_PCT:g}_pct_within_{iterations}_full_level_plays": sum(
-                1 for d in done if d["full_level_plays_to_5_pct"] is not None),
-            f"reached_{FINE_PCT:g}_pct": sum(1 for b in best if b <= FINE_PCT),
+            f"reached_{TARGET_PCT:g}_pct_within_{TARGET_PLAYS}_full_level_plays": sum(
+                1 for d in done if (d["full_level_plays_to_5_pct"] or TARGET_PLAYS + 1) <= TARGET_PLAYS),
+            f"reached_{FINE_PCT:g}_pct_within_{TARGET_PLAYS}_full_level_plays": sum(
+                1 for d in done if (d["full_level_plays_to_2_pct"] or TARGET_PLAYS + 1) <= TARGET_PLAYS),
+            f"reached_{FINE_PCT:g}_pct_within_{iterations}_full_level_plays": sum(1 for b in best if b <= FINE_PCT),
             "full_level_plays_to_5_pct": [d["full_level_plays_to_5_pct"] for d in done],
+            "full_level_plays_to_2_pct": [d["full_level_plays_to_2_pct"] for d in done],
             "best_full_level_rms_error_pct": {"median": statistics.median(best) if best else None,
                                               "max": max(best) if best else None},
             "uncompensated_rms_error_pct_median": statistics.median(d["uncompensated"]["rms_error_pct"]
@@ -192,7 +197,7 @@ def _summary(cases: list[dict[str, Any]], iterations: int) -> dict[str, Any]:
             "largest_peak_to_limit_any_play": max((d["largest_peak_to_limit"] for d in done), default=None),
             "seconds_per_play_mean": statistics.mean(d["seconds_per_play"] for d in done) if done else None,
             "achieved_over_predicted_peak_max": max((p["peak_to_limit"] / p["predicted_peak_to_limit"] for d in done
-                                                     for p in d["plays"] if "predicted_peak_to_limit" in p),
+                                                     for p in d["plays"] if p.get("predicted_peak_to_limit")),
                                                     default=None),
         }
     predicted = [c["mimo"]["uncompensated"]["predicted_peak_to_limit_at_full_level"] for c in cases

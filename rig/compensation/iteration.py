@@ -58,7 +58,15 @@ from analysis.table.model import AXES
 from rig.drive import Drive
 
 from .measures import Measures, measure
-from .safety import LEVELS_DB, PredictedLimitError, Response, at_level, check_prediction, level_that_fits
+from .safety import (
+    LEVELS_DB,
+    PredictedLimitError,
+    Response,
+    at_level,
+    check_prediction,
+    level_that_fits,
+    predicted_peak_ratio,
+)
 from .signals import base_accelerations, errors_pct, fall_line, in_band
 
 Play = Callable[[Drive, int], np.ndarray]
@@ -95,9 +103,10 @@ class Law(Protocol):
 @dataclass(frozen=True)
 class Iteration:
     """One play: ``index`` (0: the drive as prepared), its ``level_db``, its ``measures`` (fall-line
-    ``rms_error_pct`` and ``peak_error_pct`` among them), the ``gain`` scale of the correction that made it (0 for
-    index 0), a ``note`` (gain reduced for the limits, roll-back …) and the ``seconds`` the correction, its checks
-    and the play took."""
+    ``rms_error_pct`` and ``peak_error_pct`` among them, ``peak_to_limit`` the achieved), the ``gain`` scale of the
+    correction that made it (0 for index 0), a ``note`` (gain reduced for the limits, roll-back …), the ``seconds``
+    the correction, its checks and the play took, and ``predicted_peak_to_limit``: the largest predicted
+    |acceleration| / its Table IV limit of the play as played, by the response it was checked on."""
 
     index: int
     level_db: float
@@ -105,6 +114,7 @@ class Iteration:
     gain: float = 0.0
     note: str = ""
     seconds: float = 0.0
+    predicted_peak_to_limit: float = 0.0
 
     @property
     def rms_error_pct(self) -> float:
@@ -117,7 +127,8 @@ class Iteration:
     def to_json(self) -> dict[str, object]:
         return {"index": self.index, "level_db": self.level_db, "rms_error_pct": self.rms_error_pct,
                 "peak_error_pct": self.peak_error_pct, "gain": self.gain, "note": self.note,
-                "seconds": self.seconds, **self.measures.to_json()}
+                "seconds": self.seconds, "predicted_peak_to_limit": self.predicted_peak_to_limit,
+                **self.measures.to_json()}
 
 
 @dataclass
@@ -276,6 +287,7 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
                            f"rig prepare --headroom): {note}")
                 break
         scaled = at_level(candidate, level_db)
+        predicted = predicted_peak_ratio(scaled, law.response)  # what the play was checked on
         force = play(scaled, index)
         measured = base_accelerations(force, drive.angle)
         law.update(scaled, force)
@@ -284,7 +296,7 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
             rollbacks += 1
             gain_scale /= 2.0
             note = "; ".join(filter(None, (note, f"error grew: roll-back to play {best}, gain ×{gain_scale:g}")))
-        history.append(Iteration(index, level_db, measures, step, note, clock() - started))
+        history.append(Iteration(index, level_db, measures, step, note, clock() - started, predicted))
         played.append((candidate, factor, measured))
         achieved_fl.append(in_band(fall_line(measured, drive.angle), drive.rate) / factor)
         if best < 0 or measures.rms_error_pct < history[best].rms_error_pct:

@@ -92,6 +92,9 @@ def test_a_drive_whose_prediction_leaves_the_table_is_not_played(random_drive):
     for it in result.iterations:
         assert it.measures.peak_to_limit <= 1.0
     assert result.iterations[-1].rms_error_pct < 1.0
+    first = result.iterations[0]  # the exact response: what the play was checked on is what it made
+    assert first.predicted_peak_to_limit == pytest.approx(first.measures.peak_to_limit, rel=0.01)
+    assert first.to_json()["predicted_peak_to_limit"] == first.predicted_peak_to_limit
 
 
 def _sine(drive, frequency: float, acceleration: float, axis: str = "surge"):
