@@ -43,7 +43,7 @@ from analysis.equations import (
     rocking_sliding_acceleration,
     sliding_acceleration,
 )
-from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4, step_window
+from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4, pass_limit, step_window
 from analysis.general_stages import (
     DEN_MIN,
     EXIT_NONE,
@@ -434,7 +434,7 @@ def simulate_general(
     hold = False  # ROCK: no reaction checks for one step (breaks a chain of instant transitions)
     instant = 0
     t_last = -1.0
-    it_max = 64 * (int(t_stop / dt) + 2) * n_sub + 1_000_000
+    it_max = pass_limit(t_stop, dt, n_sub)
     it = 0
     while True:
         it += 1

@@ -170,6 +170,14 @@ def _next_uplift(
 
 
 @njit(cache=True, inline="always")
+def pass_limit(t_stop: float, dt: float, n_sub: int) -> int:
+    """How many passes of its loop a kernel may take for a scene that ends by ``t_stop`` [s] on a grid of ``n_sub``
+    steps per ``dt`` [s]: 64 per step of the grid and room for a million impacts. Past it the scene ends undecided,
+    so that no input can hold a kernel in place."""
+    return 64 * (int(t_stop / dt) + 2) * n_sub + 1_000_000
+
+
+@njit(cache=True, inline="always")
 def step_window(
     ax: np.ndarray, ay: np.ndarray, dt: float, h: float, n_sub: int, t: float, t_rec: float, t_stop: float
 ) -> tuple[float, float, float, float, float, float, float]:
@@ -233,9 +241,7 @@ def simulate_rocking(
     steps = 0
     first_scan = True
     t_rest = 0.0
-    # no input may hold the loop in place: past this many passes (64 per step of the grid, and room for a
-    # million impacts) the scene ends undecided, as the general kernel's
-    it_max = 64 * (int(t_stop / dt) + 2) * n_sub + 1_000_000
+    it_max = pass_limit(t_stop, dt, n_sub)
     it = 0
     while True:
         it += 1

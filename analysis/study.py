@@ -46,6 +46,11 @@ CHUNK = 16
 the machine takes fewer, instead of the others waiting for its fixed share)."""
 
 
+def _starts(sizes: np.ndarray) -> np.ndarray:
+    """Where each of the consecutive pieces of ``sizes`` starts in their concatenation (int64)."""
+    return np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
+
+
 def cor_counts(direction: np.ndarray) -> dict:
     """COR of a set of outcomes (docs/architecture.md §2): overturned, desired (+1) and their ratio (None
     when nothing overturned)."""
@@ -239,13 +244,13 @@ def study(
             dts.append(dt)
             has_v.append(vert is not None)
     lengths = np.array([p.size for p in ax_parts], dtype=np.int64)
-    offsets = np.concatenate(([0], np.cumsum(lengths)[:-1])).astype(np.int64)
+    offsets = _starts(lengths)
     ax = np.concatenate(ax_parts)
     ay = np.concatenate(ay_parts)
     dts_arr = np.array(dts)
     env_parts = [block_bounds(x, y) for x, y in zip(ax_parts, ay_parts, strict=True)]
     env = np.concatenate(env_parts)
-    env_offsets = np.concatenate(([0], np.cumsum([e_.shape[0] for e_ in env_parts])[:-1])).astype(np.int64)
+    env_offsets = _starts(np.array([e_.shape[0] for e_ in env_parts], dtype=np.int64))
     n_series = len(dts)
 
     nb, nr, ns, na = len(bodies), len(records), len(signs), angles_arr.size
@@ -268,20 +273,22 @@ def study(
     from numba import set_parallel_chunksize
 
     previous = set_parallel_chunksize(CHUNK)
-    t0 = time.perf_counter()
-    if model == "rocking":
-        from analysis.batch import run_rocking
+    try:
+        t0 = time.perf_counter()
+        if model == "rocking":
+            from analysis.batch import run_rocking
 
-        run_rocking(ax, ay, offsets, lengths, env, env_offsets, dts_arr, scene_series, scene_body, scene_beta, order,
-                    alpha_p, k_p, alpha_m, k_m, n_sub, e_p, e_m, float(t_after), static, out_f, out_i)
-    else:
-        from analysis.batch_general import run_general_kernel
+            run_rocking(ax, ay, offsets, lengths, env, env_offsets, dts_arr, scene_series, scene_body, scene_beta,
+                        order, alpha_p, k_p, alpha_m, k_m, n_sub, e_p, e_m, float(t_after), static, out_f, out_i)
+        else:
+            from analysis.batch_general import run_general_kernel
 
-        run_general_kernel(ax, ay, offsets, lengths, env, env_offsets, dts_arr, scene_series, scene_body, scene_beta,
-                           order, alpha_p, r_p, alpha_m, r_m, ig2, n_sub, e_p, e_m, float(friction), np.array(has_v),
-                           float(t_after), static, out_f, out_i)
-    seconds = time.perf_counter() - t0
-    set_parallel_chunksize(previous)
+            run_general_kernel(ax, ay, offsets, lengths, env, env_offsets, dts_arr, scene_series, scene_body,
+                               scene_beta, order, alpha_p, r_p, alpha_m, r_m, ig2, n_sub, e_p, e_m, float(friction),
+                               np.array(has_v), float(t_after), static, out_f, out_i)
+        seconds = time.perf_counter() - t0
+    finally:
+        set_parallel_chunksize(previous)  # numba's setting is the process's: leave it as it was, also on an error
 
     signs_arr = np.array(signs)
     return StudyResult(
