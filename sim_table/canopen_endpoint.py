@@ -72,6 +72,13 @@ stream of one-sample chunks:
   100 ms apart (real time), each copy with its age.
 - *Heartbeats.* Every node produces them as the master set 0x1017 (canopen's ``NmtSlave``); the master's own
   (COB-ID 0x77F) are the core's host heartbeats.
+- *The tick thread waits for the bus thread.* Frames are handled by python-can's receive thread, the physics by
+  the emulator's tick thread; on a busy host the first can fall behind the second by more than a second (measured:
+  1.24 s) with the master's heartbeats and setpoints unread in the socket, and the core would judge the link
+  silent. :meth:`CanopenEndpoint.take` therefore first waits until the receive thread has handled every frame
+  received (:class:`~protocols.canopen.receive_buffer.ReceiveBacklog`, at most :data:`BACKLOG_LIMIT`; counted:
+  ``backlog_waits``, ``backlog_wait_max_us``, ``backlog_limit_reached``): the core judges the bus by what was sent
+  on it, not by what this process found time to read.
 
 **No authentication.** CAN has none: the CANopen transport relies on the bus being a private cable between the
 lab host and the table (nothing else attached, not bridged to a network). The emulator therefore takes every
@@ -119,7 +126,7 @@ from protocols.canopen import (
     transition,
 )
 from protocols.canopen import od as drive_od
-from protocols.canopen.receive_buffer import widen_receive_buffer
+from protocols.canopen.receive_buffer import ReceiveBacklog, widen_receive_buffer
 from protocols.canopen.sensors import (
     ACCEL_TPDO1,
     ACCEL_TPDO1_COUNTED,
@@ -173,6 +180,10 @@ values of its instant, however late this process handles it, while that instant 
 handled 0.6–1.2 s late (the emulator's process unscheduled that long beside busy processes) were answered with the
 oldest kept values instead, a plate 4–17 mm ahead of where it was."""
 
+BACKLOG_LIMIT = 0.5
+"""The longest :meth:`CanopenEndpoint.take` waits for the bus's receive thread [s] (module docstring): half the
+default watchdog, so that a receive thread that cannot catch up still leaves the core time to see the silence."""
+
 SYNC_COB_ID = 0x80
 _NMT_COB_ID = 0x000
 _HEARTBEAT_COB_ID = 0x700
@@ -223,6 +234,13 @@ class BusCounters:
     """Largest |following error| [µm] a drive had while it watched it (enabled, the core streaming)."""
     overturn_events: int = 0
     overturn_messages_sent: int = 0
+    backlog_waits: int = 0
+    """Looks of the tick thread that waited for the receive thread to handle the frames received (module
+    docstring)."""
+    backlog_wait_max_us: float = 0.0
+    """The longest such wait [µs, real time]."""
+    backlog_limit_reached: int = 0
+    """Waits that ended at :data:`BACKLOG_LIMIT` with frames still unhandled."""
 
 
 class SyncGrid:
@@ -489,6 +507,8 @@ class CanopenEndpoint:
         widen_receive_buffer(bus)  # a stall of this process loses no frame (protocols.canopen.receive_buffer)
         self.network = canopen.Network(bus)
         self.network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
+        self._backlog = ReceiveBacklog(bus, canopen.network.MessageListener(self.network))
+        self.network.listeners = [self._backlog]
         self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg)), target_delay)
                        for leg in LEG_NODE_IDS]
         self.sensors = [_Sensor(self.network.create_node(node_id, load_accelerometer_od(node_id)))
@@ -775,8 +795,14 @@ class CanopenEndpoint:
                 core.command(CoreCommand.DISARM, (), True, arrival)
 
     def take(self, now: int) -> list[tuple[int, Action]]:
-        """Messages due by host time ``now`` [ns] as (arrival controller time [ns], action on the core)."""
+        """Messages due by host time ``now`` [ns] as (arrival controller time [ns], action on the core), once the
+        receive thread has handled every frame received (module docstring)."""
+        waited, cleared = self._backlog.wait(BACKLOG_LIMIT)
         with self._lock:
+            if waited > 0.0:
+                self.counters.backlog_waits += 1
+                self.counters.backlog_wait_max_us = max(self.counters.backlog_wait_max_us, waited * 1e6)
+            self.counters.backlog_limit_reached += not cleared
             taken = []
             while self._inbox and self._inbox[0][0] <= now:
                 _, arrival, action = self._inbox.popleft()

@@ -28,6 +28,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import can
 import canopen
 import numpy as np
 import pytest
@@ -63,6 +64,7 @@ from drivers.controller import (
     open_table,
 )
 from protocols.canopen import (
+    MASTER_NODE_ID,
     TPDO1,
     TPDO1_COUNTED,
     BusLoadError,
@@ -613,7 +615,9 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
               f"{shlex.join([sys.executable, str(host)])}; status=$?; kill -INT $!; wait $!; exit $status")
     done = subprocess.run(["unshare", "--net", "sh", "-c", script], capture_output=True, text=True, timeout=60,
                           cwd=Path(__file__).parents[2])
-    assert done.returncode == 0, done.stderr + log.read_text()
+    # on failure, which side fell behind: the emulator's counters (sync_handling_max_us: its receive thread;
+    # timing.lag_max_ms: its tick thread; backlog_*: the tick thread waiting for the receive thread)
+    assert done.returncode == 0, done.stderr + log.read_text() + (counters.read_text() if counters.exists() else "")
     result = json.loads(done.stdout)
     assert result["final"] == "armed" and result["faults"] == [] and result["state"] == "idle"
     assert result["rcvbuf"] >= 2 * RECEIVE_BUFFER_BYTES  # root in the namespace: beyond rmem_max (the kernel doubles)
@@ -633,6 +637,45 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     missing = round(result["duration"] * UDP_RATE) - len(result["sample_times"])
     assert missing <= result["samples_lost"] + 1, (missing, result["samples_lost"])  # +1: the stream's last SYNC
     assert result["error"] <= TAU * 2 * math.pi / 1.5 * 0.02 * 1.02 + 1e-3, result  # the lag (0.43 mm) and 1 mm
+
+
+def test_take_waits_for_frames_the_receive_thread_has_not_handled() -> None:
+    """The core judges the link by what was sent, not by what the emulator found time to read: with python-can's
+    receive thread held up (here: handling a frame until released), a heartbeat sent before ``take`` is in what
+    ``take`` returns (on a busy host the receive thread fell 1.24 s behind the tick thread: HEARTBEAT_LOST with the
+    heartbeats unread)."""
+    options = EndpointOptions(key=bytes(32), clock=lambda ns: ns, table=CanopenTable("canopen://x?interface=virtual")
+                              .table)
+    channel = f"backlog-{uuid.uuid4().hex}"
+    endpoint = open_endpoint(f"canopen://{channel}?interface=virtual", options)
+    release, holding = threading.Event(), threading.Event()
+
+    def hold(can_id: int, data: bytearray, timestamp: float) -> None:
+        holding.set()
+        release.wait(30.0)
+
+    endpoint.network.subscribe(0x123, hold)
+    endpoint.start()
+    master = can.Bus(interface="virtual", channel=channel)
+    try:
+        master.send(can.Message(arbitration_id=0x123, data=b"", is_extended_id=False, timestamp=time.time()))
+        assert holding.wait(30.0)
+        master.send(can.Message(arbitration_id=0x700 + MASTER_NODE_ID, data=bytes([5]), is_extended_id=False,
+                                timestamp=time.time()))
+        sent = time.monotonic_ns()
+        threading.Timer(0.2, release.set).start()
+        heard: list[int] = []
+        core = type("Core", (), {"heartbeat": lambda self, t: heard.append(t)})()
+        for _, action in endpoint.take(time.monotonic_ns()):
+            action(core)
+        assert release.is_set() and len(heard) == 1 and heard[0] <= sent, heard
+        assert endpoint.counters.backlog_waits == 1 and endpoint.counters.backlog_limit_reached == 0
+        assert endpoint.counters.backlog_wait_max_us > 0.0
+        assert endpoint.take(time.monotonic_ns()) == [] and endpoint.counters.backlog_waits == 1  # nothing pending
+    finally:
+        release.set()
+        master.shutdown()
+        endpoint.close()
 
 
 # ----- the sensor nodes' wire formats -----------------------------------------------------------------------------
