@@ -22,7 +22,9 @@ each case runs instead through ``rig iterate``'s own path (``rig.compensation.se
 watchdog can stop a play, which the case then records.
 
 Targets (issue 23): ≤ 5 % in ≤ 3 full-level plays for ≥ 9 of 10 records with 10 % headroom, ≤ 2 % where the limits
-leave room, no play beyond a limit.
+leave room, no play beyond a limit. Each case also reports its accelerometer's noise floor (``noise_floor_pct``, the
+largest of its full-level plays': ``rig.compensation.measures``) — an error no play can go below — and the summary
+counts the ≤ 2 % cases among those whose floor is below 2 %.
 
 Usage: ``python benchmarks/compensation.py [--quick] [--records N] [--angles 0,5] [--iterations N]
 [--headroom 0.1] [--emulator]``; prints one JSON object.
@@ -81,11 +83,13 @@ def _outcome(result: Compensation, predicted_full: float) -> dict[str, Any]:
         "plays": [{key: p[key] for key in ("level_db", "rms_error_pct", "peak_error_pct", "axes", "psa_error_max_pct",
                                            "psa_error_mean_pct", "peak_to_limit", "predicted_peak_to_limit",
                                            "gain", "seconds") if key in p}
-                  | {"trac": p["fall_line"]["trac"]} for p in plays],
+                  | {"trac": p["fall_line"]["trac"], "noise_floor_pct": p["fall_line"]["noise_floor_pct"]}
+                  for p in plays],
         "rms_error_pct_by_play": [round(it.rms_error_pct, 3) for it in result.iterations],
         "full_level_plays_to_5_pct": _plays_to(full, TARGET_PCT),
         "full_level_plays_to_2_pct": _plays_to(full, FINE_PCT),
         "best_full_level_rms_error_pct": min((it.rms_error_pct for it in full), default=None),
+        "noise_floor_pct": max((it.measures.noise_floor_pct or 0.0 for it in full), default=None),
         "largest_peak_to_limit": max(it.measures.peak_to_limit for it in result.iterations),
         "seconds_per_play": statistics.mean(it.seconds for it in result.iterations),
         "stopped": result.stopped,
@@ -188,6 +192,10 @@ def _summary(cases: list[dict[str, Any]], iterations: int) -> dict[str, Any]:
             f"reached_{FINE_PCT:g}_pct_within_{TARGET_PLAYS}_full_level_plays": sum(
                 1 for d in done if (d["full_level_plays_to_2_pct"] or TARGET_PLAYS + 1) <= TARGET_PLAYS),
             f"reached_{FINE_PCT:g}_pct_within_{iterations}_full_level_plays": sum(1 for b in best if b <= FINE_PCT),
+            f"noise_floor_below_{FINE_PCT:g}_pct": sum(1 for d in done if (d["noise_floor_pct"] or 0.0) < FINE_PCT),
+            f"reached_{FINE_PCT:g}_pct_where_the_noise_floor_is_below_it": sum(
+                1 for d in done if (d["noise_floor_pct"] or 0.0) < FINE_PCT
+                and (d["best_full_level_rms_error_pct"] or math.inf) <= FINE_PCT),
             "full_level_plays_to_5_pct": [d["full_level_plays_to_5_pct"] for d in done],
             "full_level_plays_to_2_pct": [d["full_level_plays_to_2_pct"] for d in done],
             "best_full_level_rms_error_pct": {"median": statistics.median(best) if best else None,

@@ -149,8 +149,10 @@ def register(app: typer.Typer) -> None:
             m = it.measures
             per_axis = ", ".join(f"{axis} {m.axes[axis]['rms_error_pct']:.1f}" for axis in m.axes)
             trac = m.fall_line["trac"]
+            floor = m.noise_floor_pct
             console.print(f"play {it.index} (run {run}, {it.level_db:g} dB): fall-line RMS error "
-                          f"{it.rms_error_pct:.1f} %, peak {it.peak_error_pct:.1f} %, TRAC "
+                          f"{it.rms_error_pct:.1f} %{'' if floor is None else f' (noise floor {floor:.1f} %)'}, "
+                          f"peak {it.peak_error_pct:.1f} %, TRAC "
                           f"{'–' if trac is None else f'{trac:.3f}'}, "
                           f"5 % spectrum error ≤ {m.psa_error_max_pct:.1f} %; RMS per axis [%] {per_axis}; peak "
                           f"{m.peak_to_limit:.2f} of the {m.peak_axis} limit", highlight=False)

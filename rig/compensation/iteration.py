@@ -34,6 +34,15 @@ lowest level, each following play corrected from the previous and played at the 
 play at full level — so the first full-level play is already corrected, and each level's play also feeds the
 response estimate (``law.update``).
 
+**Near the noise floor.** The error measured includes the accelerometer's noise (``measures``: the noise floor N,
+measured while the plate is still before the motion), and a correction plays whatever it corrects — the noise too.
+With a best play's measured error M, the table's own error is about √(M² − N²), and the gain that leaves the least
+error after the next play is the Wiener factor w = 1 − N²/M² (a correction of gain g leaves (1 − g)² (M² − N²) +
+g² N² of the table's error²): the next correction's gain is scaled by w (:func:`noise_gain`). Where w falls below
+:data:`NOISE_GAIN_MIN` at full level the error is the sensor's and iteration stops (``converged``). Measured
+(2026-11-28, offline, 5°): on CAPEMEND/CPM_260 the accelerometer's noise alone is 2.0 % of the target's RMS, and with
+the full gain the error stalled at 2.3–2.6 % — white from 0.5 to 40 Hz, the noise played back.
+
 **Roll-back.** A play whose fall-line RMS error is not below the best so far does not become the next base: the
 next correction starts again from the best play with the gain halved; after ``max_rollbacks`` such plays in a row
 iteration stops. It also stops when a full-level play's error reaches ``tolerance`` or after ``iterations``
@@ -77,6 +86,10 @@ NARROW_BANDS_HZ = (30.0, 20.0)
 """Upper edges of the correction [Hz] tried in turn once a correction up to ``band_high`` left the table's limits:
 the highest frequencies are where the table attenuates most and the inverse amplifies most, so their content is the
 first to be given up."""
+
+NOISE_GAIN_MIN = 0.1
+"""Below this Wiener factor (module docstring, *near the noise floor*) a full-level best play's error is the
+accelerometer's noise: iteration stops."""
 
 BAND_HIGH = 50.0
 """Default upper edge of the correction [Hz]: the identified band's and the error's (``signals.ERROR_BAND_HZ``).
@@ -226,6 +239,15 @@ def refusal(drive: Drive, law: Law) -> str | None:
     return None
 
 
+def noise_gain(measures: Measures) -> float:
+    """The Wiener factor 1 − N²/M² in [0, 1] of a play's fall-line RMS error M and noise floor N (module docstring);
+    1 when the floor was not measured."""
+    floor = measures.noise_floor_pct
+    if floor is None or measures.rms_error_pct <= 0.0:
+        return 1.0
+    return max(0.0, 1.0 - (floor / measures.rms_error_pct) ** 2)
+
+
 def _schedule(levels_db: tuple[float, ...], iterations: int) -> list[float]:
     """The level of every play: the ramp, then full-level plays up to ``iterations`` of them."""
     if not levels_db or levels_db[-1] != 0.0 or any(b <= a for a, b in pairwise(levels_db)):
@@ -280,7 +302,18 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
         else:
             base, base_factor, measured = played[best]
             error = (base_factor * target - measured) / base_factor
-            candidate, step, notes = _next_drive(base, error, law, gain_scale, level_db, band_high)
+            best_play = history[best]
+            wiener, floor = noise_gain(best_play.measures), best_play.measures.noise_floor_pct
+            if wiener < NOISE_GAIN_MIN and best_play.level_db == 0.0:
+                stopped, converged = (f"the error of play {best} ({best_play.rms_error_pct:.2f} %) is the "
+                                      f"accelerometer's noise (its floor {floor:.2f} %): a correction would play the "
+                                      f"noise back"), True
+                break
+            wiener = max(wiener, NOISE_GAIN_MIN)
+            candidate, step, notes = _next_drive(base, error, law, gain_scale * wiener, level_db, band_high)
+            if wiener < 1.0 - 1e-3:
+                notes.insert(0, f"gain ×{wiener:.2f} near the noise floor ({floor:.2f} % of "
+                                f"{best_play.rms_error_pct:.2f} %)")
             note = "; ".join(notes)
             if candidate is None:
                 stopped = (f"every correction would leave the table (more headroom would give the corrections room: "

@@ -12,7 +12,11 @@ All on the base-frame accelerations [m/s²] low-passed at ``signals.ERROR_BAND_H
   of a and t at 40 periods spaced logarithmically over the compensated band (1/``band_high`` … 1/corner, within
   0.02–5 s), the largest and the mean |PSA_a/PSA_t − 1| [%];
 - **peak / limit**: the largest |a| over the whole play against its axis's Table IV acceleration [-] (what the
-  table was made to do; ≤ 1 for a play inside the limits).
+  table was made to do; ≤ 1 for a play inside the limits);
+- **noise floor** [%]: the fall line's RMS (about its mean) while the plate is still, before the record's motion
+  (at least :data:`QUIET_SECONDS`), over the target's fall-line RMS — what the accelerometer's own noise adds to the
+  RMS error of a perfect play (None without that much quiet). No correction can take the error below it, and a
+  correction of an error near it mostly plays the noise back (``iteration``: the gain is scaled down there).
 """
 
 from __future__ import annotations
@@ -28,12 +32,15 @@ from rig.drive import Drive
 
 from .signals import errors_pct, fall_line, in_band
 
+QUIET_SECONDS = 0.5
+"""The least stillness before the record's motion [s] the noise floor is measured on."""
+
 
 @dataclass(frozen=True)
 class Measures:
     """One play's measures (module docstring): ``fall_line`` and ``axes`` (surge, lateral, heave) each a dict of
-    ``rms_error_pct``, ``peak_error_pct``, ``trac``; ``psa_error_max_pct``/``psa_error_mean_pct``; ``peak_to_limit``
-    and its ``peak_axis``."""
+    ``rms_error_pct``, ``peak_error_pct``, ``trac`` (the fall line's also ``noise_floor_pct``);
+    ``psa_error_max_pct``/``psa_error_mean_pct``; ``peak_to_limit`` and its ``peak_axis``."""
 
     fall_line: dict[str, float | None]
     axes: dict[str, dict[str, float | None]]
@@ -47,6 +54,11 @@ class Measures:
         """The fall-line RMS error [%] (what iteration minimises)."""
         return float(self.fall_line["rms_error_pct"])  # type: ignore[arg-type]
 
+    @property
+    def noise_floor_pct(self) -> float | None:
+        """The fall line's noise floor [%] (module docstring), None when not measured."""
+        return self.fall_line.get("noise_floor_pct")
+
     def to_json(self) -> dict[str, Any]:
         return {"fall_line": self.fall_line, "axes": self.axes, "psa_error_max_pct": self.psa_error_max_pct,
                 "psa_error_mean_pct": self.psa_error_mean_pct, "peak_to_limit": self.peak_to_limit,
@@ -59,6 +71,16 @@ def trac(target: np.ndarray, achieved: np.ndarray) -> float | None:
     if tt == 0.0 or aa == 0.0:
         return None
     return float(target @ achieved) ** 2 / (tt * aa)
+
+
+def noise_floor_pct(drive: Drive, achieved_fl: np.ndarray, target_fl: np.ndarray) -> float | None:
+    """The noise floor [%] (module docstring) of a play whose in-band fall-line acceleration is ``achieved_fl`` (n,)
+    over the whole drive, against ``target_fl`` over the error window; None when the plate is still for less than
+    :data:`QUIET_SECONDS` before the motion."""
+    quiet = achieved_fl[:round(drive.motion[0] * drive.rate)]
+    if len(quiet) < QUIET_SECONDS * drive.rate:
+        return None
+    return 100.0 * float(np.std(quiet) / np.sqrt(np.mean(target_fl**2)))
 
 
 def spectrum_periods(corner: float, band_high: float, count: int = 40) -> np.ndarray:
@@ -75,7 +97,8 @@ def measure(drive: Drive, target: np.ndarray, achieved: np.ndarray, window: slic
     a_band = np.column_stack([in_band(achieved[:, k], rate) for k in range(3)])
     t_fl, a_fl = fall_line(t_band, beta)[window], fall_line(a_band, beta)[window]
     rms, peak = errors_pct(a_fl, t_fl)
-    fall = {"rms_error_pct": rms, "peak_error_pct": peak, "trac": trac(t_fl, a_fl)}
+    fall = {"rms_error_pct": rms, "peak_error_pct": peak, "trac": trac(t_fl, a_fl),
+            "noise_floor_pct": noise_floor_pct(drive, fall_line(a_band, beta), t_fl)}
     axes: dict[str, dict[str, float | None]] = {}
     for k, axis in enumerate(AXES):
         t_k, a_k = t_band[window, k], a_band[window, k]

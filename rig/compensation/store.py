@@ -1,7 +1,7 @@
 """The identification and the iterations in the session file: the ``/compensation`` group (additive; the runs and
 their datasets are the session schema's own).
 
-Layout (schema ``shaketable-rig/compensation/2``), written once the session log is closed, in one crash-atomic
+Layout (schema ``shaketable-rig/compensation/3``), written once the session log is closed, in one crash-atomic
 transaction under the writer's locks (``rig.analyze.store.locked``), replacing an earlier ``/compensation``:
 
 * attributes ``schema``, ``record``, ``angle_deg``, ``identification_run`` (run name), ``runs`` (JSON list of the
@@ -15,7 +15,8 @@ transaction under the writer's locks (``rig.analyze.store.locked``), replacing a
 * ``response_matrix`` (``mimo`` only): (lines, 3 outputs, 3 inputs) complex H1;
 * ``iterations``: compound (index, run (text), level_db, rms_error_pct, peak_error_pct (fall line), per axis
   ``AXIS_rms_error_pct``, ``AXIS_peak_error_pct``, ``AXIS_trac``, then ``fall_line_trac``, ``psa_error_max_pct``,
-  ``psa_error_mean_pct``, ``peak_to_limit``, gain, seconds; TRAC NaN where undefined);
+  ``psa_error_mean_pct``, ``peak_to_limit``, gain, seconds, ``noise_floor_pct`` (the fall line's, NaN where not
+  measured; since compensation/3); TRAC NaN where undefined);
 * ``target`` (n,) and ``achieved`` (iterations, n): fall-line acceleration [m/s²] over the record's motion, and
   ``t`` (n,) [s, run clock].
 """
@@ -36,7 +37,7 @@ from .identify import FrequencyResponse
 from .iteration import Compensation, Iteration
 from .mimo import MimoResponse
 
-SCHEMA = "shaketable-rig/compensation/2"
+SCHEMA = "shaketable-rig/compensation/3"
 GROUP = "compensation"
 
 ITERATION = np.dtype([("index", "<i4"), ("run", "S8"), ("level_db", "<f8"), ("rms_error_pct", "<f8"),
@@ -44,7 +45,7 @@ ITERATION = np.dtype([("index", "<i4"), ("run", "S8"), ("level_db", "<f8"), ("rm
                       *[(f"{axis}_{part}", "<f8") for axis in AXES for part in ("rms_error_pct", "peak_error_pct",
                                                                                   "trac")],
                       ("fall_line_trac", "<f8"), ("psa_error_max_pct", "<f8"), ("psa_error_mean_pct", "<f8"),
-                      ("peak_to_limit", "<f8"), ("gain", "<f8"), ("seconds", "<f8")])
+                      ("peak_to_limit", "<f8"), ("gain", "<f8"), ("seconds", "<f8"), ("noise_floor_pct", "<f8")])
 RESPONSE = np.dtype([("f", "<f8"), *[(f"{axis}_{part}", "<f8") for axis in AXES
                                        for part in ("h_re", "h_im", "coherence")], ("condition", "<f8")])
 
@@ -70,7 +71,8 @@ def iteration_row(it: Iteration, run: str) -> np.ndarray:
     values = {"index": it.index, "run": run.encode(), "level_db": it.level_db, "rms_error_pct": it.rms_error_pct,
               "peak_error_pct": it.peak_error_pct, "fall_line_trac": m.fall_line["trac"],
               "psa_error_max_pct": m.psa_error_max_pct, "psa_error_mean_pct": m.psa_error_mean_pct,
-              "peak_to_limit": m.peak_to_limit, "gain": it.gain, "seconds": it.seconds}
+              "peak_to_limit": m.peak_to_limit, "gain": it.gain, "seconds": it.seconds,
+              "noise_floor_pct": m.noise_floor_pct}
     for axis in AXES:
         values.update({f"{axis}_{key}": value for key, value in m.axes[axis].items()})
     for key, value in values.items():

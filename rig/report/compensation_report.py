@@ -103,19 +103,20 @@ def compensation_section(path: Any) -> str:
         f"law): H1 from commanded to measured base-frame acceleration, its direct term per axis, magnitude, phase and "
         f"coherence γ² (multiple coherence under the mimo law), {band[0]:g}–{band[1]:g} Hz."),
         alt="frequency response"))
-    parts.append(table(["play", "run", "level [dB]", "RMS error [%]", "peak error [%]", "TRAC",
+    parts.append(table(["play", "run", "level [dB]", "RMS error [%]", "noise floor [%]", "peak error [%]", "TRAC",
                         "5 % PSA error max / mean [%]", "RMS error surge / lateral / heave [%]", "peak / limit",
                         "gain", "time [s]"], [
         [int(r["index"]), r["run"].decode(), _cell(r, "level_db", "g"), num(r["rms_error_pct"], ".2f"),
-         num(r["peak_error_pct"], ".1f"), _cell(r, "fall_line_trac", ".4f"),
+         _cell(r, "noise_floor_pct", ".2f"), num(r["peak_error_pct"], ".1f"), _cell(r, "fall_line_trac", ".4f"),
          f"{_cell(r, 'psa_error_max_pct', '.1f')} / {_cell(r, 'psa_error_mean_pct', '.1f')}",
          " / ".join(_cell(r, f"{axis}_rms_error_pct", ".1f") for axis in AXES), _cell(r, "peak_to_limit", ".2f"),
          num(r["gain"], "g"), num(r["seconds"], ".1f")] for r in rows],
         caption="Error per play (the first ones ramp up in level): fall-line RMS(achieved − target)/RMS(target) and "
-                "max|achieved − target|/max|target| over the record's motion, the time response assurance criterion "
-                "(tᵀa)²/((tᵀt)(aᵀa)), the 5 % damped response spectrum's largest and mean error over the compensated "
-                "band, the RMS error per axis (of the fall line's RMS on an axis the record leaves at rest), the "
-                "largest acceleration against its Table IV limit (docs/compensation.md)", left=2))
+                "max|achieved − target|/max|target| over the record's motion, the accelerometer's noise floor (its "
+                "RMS while the plate is still before the motion, of the target's RMS: no play can do better), the time "
+                "response assurance criterion (tᵀa)²/((tᵀt)(aᵀa)), the 5 % damped response spectrum's largest and mean "
+                "error over the compensated band, the RMS error per axis (of the fall line's RMS on an axis the record "
+                "leaves at rest), the largest acceleration against its Table IV limit (docs/compensation.md)", left=2))
     parts.append(figure(_errors_png(rows), "Fall-line RMS and peak error per iteration [%]; dotted: 5 %.",
                         alt="error per iteration"))
     if len(achieved):

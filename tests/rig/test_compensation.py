@@ -123,3 +123,53 @@ def test_the_lag_table_needs_little_compensation(response):
     motion, _ = motion_window(drive)
     rms, _ = errors_pct(fall_line(measured, BETA)[motion], fall_line(drive.accelerations[:, :3], BETA)[motion])
     assert rms < 15.0
+
+
+def test_noise_floor_is_the_accelerometers_noise_in_the_error_band():
+    """The noise floor a play reports is its accelerometer's white noise (σ over the 500 Hz of 1 kHz samples) in the
+    error band — the fourth-order Butterworth low-pass at 50 Hz run forward and backward, |H|⁴, whose noise
+    bandwidth is 50 Hz · (π/16)/sin(π/16) — over the target's fall-line RMS: the closed form within 10 % (the
+    estimate's own scatter on the 1 s of stillness before the motion is about 7 %)."""
+    from rig.compensation.iteration import error_window, target_acceleration
+    from rig.compensation.measures import measure
+    from rig.compensation.signals import in_band
+
+    drive = prepare_drive(load_record("fema:NORTHR/MUL009"), angle=BETA, table=TABLE, ramps=False, headroom=0.1)
+    sigma = 0.05
+    force = play_offline(TABLE, drive.poses, payload=PAYLOAD, seed=5, accel_noise=sigma, leg_noise=0.0)
+    window = error_window(drive)
+    target = target_acceleration(drive)
+    measures = measure(drive, target, base_accelerations(force, BETA), window, 50.0)
+    target_rms = float(np.sqrt(np.mean(in_band(fall_line(target, BETA), drive.rate)[window] ** 2)))
+    bandwidth = 50.0 * (math.pi / 16) / math.sin(math.pi / 16)
+    expected = 100.0 * sigma * math.sqrt(bandwidth / 500.0) / target_rms
+    assert measures.noise_floor_pct == pytest.approx(expected, rel=0.10)
+
+
+def test_near_the_noise_floor_the_gain_falls_and_the_error_ends_lower_than_at_full_gain(monkeypatch):
+    """With a noisy accelerometer (σ = 0.1 m/s²: a floor of several percent, far above what the MIMO law leaves on
+    this record) a correction at full gain plays the noise back (a gain g on white noise leaves g/(2 − g) of the
+    floor's square in the table's error: √2 × the floor at g = 1 without the law's coherence weighting and the
+    best-of-plays choice, which hold it lower). The Wiener factor 1 − N²/M² ends lower, never below the floor,
+    which no play can beat."""
+    import rig.compensation.iteration as iteration
+
+    beta = BETA
+    ident = identification_drive(TABLE, beta, duration=40.0, seed=4)
+    measured = base_accelerations(play_offline(TABLE, ident.poses, payload=PAYLOAD, seed=2), beta)
+    matrix = estimate(ident.accelerations[:, :3], measured, TABLE.controller_rate)
+    drive = prepare_drive(load_record("fema:NORTHR/MUL009"), angle=beta, table=TABLE, ramps=False, headroom=0.1)
+
+    def play(d, k):
+        return play_offline(TABLE, d.poses, payload=PAYLOAD, seed=10 + k, accel_noise=0.1)
+
+    wiener = compensate(drive, MimoLaw(matrix), play, iterations=5)
+    with monkeypatch.context() as patch:
+        patch.setattr(iteration, "noise_gain", lambda measures: 1.0)
+        full = compensate(drive, MimoLaw(matrix), play, iterations=5)
+    best_w, best_f = wiener.iterations[wiener.best], full.iterations[full.best]
+    floor = best_w.measures.noise_floor_pct
+    assert floor is not None and floor > 3.0
+    assert floor * 0.95 <= best_w.rms_error_pct < best_f.rms_error_pct
+    assert best_f.rms_error_pct > 1.1 * floor  # measured: 5.79 % (Wiener) and 6.05 % (full gain) on a 5.16 % floor
+    assert any("near the noise floor" in it.note for it in wiener.iterations)

@@ -110,7 +110,7 @@ def test_a_mimo_iteration_stored_and_reported(tmp_path):
     store.write(path, record=drive.record, angle_deg=4.0, identification_run="0001", iteration_runs=runs,
                 result=result, t=drive.t, drive_file="")
     stored = store.read(path)
-    assert stored["attrs"]["law"] == "mimo" and stored["attrs"]["schema"] == "shaketable-rig/compensation/2"
+    assert stored["attrs"]["law"] == "mimo" and stored["attrs"]["schema"] == "shaketable-rig/compensation/3"
     rows = stored["iterations"]
     assert list(rows["level_db"]) == [-12.0, -6.0, 0.0]
     assert rows["rms_error_pct"] == pytest.approx([it.rms_error_pct for it in result.iterations])
