@@ -37,11 +37,12 @@ response estimate (``law.update``).
 **Near the noise floor.** The error measured includes the accelerometer's noise (``measures``: the noise floor N,
 measured while the plate is still before the motion), and a correction plays whatever it corrects — the noise too.
 With a best play's measured error M, the table's own error is about √(M² − N²), and the gain that leaves the least
-error after the next play is the Wiener factor w = 1 − N²/M² (a correction of gain g leaves (1 − g)² (M² − N²) +
-g² N² of the table's error²): the next correction's gain is scaled by w (:func:`noise_gain`). Where w falls below
-:data:`NOISE_GAIN_MIN` at full level the error is the sensor's and iteration stops (``converged``). Measured
-(2026-11-28, offline, 5°): on CAPEMEND/CPM_260 the accelerometer's noise alone is 2.0 % of the target's RMS, and with
-the full gain the error stalled at 2.3–2.6 % — white from 0.5 to 40 Hz, the noise played back.
+error after the next play is the Wiener factor w = 1 − N²/M² (a correction of gain g leaves (1 − g)² (M² − N²) + g²
+N² of the table's error²): the next correction's gain is scaled by w (:func:`noise_gain`; N pooled over every play
+so far, :func:`pooled_floor`). Where w falls below :data:`NOISE_GAIN_MIN` at full level the error is the sensor's
+and iteration stops (``converged``). Measured (2026-11-28, offline, 5°): on CAPEMEND/CPM_260 the accelerometer's
+noise alone is 2.0 % of the target's RMS, and with the full gain the error stalled at 2.3–2.6 % — white from 0.5 to
+40 Hz, the noise played back.
 
 **Roll-back.** A play whose fall-line RMS error is not below the best so far does not become the next base: the
 next correction starts again from the best play with the gain halved; after ``max_rollbacks`` such plays in a row
@@ -239,13 +240,21 @@ def refusal(drive: Drive, law: Law) -> str | None:
     return None
 
 
-def noise_gain(measures: Measures) -> float:
-    """The Wiener factor 1 − N²/M² in [0, 1] of a play's fall-line RMS error M and noise floor N (module docstring);
-    1 when the floor was not measured."""
-    floor = measures.noise_floor_pct
-    if floor is None or measures.rms_error_pct <= 0.0:
+def noise_gain(error_pct: float, floor_pct: float | None) -> float:
+    """The Wiener factor 1 − N²/M² in [0, 1] of a fall-line RMS error M and noise floor N [%] (module docstring); 1
+    when the floor was not measured."""
+    if floor_pct is None or error_pct <= 0.0:
         return 1.0
-    return max(0.0, 1.0 - (floor / measures.rms_error_pct) ** 2)
+    return max(0.0, 1.0 - (floor_pct / error_pct) ** 2)
+
+
+def pooled_floor(history: list[Iteration]) -> float | None:
+    """The noise floor [%] at full level from every play so far: each play's floor times its level factor (the
+    sensor's noise is the same, the target scales with the level), averaged — one play's second of stillness
+    scatters by about 7 %. None when no play measured one."""
+    floors = [it.measures.noise_floor_pct * 10.0 ** (it.level_db / 20.0) for it in history
+              if it.measures.noise_floor_pct is not None]
+    return sum(floors) / len(floors) if floors else None
 
 
 def _schedule(levels_db: tuple[float, ...], iterations: int) -> list[float]:
@@ -303,7 +312,9 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
             base, base_factor, measured = played[best]
             error = (base_factor * target - measured) / base_factor
             best_play = history[best]
-            wiener, floor = noise_gain(best_play.measures), best_play.measures.noise_floor_pct
+            pooled = pooled_floor(history)
+            floor = None if pooled is None else pooled / base_factor  # at the best play's level
+            wiener = noise_gain(best_play.rms_error_pct, floor)
             if wiener < NOISE_GAIN_MIN and best_play.level_db == 0.0:
                 stopped, converged = (f"the error of play {best} ({best_play.rms_error_pct:.2f} %) is the "
                                       f"accelerometer's noise (its floor {floor:.2f} %): a correction would play the "
