@@ -121,22 +121,25 @@ def wrong_key_is_refused(url: str, directory: Path) -> None:
 
 
 def silent_host_gets_the_table_stopped(host: Host, silent: str) -> None:
-    """``host`` (with the key) arms, starts a stream and sends a 3 cm surge ramp in real time, 50 ms ahead; 0.4 s
-    in, it stops sending ``"heartbeat"``s (the chunks go on, longer than the controller's watchdog) or ``"stream"``
-    chunks (the heartbeats go on): the table stops (faulted, home) — by HEARTBEAT_LOST, or by the underrun of its
-    buffer, which runs dry after the 50 ms lead, long before the stream watchdog. ``host`` is closed after."""
+    """``host`` (with the key) arms, starts a stream and sends a 3 cm surge ramp in real time; 0.4 s in, it stops
+    sending ``"heartbeat"``s (the chunks go on, longer than the controller's watchdog, the configured lead ahead —
+    with a 50 ms lead a host held up that long on a busy machine let the buffer run dry first: UNDERRUN instead of
+    HEARTBEAT_LOST) or ``"stream"`` chunks, 50 ms ahead (the heartbeats go on): the table stops (faulted, home) — by
+    HEARTBEAT_LOST, or by the underrun of its buffer, which runs dry after the 50 ms lead, long before the stream
+    watchdog. ``host`` is closed after."""
     try:
         host.wait(lambda s: host.state(s) not in ("stopping", "homing", "tilting", "streaming"), 15)
         assert host.command("arm") == "accepted"
         assert host.command("start_stream", 0.0) == "accepted"
-        t0 = host.controller_now() + 50_000_000
+        lead_ns = round(LinkSettings().lead_s * 1e9) if silent == "heartbeat" else 50_000_000
+        t0 = host.controller_now() + lead_ns
         _, poses = surge(0.4 + 2 * LinkSettings().watchdog_s, lambda t: smooth_ramp(t, 0.03, 0.6))
         for k in range(0, len(poses), host.per_chunk):
             if k == 400:  # 0.4 s into the stream: go silent
                 host.beating = silent != "heartbeat"
                 if silent == "stream":
                     break
-            due = t0 + k * 1_000_000 - 50_000_000
+            due = t0 + k * 1_000_000 - lead_ns
             time.sleep(max(0.0, (due - host.controller_now()) * 1e-9))
             host.chunk(poses[k:k + host.per_chunk], t0 + k * 1_000_000, k // host.per_chunk)
             if host.state(host.statuses[-1][1]) != "streaming" and k > 400:

@@ -466,7 +466,10 @@ def test_setpoints_that_stop_coming_fault_the_drives_and_the_table_goes_home() -
         assert [a for a, b in itertools.pairwise([*seen, None]) if a != b][-3:] == ["streaming", "stopping", "faulted"]
         assert "STREAM_SILENT" in final.faults
         assert table.link_stats()["emcy"] == {leg: [drive_od.EMCY_SYNC_LOST] for leg in range(1, 7)}
-        np.testing.assert_allclose(final.pose, np.zeros(6), atol=1e-4)  # the core's stop went home
+        # the core's stop went home: the drives report each position FEEDBACK_DELAY (15 ms) old, so the status that
+        # first says faulted may show the plate just short of home (seen under load in a whole suite: 0.15 mm)
+        home = table.wait_for_status(lambda s: bool(np.abs(s.pose).max() <= 1e-4), 2.0)
+        assert home.state == "faulted"
     counters = emulator.counters()
     assert counters["watchdog_stops"] == 1 and counters["link"]["chunks_stalled"] > 0
 
