@@ -286,9 +286,13 @@ class _Scene:
                                 events=[ev_stop, ev_lift])
                 n_pts = sol.t.size
                 zeros = np.zeros(n_pts)
-                self._record(sol.t, zeros, zeros, sol.y[0], np.full(n_pts, r_p * ca_p), zeros, ST_SLIDE, s,
-                             sol.y[1])
-                if sol.t_events[0].size and (not sol.t_events[1].size or sol.t_events[0][0] <= sol.t_events[1][0]):
+                stops = bool(sol.t_events[0].size) and (
+                    not sol.t_events[1].size or sol.t_events[0][0] <= sol.t_events[1][0])
+                v_rec = sol.y[0].copy()
+                if stops:  # the slide ends where v = 0: the point recorded there is the rest that follows, not
+                    v_rec[-1] = 0.0  # the root's rounding (|v| ~ 1e-16 of either sign, by the SciPy release)
+                self._record(sol.t, zeros, zeros, v_rec, np.full(n_pts, r_p * ca_p), zeros, ST_SLIDE, s, sol.y[1])
+                if stops:
                     now, v, u = float(sol.t_events[0][0]), 0.0, float(sol.y_events[0][0][1])
                     stage, trace.t_rest = ST_REST, now
                     transition(now)
