@@ -77,8 +77,14 @@ def pivot_reactions(
     The block leaves the plate when R_n < 0 (jump) and the pivot slips when |R_t| > μ R_n.
     """
     psi = alpha - s * theta
-    c = math.cos(psi)
-    sn = math.sin(psi)
+    return pivot_reactions_cs(omega, alpha_dd, s, gx, gz, math.cos(psi), math.sin(psi), r)
+
+
+@njit(cache=True, inline="always")
+def pivot_reactions_cs(
+    omega: float, alpha_dd: float, s: float, gx: float, gz: float, c: float, sn: float, r: float
+) -> tuple[float, float]:
+    """``pivot_reactions`` from c, sn = cos ψ, sin ψ of the state (ψ = α − s θ) [m/s²]."""
     rt = r * c * alpha_dd + s * r * sn * omega * omega - gx
     rn = gz + s * r * sn * alpha_dd - r * c * omega * omega
     return rt, rn

@@ -43,7 +43,17 @@ from analysis.equations import (
     rocking_sliding_acceleration,
     sliding_acceleration,
 )
-from analysis.fast_rocking import OVERTURNED, REST, UNDECIDED, _accel, _rk4, pass_limit, step_window
+from analysis.fast_rocking import (
+    OVERTURNED,
+    REST,
+    UNDECIDED,
+    _accel,
+    _rk4,
+    _rk4_cs,
+    carry_psi,
+    pass_limit,
+    step_window,
+)
 from analysis.general_stages import (
     DEN_MIN,
     EXIT_NONE,
@@ -69,6 +79,7 @@ from analysis.general_stages import (
     rest_leave,
     rest_margins,
     rock_margin,
+    rock_margin_cs,
     rs_denominator,
 )
 
@@ -436,6 +447,9 @@ def simulate_general(
     t_last = -1.0
     it_max = pass_limit(t_stop, dt, n_sub)
     it = 0
+    # cos ψ, sin ψ of ROCK's state (θ, pivot): carried from step to step as in the rocking kernel
+    trig_theta, trig_s, c_psi, s_psi, c_e, s_e = math.nan, 0.0, 1.0, 0.0, 1.0, 0.0
+    i_win = -1  # the record's interval of the last step (step_window's hint)
     while True:
         it += 1
         if it > it_max:
@@ -457,7 +471,7 @@ def simulate_general(
         first_scan = False
         if t >= t_stop:
             return 0, math.nan, theta_max, impacts, t, UNDECIDED, steps, False, u_peak, u, t_slide
-        ti, te, t_b, a0x, sx, a0y, sy = step_window(ax, ay, dt, h, n_sub, t, t_rec, t_stop)
+        ti, te, t_b, a0x, sx, a0y, sy, i_win = step_window(ax, ay, dt, h, n_sub, t, t_rec, t_stop, i_win)
         te = min(te, t_stop) if t_stop > t else te
         H = te - t
         gx0, gz0 = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
@@ -665,7 +679,9 @@ def simulate_general(
                 stage, v, jam, fresh = ST_ROCK, 0.0, True, False  # Painlevé ahead: the pivot sticks
                 continue
         else:
-            theta1, omega1 = _rk4(theta, omega, t, H, ti, a0x, sx, a0y, sy, s, alpha, k, cb, sb)
+            if theta != trig_theta or s != trig_s:
+                c_psi, s_psi = math.cos(alpha - s * theta), math.sin(alpha - s * theta)
+            theta1, omega1 = _rk4_cs(theta, omega, c_psi, s_psi, t, H, ti, a0x, sx, a0y, sy, s, k, cb, sb)
             v1 = 0.0
         steps += 1
         fall = fall_plus if s > 0.0 else fall_minus
@@ -688,6 +704,8 @@ def simulate_general(
                 v_e = 0.0
         else:
             th_e, om_e, v_e = theta1, omega1, v1
+        if not rs and ev == 0:  # cos/sin of ψ at the step's end, carried from its start
+            c_e, s_e = carry_psi(c_psi, s_psi, theta, theta1, s, alpha, steps)
         # reaction / slide events, checked at the (possibly truncated) step end
         tt = t + tau_ev
         gxe, gze = plate_gravity(a0x + sx * (tt - ti), a0y + sy * (tt - ti), cb, sb)
@@ -705,7 +723,10 @@ def simulate_general(
                 if tau_n < tau_r:
                     tau_r, kind_r = tau_n, 1
         elif not hold:
-            f_e, _, rn_e = rock_margin(th_e, om_e, s, gxe, gze, alpha, r, k, mu)
+            if ev == 0:
+                f_e, _, rn_e = rock_margin_cs(om_e, s, gxe, gze, c_e, s_e, r, k, mu)
+            else:
+                f_e, _, rn_e = rock_margin(th_e, om_e, s, gxe, gze, alpha, r, k, mu)
             which = 0
             if jam:
                 if f_e <= 0.0:
@@ -799,5 +820,7 @@ def simulate_general(
             u += _rs_shift(theta, omega, v, theta1, omega1, v1, t, te - t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
                            ig2, mu, cb, sb)
             u_peak, t_slide = max(u_peak, abs(u)), t_slide + (te - t)
+        if not rs:  # cos/sin of ψ at the new state, for the next step
+            trig_theta, trig_s, c_psi, s_psi = theta1, s, c_e, s_e
         theta, omega, v, t = theta1, omega1, v1, te
         instant = 0

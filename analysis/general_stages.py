@@ -29,9 +29,8 @@ import math
 from numba import njit
 
 from analysis.equations import (
-    pivot_reactions,
+    pivot_reactions_cs,
     plate_gravity,
-    rocking_acceleration,
     rocking_sliding_acceleration,
 )
 
@@ -151,8 +150,16 @@ def flight_entry(theta: float, omega: float, v_pivot: float, s: float, alpha: fl
 def rock_margin(theta: float, omega: float, s: float, gx: float, gz: float, alpha: float, r: float,
                 k: float, mu: float) -> tuple[float, float, float]:
     """(|R_t| − μ R_n, R_t, R_n) of a pivot that does not slip."""
-    add = rocking_acceleration(theta, s, gx, gz, alpha, k)
-    rt, rn = pivot_reactions(theta, omega, add, s, gx, gz, alpha, r)
+    psi = alpha - s * theta
+    return rock_margin_cs(omega, s, gx, gz, math.cos(psi), math.sin(psi), r, k, mu)
+
+
+@njit(cache=True, inline="always")
+def rock_margin_cs(omega: float, s: float, gx: float, gz: float, c: float, sn: float, r: float, k: float,
+                   mu: float) -> tuple[float, float, float]:
+    """``rock_margin`` from c, sn = cos ψ, sin ψ of the state (ψ = α − s θ), as Eq. 2 and the reactions take them."""
+    add = k * (gx * c - s * gz * sn)
+    rt, rn = pivot_reactions_cs(omega, add, s, gx, gz, c, sn, r)
     return abs(rt) - mu * rn, rt, rn
 
 
