@@ -61,7 +61,7 @@ def small_sincos(d: float) -> tuple[float, float]:
     """(sin δ, cos δ): Taylor series to δ⁹ / δ⁸ for |δ| ≤ ``SMALL_ANGLE`` (to rounding), else the library's.
 
     The series are summed in Estrin's order (powers z = δ², z² taken first), three multiply-adds deep instead of
-    a Horner chain of five: the RK4 stages wait on them, one after another."""
+    Horner chains six and seven deep: the RK4 stages wait on them, one after another."""
     if abs(d) > SMALL_ANGLE:
         return math.sin(d), math.cos(d)
     z = d * d
