@@ -49,7 +49,14 @@ def plate_gravity(ax: float, ay: float, cb: float, sb: float) -> tuple[float, fl
 def rocking_acceleration(theta: float, s: float, gx: float, gz: float, alpha: float, k: float) -> float:
     """θ'' [rad/s²] of a block rocking on pivot ``s``; ``k`` = r/(i_g² + r²) [1/m] (= p²/g uniform)."""
     psi = alpha - s * theta
-    return k * (gx * math.cos(psi) - s * gz * math.sin(psi))
+    return rocking_acceleration_cs(s, gx, gz, math.cos(psi), math.sin(psi), k)
+
+
+@njit(cache=True, inline="always")
+def rocking_acceleration_cs(s: float, gx: float, gz: float, c: float, sn: float, k: float) -> float:
+    """``rocking_acceleration`` from c, sn = cos ψ, sin ψ of the state (ψ = α − s θ) [rad/s²]: Eq. 2 as the
+    engines that carry cos ψ and sin ψ from step to step take it."""
+    return k * (gx * c - s * gz * sn)
 
 
 @njit(cache=True, inline="always")

@@ -31,7 +31,7 @@ from numba import njit
 
 from analysis import hermite
 from analysis.envelope import BLOCK, block_slack, margin_bound
-from analysis.equations import plate_gravity, rocking_acceleration, uplift_margins
+from analysis.equations import plate_gravity, rocking_acceleration, rocking_acceleration_cs, uplift_margins
 
 REST = 0
 OVERTURNED = 1
@@ -91,7 +91,7 @@ def _accel_at(
     as ``equations.rocking_acceleration``."""
     sd, cd = small_sincos(d)
     gx, gz = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
-    return k * (gx * (c0 * cd + s * s0 * sd) - s * gz * (s0 * cd - s * c0 * sd))
+    return rocking_acceleration_cs(s, gx, gz, c0 * cd + s * s0 * sd, s0 * cd - s * c0 * sd, k)
 
 
 @njit(cache=True, inline="always")
@@ -114,7 +114,7 @@ def _rk4_cs(
     step's start (ψ = α − s θ); they are carried to the stages by the angle-addition rule (the offsets are
     small)."""
     gx, gz = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
-    k1 = k * (gx * c0 - s * gz * s0)
+    k1 = rocking_acceleration_cs(s, gx, gz, c0, s0, k)
     k2 = _accel_at(c0, s0, 0.5 * H * omega, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, k, cb, sb)
     om2 = omega + 0.5 * H * k1
     k3 = _accel_at(c0, s0, 0.5 * H * om2, t + 0.5 * H, ti, a0x, sx, a0y, sy, s, k, cb, sb)

@@ -31,6 +31,7 @@ from numba import njit
 from analysis.equations import (
     pivot_reactions_cs,
     plate_gravity,
+    rocking_acceleration_cs,
     rocking_sliding_acceleration,
 )
 
@@ -158,7 +159,7 @@ def rock_margin(theta: float, omega: float, s: float, gx: float, gz: float, alph
 def rock_margin_cs(omega: float, s: float, gx: float, gz: float, c: float, sn: float, r: float, k: float,
                    mu: float) -> tuple[float, float, float]:
     """``rock_margin`` from c, sn = cos ψ, sin ψ of the state (ψ = α − s θ), as Eq. 2 and the reactions take them."""
-    add = k * (gx * c - s * gz * sn)
+    add = rocking_acceleration_cs(s, gx, gz, c, sn, k)
     rt, rn = pivot_reactions_cs(omega, add, s, gx, gz, c, sn, r)
     return abs(rt) - mu * rn, rt, rn
 
