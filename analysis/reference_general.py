@@ -445,14 +445,17 @@ class _Scene:
                 y0 = [theta, omega]
 
             sol = solve_ivp(rhs, (now, t_seg), y0, method="DOP853", rtol=RTOL, atol=ATOL, events=events)
-            vv = sol.y[2] if rs else np.zeros(sol.t.size)
+            evs = [(float(sol.t_events[j][0]), j) for j in range(len(events))
+                   if j != 2 and sol.t_events[j].size]
+            stops = rs and bool(evs) and min(evs)[1] == 3  # the sliding pivot stops (ev_stop)
+            vv = sol.y[2].copy() if rs else np.zeros(sol.t.size)
+            if stops:  # as in SLIDE: the point recorded where v = 0 holds 0, not the root's rounding
+                vv[-1] = 0.0
             self._record(sol.t, sol.y[0], sol.y[1], vv, r * np.cos(alpha - np.abs(sol.y[0])), np.zeros(sol.t.size),
                          stage, side, sol.y[3] if rs else np.full(sol.t.size, u))
             theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
             for y_turn in sol.y_events[2]:
                 theta_max = max(theta_max, abs(float(y_turn[0])))
-            evs = [(float(sol.t_events[j][0]), j) for j in range(len(events))
-                   if j != 2 and sol.t_events[j].size]
             if not evs:
                 theta, omega = float(sol.y[0, -1]), float(sol.y[1, -1])
                 v = float(sol.y[2, -1]) if rs else 0.0
@@ -463,7 +466,7 @@ class _Scene:
             t_ev, j = min(evs)
             y = sol.y_events[j][0]
             theta, omega = float(y[0]), float(y[1])
-            v = float(y[2]) if rs else 0.0
+            v = 0.0 if stops or not rs else float(y[2])
             if rs:
                 u = float(y[3])
                 trace.slide_peak, trace.slide_residual = max(trace.slide_peak, abs(u)), u
