@@ -29,6 +29,23 @@ def value(c3: float, c2: float, c1: float, c0: float, u: float) -> float:
     return ((c3 * u + c2) * u + c1) * u + c0
 
 
+@njit(cache=True, inline="always")
+def stationary_points(c3: float, c2: float, c1: float) -> tuple[float, float]:
+    """The interpolant's stationary points (u1 ≤ u2, the roots of 3 c3 u² + 2 c2 u + c1); 2.0 (outside [0, 1])
+    for each that does not exist. The quadratic's roots in the form that does not cancel."""
+    a, b, c = 3.0 * c3, 2.0 * c2, c1
+    if a == 0.0:
+        return (-c / b if b != 0.0 else 2.0), 2.0
+    disc = b * b - 4.0 * a * c
+    if disc < 0.0:
+        return 2.0, 2.0
+    q = -0.5 * (b + math.copysign(math.sqrt(disc), b))
+    if q == 0.0:  # b = c = 0: one double stationary point at 0
+        return 0.0, 2.0
+    u1, u2 = q / a, c / q
+    return min(u1, u2), max(u1, u2)
+
+
 @njit(cache=True)
 def argmax_scaled(c3: float, c2: float, c1: float, c0: float, sign: float) -> float:
     """u ∈ [0, 1] where sign·interpolant is largest (endpoints or a stationary point)."""
@@ -37,18 +54,7 @@ def argmax_scaled(c3: float, c2: float, c1: float, c0: float, sign: float) -> fl
     v1 = sign * value(c3, c2, c1, c0, 1.0)
     if v1 > best:
         best, best_u = v1, 1.0
-    a, b, c = 3.0 * c3, 2.0 * c2, c1
-    if a == 0.0:
-        if b != 0.0:
-            u = -c / b
-            if 0.0 < u < 1.0 and sign * value(c3, c2, c1, c0, u) > best:
-                best_u = u
-        return best_u
-    disc = b * b - 4.0 * a * c
-    if disc < 0.0:
-        return best_u
-    sq = math.sqrt(disc)
-    for u in ((-b - sq) / (2.0 * a), (-b + sq) / (2.0 * a)):
+    for u in stationary_points(c3, c2, c1):
         if 0.0 < u < 1.0:
             v = sign * value(c3, c2, c1, c0, u)
             if v > best:
@@ -56,21 +62,55 @@ def argmax_scaled(c3: float, c2: float, c1: float, c0: float, sign: float) -> fl
     return best_u
 
 
+CROSSING_TOL = 1e-15
+"""Width in u of the bracket a crossing is located to."""
+
+
 @njit(cache=True)
 def crossing(c3: float, c2: float, c1: float, c0: float, sign: float, target: float, u_lo: float) -> float:
-    """First u in (u_lo, 1] where sign·interpolant falls to / rises to ``target`` (bisection).
+    """First u in (u_lo, 1] where sign·interpolant falls to / rises to ``target``.
 
-    Requires sign·y(u_lo) − target and sign·y(1) − target of opposite signs (or the latter zero).
+    Requires sign·y(u_lo) − target and sign·y(1) − target of opposite signs (or the latter zero). The stationary
+    points split (u_lo, 1] into pieces on which the cubic is monotone; the first piece whose ends differ in sign
+    holds the first crossing, found there by Newton's method kept inside the bracket (bisection where a step
+    leaves it). The u returned is the bracket's far end, where sign·y − target has changed sign (or is 0), to
+    within :data:`CROSSING_TOL`: five to eight evaluations where bisection took fifty.
     """
     f_lo = sign * value(c3, c2, c1, c0, u_lo) - target
-    lo, hi = u_lo, 1.0
+    lo = u_lo
+    for edge in (*stationary_points(c3, c2, c1), 1.0):
+        if not lo < edge <= 1.0:
+            continue
+        f_edge = sign * value(c3, c2, c1, c0, edge) - target
+        if f_edge == 0.0 and edge < 1.0:
+            return edge
+        if f_edge == 0.0 or (f_edge > 0.0) != (f_lo > 0.0):
+            return _monotone_root(c3, c2, c1, c0, sign, target, lo, f_lo, edge, f_edge)
+        lo, f_lo = edge, f_edge
+    return 1.0
+
+
+@njit(cache=True, inline="always")
+def _monotone_root(c3: float, c2: float, c1: float, c0: float, sign: float, target: float, lo: float, f_lo: float,
+                   hi: float, f_hi: float) -> float:
+    """``crossing`` on [lo, hi], where the cubic is monotone and sign·y − target goes from ``f_lo`` to ``f_hi``
+    (opposite signs, or ``f_hi`` = 0): Newton from the chord's root, bisection where a step leaves the bracket;
+    a step shorter than rounding is lengthened to 4e-16 so that the bracket closes from the root's far side."""
+    x = lo + (hi - lo) * (f_lo / (f_lo - f_hi))
     for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        f_mid = sign * value(c3, c2, c1, c0, mid) - target
-        if (f_mid > 0.0) == (f_lo > 0.0) and f_mid != 0.0:
-            lo, f_lo = mid, f_mid
+        if not lo < x < hi:
+            x = 0.5 * (lo + hi)
+        fx = sign * value(c3, c2, c1, c0, x) - target
+        if fx == 0.0:
+            return x
+        if (fx > 0.0) == (f_lo > 0.0):
+            lo = x
         else:
-            hi = mid
-        if hi - lo < 1e-15:
+            hi = x
+        if hi - lo < CROSSING_TOL:
             break
+        step = fx / (sign * ((3.0 * c3 * x + 2.0 * c2) * x + c1))
+        if abs(step) < 4e-16:
+            step = math.copysign(4e-16, step)
+        x -= step
     return hi
