@@ -74,7 +74,9 @@ def crossing(c3: float, c2: float, c1: float, c0: float, sign: float, target: fl
     points split (u_lo, 1] into pieces on which the cubic is monotone; the first piece whose ends differ in sign
     holds the first crossing, found there by Newton's method kept inside the bracket (bisection where a step
     leaves it). The u returned is the bracket's far end, where sign·y − target has changed sign (or is 0), to
-    within :data:`CROSSING_TOL`: five to eight evaluations where bisection took fifty.
+    within :data:`CROSSING_TOL`. About a quarter of the time of the fifty bisections it replaced (210 against
+    770–850 ns a call on steps as the engines make them, one core, 2026-11-28), which could also return a later
+    crossing where a step held several.
     """
     f_lo = sign * value(c3, c2, c1, c0, u_lo) - target
     lo = u_lo
