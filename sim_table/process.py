@@ -21,7 +21,9 @@ ticks due as one batch, as virtual time does; CANopen's drives answer every SYNC
 so there it wakes more often, every :data:`CANOPEN_WAKE_PERIOD_NS`.
 
 ``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
-as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration, while the table has something to do — a
+as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration (fewer where the last batch's wall time per
+tick says more would take longer than :data:`VIRTUAL_BATCH_WALL_NS`: the statuses go out at a batch's end, and a busy
+host must still hear them well within its link timeout), while the table has something to do — a
 move, a stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose
 end has not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a
 status tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time.
@@ -98,9 +100,16 @@ MAX_BATCH = 200
 """Most ticks run between two looks at the network (a long stall is caught up over several wakes)."""
 
 VIRTUAL_BATCH = 80
-"""Ticks an iteration in virtual time (the batch's kinematics and MuJoCo steps in one call each): its statuses
+"""Most ticks an iteration in virtual time (the batch's kinematics and MuJoCo steps in one call each): its statuses
 (every 20 ticks) go out at its end, well within the 250 ms the host's setpoints may run ahead of the last status
 (``drivers/chunked.py``), so the host keeps the buffer supplied while the next batch runs."""
+
+VIRTUAL_BATCH_WALL_NS = 50_000_000
+"""Wall time [ns] a virtual-time batch is sized to take: the next batch's ticks are cut to this over the last
+batch's wall time per tick (at least one tick). On a host that other work keeps busy a batch of 80 ticks with seven
+bodies in contact can take most of a second of wall time, and its statuses — sent at its end — then leave the
+host's link timeout (0.5 s) without a status: measured 2026-11-28, a compensation benchmark case through the
+emulator was stopped with "no status for 0.8 s" at a load average of 7–10."""
 
 HOLD_POLL_S = 0.0005
 """How long virtual time sleeps [s, real time] between looks at the network while it holds for setpoints."""
@@ -236,6 +245,8 @@ class Emulator:
         self._clock = 0  # virtual time: the last tick run [ns]
         self._rest_credit = 0  # virtual time at rest: real time not yet ticked [ns]
         self._held_status: tuple[int, int] | None = None  # virtual time: (clock, host ns) of the last hold status
+        self._virtual_cap = VIRTUAL_BATCH  # virtual time: the next batch's most ticks (VIRTUAL_BATCH_WALL_NS)
+        self._virtual_full = False  # virtual time: the last iteration ran as many ticks as its cap allowed
         self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
         self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
 
@@ -298,8 +309,8 @@ class Emulator:
             now = time.monotonic_ns()
             self._rest_credit += now - last
             last = now
-            count = self.step_virtual(now)
-            if count == VIRTUAL_BATCH:
+            self.step_virtual(now)
+            if self._virtual_full:
                 time.sleep(0)  # let the endpoint's threads take the host's messages
             elif self.core.state in _AT_REST:
                 time.sleep(REST_WAKE_PERIOD_NS * 1e-9)  # at rest in virtual time: ticks at real time
@@ -314,19 +325,25 @@ class Emulator:
         taken = self.endpoint.take(now)
         for _, action in taken:  # stamped with the clock: due before the next tick
             action(core)
-        if core.state in _AT_REST:
-            count = min(self._rest_credit // self.tick_ns, MAX_BATCH)
-            self._rest_credit -= count * self.tick_ns
-        else:
+        moving = core.state not in _AT_REST
+        if moving:
             self._rest_credit = 0
-            count = VIRTUAL_BATCH
+            count = self._virtual_cap
             until = core.buffered_until
             if until is not None:
                 count = max(0, min(count, (until - self._next_tick) // self.tick_ns + 1))
+        else:
+            count = min(self._rest_credit // self.tick_ns, MAX_BATCH)
+            self._rest_credit -= count * self.tick_ns
+        self._virtual_full = moving and count == self._virtual_cap
         if count:
             times = self._next_tick + self.tick_ns * np.arange(count, dtype=np.int64)
             self._next_tick = int(times[-1]) + self.tick_ns
+            started = time.monotonic_ns()
             self._batch(times)
+            if moving:  # size the next batch to VIRTUAL_BATCH_WALL_NS at this one's wall time per tick
+                per_tick = max(1, time.monotonic_ns() - started) / count
+                self._virtual_cap = max(1, min(VIRTUAL_BATCH, int(VIRTUAL_BATCH_WALL_NS / per_tick)))
             self._clock = int(times[-1])
             busy = time.monotonic_ns() - now
             with self._batches_lock:

@@ -9,6 +9,7 @@ import os
 import signal
 import subprocess
 import sys
+import time
 import uuid
 from pathlib import Path
 
@@ -24,7 +25,15 @@ from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
 from sim_table.controller import Command, ControllerCore, Done, Fault, Result, State, StateChange
 from sim_table.endpoint import Batcher
-from sim_table.process import TILT_RATE, Emulator, EmulatorConfig, parse_args, parse_body
+from sim_table.process import (
+    TILT_RATE,
+    VIRTUAL_BATCH,
+    VIRTUAL_BATCH_WALL_NS,
+    Emulator,
+    EmulatorConfig,
+    parse_args,
+    parse_body,
+)
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -448,6 +457,39 @@ def test_virtual_time_never_plays_a_tick_whose_setpoint_has_not_come() -> None:
         np.testing.assert_allclose(emulator.actuators.pose[0], samples[-1, 0], atol=1e-4)  # followed the samples
         sent = emulator.endpoint.counters_dict()
         assert sent["status_sent"] >= emulator.controller_time(0) // 20_000_000  # 50 Hz of controller time
+    finally:
+        emulator.close()
+
+
+def test_virtual_time_cuts_its_batches_when_a_batch_takes_long_in_wall_time(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A host too busy for 80 ticks a batch: with every tick made to take at least 2 ms of wall time (a sleep,
+    which never ends early), the batch after a full one of ``VIRTUAL_BATCH`` ticks runs at most
+    ``VIRTUAL_BATCH_WALL_NS`` / 2 ms = 25 ticks (its statuses go out at its end), each later one at least one; the
+    stream still plays to its end, every tick once, without an underrun."""
+    emulator = Emulator(EmulatorConfig(listen="mavlink://127.0.0.1:0", key=bytes(32), speed=math.inf))
+    slow_tick_s = 0.002
+    batch = emulator._batch
+
+    def slow_batch(times: np.ndarray) -> None:
+        time.sleep(slow_tick_s * len(times))
+        batch(times)
+
+    try:
+        core = emulator.core
+        assert core.command(Command.ARM, (), True, 0) is Result.ACCEPTED
+        assert core.command(Command.START_STREAM, (0.0,), True, 0) is Result.ACCEPTED
+        core.heartbeat(0)
+        core.chunk(0, 10_000_000, 1_000_000, np.zeros((400, 6)), True, True, 0)
+        assert emulator.step_virtual(0) == VIRTUAL_BATCH  # nothing measured yet: a full batch
+        monkeypatch.setattr(emulator, "_batch", slow_batch)
+        ran = [emulator.step_virtual(0)]  # the first slow batch, sized before a slow one was seen
+        while core.state is State.STREAMING:
+            core.heartbeat(0)
+            ran.append(emulator.step_virtual(0))
+        cap = VIRTUAL_BATCH_WALL_NS // round(slow_tick_s * 1e9)
+        assert len(ran) > 2 and max(ran[1:]) <= cap and min(ran[1:]) >= 1
+        assert core.counters.streams_completed == 1 and core.counters.underruns == 0
+        assert emulator.controller_time(0) >= 10_000_000 + 399 * 1_000_000
     finally:
         emulator.close()
 
