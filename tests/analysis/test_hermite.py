@@ -22,6 +22,12 @@ def _cubics(seed: int, n: int) -> list[tuple[float, float, float, float]]:
     return out
 
 
+def _rounding(c: tuple[float, float, float, float]) -> float:
+    """A bound on the rounding of one evaluation of the cubic in [0, 1] (Horner's, with or without fused
+    multiply-adds, which the compiled callers may differ in): a few units in the last place of its terms' sum."""
+    return 8 * np.finfo(float).eps * sum(abs(x) for x in c)
+
+
 def _first_root(c: tuple[float, float, float, float], lo: float) -> float:
     """The smallest real root in (lo, 1] of the cubic at which it changes sign, from its companion matrix."""
     roots = np.roots(c)
@@ -37,7 +43,7 @@ def test_crossing_is_the_first_sign_change_on_its_far_side(seed: int) -> None:
     several = 0
     for c in _cubics(seed, 2000):
         u = hermite.crossing(*c, 1.0, 0.0, 0.0)
-        assert hermite.value(*c, u) <= 0.0  # the far side: θ has reached the plate
+        assert hermite.value(*c, u) <= _rounding(c)  # the far side (to rounding): θ has reached the plate
         first = _first_root(c, 0.0)
         assert u == pytest.approx(first, abs=1e-9)
         roots = np.roots(c)
@@ -54,7 +60,7 @@ def test_crossing_from_the_peak_to_a_target_either_way() -> None:
         if top >= 1.0 or hermite.value(*c, 1.0) > target:
             continue
         u = hermite.crossing(*c, 1.0, target, top)
-        assert top < u <= 1.0 and hermite.value(*c, u) <= target
+        assert top < u <= 1.0 and hermite.value(*c, u) <= target + _rounding(c)
         neg = tuple(-x for x in c)
         assert hermite.crossing(*neg, -1.0, target, top) == u  # the mirrored step: the same crossing
 
