@@ -30,9 +30,10 @@ Protocol decisions:
 - **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
   per sensor), tilt batches of :data:`~protocols.zenoh.table.TILT_PER_BATCH` angles (every body's on one key),
   overturn events (sent at once and again 3 times 100 ms apart, real time, with the same event id), heartbeats every
-  50 ms. zenoh's default congestion control (drop when the link's queue stays full): the controller never waits for
-  its host — except in virtual time (``--speed max``), where the accelerometer and tilt batches block instead (time
-  waits, and no sample is dropped however fast the emulator runs).
+  50 ms. zenoh's default congestion control (drop when no batch of the transmit queue comes free within 1 ms; the
+  queue is :data:`~protocols.zenoh.config.TX_QUEUE_BATCHES` deep): the controller never waits for its host —
+  except in virtual time (``--speed max``), where the accelerometer and tilt batches block instead (time waits, and
+  no sample is dropped however fast the emulator runs).
 - **Fault injection**: ``loss`` drops each message in either direction with that probability (a dropped query
   ends without a reply); ``delay`` [s] holds each one that long in either direction (seeded).
 """

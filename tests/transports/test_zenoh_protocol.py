@@ -42,6 +42,7 @@ from protocols.zenoh import (
     telemetry_key,
     telemetry_selector,
 )
+from protocols.zenoh.config import TX_QUEUE_BATCHES
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -256,6 +257,8 @@ def test_session_config_is_loopback_only_without_scouting() -> None:
     assert json.loads(config.get_json("connect/endpoints")) == ["tcp/[::1]:7448"]
     assert json.loads(config.get_json("scouting/multicast/enabled")) is False
     assert json.loads(config.get_json("scouting/gossip/enabled")) is False
+    queue = json.loads(config.get_json("transport/link/tx/queue/size"))  # zenoh's own key: 2 batches by default
+    assert queue["data"] == TX_QUEUE_BATCHES == 16 and queue["control"] == 2
     only_connect = session_config(connect=[loopback_endpoint(7447)])
     assert json.loads(only_connect.get_json("listen/endpoints")) == []  # not zenoh's default tcp/[::]:0
 
