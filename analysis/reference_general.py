@@ -447,7 +447,8 @@ class _Scene:
             sol = solve_ivp(rhs, (now, t_seg), y0, method="DOP853", rtol=RTOL, atol=ATOL, events=events)
             evs = [(float(sol.t_events[j][0]), j) for j in range(len(events))
                    if j != 2 and sol.t_events[j].size]
-            stops = rs and bool(evs) and min(evs)[1] == 3  # the sliding pivot stops (ev_stop)
+            first = min(evs) if evs else None
+            stops = rs and first is not None and first[1] == 3  # the sliding pivot stops (ev_stop)
             vv = sol.y[2].copy() if rs else np.zeros(sol.t.size)
             if stops:  # as in SLIDE: the point recorded where v = 0 holds 0, not the root's rounding
                 vv[-1] = 0.0
@@ -456,14 +457,14 @@ class _Scene:
             theta_max = max(theta_max, float(np.max(np.abs(sol.y[0]))))
             for y_turn in sol.y_events[2]:
                 theta_max = max(theta_max, abs(float(y_turn[0])))
-            if not evs:
+            if first is None:
                 theta, omega = float(sol.y[0, -1]), float(sol.y[1, -1])
                 v = float(sol.y[2, -1]) if rs else 0.0
                 u = float(sol.y[3, -1]) if rs else u
                 now = t_seg
                 fresh = hold_now  # after a hold, the reactions are checked again at once
                 continue
-            t_ev, j = min(evs)
+            t_ev, j = first
             y = sol.y_events[j][0]
             theta, omega = float(y[0]), float(y[1])
             v = 0.0 if stops or not rs else float(y[2])

@@ -62,7 +62,7 @@ STEPS = [0.2, 0.1, 0.05, 0.025, 0.0125, 0.00625]
 
 HERE = Path(__file__).resolve().parents[1]
 TIMED_STUDY = """
-import json, sys
+import json, sys, time
 sys.path.insert(0, sys.argv[1])
 import numpy as np
 from analysis import TABLE_I
@@ -71,7 +71,6 @@ from rig.records import load_records
 angles = np.radians(np.arange(0.0, 7.0 + 1e-9, 0.5))
 records = load_records("fema")
 study(TABLE_I[:2], records[:2], angles[:2], model=sys.argv[2])
-import time
 cpu = time.process_time()
 res = study(TABLE_I, records, angles, model=sys.argv[2])
 cpu = time.process_time() - cpu
