@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from drivers.controller import StreamReport, Subscription, TableStatus, TiltBatch, open_table
+from drivers.controller import StreamReport, Subscription, TableError, TableStatus, TiltBatch, open_table
 from rig.drive import Drive, prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
@@ -146,6 +146,7 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
     telemetry); return the emulator's counters for transport checks."""
     emulator = EmulatorProcess.start(listen, "--body", SLENDER, "--body", STOCKY, "--accel", "0,0,0",
                                      "--accel", "1.0,-0.5,0", "--speed", speed, key_file=key_file)
+    link_error: TableError | None = None
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             assert isinstance(table, controller_type)
@@ -160,8 +161,13 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
             time.sleep(0.6)  # the last overturn event's repetitions (3 × 100 ms)
             tilt_batches = collect_tilts(tilts, 2, report.t_end_ns)
             stats = table.link_stats()
+    except TableError as exc:  # the host's view: add the emulator's (did it stall, or the host?)
+        link_error = exc
     finally:
         counters = emulator.stop()
+    if link_error is not None:
+        raise AssertionError(f"{link_error}\nthe emulator's timing: {counters['timing']}\n"
+                             f"its link counters: {counters['link']}") from link_error
     assert_played_through(drive, report, progress, counters, wall)
     assert counters["chunk_margin_min_ns"] > 0 and counters["chunks_missing"] == 0
     assert report.chunks == counters["chunks_accepted"] == math.ceil(len(drive.t) / samples_per_chunk)
@@ -171,7 +177,10 @@ def stream_and_check(drive: Drive, listen: str, key_file: Path, samples_per_chun
 
     # every accelerometer sample once, in order, contiguous: count = duration × rate, for each sensor
     received = accel.drain()
-    assert stats["accel_batches_lost"] == 0 and {b.sensor_id for b in received} == {0, 1}
+    gaps = {sensor: [(a.seq, b.seq) for a, b in itertools.pairwise(x for x in received if x.sensor_id == sensor)
+                     if b.seq != a.seq + 1] for sensor in (0, 1)}
+    assert stats["accel_batches_lost"] == 0, f"accelerometer batches lost between (seq, seq): {gaps}"
+    assert {b.sensor_id for b in received} == {0, 1}
     for sensor in (0, 1):
         batches = [b for b in received if b.sensor_id == sensor]
         assert [b.seq for b in batches] == list(range(batches[0].seq, batches[0].seq + len(batches)))
