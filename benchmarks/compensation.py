@@ -174,7 +174,9 @@ def _emulator(args: argparse.Namespace, table: TableModel, specs: list[str], scr
                 except (RuntimeError, OSError) as exc:
                     case[name] = {"failed": str(exc)}
                 finally:
-                    emulator.stop()
+                    counters = emulator.stop()
+                if "failed" in case[name]:  # the emulator's view of the failure: did it stall, or the host?
+                    case[name]["emulator"] = {"timing": counters["timing"], "faults": counters["faults"]}
             cases.append(case)
     return cases
 

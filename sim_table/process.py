@@ -483,6 +483,7 @@ class Emulator:
             "tick_cpu_mean_us": self._cpu_ns / max(self._ticks, 1) * 1e-3,
             "tick_time_p99_us": float(np.percentile(per_tick, 99)) * 1e-3,
             "batch_time_p99_us": float(np.percentile(batch, 99)) * 1e-3,
+            "batch_time_max_us": float(batch.max()) * 1e-3,
             "batch_size_mean": float(sizes.mean()),
             "batch_size_max": int(sizes.max()),
             "real_time_factor": simulated / self._busy_ns if self._busy_ns else None,
