@@ -35,7 +35,13 @@ Every chunk is **sent twice**: again right after the next chunk, one chunk perio
 ``lead`` minus a chunk period ahead (the last one just after itself). The controller drops the copy it already
 has by its chunk number (``chunks_duplicate``), so a chunk is missing only when both copies are lost: with 5 %
 of the datagrams lost, 0.25 % of the chunks instead of 5 %, and a missing chunk is bridged by the controller's
-interpolation (``CHUNK_GAP`` latched, the drive plays on).
+interpolation (``CHUNK_GAP`` latched, the drive plays on). A chunk whose second copy waits on the next chunk must
+not wait on it for ever: while the host waits (for the next chunk's time, or for the controller to take the last
+chunk, END_OF_STREAM) and the latest status shows the chunk sent last not taken (``last_chunk_seq``), that chunk
+goes again every :data:`RESEND_S`. Without it a controller holding for setpoints (virtual time) whose stream's
+first chunk was lost held for it while the host held the second chunk until a status showed the controller past
+the first — stopped by the stream watchdog (``STREAM_SILENT``) in about one stream in ten at 10 % loss — and a
+lost END_OF_STREAM (both copies) left the controller waiting for the end likewise.
 """
 
 from __future__ import annotations
@@ -74,6 +80,10 @@ AHEAD_NS = 250_000_000
 """A chunk waits until a status shows the controller within ``lead`` + this [ns, controller time] of its first
 sample (module docstring): statuses may be this late before the bound delays a real-time stream."""
 
+
+RESEND_S = 0.1
+"""While the host waits and no status shows the chunk sent last taken, it is sent again this often [s] (module
+docstring)."""
 
 WAIT_SLICE_NS = 100_000_000
 """A chunk held back by the status bound waits in slices of this [ns], the link checked between them."""
@@ -299,7 +309,8 @@ class ChunkedStreamController(TableController):
             chunk_start = t_start + first * spacing_ns
             message = self._encode_chunk((first_seq + k) % FIRST_SEQ_LIMIT, chunk_start, spacing_ns,
                                          poses[first:first + per_chunk], k == count - 1)
-            lateness[k] = self._wait_to_send(chunk_start - lead_ns, chunk_start - lead_ns - AHEAD_NS)
+            lateness[k] = self._wait_to_send(chunk_start - lead_ns, chunk_start - lead_ns - AHEAD_NS, previous,
+                                             (first_seq + k - 1) % FIRST_SEQ_LIMIT)
             self.check_link()
             latest = self.feedback.latest
             if latest is not None and (latest.state in STOPPED_STATES or _left_stream(latest, t_start)):
@@ -312,24 +323,39 @@ class ChunkedStreamController(TableController):
             if on_progress is not None and time.monotonic_ns() >= next_progress:
                 on_progress(min(first + per_chunk, len(poses)), len(poses))
                 next_progress += 100_000_000
+        last_seq = (first_seq + count - 1) % FIRST_SEQ_LIMIT
         if previous is not None:
             self._send_chunk(previous)
+            self._until_end_taken(previous, last_seq, t_start)
         remaining = max(0.0, (self.clock.to_host(t_end) - time.monotonic_ns()) * 1e-9)
         final = self.wait_for_status(
             lambda s: s.state in STOPPED_STATES or _left_stream(s, t_start), remaining + 2.0)
         if on_progress is not None:
             on_progress(len(poses), len(poses))
-        last_seq = (first_seq + count - 1) % FIRST_SEQ_LIMIT
         if final.state != "armed" or final.last_chunk_seq != last_seq:  # stopped (and home) before its end
             raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
                                      f"{', '.join(final.faults) or 'none'}, last chunk taken "
                                      f"{final.last_chunk_seq} of {first_seq}…{last_seq})", report(count, final))
         return report(count, final)
 
-    def _wait_to_send(self, due: int, seen_after: int) -> int:
+    def _until_end_taken(self, message: Any, last_seq: int, t_start: int) -> None:
+        """Wait until a status shows the END_OF_STREAM chunk ``message`` (number ``last_seq``) taken or the table out
+        of the stream that began at ``t_start`` [ns], sending it again meanwhile (module docstring);
+        :class:`~drivers.controller.TableLinkLostError` if the link is lost."""
+
+        def over() -> bool:
+            latest = self.feedback.latest
+            return latest is not None and (latest.last_chunk_seq == last_seq or latest.state in STOPPED_STATES
+                                           or _left_stream(latest, t_start))
+
+        while not self.wait(over, RESEND_S):
+            self._send_chunk(message)
+
+    def _wait_to_send(self, due: int, seen_after: int, sent: Any, sent_seq: int) -> int:
         """Wait until controller time ``due`` [ns] (module docstring: by the clock estimate or a status showing
-        it, once a status shows ``seen_after`` [ns] or later); how late [ns, host time, ≥ 0] against the clock
-        estimate's deadline."""
+        it, once a status shows ``seen_after`` [ns] or later), sending the chunk sent last (``sent``, number
+        ``sent_seq``; None before the first) again every :data:`RESEND_S` while no status shows it taken; how late
+        [ns, host time, ≥ 0] against the clock estimate's deadline."""
         deadline = self.clock.to_host(due)
         feedback = self.feedback
 
@@ -340,7 +366,11 @@ class ChunkedStreamController(TableController):
 
         while not ready():  # a silent controller: the waits' link check raises TableLinkLostError
             now = time.monotonic_ns()
-            self.wait(ready, max(deadline - now, WAIT_SLICE_NS) * 1e-9)
+            if self.wait(ready, min(max(deadline - now, WAIT_SLICE_NS), round(RESEND_S * 1e9)) * 1e-9):
+                break
+            latest = feedback.latest
+            if sent is not None and latest is not None and latest.last_chunk_seq != sent_seq:
+                self._send_chunk(sent)
         return max(time.monotonic_ns() - deadline, 0)
 
 

@@ -38,8 +38,11 @@ STREAM_SILENT; while armed, homing, tilting or streaming, no host heartbeat for 
 with a ``link_clock`` (virtual time, where controller time runs at no fixed rate) that clock's time [ns] when the
 message was applied and when the watchdog looks (:meth:`ControllerCore.watch` looks without a tick).
 
-Chunk sequence numbers: a repeated one is ignored; one beyond the expected is a gap (CHUNK_GAP, the stream
-continues); an older one not seen before (reordered) is played by its times.
+Chunk sequence numbers: a repeated one is ignored; an older one not seen before (reordered: a host's second copy
+after a lost first) is played by its times; one beyond the expected leaves a gap, which the chunks it skipped may
+still fill. A gap's chunk that has not come when the playback reaches the gap's time (the last sample buffered
+before it) is missing: counted in ``chunks_missing`` and latched as CHUNK_GAP (the stream continues, bridged by
+interpolation). A gap filled in time is no fault: the drive played as sent.
 """
 
 from __future__ import annotations
@@ -319,12 +322,14 @@ class ControllerCore:
             return False
         if ahead == 0:
             self._expected = (seq + 1) % SEQ_MODULUS
-        elif ahead < SEQ_MODULUS // 2:
-            self.counters.chunks_missing += ahead
-            self._latch(Fault.CHUNK_GAP)
+        elif ahead < SEQ_MODULUS // 2:  # a gap: due when the playback passes the last sample buffered before it
+            due = self._buffer[-1][0] if self._buffer else -1
+            for skipped in range(ahead):
+                self._gaps[(self._expected + skipped) % SEQ_MODULUS] = due
             self._expected = (seq + 1) % SEQ_MODULUS
         else:
             self.counters.chunks_reordered += 1
+            self._gaps.pop(seq, None)
         if ahead < SEQ_MODULUS // 2:  # the newest chunk (a reordered older one arriving after it does not count)
             self.last_chunk_seq = seq
         self._remember(seq)
@@ -360,6 +365,8 @@ class ControllerCore:
             self._v[:] = 0.0
             return self._p, True
         if state is State.STREAMING:
+            if self._gaps:
+                self._missing(t_ns)
             pose = self._play(t_ns, dt)
         elif state in (State.HOMING, State.TILTING):
             assert self._move is not None
@@ -468,6 +475,7 @@ class ControllerCore:
         self._seen: set[int] = set()
         self._seen_order: deque[int] = deque()
         self._expected = 0
+        self._gaps: dict[int, int] = {}  # chunk number skipped → controller time [ns] after which it is missing
         self._end_seq: int | None = None
         self._end_ns: int | None = None
         self._last_chunk: int | None = None
@@ -479,6 +487,15 @@ class ControllerCore:
         self._seen_order.append(seq)
         if len(self._seen_order) > _SEEN_WINDOW:
             self._seen.discard(self._seen_order.popleft())
+
+    def _missing(self, t_ns: int) -> None:
+        """Count the gaps' chunks whose time the playback has passed at ``t_ns`` as missing (module docstring)."""
+        due = [seq for seq, t in self._gaps.items() if t < t_ns]
+        for seq in due:
+            del self._gaps[seq]
+        if due:
+            self.counters.chunks_missing += len(due)
+            self._latch(Fault.CHUNK_GAP)
 
     def _insert(self, times: np.ndarray, samples: np.ndarray) -> None:
         """Put the samples due after the last tick into the time-ordered buffer (a time already there is kept)."""

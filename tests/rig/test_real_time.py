@@ -82,8 +82,10 @@ def test_a_run_that_lost_samples_is_degraded_and_left_out_of_fig13_unless_asked(
     log = new_log(tiny, tmp_path / "s.h5")
     state, counters = play(tiny, log, key_file, emulator_flags=("--loss", "10"))
     log.close()
-    assert state is OrchestratorState.DONE and counters["streams_completed"] == 2  # both drives played through
     runs = read_session(tmp_path / "s.h5")["runs"]
+    assert state is OrchestratorState.DONE and counters["streams_completed"] == 2, (  # both drives played through
+        state, [(r["status"], r["attrs"].get("reason"), [e["text"] for e in r["events"]]) for r in runs],
+        counters["timing"], counters["link"])
     assert [r["status"] for r in runs] == ["degraded", "degraded"]
     for run in runs:
         why = run["attrs"]["degraded"]
