@@ -8,6 +8,12 @@ where ``<key>`` hashes the dialect XML, the XML files it includes (``common.xml`
 the copies bundled with pymavlink) and the pymavlink version. Any edit to the XML, or another pymavlink, gives a
 new key and a fresh generation; an unchanged one reuses the module.
 
+Its byte code is written beside it (``__pycache__``, as ``py_compile`` does) when the module is generated, or when a
+cached module has none, whatever ``PYTHONDONTWRITEBYTECODE`` says: compiling the 1.8 MB module takes about 0.4 s
+of CPU holding the interpreter lock, which every process would otherwise pay on its first MAVLink use (its other
+threads — heartbeats, the stream, the receiver — stopped meanwhile: over a second on a busy 2-core host); loading
+the byte code takes milliseconds. A cache that cannot be written just compiles on import, as before.
+
 Generation is atomic: mavgen writes into a private staging directory that is renamed to ``<key>`` only once
 the module is complete, so no process ever imports a partial module; when two processes race, the first rename
 wins and the other discards its own copy. Cache directories unused for :data:`KEEP_DAYS` are pruned.
@@ -26,6 +32,7 @@ import importlib.metadata
 import importlib.util
 import io
 import os
+import py_compile
 import shutil
 import sys
 import tempfile
@@ -142,8 +149,18 @@ def build(xml_path: Path = XML_PATH) -> Path:
     module_path = target / f"{DIALECT_NAME}.py"
     if not module_path.is_file():
         _generate(sources, root, target)
+    _byte_code(module_path)
     _prune(target)
     return module_path
+
+
+def _byte_code(module_path: Path) -> None:
+    """Write ``module_path``'s byte code where the import system looks for it, unless it is there (module
+    docstring); a cache that cannot be written is left as it is."""
+    cached = Path(importlib.util.cache_from_source(str(module_path)))
+    if not cached.is_file():
+        with contextlib.suppress(OSError, py_compile.PyCompileError):
+            py_compile.compile(str(module_path), cfile=str(cached), doraise=True)
 
 
 def _generate(sources: dict[str, bytes], root: Path, target: Path) -> None:
