@@ -82,11 +82,8 @@ sample (module docstring): statuses may be this late before the bound delays a r
 
 
 RESEND_S = 0.1
-"""While the host waits and no status shows the chunk sent last taken, it is sent again this often [s] (module
-docstring)."""
-
-WAIT_SLICE_NS = 100_000_000
-"""A chunk held back by the status bound waits in slices of this [ns], the link checked between them."""
+"""The host waits in slices of this [s], the link checked between them; after each, if no status shows the chunk it
+sent last taken, it sends that chunk again (module docstring)."""
 
 MOTION_STATES = frozenset({"homing", "tilting"})
 """The controller's states while a HOME or SET_TILT moves the table."""
@@ -349,7 +346,14 @@ class ChunkedStreamController(TableController):
                                            or _left_stream(latest, t_start))
 
         while not self.wait(over, RESEND_S):
-            self._send_chunk(message)
+            self._resend_untaken(message, last_seq)
+
+    def _resend_untaken(self, sent: Any, sent_seq: int) -> None:
+        """Send the chunk sent last (``sent``, number ``sent_seq``; None before a stream's first) again unless the
+        latest status shows it taken."""
+        latest = self.feedback.latest
+        if sent is not None and latest is not None and latest.last_chunk_seq != sent_seq:
+            self._send_chunk(sent)
 
     def _wait_to_send(self, due: int, seen_after: int, sent: Any, sent_seq: int) -> int:
         """Wait until controller time ``due`` [ns] (module docstring: by the clock estimate or a status showing
@@ -365,12 +369,9 @@ class ChunkedStreamController(TableController):
             return _shown(feedback.latest, due) or time.monotonic_ns() >= deadline
 
         while not ready():  # a silent controller: the waits' link check raises TableLinkLostError
-            now = time.monotonic_ns()
-            if self.wait(ready, min(max(deadline - now, WAIT_SLICE_NS), round(RESEND_S * 1e9)) * 1e-9):
+            if self.wait(ready, RESEND_S):
                 break
-            latest = feedback.latest
-            if sent is not None and latest is not None and latest.last_chunk_seq != sent_seq:
-                self._send_chunk(sent)
+            self._resend_untaken(sent, sent_seq)
         return max(time.monotonic_ns() - deadline, 0)
 
 
