@@ -171,8 +171,8 @@ def _emulator(args: argparse.Namespace, table: TableModel, specs: list[str], scr
                                                iterations=args.iterations, levels_db=levels,
                                                identify_seconds=args.identify_seconds)
                     case[name] = _outcome(outcome.result, math.nan)
-                except (RuntimeError, OSError) as exc:
-                    case[name] = {"failed": str(exc)}
+                except Exception as exc:  # one case's failure is a result; the other cases still run
+                    case[name] = {"failed": f"{type(exc).__name__}: {exc}"}
                 finally:
                     counters = emulator.stop()
                 if "failed" in case[name]:  # the emulator's view of the failure: did it stall, or the host?

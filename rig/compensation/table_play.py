@@ -18,7 +18,7 @@ import numpy as np
 
 from drivers.controller import TableController
 from rig.drive import Drive
-from rig.orchestrator.orchestrator import LEAD, LINGER
+from rig.orchestrator.orchestrator import LEAD, LINGER, missing_tail
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.states import Progress
 
@@ -66,7 +66,8 @@ class TablePlayer:
 
     def play(self, drive: Drive, role: str, iteration: int) -> np.ndarray:
         """Play ``drive`` as a run (``role`` ``"identify"``/``"iterate"``, its ``iteration``); the plate-frame specific
-        force (n, 3) [m/s²] measured at the drive's samples. Raises RuntimeError when the table stops the stream."""
+        force (n, 3) [m/s²] measured at the drive's samples. Raises RuntimeError when the table stops the stream or the
+        accelerometer's samples stop short of the drive's end (the run then ends ``degraded``)."""
         name = str(self.sensor)
         run_log = self.log.begin_run(
             len(self.runs), record=drive.record, scale_factor=drive.scale_factor,
@@ -85,8 +86,12 @@ class TablePlayer:
             run_log.end("aborted", reason=f"the table stopped the stream: {exc}")
             raise RuntimeError(f"run {run_log.name} ({role} {iteration}): the table stopped the stream: {exc}") \
                 from exc
-        recorder.finish(LINGER)
-        rows = np.concatenate(capture.rows) if capture.rows else np.zeros((0, 4))
+        recorder.finish(LINGER, until=float(drive.t[-1]))
+        missing = missing_tail(recorder.short_of(float(drive.t[-1])), float(drive.t[-1]))
+        if missing:
+            run_log.end("degraded", underruns=report.underruns, degraded="; ".join(missing))
+            raise RuntimeError(f"run {run_log.name} ({role} {iteration}) cannot be measured: {'; '.join(missing)}")
+        rows = np.concatenate(capture.rows)
         force = on_grid(rows, drive.t)
         extra: dict[str, Any] = {"underruns": report.underruns, "t_start_controller_ns": report.t_start_ns}
         if self.target is not None:

@@ -298,14 +298,15 @@ class Orchestrator:
             self._end_aborted(table, run, recorder, run_log, f"the table stopped the stream: {exc}")
         except TableError as exc:
             self._end_aborted(table, run, recorder, run_log, f"table error: {exc}")
-        recorder.finish(LINGER)
+        recorder.finish(LINGER, until=float(drive.t[-1]))
         if recorder.write_error is not None:
             self._end_write_failed(table, run, recorder, run_log)
         if not recorder.detections and self.sequence.operator.ask_detections:
             self._set(State.WAITING, "which bodies fell?")
             for body_id, direction in self._ask(lambda: self.operator.which_fell(run, self.sequence.bodies)):
                 run_log.add_detection(float("nan"), body_id, direction, "operator")
-        problems = degradations(before, report, table.accel_batches_lost - lost_before, recorder.faults_raised)
+        problems = degradations(before, report, table.accel_batches_lost - lost_before, recorder.faults_raised,
+                                recorder.short_of(float(drive.t[-1])), float(drive.t[-1]))
         for problem in problems:
             run_log.add_event(float("nan"), f"degraded: {problem}")
         status = "degraded" if problems else "completed"
@@ -474,11 +475,14 @@ class Orchestrator:
 
 
 def degradations(before: TableStatus, report: StreamReport, accel_batches_lost: int,
-                 faults: tuple[str, ...]) -> list[str]:
+                 faults: tuple[str, ...], short: dict[str, float | None] | None = None,
+                 t_end: float = 0.0) -> list[str]:
     """What made a run that played to its end ``degraded``, each with its count (empty: ``completed``):
     underruns and late setpoints counted by the controller over the stream (``before``: its status at the start,
     ``report.final`` at the end), accelerometer batches lost on the link, fault bits latched during the run
-    (``faults``: ``SETPOINT_LIMIT``/``STROKE``: a setpoint clipped to the envelope; ``CHUNK_GAP``; any other)."""
+    (``faults``: ``SETPOINT_LIMIT``/``STROKE``: a setpoint clipped to the envelope; ``CHUNK_GAP``; any other), and
+    the accelerometers whose samples stop short of the drive's end ``t_end`` [s] (``short``:
+    :meth:`RunRecorder.short_of`)."""
     final = report.final or before
     problems = []
     if report.underruns:
@@ -490,7 +494,16 @@ def degradations(before: TableStatus, report: StreamReport, accel_batches_lost: 
         problems.append(f"{accel_batches_lost} accelerometer batch(es) lost")
     if faults:
         problems.append(f"fault(s) during the motion: {', '.join(faults)}")
+    problems.extend(missing_tail(short or {}, t_end))
     return problems
+
+
+def missing_tail(short: dict[str, float | None], t_end: float) -> list[str]:
+    """One line per accelerometer of ``short`` (:meth:`RunRecorder.short_of`) saying where its samples end against
+    the drive's end ``t_end`` [s]."""
+    return [f"accelerometer {name}: no samples" if end is None else
+            f"accelerometer {name}: samples end at {end:.3f} s, {t_end - end:.3f} s before the drive's end"
+            for name, end in short.items()]
 
 
 def _disarm_at_rest(table: TableController) -> None:

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,12 @@ from rig.session import SessionError
 
 POLL_SECONDS = 0.02
 """How often the recorder drains the subscriptions [s]."""
+
+FEEDBACK_WAIT = 5.0
+"""How long :meth:`RunRecorder.finish` waits at most [s], after its linger, for every declared accelerometer's samples
+to reach the drive's end: the controller sends the last batch once it is full (MAVLink: 19 samples after the drive's
+last), and a busy host or controller can take longer than the linger over it (seen: a compensation play whose last
+4 ms were missing at a load average of 6–7). What has not come by then is missing (:meth:`RunRecorder.short_of`)."""
 
 BASELINE_SAMPLES = 200
 """Samples per sensor that give the static plate-x reading (the tilt's gravity component) for the status line."""
@@ -72,20 +79,37 @@ class RunRecorder:
         self._baseline: dict[int, list[float]] = {}
         self._undeclared: set[int] = set()
         self._undeclared_tilts: set[int] = set()
+        self._accel_end: dict[int, tuple[float, float]] = {}  # sensor id → (last sample's time, spacing) [s]
 
     def start(self, t0_ns: int) -> None:
         """The drive's first sample is due at controller time ``t0_ns``: start writing."""
         self._t0_ns = t0_ns
         self._thread.start()
 
-    def finish(self, linger: float = 0.0) -> None:
-        """Keep recording ``linger`` s more (late detections, the last batches), then drain and stop."""
+    def finish(self, linger: float = 0.0, until: float | None = None, wait: float = FEEDBACK_WAIT) -> None:
+        """Keep recording ``linger`` s more (late detections, the last batches) and, with ``until`` (the drive's last
+        sample [s, run time]), until every declared accelerometer's samples reach it (:meth:`short_of`), at most
+        ``wait`` s more; then drain and stop."""
         if self._thread.is_alive():
             self._stop.wait(linger)
+            deadline = time.monotonic() + wait
+            while (until is not None and self.short_of(until) and time.monotonic() < deadline
+                   and self._thread.is_alive()):
+                time.sleep(POLL_SECONDS)
             self._stop.set()
             self._thread.join()
         for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults):
             sub.close()
+
+    def short_of(self, until: float) -> dict[str, float | None]:
+        """The declared accelerometers whose samples so far end more than one sample before ``until`` [s, run time]:
+        sensor name → the time of its last sample [s] (None: none came)."""
+        short: dict[str, float | None] = {}
+        for sensor_id, name in self.sensors.items():
+            end = self._accel_end.get(sensor_id)
+            if end is None or end[0] < until - end[1]:
+                short[name] = None if end is None else end[0]
+        return short
 
     def _loop(self) -> None:
         try:
@@ -122,7 +146,11 @@ class RunRecorder:
                 self.run_log.add_event(float(self._seconds(batch.t_start_ns)),
                                        f"accelerometer {batch.sensor_id} is not declared in the run: not logged")
             return
-        self.run_log.append_accel(name, self._seconds(batch.times_ns()), batch.samples)
+        times = self._seconds(batch.times_ns())
+        self.run_log.append_accel(name, times, batch.samples)
+        if len(times):  # a late copy of an earlier batch never moves the end back
+            last = max(float(times[-1]), self._accel_end.get(batch.sensor_id, (-np.inf, 0.0))[0])
+            self._accel_end[batch.sensor_id] = (last, batch.spacing_ns * 1e-9)
         baseline = self._baseline.setdefault(batch.sensor_id, [])
         if len(baseline) < BASELINE_SAMPLES:
             baseline.extend(batch.samples[:BASELINE_SAMPLES - len(baseline), 0].tolist())
@@ -130,7 +158,7 @@ class RunRecorder:
             fall_line = batch.samples[:, 0] - np.mean(baseline)
             self.progress.peak_accel = max(self.progress.peak_accel, float(np.abs(fall_line).max()))
             if self.live is not None and batch.sensor_id == next(iter(self.sensors)):  # the display's sensor
-                self.live.accel(batch.sensor_id, self._seconds(batch.times_ns()), fall_line)
+                self.live.accel(batch.sensor_id, times, fall_line)
 
     def _write_tilt(self, batch: TiltBatch) -> None:
         if not 0 <= batch.body_id < len(self.body_ids):
