@@ -86,8 +86,9 @@ class TablePlayer:
             run_log.end("aborted", reason=f"the table stopped the stream: {exc}")
             raise RuntimeError(f"run {run_log.name} ({role} {iteration}): the table stopped the stream: {exc}") \
                 from exc
-        recorder.finish(LINGER, until=float(drive.t[-1]))
-        missing = missing_tail(recorder.short_of(float(drive.t[-1])), float(drive.t[-1]))
+        t_end = float(drive.t[-1])
+        recorder.finish(LINGER, until=t_end)
+        missing = missing_tail(recorder.short_of(t_end), t_end)
         if missing:
             run_log.end("degraded", underruns=report.underruns, degraded="; ".join(missing))
             raise RuntimeError(f"run {run_log.name} ({role} {iteration}) cannot be measured: {'; '.join(missing)}")

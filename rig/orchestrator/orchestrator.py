@@ -298,7 +298,8 @@ class Orchestrator:
             self._end_aborted(table, run, recorder, run_log, f"the table stopped the stream: {exc}")
         except TableError as exc:
             self._end_aborted(table, run, recorder, run_log, f"table error: {exc}")
-        recorder.finish(LINGER, until=float(drive.t[-1]))
+        t_end = float(drive.t[-1])
+        recorder.finish(LINGER, until=t_end)
         if recorder.write_error is not None:
             self._end_write_failed(table, run, recorder, run_log)
         if not recorder.detections and self.sequence.operator.ask_detections:
@@ -306,7 +307,7 @@ class Orchestrator:
             for body_id, direction in self._ask(lambda: self.operator.which_fell(run, self.sequence.bodies)):
                 run_log.add_detection(float("nan"), body_id, direction, "operator")
         problems = degradations(before, report, table.accel_batches_lost - lost_before, recorder.faults_raised,
-                                recorder.short_of(float(drive.t[-1])), float(drive.t[-1]))
+                                recorder.short_of(t_end), t_end)
         for problem in problems:
             run_log.add_event(float("nan"), f"degraded: {problem}")
         status = "degraded" if problems else "completed"
@@ -475,8 +476,7 @@ class Orchestrator:
 
 
 def degradations(before: TableStatus, report: StreamReport, accel_batches_lost: int,
-                 faults: tuple[str, ...], short: dict[str, float | None] | None = None,
-                 t_end: float = 0.0) -> list[str]:
+                 faults: tuple[str, ...], short: dict[str, float | None], t_end: float) -> list[str]:
     """What made a run that played to its end ``degraded``, each with its count (empty: ``completed``):
     underruns and late setpoints counted by the controller over the stream (``before``: its status at the start,
     ``report.final`` at the end), accelerometer batches lost on the link, fault bits latched during the run
@@ -494,7 +494,7 @@ def degradations(before: TableStatus, report: StreamReport, accel_batches_lost: 
         problems.append(f"{accel_batches_lost} accelerometer batch(es) lost")
     if faults:
         problems.append(f"fault(s) during the motion: {', '.join(faults)}")
-    problems.extend(missing_tail(short or {}, t_end))
+    problems.extend(missing_tail(short, t_end))
     return problems
 
 
