@@ -109,6 +109,7 @@ from urllib.parse import parse_qs, urlencode, urlsplit, urlunsplit
 import can
 import canopen
 import numpy as np
+from can.interfaces.virtual import VirtualBus
 
 from analysis.table.model import TableModel
 from protocols.canopen import (
@@ -183,6 +184,19 @@ oldest kept values instead, a plate 4–17 mm ahead of where it was."""
 BACKLOG_LIMIT = 0.5
 """The longest :meth:`CanopenEndpoint.take` waits for the bus's receive thread [s] (module docstring): half the
 default watchdog, so that a receive thread that cannot catch up still leaves the core time to see the silence."""
+
+class StampingVirtualBus(VirtualBus):
+    """python-can's ``virtual`` bus passing each frame's own time stamp on (``preserve_timestamps``: the TPDOs carry
+    their SYNC's) and stamping a frame sent without one (canopen's heartbeats, boot-ups and SDO answers: time stamp
+    0) when it is sent, as a CAN interface stamps a frame when it receives it: the master judges the nodes'
+    heartbeats by their time stamps (:meth:`drivers.canopen.faults.FaultSupervision.silent`)."""
+
+    def send(self, msg: can.Message, timeout: float | None = None) -> None:
+        if not msg.timestamp:
+            msg = can.Message(arbitration_id=msg.arbitration_id, data=msg.data, is_extended_id=msg.is_extended_id,
+                              is_remote_frame=msg.is_remote_frame, timestamp=time.time())
+        super().send(msg, timeout)
+
 
 SYNC_COB_ID = 0x80
 _NMT_COB_ID = 0x000
@@ -502,8 +516,8 @@ class CanopenEndpoint:
         self._rng = np.random.default_rng(options.seed)
         g = self.table.geometry
         self.scaling = LegScaling(g.leg_min, g.leg_max)
-        keep_stamps = {"preserve_timestamps": True} if interface == "virtual" else {}
-        bus = can.Bus(interface=interface, channel=channel, **keep_stamps)
+        bus = (StampingVirtualBus(channel=channel, preserve_timestamps=True) if interface == "virtual"
+               else can.Bus(interface=interface, channel=channel))
         widen_receive_buffer(bus)  # a stall of this process loses no frame (protocols.canopen.receive_buffer)
         self.network = canopen.Network(bus)
         self.network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle

@@ -55,11 +55,14 @@ faults            an EMCY (0x8130 → HEARTBEAT_LOST: the drives lost this maste
                   STREAM_SILENT: their setpoints stopped; other codes → DRIVE, among them 0x8611, a leg's
                   following error beyond 0x6065; the fault event names the node and code that raised it:
                   :attr:`~drivers.controller.FaultEvent.sources`), a drive's statusword in fault, a
-                  drive's heartbeat older than :data:`NODE_CONSUMER_TIME` (DRIVE) or statusword bit 11 (internal
-                  limit: SETPOINT_LIMIT) latch a fault. DRIVE, HEARTBEAT_LOST and STREAM_SILENT stop the table: a
-                  hexapod cannot make a coordinated move without one of its legs, so the master quick-stops every
-                  drive (the doc's "decelerate, then home" is beyond a CSP master then); ``stopping`` while a
-                  drive's fault reaction runs (the table's own, e.g. the emulator's return home), then ``faulted``.
+                  drive's heartbeat older than its consumer time (DRIVE: :data:`NODE_CONSUMER_TIME` on the
+                  bus's clock, so a master that fell behind reading the bus judges the heartbeats waiting in it by
+                  their time stamps; nothing at all heard from the bus for ``link_timeout``: all six) or
+                  statusword bit 11 (internal limit: SETPOINT_LIMIT) latch a fault. DRIVE, HEARTBEAT_LOST and
+                  STREAM_SILENT stop the table: a hexapod cannot make a coordinated move without one of its legs,
+                  so the master quick-stops every drive (the doc's "decelerate, then home" is beyond a CSP master
+                  then); ``stopping`` while a drive's fault reaction runs (the table's own, e.g. the emulator's
+                  return home), then ``faulted``.
 ================  ================================================================================================
 
 **Time.** On CANopen the controller is this master: controller time is its clock (host monotonic ns). Where the bus
@@ -89,9 +92,9 @@ master knows of each node; :mod:`~drivers.canopen.master` the options and state 
 
 from analysis.table.moves import Move
 from drivers.canopen.cycle import MASTER_HEARTBEAT_PERIOD, SYNC_COB_ID
-from drivers.canopen.faults import FAULT_ORDER, NODE_CONSUMER_TIME
+from drivers.canopen.faults import FAULT_ORDER
 from drivers.canopen.feedback import ACCEL_BATCH, STATUS_RATE
-from drivers.canopen.master import DEFAULT_BITRATE, FOLLOWING_ERROR_LAG
+from drivers.canopen.master import DEFAULT_BITRATE, FOLLOWING_ERROR_LAG, NODE_CONSUMER_TIME
 from drivers.canopen.motion import STATUS_WAIT
 from drivers.canopen.setup import CONSUMER_TIME, HEARTBEAT_PERIOD, SDO_TIMEOUT
 from drivers.canopen.table import CanopenTable

@@ -9,13 +9,10 @@ from typing import Any
 
 from analysis.table.moves import Move
 from drivers.canopen.master import DRIVING_STATES, MasterBase
-from drivers.canopen.nodes import DriveLink
+from drivers.canopen.nodes import DriveLink, NodeLink
 from drivers.controller import FaultSource
 from protocols.canopen import State, StatusBit
 from protocols.canopen import od as drive_od
-
-NODE_CONSUMER_TIME = 0.2
-"""The master's consumer time of each node's heartbeat [s] (four periods): older, the node is lost."""
 
 FAULT_ORDER = ("DRIVE", "STROKE", "STREAM_SILENT", "HEARTBEAT_LOST", "UNSIGNED_COMMAND", "SETPOINT_LIMIT",
                "CHUNK_GAP", "UNDERRUN")
@@ -38,11 +35,25 @@ class FaultSupervision(MasterBase):
             self._sources.append(FaultSource(link.node.id, error.code))
             self._fault(_EMCY_FAULTS.get(error.code, "DRIVE"))
 
+    def silent(self, link: NodeLink, now: int) -> bool:
+        """Whether ``link``'s node has fallen silent at ``now`` [host ns]: no heartbeat yet; or none for
+        :attr:`consumer_time` on the bus's clock (PDOs that reached the bus that long after its last heartbeat
+        were handled: the master is not merely behind in reading the bus); or nothing at all handled from the bus
+        for :attr:`~drivers.controller.TableController.link_timeout` (the rig TOML's ``link_timeout_s``: the whole
+        bus silent, or this host unable to read it). A master held up — its process unscheduled on a busy host, its
+        receive thread waiting for the interpreter — finds the heartbeats sent meanwhile in the socket and judges
+        them by their time stamps, as the emulated drives judge this master's (:mod:`sim_table.canopen_endpoint`)."""
+        if link.heartbeat_ns is None:
+            return True
+        if (now - link.heartbeat_ns) * 1e-9 <= self.consumer_time:
+            return False
+        return (self._heard_stamp - link.heartbeat_stamp > self.consumer_time
+                or (now - max(self._heard_ns, link.heartbeat_ns)) * 1e-9 > self.link_timeout)
+
     def _supervise(self, now: int, deadline: int) -> None:
         """Faults from heartbeats and statuswords; the state changes the drives' states and the clock decide."""
         for leg, link in enumerate(self._drives, start=1):
-            age = link.heartbeat_age(now)
-            if age is not None and age > NODE_CONSUMER_TIME:
+            if link.heartbeat_ns is not None and self.silent(link, now):
                 self.silent_drives.add(leg)
                 self._fault("DRIVE")
             if self._state in DRIVING_STATES and link.state in _FAULTY and not link.node.emcy.active:

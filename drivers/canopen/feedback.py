@@ -36,6 +36,7 @@ class FeedbackFrames(MasterBase):
         return None
 
     def _on_drive(self, link: DriveLink, pdo_map: Any) -> None:
+        self._heard(pdo_map.timestamp)
         feedback = self.drive_tpdo.decode(bytes(pdo_map.data))
         index = self._answered(pdo_map.timestamp, feedback[2] if self.sync_counter else None)
         if index is None:
@@ -47,6 +48,7 @@ class FeedbackFrames(MasterBase):
                 self._frames.setdefault(index, {})[self._drives.index(link)] = feedback.position_actual
 
     def _on_accel(self, sensor: SensorLink, pdo_map: Any) -> None:
+        self._heard(pdo_map.timestamp)
         sample = self.accel_tpdo.decode(bytes(pdo_map.data))
         index = self._answered(pdo_map.timestamp, sample[3] if self.sync_counter else None)
         if index is None:
@@ -77,6 +79,7 @@ class FeedbackFrames(MasterBase):
         sensor.pending.clear()
 
     def _on_event(self, pdo_map: Any) -> None:
+        self._heard(pdo_map.timestamp)
         record = EVENT_TPDO1.decode(bytes(pdo_map.data))
         received = time.monotonic_ns() - round((time.time() - pdo_map.timestamp) * 1e9)
         self.feedback.publish_detection(Detection(record.event_id, record.body_id, record.direction,

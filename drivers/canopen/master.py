@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import threading
+import time
 from collections import deque
 from urllib.parse import parse_qs, urlsplit
 
@@ -43,6 +44,11 @@ FOLLOWING_ERROR_LAG = 0.010
 first-order lag, τ = 5 ms for the table's drives), by at most 4.5 mm at top speed: the window is twice that bound.
 A leg that stops while moving at v trips it (9 mm − τ·v)/v later: 5 ms at top speed, 85 ms at 0.1 m/s."""
 
+NODE_CONSUMER_TIME = 0.2
+"""The master's default consumer time of each node's heartbeat [s] (four periods), on the bus's clock: a node is
+lost once frames that reached the bus this long after its last heartbeat have been handled and none of its
+heartbeats among them (:meth:`~drivers.canopen.faults.FaultSupervision.silent`)."""
+
 DRIVING_STATES = frozenset({"armed", "homing", "tilting", "streaming"})
 """States in which the drives follow the master's reference."""
 
@@ -66,8 +72,13 @@ class MasterBase(TableController):
 
     def __init__(self, url: str, *, interface: str | None = None, bitrate: int | None = None,
                  rate: float | None = None, accelerometers: int | None = None, detector: bool = True,
-                 table: TableModel | None = None, connect_timeout: float = 5.0, command_timeout: float = 2.0) -> None:
+                 table: TableModel | None = None, connect_timeout: float = 5.0, command_timeout: float = 2.0,
+                 consumer_time: float = NODE_CONSUMER_TIME) -> None:
         super().__init__(url)
+        if not (math.isfinite(consumer_time) and consumer_time > 0):
+            raise ValueError(f"consumer_time must be > 0 s, got {consumer_time!r}")
+        self.consumer_time = consumer_time
+        """The consumer time of each node's heartbeat [s] (:data:`NODE_CONSUMER_TIME` unless given)."""
         self.channel, query = _query(url)
         try:
             self.interface = interface or query["interface"]
@@ -155,6 +166,13 @@ class MasterBase(TableController):
         self.following_error_window_um = round(FOLLOWING_ERROR_LAG * self.table.geometry.leg_speed * 1e6)
         """The following error window 0x6065 written to every drive [µm] (:data:`FOLLOWING_ERROR_LAG`)."""
         self._sources: list[FaultSource] = []  # EMCYs since the last status (under _lock)
+        self._heard_stamp = 0.0  # the time stamp of the newest PDO handled [s, the bus's clock]
+        self._heard_ns = 0  # when it was handled [host ns]
+
+    def _heard(self, stamp: float) -> None:
+        """A PDO stamped ``stamp`` [s, the bus's clock] was handled now (the heartbeat consumers' evidence)."""
+        self._heard_stamp = max(self._heard_stamp, stamp)
+        self._heard_ns = time.monotonic_ns()
 
     def _links(self) -> list[NodeLink]:
         return [*self._drives, *self._sensors, *([self._detector] if self._detector else [])]

@@ -11,7 +11,6 @@ from collections.abc import Callable
 import numpy as np
 
 from analysis.table.moves import Move
-from drivers.canopen.faults import NODE_CONSUMER_TIME
 from drivers.canopen.master import DRIVING_STATES, MasterBase
 from drivers.canopen.nodes import NMT_OPERATIONAL
 from drivers.canopen.trajectory import Trajectory
@@ -85,8 +84,7 @@ class Motions(MasterBase):
             if self._state not in ("idle", "armed", "faulted", "emergency_stopped"):
                 self._refuse("ARM", "not accepted in this state")
             now = time.monotonic_ns()
-            ages = [link.heartbeat_age(now) for link in self._drives]
-            silent = [leg for leg, age in enumerate(ages, start=1) if age is None or age > NODE_CONSUMER_TIME]
+            silent = [leg for leg, link in enumerate(self._drives, start=1) if self.silent(link, now)]
             if silent:
                 raise CommandFailedError("ARM", "FAILED", self._state,
                                          f"no heartbeat from leg {', '.join(map(str, silent))}")

@@ -14,12 +14,13 @@ NMT_OPERATIONAL = 0x05
 
 
 class NodeLink:
-    """What the master knows of one node: its ``RemoteNode``, last heartbeat [host ns], the NMT state that heartbeat
-    reported, and EMCYs."""
+    """What the master knows of one node: its ``RemoteNode``, last heartbeat (when handled [host ns] and the frame's
+    time stamp [s, the bus's clock: ``time.time()`` at reception]), the NMT state that heartbeat reported, and EMCYs."""
 
     def __init__(self, node: canopen.RemoteNode) -> None:
         self.node = node
         self.heartbeat_ns: int | None = None
+        self.heartbeat_stamp = 0.0
         self.nmt_state: int | None = None
         self.started_ns = 0  # when the master last sent it the NMT start command [host ns]
         self.emcy: list[tuple[int, int]] = []  # (code, host ns)
@@ -27,6 +28,8 @@ class NodeLink:
 
     def _beat(self, state: int) -> None:
         self.heartbeat_ns = time.monotonic_ns()
+        stamp = self.node.nmt.timestamp  # the frame's, set by canopen before it calls back
+        self.heartbeat_stamp = time.time() if stamp is None else stamp
         self.nmt_state = state
 
     def heartbeat_age(self, now: int) -> float | None:

@@ -25,14 +25,16 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
     Options (keywords, or the URL's query): ``interface``, ``bitrate`` [bit/s], ``rate`` [Hz] of SYNC,
     ``accelerometers`` (nodes 0x21…); ``detector`` whether the overturn detector (node 0x30) is on the bus;
     ``table`` the table model (limits, geometry); ``connect_timeout`` and ``command_timeout`` [s] (ARM and DISARM
-    wait for the drives' states). Raises :class:`~protocols.canopen.BusLoadError` when the rate does not fit.
+    wait for the drives' states); ``consumer_time`` [s] of the nodes' heartbeats
+    (:data:`~drivers.canopen.master.NODE_CONSUMER_TIME`). Raises :class:`~protocols.canopen.BusLoadError` when the
+    rate does not fit.
     """
 
     def check_link(self) -> None:
         """Nothing to check by the statuses' age: this master *is* the controller and makes its statuses from the
-        drives' answers, which stop while they are braked or faulted; a drive, sensor or detector that falls silent
-        is caught by the master's own heartbeat consumers (a DRIVE fault, ``silent_drives``), the master's thread
-        failing by :meth:`wait_for_status`'s timeouts."""
+        drives' answers, which stop while they are braked or faulted; a drive that falls silent, or a bus from which
+        nothing is heard for :attr:`link_timeout`, is caught by the master's own heartbeat consumers (a DRIVE fault,
+        ``silent_drives``), the master's thread failing by :meth:`wait_for_status`'s timeouts."""
 
     def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
         """The bodies the overturn detector holds (:mod:`protocols.canopen.sensors`: 0x2201 and the body records

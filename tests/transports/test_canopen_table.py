@@ -48,8 +48,7 @@ from stream_checks import (
 )
 from table_checks import emergency_stop_while_streaming
 
-from drivers.canopen import CanopenTable, Move, Trajectory
-from drivers.canopen.faults import NODE_CONSUMER_TIME
+from drivers.canopen import NODE_CONSUMER_TIME, CanopenTable, Move, Trajectory
 from drivers.canopen.feedback import STATUS_RATE
 from drivers.controller import (
     DEFAULT_LEAD,
@@ -128,7 +127,7 @@ def emulated(**config: Any) -> Iterator[Emulator]:
     ``test_setpoints_that_stop_coming_fault_the_drives_and_the_table_goes_home`` (the setpoints stop for good), and
     at 0.1 s on MAVLink and zenoh in ``tests/transports/test_table_faults.py``."""
     channel = f"table-{uuid.uuid4().hex}"
-    config.setdefault("watchdog", 1.0)
+    config.setdefault("watchdog", STALL_ALLOWANCE_S)
     emulator = Emulator(EmulatorConfig(listen=f"canopen://{channel}?interface=virtual&target_delay={TARGET_DELAY_S}",
                                        key=secrets.token_bytes(32), **config))
     stop = threading.Event()
@@ -141,6 +140,12 @@ def emulated(**config: Any) -> Iterator[Emulator]:
         thread.join(timeout=10)
         emulator.close()
 
+
+STALL_ALLOWANCE_S = 1.0
+"""How long [s] the emulated drives' watchdogs (:func:`emulated`) and the master's consumer time and link timeout
+(:func:`master`) let the other side go unheard in these tests: emulator and master share one interpreter, and on a
+loaded machine a thread may wait longer than the real controller's 0.1 s, the master's 0.2 s or the rig's 0.5 s for
+its turn (CI once saw a DRIVE fault mid-stream: a heartbeat thread of the emulated drives held up that long)."""
 
 TARGET_DELAY_S = 0.5
 """The emulated drives' target delay (0x2010) in these tests [s]: the master sends each target this much ahead, so a
@@ -163,8 +168,12 @@ second of table time, but on a loaded machine the emulator's thread waits its tu
 
 
 def master(emulator: Emulator, **options: Any) -> TableController:
-    """The CANopen master on the in-process emulator's bus, at :data:`RATE`."""
-    return open_table(emulator.url, rate=RATE, **options)
+    """The CANopen master on the in-process emulator's bus, at :data:`RATE`, allowing :data:`STALL_ALLOWANCE_S` for
+    a node's heartbeat and for the bus (unless ``consumer_time`` is given)."""
+    options.setdefault("consumer_time", STALL_ALLOWANCE_S)
+    table = open_table(emulator.url, rate=RATE, **options)
+    table.link_timeout = STALL_ALLOWANCE_S
+    return table
 
 
 def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
@@ -432,6 +441,59 @@ def test_a_drive_that_never_gets_operational_fails_the_connection_naming_it() ->
                 rf".*node {node} pre-operational, node 4 operational")):
             master(emulator, connect_timeout=1.0).connect()
         assert len(starts) > 3  # the broadcast, then leg 3 again after each of its heartbeats
+
+
+def hold_the_receive_thread(table: TableController, cob_id: int) -> tuple[threading.Event, threading.Event]:
+    """Hold the master's receive thread in the next frame of ``cob_id`` it handles, until released: the frames sent
+    meanwhile wait unread in its bus queue, as on a host that does not schedule the master. Returns (holding,
+    release)."""
+    holding, release = threading.Event(), threading.Event()
+
+    def hold(can_id: int, data: bytearray, timestamp: float) -> None:
+        if not holding.is_set():
+            holding.set()
+            release.wait(60.0)
+
+    table._network.subscribe(cob_id, hold)  # type: ignore[attr-defined]  # the master's own canopen.Network
+    return holding, release
+
+
+def test_heartbeats_left_unread_by_a_master_that_fell_behind_are_judged_by_their_time_stamps() -> None:
+    """A master whose receive thread was held up for twice the consumer time (the nodes' heartbeats meanwhile sent,
+    but unread) finds them in its queue and does not fault: a busy host is not a silent drive (this master judged
+    the heartbeats by when it found time to read them)."""
+    with emulated() as emulator, master(emulator) as table:
+        table.link_timeout = 60.0  # here only the consumer time on the bus's clock decides
+        table.arm()
+        faults = table.faults()
+        holding, release = hold_the_receive_thread(table, 0x700 + emulator.endpoint.drives[0].node.id)
+        assert holding.wait(5.0)
+        time.sleep(2 * table.consumer_time)  # type: ignore[attr-defined]
+        ages = table.link_stats()["heartbeat_age_s"]
+        assert min(ages.values()) > table.consumer_time  # type: ignore[attr-defined]  # every node, unheard that long
+        release.set()
+        table.wait_for_status(lambda s: max(table.link_stats()["heartbeat_age_s"].values()) < NODE_CONSUMER_TIME,
+                              STATUS_TIMEOUT)
+        status = table.status()
+        assert status.state == "armed" and status.faults == (), str(table.link_stats())
+        assert table.link_stats()["silent_drives"] == [] and faults.drain() == []
+
+
+def test_a_bus_left_unheard_for_the_link_timeout_stops_the_table() -> None:
+    """Nothing at all handled from the bus for :attr:`link_timeout` — every node silent, or this host unable to read
+    them — is a DRIVE fault naming all six legs: the table stops."""
+    with emulated() as emulator, master(emulator) as table:
+        table.link_timeout = 0.5
+        table.arm()
+        holding, release = hold_the_receive_thread(table, 0x700 + emulator.endpoint.drives[0].node.id)
+        assert holding.wait(5.0)
+        deadline = time.monotonic() + 30.0
+        while table.link_stats()["silent_drives"] != [1, 2, 3, 4, 5, 6] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        release.set()
+        assert table.link_stats()["silent_drives"] == [1, 2, 3, 4, 5, 6]
+        final = table.wait_for_state("faulted", STOP_TIMEOUT)
+        assert "DRIVE" in final.faults
 
 
 def test_a_drive_whose_heartbeat_stops_is_a_fault() -> None:
