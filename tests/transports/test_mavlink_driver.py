@@ -407,7 +407,7 @@ def test_a_motions_final_answer_comes_after_the_status_that_shows_it(key_file: P
 
 
 def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
-    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "2", "--delay", "30",
                                                               key_file=key_file), key_file)
 
 

@@ -460,5 +460,5 @@ def test_another_table_name_at_the_same_address_hears_nothing(key_file: Path, pl
 
 
 def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
-    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "5", "--delay", "30",
+    table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "2", "--delay", "30",
                                                               key_file=key_file), key_file)
