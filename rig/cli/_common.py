@@ -13,14 +13,24 @@ printed as text, never as rich markup (a ``[1, 2]`` in a message stays as it is)
 from __future__ import annotations
 
 import json
+import signal
 import sys
 import warnings
 from pathlib import Path
-from typing import NoReturn, TextIO
+from typing import Any, NoReturn, TextIO
 
 import typer
 from rich.console import Console
 from rich.text import Text
+
+
+def handle_sigint(handler: Any) -> Any:
+    """Install ``handler`` for SIGINT (only the main thread can: elsewhere nothing is installed); the previous one,
+    to restore (None when none was installed)."""
+    try:
+        return signal.signal(signal.SIGINT, handler)
+    except (ValueError, TypeError):
+        return None
 
 
 def stderr_console() -> Console:

@@ -22,7 +22,7 @@ from rich.live import Live
 from rich.prompt import Confirm
 from rich.text import Text
 
-from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, print_error
+from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, handle_sigint, print_error
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
     from rig.service import ServiceClient, TelemetryFeed
@@ -67,7 +67,7 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
         def on_sigint(signum: int, frame: object) -> None:
             interrupts[0] += 1
 
-        previous = _handle_sigint(on_sigint)
+        previous = handle_sigint(on_sigint)
         try:
             try:
                 session = client.start(sequence, table=table, emulate=emulate, speed=speed, output=output,
@@ -79,7 +79,7 @@ def drive_service(connect: str, sequence: Path | None, *, table: str | None, emu
             console.print(f"session file: {session}", highlight=False)
             final = _follow(client, feed, session, seq, interrupts, yes, console)
         finally:
-            _handle_sigint(previous)
+            handle_sigint(previous)
     if final is None:
         return EXIT_STOPPED
     progress = final["progress"]
@@ -211,14 +211,6 @@ def _confirm(question: str, console: Any) -> bool:
         return Confirm.ask(question, default=True, console=console)
     except (EOFError, KeyboardInterrupt):
         return False
-
-
-def _handle_sigint(handler: Any) -> Any:
-    """Install ``handler`` for SIGINT (only the main thread can); the previous one."""
-    try:
-        return signal.signal(signal.SIGINT, handler)
-    except ValueError:
-        return None
 
 
 def status_line(status: dict[str, Any]) -> Text:

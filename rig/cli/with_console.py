@@ -25,7 +25,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from rig.cli._common import EXIT_USAGE, print_error
+from rig.cli._common import EXIT_USAGE, handle_sigint, print_error
 
 
 def _free_endpoint() -> str:
@@ -35,19 +35,23 @@ def _free_endpoint() -> str:
 
 
 def linger(url: str | None, seconds: float | None, console: Any) -> None:
-    """Keep the console up after the session: until Ctrl-C, or ``seconds`` (None: no limit)."""
+    """Keep the console up after the session: until Ctrl-C (SIGINT, handled here whatever this process inherited:
+    started in the background of a script, SIGINT comes ignored and Python raises no KeyboardInterrupt), or
+    ``seconds`` (None: no limit)."""
     limit = math.inf if seconds is None else seconds
     if limit <= 0:
         return
     until = "Ctrl-C closes it" if seconds is None else f"it closes in {seconds:g} s (Ctrl-C: now)"
     console.print(f"the console stays up at {url} with the final state, the faults and the report; {until}",
                   highlight=False)
-    deadline = time.monotonic() + limit
+    interrupted: list[int] = []
+    previous = handle_sigint(lambda signum, frame: interrupted.append(signum))
     try:
-        while time.monotonic() < deadline:
+        deadline = time.monotonic() + limit
+        while not interrupted and time.monotonic() < deadline:
             time.sleep(min(0.2, max(0.0, deadline - time.monotonic())))
-    except KeyboardInterrupt:
-        pass
+    finally:
+        handle_sigint(previous)
     console.print("console closed", highlight=False)
 
 

@@ -67,7 +67,9 @@ def test_rig_run_with_a_console(tmp_path: Path) -> None:
 @pytest.mark.slow  # a whole session (virtual time) through an in-process service and the console
 def test_the_console_outlives_the_run_until_ctrl_c(tmp_path: Path) -> None:
     """After the session the console still answers: the final state, the report (sandboxed); Ctrl-C (SIGINT to the
-    process group, as a terminal sends it) closes it and ``rig run`` exits with the session's code."""
+    process group, as a terminal sends it) closes it and ``rig run`` exits with the session's code — also when
+    ``rig run`` was started with SIGINT ignored, as a script's background job is (Python then raises no
+    KeyboardInterrupt: the lingering console sat through the SIGINT until killed)."""
     import signal
 
     sequence = tmp_path / "tiny.toml"
@@ -79,7 +81,8 @@ def test_the_console_outlives_the_run_until_ctrl_c(tmp_path: Path) -> None:
         run = subprocess.Popen([str(Path(sys.executable).with_name("rig")), "run", str(sequence), "--emulate",
                                 "--yes", "--speed", "max", "--console", url.removeprefix("http://").rstrip("/")],
                                cwd=tmp_path, env=env, stdout=out, stderr=subprocess.STDOUT, text=True,
-                               start_new_session=True)
+                               start_new_session=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))  # a background job's
     try:
         deadline = time.monotonic() + 180
         while "the console stays up" not in log.read_text():
