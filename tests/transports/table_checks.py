@@ -249,8 +249,8 @@ def injected_drive_fault_under_delay(listen: str, key_file: Path, monkeypatch: p
                                                                                              abs=1e-4)
             t, poses = surge(3.0, lambda t: 0.02 * np.sin(2 * np.pi * t))
             poses[:, 4] = math.radians(1)
-            with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:  # lead 0.2 s of controller time:
-                table.stream(t, poses, lead=0.2)  # 100 ms real at 2x, of which the delay takes 10 (no underrun)
+            with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:  # the default lead: 0.5 s real at
+                table.stream(t, poses)  # 2x (0.1 s underran once, at load 9 on 2 cores, before the drive fault came)
             final = table.wait_for_state("faulted", 10)
             raised = [name for event in faults.drain() for name in event.raised]
             # the rate fitted over the round trips' midpoints: a round trip's asymmetry (up to its 20 ms, under load
