@@ -83,7 +83,8 @@ class FaultSupervision(MasterBase):
 
     def _arrived(self, move: Move, deadline: int) -> bool:
         """Whether ``move`` has ended: its reference arrived and the newest measured pose is in position (a DRIVE
-        fault, which stops the table, when that is overdue)."""
+        fault, which stops the table, when that is overdue by the newest SYNC all six drives answered: a master
+        behind in reading their answers is not a leg that failed to follow)."""
         if deadline < move.end_ns:
             return False
         complete = [index for index, frame in self._frames.items() if len(frame) == len(self._drives)]
@@ -92,7 +93,8 @@ class FaultSupervision(MasterBase):
             if deadline_in_position is not None:
                 self._arrived_ns = deadline_in_position - self.feedback_delay_ns
             return True
-        if move.settle_overdue(deadline):
+        answered = self._deadline(max(complete) if complete else self._framed)
+        if answered is not None and move.settle_overdue(answered):
             self._fault("DRIVE")  # a following error: the legs did not reach their targets
         return False
 
