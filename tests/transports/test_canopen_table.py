@@ -568,6 +568,26 @@ def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -
     assert link["emcy_sent"] == 2  # 0x8611 from leg 3 and its error reset: no other drive faulted
 
 
+def test_a_move_whose_leg_never_arrives_is_a_drive_fault_of_the_master() -> None:
+    """Leg 3 seized from the start and the drives' own following-error window off (0x6065 = 0xFFFFFFFF): only the
+    master's settle check can see that the plate never reaches the tilt — the answers to SYNCs 0.5 s after the
+    move's end still show it short — and it stops the table with DRIVE: no EMCY, no silent drive."""
+    with emulated(leg_stall=(3, 0.0)) as emulator:
+        table = master(emulator)
+        table.following_error_window_um = 0xFFFFFFFF  # type: ignore[attr-defined]  # written to 0x6065 at connect
+        with table:
+            table.arm()
+            started = time.monotonic()
+            with pytest.raises(CommandFailedError, match="stopped before its target"):
+                table.set_tilt(math.radians(1.0))
+            assert time.monotonic() - started > 0.5  # not before the settle time after the move's end
+            final = table.wait_for_state("faulted", STOP_TIMEOUT)
+            assert final.faults == ("DRIVE",)
+            stats = table.link_stats()
+            assert stats["emcy"] == {} and stats["silent_drives"] == []
+    assert emulator.counters()["link"]["following_errors"] == 0
+
+
 def test_injected_loss_and_delay_are_survived() -> None:
     """10 % of the data frames lost (an RPDO a drive latches, a TPDO or EMCY it sends), 5 ms added each way: the
     drives keep their previous targets, the master waits for the states it asks for, accelerometer gaps show."""
