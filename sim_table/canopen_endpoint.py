@@ -96,6 +96,7 @@ each master heartbeat and each frame sent that long; :meth:`CanopenEndpoint.serv
 
 from __future__ import annotations
 
+import copy
 import heapq
 import math
 import threading
@@ -192,9 +193,9 @@ class StampingVirtualBus(VirtualBus):
     heartbeats by their time stamps (:meth:`drivers.canopen.faults.FaultSupervision.silent`)."""
 
     def send(self, msg: can.Message, timeout: float | None = None) -> None:
-        if not msg.timestamp:
-            msg = can.Message(arbitration_id=msg.arbitration_id, data=msg.data, is_extended_id=msg.is_extended_id,
-                              is_remote_frame=msg.is_remote_frame, timestamp=time.time())
+        if not msg.timestamp:  # a copy: canopen's periodic heartbeat task sends the same message again
+            msg = copy.copy(msg)
+            msg.timestamp = time.time()
         super().send(msg, timeout)
 
 
