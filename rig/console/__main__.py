@@ -1,13 +1,38 @@
-"""``python -m rig.console --connect ENDPOINT --http HOST:PORT [--key-file FILE] [--rig NAME]``: the console as its
-own process (what ``rig console``, ``rig serve --http`` and ``rig run --console`` run)."""
+"""``python -m rig.console --connect ENDPOINT --http HOST:PORT [--key-file FILE] [--rig NAME] [--exit-with-parent]``:
+the console as its own process (what ``rig console``, ``rig serve --http`` and ``rig run --console`` run)."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import signal
 import sys
+import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 from rig.console.server import ConsoleError, serve_console
+
+PARENT_POLL_S = 0.2
+"""How often ``--exit-with-parent`` looks whether the process that started the console is still there [s]."""
+
+
+def end_with_parent(say: Callable[[str], None]) -> None:
+    """SIGTERM this process (the console's clean shutdown) once the process that started it has exited — this one
+    re-parented — looked at every :data:`PARENT_POLL_S`: a console started by ``rig`` never outlives it, even after
+    ``kill -9`` of ``rig``, so no orphan keeps its HTTP port."""
+    parent = os.getppid()
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(PARENT_POLL_S)
+        with contextlib.suppress(OSError):  # its stderr pipe may have gone with it
+            say(f"the process {parent} that started the console exited: stopping")
+        os.kill(os.getpid(), signal.SIGTERM)
+
+    threading.Thread(target=watch, name="parent-watch", daemon=True).start()
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -16,11 +41,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--http", required=True, help="HOST:PORT to serve the page on (loopback)")
     parser.add_argument("--key-file", type=Path, default=None, help="the rig's key (default $SHAKETABLE_MAVLINK_KEY)")
     parser.add_argument("--rig", default="rig", help="the rig's name in the key space")
+    parser.add_argument("--exit-with-parent", action="store_true",
+                        help="stop when the process that started the console exits (how rig starts it)")
     args = parser.parse_args(argv)
 
     def say(message: str) -> None:
         print(f"rig console: {message}", file=sys.stderr, flush=True)
 
+    if args.exit_with_parent:
+        end_with_parent(say)
     try:
         serve_console(args.connect, args.http, key_file=args.key_file, rig=args.rig, say=say)
     except ConsoleError as exc:

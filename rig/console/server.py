@@ -142,13 +142,15 @@ def _announce(server: Any, say: Callable[[str], None]) -> None:
 
 class ConsoleProcess:
     """``python -m rig.console`` as a child process (``rig serve --http``, ``rig run --console``) in a session of its
-    own (the terminal's Ctrl-C is the parent's to handle): started and waited for until it serves; its stderr
-    forwarded to ``say``; :meth:`stop` ends it (SIGTERM)."""
+    own (the terminal's Ctrl-C is the parent's to handle), ending when this process ends (``--exit-with-parent``,
+    also after ``kill -9``): started and waited for until it serves; its stderr forwarded to ``say``; :meth:`stop`
+    ends it (SIGTERM)."""
 
     def __init__(self, connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
                  say: Callable[[str], None] = lambda message: None) -> None:
         parse_http(http)
-        command = [sys.executable, "-m", "rig.console", "--connect", connect, "--http", http, "--rig", rig]
+        command = [sys.executable, "-m", "rig.console", "--connect", connect, "--http", http, "--rig", rig,
+                   "--exit-with-parent"]
         if key_file is not None:
             command += ["--key-file", str(key_file)]
         self.url: str | None = None

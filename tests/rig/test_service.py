@@ -4,6 +4,7 @@ session). The sessions run on the emulated table (``"emulate": true``: the servi
 
 from __future__ import annotations
 
+import contextlib
 import os
 import secrets
 import signal
@@ -43,9 +44,10 @@ def serve_command() -> list[str]:
 
 
 class Service:
-    """The running ``rig serve``: its endpoint, sessions directory, key file and log."""
+    """The running ``rig serve``: its endpoint, sessions directory, key file and log; with ``http``
+    (``HOST:PORT``) also its console, waited for until it serves."""
 
-    def __init__(self, root: Path) -> None:
+    def __init__(self, root: Path, http: str | None = None) -> None:
         self.root = root
         self.sessions = root / "sessions"
         self.key_file = root / "rig.key"
@@ -55,10 +57,11 @@ class Service:
         env = {k: v for k, v in os.environ.items() if k != "SHAKETABLE_MAVLINK_KEY"}
         with self.log.open("w") as log:
             self.proc = subprocess.Popen([*serve_command(), "--listen", self.endpoint, "--sessions-dir",
-                                          str(self.sessions), "--key-file", str(self.key_file)],
+                                          str(self.sessions), "--key-file", str(self.key_file),
+                                          *(["--http", http] if http else [])],
                                          stdout=subprocess.DEVNULL, stderr=log, env=env, cwd=root)
         deadline = time.monotonic() + 60
-        while "listening on" not in self.log.read_text():
+        while "listening on" not in self.log.read_text() or (http and "console at" not in self.log.read_text()):
             assert self.proc.poll() is None, f"rig serve exited: {self.log.read_text()}"
             assert time.monotonic() < deadline, f"rig serve did not start: {self.log.read_text()}"
             time.sleep(0.05)
@@ -231,6 +234,34 @@ def test_shutdown_aborts_the_running_session(tmp_path: Path, tiny: Path) -> None
     assert "shutting down: the running session is aborted" in log and "stopped" in log
     runs = read_session(path, data=False)["runs"]
     assert [r["status"] for r in runs] == ["aborted"]
+
+
+def is_console(pid: int) -> bool:
+    """Whether process ``pid`` is a console still running (Linux /proc: gone or a zombie is not)."""
+    try:
+        return b"rig.console" in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def test_the_console_the_service_started_ends_when_the_service_is_killed(tmp_path: Path) -> None:
+    """``kill -9`` of ``rig serve --http``: the console it started (its child ``python -m rig.console``, in a
+    session of its own) sees its parent gone and stops, leaving no process holding the HTTP port."""
+    own = Service(tmp_path, http=f"127.0.0.1:{free_port()}")
+    children = Path(f"/proc/{own.proc.pid}/task/{own.proc.pid}/children").read_text().split()
+    consoles = [int(pid) for pid in children if is_console(int(pid))]
+    assert len(consoles) == 1, children
+    console = consoles[0]
+    try:
+        own.proc.kill()
+        own.proc.wait()
+        deadline = time.monotonic() + 30
+        while is_console(console):
+            assert time.monotonic() < deadline, f"the console outlived rig serve: {own.log.read_text()}"
+            time.sleep(0.1)
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(console, signal.SIGKILL)
 
 
 def test_the_service_needs_the_rig_key_unless_told_otherwise(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
