@@ -121,12 +121,21 @@ def start_tiny(tmp_path: Path, stdin: int | None = None) -> tuple[subprocess.Pop
     return proc, session, seen
 
 
-def emulator_of(proc: subprocess.Popen[bytes]) -> int:
-    """The pid of the emulator ``rig`` (``proc``) started (its child ``python -m sim_table``; Linux /proc)."""
-    for child in Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split():
-        if b"sim_table" in Path(f"/proc/{child}/cmdline").read_bytes():
-            return int(child)
-    raise AssertionError("no emulator among rig's children")
+def running(pid: int, module: bytes) -> bool:
+    """Whether process ``pid`` is ``python -m module`` still running (Linux /proc: gone, or a zombie with no command
+    line, is not)."""
+    try:
+        return module in Path(f"/proc/{pid}/cmdline").read_bytes()
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def child_of(proc: subprocess.Popen[Any], module: bytes) -> int:
+    """The pid of the one ``python -m module`` that ``proc`` started (among its children; Linux /proc)."""
+    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
+    found = [int(child) for child in children if running(int(child), module)]
+    assert len(found) == 1, f"{len(found)} {module.decode()} among the children {children} of {proc.pid}"
+    return found[0]
 
 
 class Output:
@@ -159,7 +168,7 @@ def test_ctrl_c_pauses_at_the_end_of_the_record_and_enter_resumes_also_unattende
     resumes, and the session completes."""
     proc, session, _ = start_tiny(tmp_path, stdin=subprocess.PIPE)
     out = Output(proc)
-    emulator = emulator_of(proc)
+    emulator = child_of(proc, b"sim_table")
     os.killpg(proc.pid, signal.SIGINT)  # the terminal's Ctrl-C reaches rig's whole process group
     out.wait_for(b"press Enter to resume")
     time.sleep(1.0)  # paused: nothing begins
@@ -194,11 +203,11 @@ def test_the_emulator_rig_started_ends_when_rig_is_killed(tmp_path: Path) -> Non
     """``kill -9`` of rig mid-record: the emulator it started sees its parent gone and stops (within its parent
     poll and its shutdown), leaving no process holding the port."""
     proc, _, _ = start_tiny(tmp_path)
-    emulator = emulator_of(proc)
+    emulator = child_of(proc, b"sim_table")
     proc.kill()
     proc.wait()
     deadline = time.monotonic() + 30
-    while Path(f"/proc/{emulator}").exists() and b"sim_table" in Path(f"/proc/{emulator}/cmdline").read_bytes():
+    while running(emulator, b"sim_table"):
         assert time.monotonic() < deadline, "the emulator outlived rig"
         time.sleep(0.1)
 

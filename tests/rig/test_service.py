@@ -19,6 +19,7 @@ from typing import Any
 import h5py
 import pytest
 import zenoh
+from test_cli_run import child_of, running
 from test_orchestrator import TINY
 
 from protocols.zenoh import session_config
@@ -61,7 +62,7 @@ class Service:
                                           *(["--http", http] if http else [])],
                                          stdout=subprocess.DEVNULL, stderr=log, env=env, cwd=root)
         deadline = time.monotonic() + 60
-        while "listening on" not in self.log.read_text() or (http and "console at" not in self.log.read_text()):
+        while "listening on" not in (text := self.log.read_text()) or (http and "console at" not in text):
             assert self.proc.poll() is None, f"rig serve exited: {self.log.read_text()}"
             assert time.monotonic() < deadline, f"rig serve did not start: {self.log.read_text()}"
             time.sleep(0.05)
@@ -236,27 +237,16 @@ def test_shutdown_aborts_the_running_session(tmp_path: Path, tiny: Path) -> None
     assert [r["status"] for r in runs] == ["aborted"]
 
 
-def is_console(pid: int) -> bool:
-    """Whether process ``pid`` is a console still running (Linux /proc: gone or a zombie is not)."""
-    try:
-        return b"rig.console" in Path(f"/proc/{pid}/cmdline").read_bytes()
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-
-
 def test_the_console_the_service_started_ends_when_the_service_is_killed(tmp_path: Path) -> None:
     """``kill -9`` of ``rig serve --http``: the console it started (its child ``python -m rig.console``, in a
     session of its own) sees its parent gone and stops, leaving no process holding the HTTP port."""
     own = Service(tmp_path, http=f"127.0.0.1:{free_port()}")
-    children = Path(f"/proc/{own.proc.pid}/task/{own.proc.pid}/children").read_text().split()
-    consoles = [int(pid) for pid in children if is_console(int(pid))]
-    assert len(consoles) == 1, children
-    console = consoles[0]
+    console = child_of(own.proc, b"rig.console")
     try:
         own.proc.kill()
         own.proc.wait()
         deadline = time.monotonic() + 30
-        while is_console(console):
+        while running(console, b"rig.console"):
             assert time.monotonic() < deadline, f"the console outlived rig serve: {own.log.read_text()}"
             time.sleep(0.1)
     finally:
