@@ -1,10 +1,18 @@
 # Every target creates .venv and installs the project with what it needs: nothing by hand.
+# Test tiers (docs/architecture.md, "Tests"):
+#   make test              lint, then every in-process test in parallel (pytest-xdist): minutes
+#   make test-integration  processes, sockets, browsers, real time: one at a time
+#   make test-slow         the long proofs (deep campaigns, full-suite agreement, stress)
+#   make test-all          all three: what CI runs
 PYTHON ?= python3
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed-stamp
+# each tier's per-test durations (JUnit XML) land here; CI keeps them beside its log
+REPORTS ?= test-reports
+PYTEST := $(BIN)/pytest -q
 
-.PHONY: demo test test-slow bench lint clean
+.PHONY: demo test test-integration test-slow test-all browser bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -18,13 +26,32 @@ demo: $(STAMP)
 lint: $(STAMP)
 	$(BIN)/ruff check .
 
-# the README's test command: lint and every test not marked slow (minutes)
+# the README's test command: lint and the fast tier (every test not marked integration or slow), in parallel;
+# a test over its time budget fails with its stack (pytest-timeout), one near it is listed (tests/conftest.py)
 test: $(STAMP) lint
-	$(BIN)/pytest -q -m "not slow" --durations=25
+	$(PYTEST) -n auto -m "not integration and not slow" --timeout=300 --junitxml=$(REPORTS)/fast.xml
 
-# the long tests: full-suite agreement with the reference, stress, published pulse thresholds
-test-slow: $(STAMP)
-	$(BIN)/pytest -q -m slow --durations=15
+# the tests that start processes, open sockets or drive a browser: one at a time
+test-integration: $(STAMP) browser
+	$(PYTEST) -m "integration and not slow" --timeout=900 --durations=15 --junitxml=$(REPORTS)/integration.xml
+
+# the long proofs: the in-process ones in parallel, then those with processes one at a time
+test-slow: $(STAMP) browser
+	$(PYTEST) -n auto -m "slow and not integration" --timeout=1800 --durations=10 --junitxml=$(REPORTS)/slow.xml
+	$(PYTEST) -m "slow and integration" --timeout=1800 --durations=10 --junitxml=$(REPORTS)/slow-integration.xml
+
+test-all: test test-integration test-slow
+
+# Debian's Chromium for the console's browser tests: installed where this user may (root with apt-get), else said
+browser:
+	@command -v chromium >/dev/null 2>&1 || { \
+	  if [ "$$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then \
+	    echo "installing Debian's chromium for the console's browser tests"; \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } \
+	      || echo "warning: chromium could not be installed: the console's browser tests will be SKIPPED" >&2; \
+	  else \
+	    echo "warning: chromium is not installed (apt-get install chromium, as root): the console's browser tests will be SKIPPED" >&2; \
+	  fi; }
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py
@@ -37,4 +64,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/report.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) build *.egg-info $(REPORTS)

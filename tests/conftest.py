@@ -77,3 +77,28 @@ def _integration_mark_is_true(request: pytest.FixtureRequest, monkeypatch: pytes
     monkeypatch.setattr(subprocess.Popen, "__init__", popen)
     monkeypatch.setattr(socket.socket, "__init__", new_socket)
     yield
+
+
+# --------------------------------------------------------------------------------------------------
+# the fast tier's time budget: a test not marked integration or slow is meant to take seconds; one that takes longer
+# than FAST_BUDGET_S is named at the end of the run (so it shows up the day it is written), and pytest-timeout
+# (`make test`: --timeout) fails one that hangs, with its stack
+
+FAST_BUDGET_S = 20.0
+_over_budget: list[tuple[float, str]] = []
+
+
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    if report.when != "call" or report.duration <= FAST_BUDGET_S:
+        return
+    if {"integration", "slow"} & set(report.keywords):
+        return
+    _over_budget.append((report.duration, report.nodeid))
+
+
+def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if not _over_budget:
+        return
+    terminalreporter.section(f"fast-tier tests over their {FAST_BUDGET_S:.0f} s budget: make them cheaper or mark slow")
+    for duration, nodeid in sorted(_over_budget, reverse=True):
+        terminalreporter.write_line(f"{duration:7.1f} s  {nodeid}")
