@@ -1,4 +1,5 @@
-"""The layers of docs/architecture.md, read from the imports as they are (``ast``, nothing imported).
+"""The layers of docs/architecture.md, read from the imports as they are (``ast``, nothing imported), and the
+import circles between modules (run-time, deferred or typing-only imports alike).
 
 A rule broken today is marked ``xfail(strict=True)`` with the import that breaks it: the test documents the
 debt and fails (XPASS) once it is paid — then remove the mark and update docs/architecture.md.
