@@ -15,8 +15,10 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/rig demo
 
+# ruff on everything; mypy on the packages ([tool.mypy] in pyproject.toml: the modules not yet clean listed there)
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 # the README's test command: lint and every test not marked slow (minutes)
 test: $(STAMP) lint

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 from numba import njit
@@ -100,7 +101,7 @@ def _trajectory(t: np.ndarray, poses: np.ndarray, velocities: np.ndarray | None,
     if t.ndim != 1 or t.size < 2:
         raise AnalysisInputError(f"check_trajectory: t must be a 1-D array of at least 2 times [s], "
                                  f"got shape {t.shape}")
-    arrays = {"poses": poses, "velocities": velocities, "accelerations": accelerations}
+    arrays: dict[str, np.ndarray | None] = {"poses": poses, "velocities": velocities, "accelerations": accelerations}
     for name, values in arrays.items():
         if values is None:
             continue
@@ -109,16 +110,16 @@ def _trajectory(t: np.ndarray, poses: np.ndarray, velocities: np.ndarray | None,
             raise AnalysisInputError(f"check_trajectory: {name} must have shape ({t.size}, 6) to match t, "
                                      f"got {array.shape}")
         arrays[name] = array
-    for name, array in {"t": t, **arrays}.items():
-        if array is not None and not np.all(np.isfinite(array)):
-            row = int(np.flatnonzero(~np.isfinite(array).reshape(t.size, -1).all(axis=1))[0])
+    for name, given in {"t": t, **arrays}.items():
+        if given is not None and not np.all(np.isfinite(given)):
+            row = int(np.flatnonzero(~np.isfinite(given).reshape(t.size, -1).all(axis=1))[0])
             raise AnalysisInputError(f"check_trajectory: {name} has a non-finite value at sample {row}")
     steps = np.diff(t)
     if np.any(steps <= 0):
         i = int(np.flatnonzero(steps <= 0)[0])
         raise AnalysisInputError(f"check_trajectory: t must be strictly increasing, but t[{i + 1}] = "
                                  f"{float(t[i + 1])!r} s follows t[{i}] = {float(t[i])!r} s")
-    return t, arrays["poses"], arrays["velocities"], arrays["accelerations"]
+    return t, cast(np.ndarray, arrays["poses"]), arrays["velocities"], arrays["accelerations"]  # poses: never None
 
 
 def _check_column(column: int, g: HexapodGeometry, lim: TableLimits) -> tuple[str, str, float, float]:

@@ -143,7 +143,7 @@ _Spec = dict[str, tuple[dict[str, float], Check]]  # field -> ({key: factor to S
 def _within(low: float, high: float, text: str) -> Check:
     """A validator of the physical range ``[low, high]`` in SI; ``text`` states it for people, with units."""
 
-    def check(value: float, given: float) -> str | None:
+    def check(value: float, given: object) -> str | None:
         return None if math.isfinite(value) and low <= value <= high else f"must be {text}, got {shown(given)}"
 
     return check

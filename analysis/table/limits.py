@@ -29,21 +29,21 @@ class TableModelError(AnalysisInputError):
     """A bad table configuration; from a file the message starts with ``FILE:LINE: key:``."""
 
 
-Check = Callable[[float, float], str | None]
+Check = Callable[[float, object], str | None]
 """A validator: (value in SI, value as given) → what is wrong, or None."""
 
 
-def positive(value: float, shown: float) -> str | None:
+def positive(value: float, shown: object) -> str | None:
     """A `Check`: finite and > 0."""
     return None if math.isfinite(value) and value > 0 else f"must be a finite number > 0, got {shown!r}"
 
 
-def non_negative(value: float, shown: float) -> str | None:
+def non_negative(value: float, shown: object) -> str | None:
     """A `Check`: finite and >= 0."""
     return None if math.isfinite(value) and value >= 0 else f"must be a finite number >= 0, got {shown!r}"
 
 
-def half_angle(value: float, shown: float) -> str | None:
+def half_angle(value: float, shown: object) -> str | None:
     """A `Check` of a hexapod layout's half angle [rad]: in [0, π/3)."""
     ok = math.isfinite(value) and 0 <= value < math.pi / 3
     return None if ok else f"must be at least 0 and below 60° (π/3 rad), got {shown!r}"

@@ -41,7 +41,7 @@ def predictions_table(result: SessionAnalysis) -> Table:
     table = Table(box=box.SIMPLE_HEAD, title="Predicted (from the measured motion) beside observed overturns")
     for name, justify in (("run", "left"), ("record", "left"), ("β°", "right"), ("body", "left"),
                           ("observed", "left")):
-        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+        table.add_column(name, justify=justify)  # type: ignore[arg-type]  # rich wants its Literal; these are its values
     for model in result.models:
         table.add_column(model, justify="left")
     for run in result.runs:
@@ -52,9 +52,10 @@ def predictions_table(result: SessionAnalysis) -> Table:
         for body_id, row in by_body.items():
             cells = []
             for model in result.models:
-                p = row.get(model)
-                cells.append("–" if p is None else f"{_direction(p.direction)}{_seconds(p.t_overturn)}"
-                             f"{' *' if p.direction != p.observed else ''}")
+                prediction = row.get(model)
+                cells.append("–" if prediction is None else
+                             f"{_direction(prediction.direction)}{_seconds(prediction.t_overturn)}"
+                             f"{' *' if prediction.direction != prediction.observed else ''}")
             table.add_row(run.run, run.record, f"{run.angle_deg:g}", f"{body_id} {row['name']}".strip(),
                           f"{_direction(row['observed'])}{_seconds(row['t'])}", *cells)
     return table

@@ -118,7 +118,7 @@ def design(
         if not parsed.centred:
             raise AnalysisInputError(f"body {body!r}: the design equations (Eqs. 11, 13) are fitted to uniform blocks "
                                      "(centre of mass in the middle): give BxH without ;cg=")
-        eq = cast("Equation", equation.value)
+        eq: Equation = equation.value
         fitted = study_coefficients(study, eq) if study is not None else None
         result = design_result(parsed, confidence, eq, fitted)
     except AnalysisInputError as exc:
