@@ -23,8 +23,10 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/rig demo
 
+# ruff on everything; mypy on the packages ([tool.mypy] in pyproject.toml: the modules not yet clean listed there)
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/mypy
 
 # the README's test command: lint and the fast tier (every test not marked integration or slow), in parallel;
 # a test over its time budget fails with its stack (pytest-timeout), one near it is listed (tests/conftest.py)

@@ -1,6 +1,6 @@
 """The emulated table as a separate process (``python -m sim_table``), started and stopped from the lab side.
 
-`rig` never imports `sim_table` (ARCHITECTURE §1: the emulator stands where the table's own controller would):
+`rig` never imports `sim_table` (docs/architecture.md §1: the emulator stands where the table's own controller would):
 it runs it, as ``rig run --emulate``, the demo, the tests and the benchmarks do. The emulator prints
 ``sim_table: listening on URL`` on stderr once its endpoint is open (port 0 resolved), and its counters as one
 JSON object on stdout when it stops (SIGINT).

@@ -94,7 +94,7 @@ def estimators(res: StudyResult, fits: dict[str, Any]) -> list[dict[str, Any]]:
 
 
 def study_summary(res: StudyResult) -> dict[str, Any]:
-    """The ``rig study --json`` object: :meth:`StudyResult.summary` (ARCHITECTURE §7 keys ``cor``, ``gcor``,
+    """The ``rig study --json`` object: :meth:`StudyResult.summary` (docs/architecture.md §7; keys ``cor``, ``gcor``,
     ``scor``, ``scenes``, ``seconds``) plus ``where`` ("local" or the Dask scheduler's address), ``paper``
     (the printed coefficients), ``scor_paper`` (Eq. 12 error of the paper's Eq. 13 over every body's rates),
     ``scor`` gains ``eq12_error`` (the same for the fitted Eq. 13) and ``estimators`` (Table III)."""

@@ -1,6 +1,6 @@
 """The specimens of a test and the MuJoCo model of them standing on the plate.
 
-Frames and units (ARCHITECTURE §2, ``analysis.table.model``): SI, z up. The model's world frame is the
+Frames and units (docs/architecture.md §2, ``analysis.table.model``): SI, z up. The model's world frame is the
 platform frame at its home pose (the base frame shifted up by ``home_height``; gravity is uniform, so the
 shift changes nothing). The plate body's origin is the centre of the plate's top surface, and its six
 joints reproduce the pose convention exactly: slides along world x, y, z (surge, sway, heave [m]), then

@@ -53,12 +53,11 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, fields
-from typing import TYPE_CHECKING, Any
+from typing import Any, Protocol
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from analysis.table.model import TableModel
+from analysis.table.kinematics import HexapodGeometry, rotation_matrices
 
 FIELDS = {
     "bore": "bore_m",
@@ -208,8 +207,6 @@ def rigid_mass_matrix(load: PlateLoad, pose: np.ndarray) -> np.ndarray:
     centre of gravity's offset (base frame) and ω = E · (Euler rates) (:func:`euler_rate_map`):
     ``Tᵀ [[m I, −m S], [m S, R I_c Rᵀ − m S²]] T`` with S = [r]ₓ (S ω = r × ω) and T = diag(I, E).
     """
-    from analysis.table.model import rotation_matrices
-
     pose = np.asarray(pose, dtype=float)
     rotation = rotation_matrices(pose)
     r = rotation @ np.asarray(load.centre, dtype=float)
@@ -233,7 +230,23 @@ class PlateModes:
     shapes: np.ndarray
 
 
-def plate_modes(table: TableModel, pose: np.ndarray | None = None, loads: Sequence[PlateLoad] = ()) -> PlateModes:
+class HexapodTable(Protocol):
+    """What the plate's modes need of a table (`analysis.table.model.TableModel`): its servo-hydraulic parameters,
+    its geometry and its leg Jacobian."""
+
+    @property
+    def dynamics(self) -> TableDynamics:
+        """The legs' servo-hydraulic parameters and the rigid plate."""
+
+    @property
+    def geometry(self) -> HexapodGeometry:
+        """The hexapod's joints and leg strokes [m]."""
+
+    def leg_jacobian(self, poses: np.ndarray) -> np.ndarray:
+        """d(leg lengths)/d(pose) ``(..., 6, 6)`` [m/m, m/rad] at poses ``(..., 6)``."""
+
+
+def plate_modes(table: HexapodTable, pose: np.ndarray | None = None, loads: Sequence[PlateLoad] = ()) -> PlateModes:
     """The plate's modes at ``pose`` (6,) (default home) with ``loads`` on it: ``scipy.linalg.eigh`` of
     Jᵀ K J φ = ω² (M + m_p JᵀJ) φ (module docstring)."""
     from scipy.linalg import eigh

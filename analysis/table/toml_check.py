@@ -20,7 +20,7 @@ import reprlib
 import tomllib
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeGuard
 
 import numpy as np
 
@@ -74,14 +74,14 @@ def read_toml(path: str | Path, expected: str) -> tuple[dict[str, Any], dict[Key
                                   "most a few levels") from None
     except tomllib.TOMLDecodeError as exc:
         message = syntax_message(source, text, str(exc)).removeprefix(f"{source}")
-        line, _, problem = message.removeprefix(":").partition(": ")
-        if line.isdigit():
-            raise TomlFileError(int(line), problem) from None
+        number, _, problem = message.removeprefix(":").partition(": ")
+        if number.isdigit():
+            raise TomlFileError(int(number), problem) from None
         raise TomlFileError(None, message.removeprefix(": ")) from None
     return data, lines
 
 
-def is_number(value: object) -> bool:
+def is_number(value: object) -> TypeGuard[numbers.Real]:
     """A real number as TOML (or a caller's mapping) gives one: int or float, not a bool."""
     return isinstance(value, numbers.Real) and not isinstance(value, bool | np.bool_)
 

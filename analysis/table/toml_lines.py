@@ -233,8 +233,8 @@ class _Scanner:
         elif c == "{":
             self.inline_table(path)
         else:
-            end = _SCALAR_END.search(self.text, self.pos)
-            self.pos = len(self.text) if end is None else end.start()
+            scalar_end = _SCALAR_END.search(self.text, self.pos)
+            self.pos = len(self.text) if scalar_end is None else scalar_end.start()
 
     def array(self, path: KeyPath) -> None:
         self.pos += 1

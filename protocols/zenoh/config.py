@@ -11,7 +11,7 @@ session's transmit thread has written it, and a message under zenoh's default co
 batch comes free within 1 ms. A table controller that catches up after its process was held off the CPU sends a
 few statuses and a heartbeat at once, then its accelerometer and tilt batches: with 2 batches those were dropped
 whenever the transmit thread itself took longer than 1 ms to run — on a 2-core host busy with a test suite, one
-50 ms batch of every sensor in about one whole 42 s drive of two (docs/real-time.md).
+50 ms batch of every sensor in about one whole 42 s drive of two (docs/notes/2026-11-27-real-time.md).
 """
 
 from __future__ import annotations

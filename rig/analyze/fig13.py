@@ -1,9 +1,9 @@
 """The paper's Fig. 13: controlled overturning rate per angle, analytical against experimental.
 
 **Cases.** One case is one body on the plate in one completed run: the analysis's predicted direction (per
-model) and the experiment's observed one (+1 low side, −1 high side, 0 did not overturn; ARCHITECTURE §2).
+model) and the experiment's observed one (+1 low side, −1 high side, 0 did not overturn; docs/architecture.md §2).
 
-**COR** (controlled overturning rate, as the paper's EXPERIMENTAL RESULTS and ARCHITECTURE §2 define it): among
+**COR** (controlled overturning rate, as the paper's EXPERIMENTAL RESULTS and docs/architecture.md §2 define it): among
 the cases that *overturned*, the fraction that overturned towards the low (desired) side::
 
     COR = #(direction = +1) / #(direction ≠ 0)

@@ -1,7 +1,7 @@
 """What `rig.analyze.analyze_session` returns: predictions beside observations, per run and for the session.
 
 Directions everywhere: +1 overturned towards the low side (+x, the desired side), −1 towards the high side,
-0 did not overturn (ARCHITECTURE §2). Times in seconds on the run's clock (from the drive's first sample);
+0 did not overturn (docs/architecture.md §2). Times in seconds on the run's clock (from the drive's first sample);
 NaN when there is none (``null`` in JSON). Angles θ in rad, plate angles in degrees.
 """
 

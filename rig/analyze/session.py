@@ -1,5 +1,5 @@
 """`analyze_session`: the paper's models re-run on every run's *measured* plate motion, predictions beside
-observations, and the Fig. 13 comparison (ARCHITECTURE §6; the paper's EXPERIMENTAL RESULTS).
+observations, and the Fig. 13 comparison (docs/architecture.md §4; the paper's EXPERIMENTAL RESULTS).
 
 For every ``completed`` run (others are skipped and listed with their status: ``aborted``, ``interrupted``,
 ``refused``, ``skipped``, ``running``): the run's accelerometer samples → the models' input

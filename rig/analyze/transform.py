@@ -1,7 +1,7 @@
 """Measured plate-frame specific force → the inputs of the paper's models (``analysis.simulate``).
 
 **What the accelerometers measure.** A sensor fixed on the plate measures the specific force in the plate frame
-(ARCHITECTURE §2: x along the fall line, +x downhill, z normal to the plate, up)::
+(docs/architecture.md §2: x along the fall line, +x downhill, z normal to the plate, up)::
 
     f = Rᵀ (a − g),   g = (0, 0, −G) in the base frame,   R = Ry(β) (pitch = +β tilts +x down)
 

@@ -1,5 +1,5 @@
-"""The ``rig`` command line (ARCHITECTURE §7): one module per command or command group, each adding itself with
-``register(app)``; what they share (consoles, errors, JSON output, exit codes) is `rig.cli._common`.
+"""The ``rig`` command line (docs/architecture.md §1, §7): one module per command or command group, each adding
+itself with ``register(app)``; what they share (consoles, errors, JSON output, exit codes) is `rig.cli._common`.
 
 ``--json`` prints exactly one JSON object on stdout; errors go to stderr with exit code 2 and no
 traceback. Angles are in degrees here (radians inside).

@@ -6,12 +6,15 @@ file's ``analysis`` groups (raw data untouched; re-running replaces them) unless
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
+from rich.console import RenderableType
 from rich.table import Table
+from rich.text import Text
 
 from rig.cli._common import console, emit_json, fail, require_file
 
@@ -38,7 +41,7 @@ def predictions_table(result: SessionAnalysis) -> Table:
     table = Table(box=box.SIMPLE_HEAD, title="Predicted (from the measured motion) beside observed overturns")
     for name, justify in (("run", "left"), ("record", "left"), ("β°", "right"), ("body", "left"),
                           ("observed", "left")):
-        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+        table.add_column(name, justify=justify)  # type: ignore[arg-type]  # rich wants its Literal; these are its values
     for model in result.models:
         table.add_column(model, justify="left")
     for run in result.runs:
@@ -49,74 +52,107 @@ def predictions_table(result: SessionAnalysis) -> Table:
         for body_id, row in by_body.items():
             cells = []
             for model in result.models:
-                p = row.get(model)
-                cells.append("–" if p is None else f"{_direction(p.direction)}{_seconds(p.t_overturn)}"
-                             f"{' *' if p.direction != p.observed else ''}")
+                prediction = row.get(model)
+                cells.append("–" if prediction is None else
+                             f"{_direction(prediction.direction)}{_seconds(prediction.t_overturn)}"
+                             f"{' *' if prediction.direction != prediction.observed else ''}")
             table.add_row(run.run, run.record, f"{run.angle_deg:g}", f"{body_id} {row['name']}".strip(),
                           f"{_direction(row['observed'])}{_seconds(row['t'])}", *cells)
     return table
 
 
-def fig13_table(result: SessionAnalysis) -> Table:
-    """The Fig. 13 comparison: per model, angle and body (and the body average), counts, COR [%], the paired test
-    and the equivalence verdict."""
+WIDTH = 100
+"""Columns the Fig. 13 tables fit in (a terminal of this width shows every cell on one line)."""
+
+
+def _verdict_cell(row: Mapping[str, Any], label: str, notes: list[str]) -> str:
+    """A row's verdict for a table cell: the verdict itself, and where its words are longer (``not resolved with
+    26 runs (about 410 would)``) a footnote number with the words added to ``notes`` under ``label``."""
+    from rig.analyze.fig13 import verdict_words
+
+    verdict = str(row["verdict"])
+    words = verdict_words(verdict, int(row["body_id"]), int(row["runs"]), int(row["runs_to_resolve"]))
+    if words == verdict:
+        return verdict
+    notes.append(f"[{len(notes) + 1}] {label}: {words}")
+    return f"{verdict} [{len(notes)}]"
+
+
+def _label(model: str, angle_deg: float, body_id: int, rule: str = "") -> str:
+    """``rocking, 5°, body 2`` (``…, fitted`` under an impact rule): where a footnote belongs."""
+    body = "average" if body_id == 0 else f"body {body_id}"
+    return ", ".join([model, f"{angle_deg:g}°", body, *([RULE_NAMES.get(rule, rule)] if rule else [])])
+
+
+def fig13_tables(result: SessionAnalysis) -> list[RenderableType]:
+    """The Fig. 13 comparison in two tables of at most `WIDTH` columns: per model, angle and body (and the body
+    average) the rates [%], their difference and the equivalence verdict, the verdicts' long words as footnotes;
+    then the counts and the paired tests."""
     margin = 100 * result.margin
-    table = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — controlled overturning rate, analysis vs experiment",
-                  caption=f"COR = overturns towards the low side / overturns (%), [95 % interval: Wilson's, or the "
-                          f"cluster bootstrap over records where records are shared]; n = runs (average: body-runs), "
-                          f"ovt = overturned, low = towards the low side; diff = analysis − experiment (percentage "
-                          f"points) [90 % interval]; McNemar = exact p of the paired cases on the side (low/high "
-                          f"vs high/low) and on overturning (analysis only vs experiment only); verdict: "
-                          f"equivalence within ±{margin:g} points (two one-sided tests at 5 %)")
-    for name in ("model", "β°", "body", "n", "ovt A", "low A", "COR A", "ovt E", "low E", "COR E", "diff",
-                 "McNemar side", "McNemar ovt", "verdict"):
-        table.add_column(name, justify="left" if name in ("model", "body", "verdict") else "right")
+    rates = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — controlled overturning rate, analysis vs experiment",
+                  caption=f"COR = overturns towards the low side / overturns (%), A analysis, E experiment [95 % "
+                          f"interval: Wilson's, or the cluster bootstrap over records where records are shared]; "
+                          f"n = runs (average: body-runs); diff = A − E (percentage points) [90 % interval]; "
+                          f"verdict: equivalence within ±{margin:g} points (two one-sided tests at 5 %)")
+    for name in ("model", "β°", "body", "n", "COR A", "COR E", "diff", "verdict"):
+        rates.add_column(name, justify="left" if name in ("model", "body", "verdict") else "right")
+    counts = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — the counts and the paired tests",
+                   caption="ovt = overturned, low = towards the low side; McNemar = the discordant pairs and their "
+                           "exact p, on the side (low/high vs high/low) and on overturning (analysis only vs "
+                           "experiment only)")
+    for name in ("model", "β°", "body", "ovt A", "low A", "ovt E", "low E", "McNemar side", "McNemar ovt"):
+        counts.add_column(name, justify="left" if name in ("model", "body") else "right")
+    notes: list[str] = []
     for row in result.fig13:
         diff = "–" if math.isnan(row.difference) else (
             f"{100 * row.difference:+.0f} [{100 * row.difference_low:+.0f}, {100 * row.difference_high:+.0f}]")
-        table.add_row(row.model, f"{row.angle_deg:g}", "average" if row.body_id == 0 else str(row.body_id),
-                      str(row.runs), str(row.overturned_analysis), str(row.towards_low_analysis),
-                      _rate(row.cor_analysis, row.cor_analysis_low, row.cor_analysis_high),
-                      str(row.overturned_experiment), str(row.towards_low_experiment),
+        where = (row.model, f"{row.angle_deg:g}", "average" if row.body_id == 0 else str(row.body_id))
+        style = "bold" if row.body_id == 0 else None
+        rates.add_row(*where, str(row.runs), _rate(row.cor_analysis, row.cor_analysis_low, row.cor_analysis_high),
                       _rate(row.cor_experiment, row.cor_experiment_low, row.cor_experiment_high), diff,
-                      _mcnemar(row.low_high, row.high_low, row.p_direction),
-                      _mcnemar(row.analysis_only, row.experiment_only, row.p_overturn), row.verdict_words(),
-                      style="bold" if row.body_id == 0 else None)
-    return table
+                      _verdict_cell(row.to_json(), _label(row.model, row.angle_deg, row.body_id), notes),
+                      style=style)
+        counts.add_row(*where, str(row.overturned_analysis), str(row.towards_low_analysis),
+                       str(row.overturned_experiment), str(row.towards_low_experiment),
+                       _mcnemar(row.low_high, row.high_low, row.p_direction),
+                       _mcnemar(row.analysis_only, row.experiment_only, row.p_overturn), style=style)
+    return [rates, *(Text(note) for note in notes), counts]
 
 
 RULE_NAMES = {"plastic": "plastic", "housner": "Housner's", "fit": "fitted"}
-"""Column heads of the impact rules side by side (``--restitution all``)."""
+"""Names of the impact rules compared (``--restitution all``)."""
 
 
-def rules_table(result: SessionAnalysis) -> Table:
-    """Fig. 13 with the models under plastic, Housner's and fitted restitution side by side (``--restitution
-    all``): per model, angle and body the experiment's COR, then per rule the analysis's COR and the verdict."""
-    from rig.analyze.fig13 import side_by_side, verdict_words
+def rules_tables(result: SessionAnalysis) -> list[RenderableType]:
+    """Fig. 13 with the models under plastic, Housner's and fitted restitution (``--restitution all``), in at most
+    `WIDTH` columns: per model, angle and body the experiment's COR, then one line per rule with the analysis's
+    COR and the verdict; the verdicts' long words as footnotes."""
+    from rig.analyze.fig13 import side_by_side
 
     groups = side_by_side(row.to_json() for row in result.fig13)
     rules = list(dict.fromkeys(rule for *_, by_rule in groups for rule in by_rule))
-    table = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — plastic, Housner's and fitted restitution side by side",
-                  caption=f"COR [%] [95 % interval]; verdict: equivalence of the analysis's COR with the experiment's "
-                          f"within ±{100 * result.margin:g} points (two one-sided tests at 5 %); the counts, "
-                          f"differences and McNemar tests per rule: --json, or rig report")
-    for name in ("model", "β°", "body", "COR E"):
-        table.add_column(name, justify="left" if name in ("model", "body") else "right")
-    for rule in rules:
-        table.add_column(f"COR A {RULE_NAMES.get(rule, rule)}", justify="right")
-        table.add_column(f"verdict {RULE_NAMES.get(rule, rule)}", justify="left")
+    table = Table(box=box.SIMPLE_HEAD, title="Fig. 13 — plastic, Housner's and fitted restitution, rule by rule",
+                  caption=f"COR [%] [95 % interval], A analysis, E experiment; verdict: equivalence of the "
+                          f"analysis's COR with the experiment's within ±{100 * result.margin:g} points (two "
+                          f"one-sided tests at 5 %); the counts, differences and McNemar tests per rule: --json, "
+                          f"or rig report")
+    for name in ("model", "β°", "body", "COR E", "restitution", "COR A", "verdict"):
+        table.add_column(name, justify="left" if name in ("model", "body", "restitution", "verdict") else "right")
+    notes: list[str] = []
     for model, angle, body_id, by_rule in groups:
         first = next(iter(by_rule.values()))
-        cells = []
+        where = [model, f"{angle:g}", "average" if body_id == 0 else str(body_id),
+                 _rate(_nan(first["cor_experiment"]), _nan(first["cor_experiment_low"]),
+                       _nan(first["cor_experiment_high"]))]
         for rule in rules:
             row = by_rule.get(rule)
-            cells += ["–", "–"] if row is None else [
+            cells = ["–", "–"] if row is None else [
                 _rate(_nan(row["cor_analysis"]), _nan(row["cor_analysis_low"]), _nan(row["cor_analysis_high"])),
-                verdict_words(str(row["verdict"]), body_id, int(row["runs"]), int(row["runs_to_resolve"]))]
-        table.add_row(model, f"{angle:g}", "average" if body_id == 0 else str(body_id),
-                      _rate(_nan(first["cor_experiment"]), _nan(first["cor_experiment_low"]),
-                            _nan(first["cor_experiment_high"])), *cells, style="bold" if body_id == 0 else None)
-    return table
+                _verdict_cell(row, _label(model, angle, body_id, rule), notes)]
+            table.add_row(*where, RULE_NAMES.get(rule, rule), *cells, style="bold" if body_id == 0 else None)
+            where = ["", "", "", ""]
+        table.add_section()
+    return [table, *(Text(note) for note in notes)]
 
 
 def _nan(value: float | None) -> float:
@@ -155,7 +191,8 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
     console.print(predictions_table(result))
     from rig.analyze.session import ALL_RULES
 
-    console.print(rules_table(result) if result.restitution == ALL_RULES else fig13_table(result))
+    for part in rules_tables(result) if result.restitution == ALL_RULES else fig13_tables(result):
+        console.print(part, highlight=False)
     for model in result.models:
         a = result.agreement[model]
         diff = result.max_difference.get(model)

@@ -3,7 +3,7 @@
 Inverts the paper's Eq. 13 (SCOR, body-specific, default) or Eq. 11 (GCOR) with the paper's
 coefficients (``analysis.design``) or those fitted by a study (``--study STUDY.h5`` or a ``--json`` output).
 Angles are in degrees at the CLI; the confidence is a fraction.
-``--json`` prints exactly one JSON object on stdout (ARCHITECTURE §7); errors go to stderr, exit 2.
+``--json`` prints exactly one JSON object on stdout (docs/architecture.md §7); errors go to stderr, exit 2.
 """
 
 from __future__ import annotations
@@ -118,7 +118,7 @@ def design(
         if not parsed.centred:
             raise AnalysisInputError(f"body {body!r}: the design equations (Eqs. 11, 13) are fitted to uniform blocks "
                                      "(centre of mass in the middle): give BxH without ;cg=")
-        eq = cast("Equation", equation.value)
+        eq: Equation = equation.value
         fitted = study_coefficients(study, eq) if study is not None else None
         result = design_result(parsed, confidence, eq, fitted)
     except AnalysisInputError as exc:

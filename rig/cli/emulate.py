@@ -4,7 +4,7 @@ URL: ``mavlink://127.0.0.1:PORT``, ``zenoh://127.0.0.1:PORT/TABLE`` or ``canopen
 signing key (``--key-file FILE`` or ``$SHAKETABLE_MAVLINK_KEY``) is needed on mavlink and zenoh only: CANopen has no
 authentication (the bus is a private cable), and the emulator asks for no key there.
 
-The emulator is its own program (``python -m sim_table``, ARCHITECTURE §5: a separate process that speaks the
+The emulator is its own program (``python -m sim_table``, docs/architecture.md §5: a separate process that speaks the
 controller's transports), and ``rig`` does not import it: this command runs it as a child process with every
 option passed on unchanged. Ctrl-C (SIGINT) on a terminal reaches the emulator directly (and SIGINT or SIGTERM sent
 to this process is passed on): it stops cleanly and hands over its counters, printed here as a table (``--json``:

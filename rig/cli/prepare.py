@@ -1,6 +1,6 @@
 """``rig prepare RECORD``: a record → a table-ready drive, its scale factor and governing limit.
 
-``--json`` prints one JSON object on stdout (ARCHITECTURE §7). A record or option that cannot be used
+``--json`` prints one JSON object on stdout (docs/architecture.md §7). A record or option that cannot be used
 exits with code 2; a drive the table cannot play (a leg's stroke or speed, a tilt limit) exits with code 3
 and names the first violation — with ``--json`` also as ``{"refused": {...}}`` on stdout.
 """

@@ -1,4 +1,4 @@
-"""A record → a table-ready 6-DOF drive inside the table's limits (ARCHITECTURE §4).
+"""A record → a table-ready 6-DOF drive inside the table's limits (docs/architecture.md §4).
 
 `prepare_drive` processes each component of a `GroundMotion` (baseline, zero-phase high-pass, integration;
 see `rig.drive.processing`), picks the high-pass corner, finds the largest scale factor ≤ 1 that keeps
@@ -95,7 +95,8 @@ class Drive:
         angle: static tilt β [rad] (pitch = +β during the motion).
         rate: controller rate [Hz].
         t: (N,) sample times [s].
-        poses: (N, 6) surge, sway, heave [m], roll, pitch, yaw [rad] (ARCHITECTURE §7 `commanded` columns).
+        poses: (N, 6) surge, sway, heave [m], roll, pitch, yaw [rad] (the session file's `commanded` columns,
+            `rig.session.schema`).
         velocities: (N, 6) their rates [m/s, rad/s].
         accelerations: (N, 6) their second derivatives [m/s², rad/s²].
         scale_factor: applied to every component of the record, ≤ 1.

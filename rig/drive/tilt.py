@@ -1,4 +1,4 @@
-"""The static tilt β as a smooth, jerk-limited ramp (ARCHITECTURE §2: tilt = pitch = +β, +x downhill).
+"""The static tilt β as a smooth, jerk-limited ramp (docs/architecture.md §2: tilt = pitch = +β, +x downhill).
 
 The ramp is the table's quintic move (`analysis.table.moves`) ``θ(τ) = θ0 + (θ1 - θ0)(10τ³ - 15τ⁴ + 6τ⁵)``,
 ``τ = t / T``: angle, rate and angular acceleration are continuous (zero at both ends), and the jerk is bounded;

@@ -1,4 +1,4 @@
-"""``rig report``: one self-contained HTML report of a session file or a study file (ARCHITECTURE §6).
+"""``rig report``: one self-contained HTML report of a session file or a study file (docs/architecture.md §4).
 
     from rig.report import write_report
     result = write_report("campaign.h5", "campaign.html")   # kind by the file's schema attribute

@@ -1,4 +1,4 @@
-"""Sequence files (TOML): what a session on the table runs (ARCHITECTURE §6).
+"""Sequence files (TOML): what a session on the table runs (docs/architecture.md §4; the file: docs/sequence-files.md).
 
 A sequence names the table connection, the rig configuration, the bodies and their places on the plate,
 the plate angles, the records with their scale policy, the repetitions and the operator's steps. It is

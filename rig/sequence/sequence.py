@@ -1,5 +1,5 @@
 """`Sequence`: a checked sequence file — its plan of runs, the drive of each run, the check before anything
-moves, and its JSON form for the session file (ARCHITECTURE §6)."""
+moves, and its JSON form for the session file (docs/architecture.md §4, §6)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The crash-safe session log: one HDF5 file per session (schema ``shaketable-rig/session/1``, ARCHITECTURE §7).
+"""The crash-safe session log: one HDF5 file per session (schema ``shaketable-rig/session/1``, docs/architecture.md §6).
 
 Writing::
 

@@ -1,11 +1,13 @@
 """`RunLog`: the run being recorded. Appends go to the run's `BlockWriter` (no disk I/O in the caller);
-`RunLog.end` stops it and lets the `SessionLog` commit the run's final attributes."""
+`RunLog.end` stops it and lets its session (a `RunOwner`: `rig.session.log.SessionLog`) commit the run's final
+attributes."""
 
 from __future__ import annotations
 
 import threading
-from collections.abc import Sequence
-from typing import TYPE_CHECKING, Any
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any, Protocol
 
 import h5py
 import numpy as np
@@ -15,8 +17,20 @@ from .errors import SessionError
 from .runinfo import RunInfo
 from .writer import BlockWriter, WriterStats
 
-if TYPE_CHECKING:
-    from .log import SessionLog
+
+class RunOwner(Protocol):
+    """What a run needs of its session (`rig.session.log.SessionLog`): where it is, the extra run attributes
+    checked as stored, and the commit of a run's final status and attributes."""
+
+    @property
+    def path(self) -> Path:
+        """The session file (named in every error)."""
+
+    def checked_run_attrs(self, attrs: Mapping[str, Any] | None) -> dict[str, Any]:
+        """Extra run attributes as stored; `rig.session.errors.SessionError` on a reserved name or a bad value."""
+
+    def finish_run(self, info: RunInfo, status: str, attrs: Mapping[str, Any]) -> RunInfo:
+        """Commit the run's final ``status`` and ``attrs`` (after its SWMR file is closed); the run as ended."""
 
 
 def _rows(t: np.ndarray, values: np.ndarray, width: int, what: str) -> np.ndarray:
@@ -38,7 +52,7 @@ class RunLog:
     """The run being recorded; obtained from `SessionLog.begin_run`. Appends are thread-safe and never wait for
     the disk."""
 
-    def __init__(self, session: SessionLog, info: RunInfo, sensors: Sequence[str], body_ids: Sequence[int],
+    def __init__(self, session: RunOwner, info: RunInfo, sensors: Sequence[str], body_ids: Sequence[int],
                  h5: h5py.File, writer: BlockWriter) -> None:
         self._session = session
         self.info = info

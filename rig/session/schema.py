@@ -1,4 +1,4 @@
-"""Names, types and units of the session file, schema ``shaketable-rig/session/1`` (ARCHITECTURE §7).
+"""Names, types and units of the session file, schema ``shaketable-rig/session/1`` (docs/architecture.md §7).
 
 Root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), ``rig_config`` and ``sequence``
 (JSON text), and ``table`` (JSON text, where ``rig run`` played it: ``{"url": …}`` or ``{"emulate": true, "speed":

@@ -4,7 +4,7 @@ Inputs are generated with hypothesis: short piecewise-linear records (100–600 
 peak up to 1 g: sums of sines, smoothed noise or a few pulses, from a hypothesis-drawn seed),
 uniform blocks with b/h in [0.1, 0.5] and h in [0.1, 2] m, plate angles β in [0, 0.8·α).
 The fast engine carries most examples, the reference a few. Expected values come from symmetry,
-Eq. 1, the sign convention of ARCHITECTURE §2 and the order of the fast engine's method (RK4,
+Eq. 1, the sign convention of docs/architecture.md §2 and the order of the fast engine's method (RK4,
 events on the step's cubic Hermite interpolant: order 4) — never from earlier output of the code.
 """
 
@@ -212,7 +212,7 @@ def _general_or_skip(solver: str) -> dict:
 @pytest.mark.parametrize("beta_frac", [0.0, 0.3, 0.6, 0.9])
 @pytest.mark.parametrize("body", SLENDER, ids=lambda b: b.label())
 def test_sign_convention_long_plate_acceleration(body: Body, beta_frac: float, solver: str, model: str) -> None:
-    """ARCHITECTURE §2: a long uphill plate acceleration (a_x < 0) of 0.5 g tips a slender body
+    """docs/architecture.md §2: a long uphill plate acceleration (a_x < 0) of 0.5 g tips a slender body
     towards +x (direction +1, downhill); the same downhill tips it towards −x (−1)."""
     kw = _general_or_skip(solver) if model == "general" else {}
     beta = beta_frac * body.alpha

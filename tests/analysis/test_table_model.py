@@ -445,7 +445,7 @@ def test_to_dict_is_json_and_from_dict_inverts_it() -> None:
     assert TableModel.from_dict(custom.to_dict()) != MODEL
 
 
-#: The documented range of each limit in SI (analysis/table/model.py docstring): displacement, velocity,
+#: The documented range of each limit in SI (analysis/table/configuration.py docstring): displacement, velocity,
 #: acceleration of an axis; angle, rate, acceleration, jerk of the tilt.
 AXIS_RANGES = ((0.001, 2.0), (0.001, 5.0), (0.001 * G, 10 * G))
 TILT_RANGES = ((0.1 * DEG, 45 * DEG), (0.01 * DEG, 90 * DEG), (0.01 * DEG, 360 * DEG), (0.01 * DEG, 3600 * DEG))

@@ -150,7 +150,7 @@ def test_the_emulators_body_syntax_takes_the_centre_of_gravity() -> None:
 
 @pytest.mark.parametrize(("a_x", "direction"), [(-0.5 * G, +1), (0.5 * G, -1)])
 def test_sign_convention_long_plate_acceleration(a_x: float, direction: int) -> None:
-    """ARCHITECTURE §2: uphill plate acceleration (a_x < 0) tips a slender body towards +x (+1)."""
+    """docs/architecture.md §2: uphill plate acceleration (a_x < 0) tips a slender body towards +x (+1)."""
     scene = SpecimenScene([Specimen(Body(0.1, 0.5), friction=1.0)])
     found = drive(scene, constant_acceleration(a_x), 1.5)
     assert [(e.body_id, e.direction) for e in found] == [(0, direction)]

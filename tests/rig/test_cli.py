@@ -1,4 +1,4 @@
-"""The ``rig`` command line: JSON contracts of ARCHITECTURE §7 and clear errors (exit 2)."""
+"""The ``rig`` command line: JSON contracts of docs/architecture.md §7 and clear errors (exit 2)."""
 
 from __future__ import annotations
 
