@@ -87,6 +87,7 @@ from numba import njit
 
 from analysis.body import G
 from analysis.errors import AnalysisInputError
+from analysis.table.drives import DriveSettings, read_drives
 from analysis.table.dynamics import TableDynamics
 from analysis.table.link import RANGES as LINK_KEYS
 from analysis.table.link import LinkSettings
@@ -446,6 +447,8 @@ class TableModel:
     """The legs' servo-hydraulic parameters (``[dynamics]``; used by the emulator's ``--dynamics servo``)."""
     link: LinkSettings = field(default_factory=LinkSettings)
     """The host link's lead, buffer, watchdog and link timeout (``[controller]``, ``analysis.table.link``)."""
+    drives: DriveSettings = field(default_factory=DriveSettings)
+    """The leg drives' units, node ids, EDS files and options (``[drives]``, ``analysis.table.drives``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):
@@ -585,6 +588,8 @@ class TableModel:
             out["dynamics"] = self.dynamics.to_dict()
         if self.link != LinkSettings():
             out["controller"] = self.link.to_dict()
+        if self.drives != DriveSettings():
+            out["drives"] = self.drives.to_dict()
         return out
 
     @classmethod
@@ -825,7 +830,7 @@ class _Reader(TomlChecker):
         return TableModelError(f"{where}: {'.'.join(map(str, path))}: {problem}" if path else f"{where}: {problem}")
 
     def model(self, data: Mapping[str, Any]) -> TableModel:
-        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller"))
+        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -840,7 +845,7 @@ class _Reader(TomlChecker):
         geometry = self.geometry(top["hexapod"]) if "hexapod" in top else HexapodGeometry.default()
         return TableModel(limits=TableLimits(**axes, tilt=TiltLimits(**tilt)), geometry=geometry,
                           controller_rate=table["controller_rate"], dynamics=self.dynamics(top.get("dynamics", {})),
-                          link=self.link(top.get("controller", {})))
+                          link=self.link(top.get("controller", {})), drives=read_drives(self, top.get("drives")))
 
     def link(self, value: Any) -> LinkSettings:
         """The ``[controller]`` section (``analysis.table.link``); errors name its line and key."""
