@@ -15,6 +15,7 @@ import struct
 from typing import NamedTuple
 
 import canopen
+from canopen.sdo.exceptions import SdoError
 
 from drivers.controller import TableError, TableTimeoutError
 from protocols.canopen import PdoSpec
@@ -90,7 +91,7 @@ class NodeSdo:
             if exc.code in ABSENT:
                 return None
             raise self._failed(index, subindex, name, "read", exc) from None
-        except canopen.SdoError as exc:
+        except SdoError as exc:
             raise self._failed(index, subindex, name, "read", exc) from None
         if len(data) != kind.size:
             raise DriveSetupError(f"{self.where(index, subindex, name)}: the node answered {len(data)} bytes where "
@@ -112,7 +113,7 @@ class NodeSdo:
         data = struct.pack(kind.fmt, value)
         try:
             self.node.sdo.download(index, subindex, data)
-        except canopen.SdoError as exc:
+        except SdoError as exc:
             raise self._failed(index, subindex, name, f"write of {value}", exc) from None
 
     def map_pdo(self, spec: PdoSpec) -> None:
