@@ -38,11 +38,13 @@ from canopen.objectdictionary import (
     ODRecord,
     ODVariable,
 )
+from typer.testing import CliRunner
 
 from analysis.table.model import TableModel, TableModelError
 from drivers.canopen import CanopenTable
 from drivers.canopen.sdo import DriveSetupError
 from drivers.controller import TableError, TableTimeoutError
+from rig.cli import app
 
 RATE = 100
 """SYNC rate [Hz]: six Python drives and the master share this interpreter."""
@@ -457,3 +459,17 @@ def test_silence_is_the_only_did_not_answer() -> None:
     """Drives that never answer SDO: a timeout naming the leg and node (the one case of "does not answer")."""
     with drives_on_bus([]) as (url, _), pytest.raises(TableTimeoutError, match=r"leg 1 \(node 1\) does not answer"):
         CanopenTable(url, detector=False, connect_timeout=0.3).connect()
+
+
+def test_rig_run_prints_the_refusal_in_one_line_and_exits_non_zero(tmp_path: Path) -> None:
+    """``rig run`` on a table of drives without CSP: one ``error:`` line naming the leg, the node and what is missing
+    (not "did not answer"), a non-zero exit, no traceback, no session written."""
+    runner = CliRunner()
+    sequence = Path(__file__).parents[2] / "examples" / "quick.toml"
+    with drives_on_bus([NO_CSP] * 6) as (url, _):
+        result = runner.invoke(app, ["run", str(sequence), "--table", url, "--yes", "-o", str(tmp_path / "s.h5")])
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert (result.exit_code != 0 and result.exception is None) or isinstance(result.exception, SystemExit), result
+    assert len(lines) == 1 and lines[0].startswith("error:"), result.output
+    assert "cannot be used" in lines[0] and "no cyclic synchronous position mode" in lines[0], lines[0]
+    assert "Traceback" not in result.output and not (tmp_path / "s.h5").exists()
