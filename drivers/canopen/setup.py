@@ -139,6 +139,33 @@ class SetUp(MasterBase):
             self._configure_drive(link, sdo, report)
         self._configure_sensors(deadline)
 
+    def survey(self) -> list[DriveReport]:
+        """Read every leg drive without configuring or enabling anything (``rig table check``): NMT pre-operational,
+        then what each is (:mod:`drivers.canopen.survey`) and whether its unit can be established against the rig
+        configuration (a problem in its report when not); the bus is released after."""
+        bus = can.Bus(interface=self.interface, channel=self.channel, bitrate=self.bitrate)
+        network = canopen.Network(bus)
+        network.NOTIFIER_CYCLE = 0.05
+        try:
+            network.connect()
+            network.nmt.state = "PRE-OPERATIONAL"
+            deadline = time.monotonic() + self.connect_timeout
+            reports = []
+            for leg, settings in enumerate(self.drive_settings.legs, start=1):
+                node = network.add_node(settings.node_id, canopen.ObjectDictionary())
+                sdo = self._answering(NodeSdo(self.url, node, f"leg {leg} (node {node.id})", SDO_TIMEOUT), deadline)
+                eds = eds_objects(settings.eds, node.id, settings.where or "[drives]") if settings.eds else None
+                report = inspect_drive(sdo, leg, eds)
+                if not report.problems:
+                    try:
+                        leg_scaling(self.url, report, settings, self.table.geometry)
+                    except DriveSetupError as exc:
+                        report.problems.append(str(exc).split(f"{self.url}: ", 1)[-1])
+                reports.append(report)
+            return reports
+        finally:
+            network.disconnect()
+
     def _drive_delays(self, sdo: NodeSdo, report: DriveReport) -> tuple[int, int]:
         """(target delay, feedback delay) [µs] of a drive: its profile's objects, else the configuration's, else one
         cycle and 0; a profile's value the configuration contradicts is refused."""

@@ -15,6 +15,7 @@ that cannot be mapped is refused when its mapping entry is written.
 from __future__ import annotations
 
 import contextlib
+import json
 import math
 import struct
 import threading
@@ -473,3 +474,21 @@ def test_rig_run_prints_the_refusal_in_one_line_and_exits_non_zero(tmp_path: Pat
     assert len(lines) == 1 and lines[0].startswith("error:"), result.output
     assert "cannot be used" in lines[0] and "no cyclic synchronous position mode" in lines[0], lines[0]
     assert "Traceback" not in result.output and not (tmp_path / "s.h5").exists()
+
+
+def test_rig_table_check_reports_each_drive_and_exits_3_when_one_cannot_be_driven(tmp_path: Path) -> None:
+    """``rig table check``: per node its identity, modes, unit and what it misses, nothing written; exit 0 for drives
+    that can be driven, 3 for drives in increments without a scale in the rig configuration."""
+    runner = CliRunner()
+    with drives_on_bus([GENERIC] * 6) as (url, drives):
+        good = runner.invoke(app, ["table", "check", url, "--json"])
+    assert good.exit_code == 0, good.output
+    report = json.loads(good.output)
+    assert report["drivable"] and len(report["drives"]) == 6
+    first = report["drives"][0]
+    assert first["vendor_id"] == GENERIC.vendor_id and first["modes"] == ["CSP"] and first["position_unit"] == "µm"
+    assert "0x607F" in first["optional_missing"] and "0x1016" in first["optional_used"]
+    assert all(drive.writes == [] for drive in drives)
+    with drives_on_bus([EVEREST_LIKE] * 6) as (url, _):
+        bad = runner.invoke(app, ["table", "check", url])
+    assert bad.exit_code == 3 and "gives no scale" in bad.output and "cannot be driven" in bad.output
