@@ -476,6 +476,11 @@ class TableController(ABC):
         them; None when this transport or controller does not report them."""
         return None
 
+    def link_stats(self) -> dict[str, Any]:
+        """The link's counters as this transport keeps them (frames, refusals, round trips); empty where it keeps
+        none."""
+        return {}
+
     def status(self) -> TableStatus:
         """The latest status received (:class:`TableError` before the first)."""
         latest = self.feedback.latest

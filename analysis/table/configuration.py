@@ -66,6 +66,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from analysis.body import G
+from analysis.table.drives import DriveSettings, read_drives
 from analysis.table.dynamics import TableDynamics
 from analysis.table.kinematics import HexapodGeometry, geometry_problem, symmetric_joints
 from analysis.table.limits import (
@@ -94,6 +95,7 @@ class TableConfiguration(NamedTuple):
     """The rate setpoints are played at [Hz]."""
     dynamics: TableDynamics
     link: LinkSettings
+    drives: DriveSettings
 
 
 def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
@@ -115,6 +117,8 @@ def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
         out["dynamics"] = configuration.dynamics.to_dict()
     if configuration.link != LinkSettings():
         out["controller"] = configuration.link.to_dict()
+    if configuration.drives != DriveSettings():
+        out["drives"] = configuration.drives.to_dict()
     return out
 
 
@@ -220,7 +224,7 @@ class _Reader(TomlChecker):
         return TableModelError(f"{where}: {'.'.join(map(str, path))}: {problem}" if path else f"{where}: {problem}")
 
     def configuration(self, data: Mapping[str, Any]) -> TableConfiguration:
-        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller"))
+        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -234,8 +238,10 @@ class _Reader(TomlChecker):
                                ("limits", "tilt"), _TILT_SPEC, vars(TABLE_IV.tilt))
         geometry = self.geometry(top["hexapod"]) if "hexapod" in top else HexapodGeometry.default()
         return TableConfiguration(limits=TableLimits(**axes, tilt=TiltLimits(**tilt)), geometry=geometry,
-                          controller_rate=table["controller_rate"], dynamics=self.dynamics(top.get("dynamics", {})),
-                          link=self.link(top.get("controller", {})))
+                                  controller_rate=table["controller_rate"],
+                                  dynamics=self.dynamics(top.get("dynamics", {})),
+                                  link=self.link(top.get("controller", {})),
+                                  drives=read_drives(self, top.get("drives")))
 
     def link(self, value: Any) -> LinkSettings:
         """The ``[controller]`` section (``analysis.table.link``); errors name its line and key."""

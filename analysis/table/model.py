@@ -34,6 +34,7 @@ from analysis.table.configuration import (
     configuration_from_dict,
     read_configuration,
 )
+from analysis.table.drives import DriveSettings
 from analysis.table.dynamics import TableDynamics
 from analysis.table.kinematics import HexapodGeometry, Legs, legs_at, pose_array, rotation_matrices
 from analysis.table.limits import (
@@ -78,6 +79,8 @@ class TableModel:
     """The legs' servo-hydraulic parameters (``[dynamics]``; used by the emulator's ``--dynamics servo``)."""
     link: LinkSettings = field(default_factory=LinkSettings)
     """The host link's lead, buffer, watchdog and link timeout (``[controller]``, ``analysis.table.link``)."""
+    drives: DriveSettings = field(default_factory=DriveSettings)
+    """The leg drives' units, node ids, EDS files and options (``[drives]``, ``analysis.table.drives``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):
@@ -174,7 +177,7 @@ class TableModel:
     def to_dict(self) -> dict[str, Any]:
         """The configuration as plain JSON types in the TOML file's layout, SI keys, explicit joints."""
         return configuration_dict(TableConfiguration(self.limits, self.geometry, self.controller_rate,
-                                                     self.dynamics, self.link))
+                                                     self.dynamics, self.link, self.drives))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TableModel:

@@ -1,7 +1,7 @@
 """The SYNC cycle (package docstring, *The cycle*): one thread, sleeping to absolute deadlines ``t_n = t_0 + n·T``,
-that supervises the drives, writes each drive's RPDO1 (controlword, target [µm]) for the reference at ``t_n + D``,
-sends SYNC and every :data:`MASTER_HEARTBEAT_PERIOD` the master's heartbeat, and publishes the statuses; it counts
-late cycles and underruns."""
+that supervises the drives, writes each RPDO1 (controlword, target [the drive's units]) for the reference at
+``t_n + D``, sends SYNC and every :data:`MASTER_HEARTBEAT_PERIOD` the master's heartbeat, and publishes the statuses;
+it counts late cycles and underruns."""
 
 from __future__ import annotations
 
@@ -116,7 +116,8 @@ class SyncCycle(MasterBase):
         return Command.DISABLE_OPERATION  # idle
 
     def _targets(self, pose: np.ndarray) -> list[int]:
-        """Target positions [µm] of a pose: clipped to the envelope and the legs' stroke (latching the faults)."""
+        """Target positions [drive units] of a pose: clipped to the envelope and the legs' stroke (latching the
+        faults)."""
         clipped = np.clip(pose, -self._bounds, self._bounds)
         if not np.array_equal(clipped, pose):
             self._faults.add("SETPOINT_LIMIT")
@@ -125,4 +126,5 @@ class SyncCycle(MasterBase):
         lengths = np.clip(wanted, g.leg_min, g.leg_max)
         if not np.array_equal(lengths, wanted):
             self._faults.add("STROKE")
-        return list(self.scaling.positions(lengths.tolist()))
+        return [link.scaling.position(length, leg)
+                for leg, (link, length) in enumerate(zip(self._drives, lengths.tolist(), strict=True), start=1)]

@@ -6,7 +6,6 @@ at every state change)."""
 from __future__ import annotations
 
 import time
-from typing import Any
 
 import numpy as np
 
@@ -35,10 +34,11 @@ class FeedbackFrames(MasterBase):
                     return index
         return None
 
-    def _on_drive(self, link: DriveLink, pdo_map: Any) -> None:
-        self._heard(pdo_map.timestamp)
-        feedback = self.drive_tpdo.decode(bytes(pdo_map.data))
-        index = self._answered(pdo_map.timestamp, feedback[2] if self.sync_counter else None)
+    def _on_drive(self, link: DriveLink, data: bytes, stamp: float) -> None:
+        """A drive's TPDO1 ``data`` received with time stamp ``stamp`` [s, the bus's clock]."""
+        self._heard(stamp)
+        feedback = self.drive_tpdo.decode(data)
+        index = self._answered(stamp, feedback[2] if self.sync_counter else None)
         if index is None:
             return
         with self._lock:
@@ -47,10 +47,10 @@ class FeedbackFrames(MasterBase):
             if index > self._framed:  # else its SYNC's status is out: it came too late for it
                 self._frames.setdefault(index, {})[self._drives.index(link)] = feedback.position_actual
 
-    def _on_accel(self, sensor: SensorLink, pdo_map: Any) -> None:
-        self._heard(pdo_map.timestamp)
-        sample = self.accel_tpdo.decode(bytes(pdo_map.data))
-        index = self._answered(pdo_map.timestamp, sample[3] if self.sync_counter else None)
+    def _on_accel(self, sensor: SensorLink, data: bytes, stamp: float) -> None:
+        self._heard(stamp)
+        sample = self.accel_tpdo.decode(data)
+        index = self._answered(stamp, sample[3] if self.sync_counter else None)
         if index is None:
             return
         if sensor.next_index is not None and index < sensor.next_index:  # its SYNC's sample came (or was lost) before
@@ -78,20 +78,20 @@ class FeedbackFrames(MasterBase):
             sensor.lost += len(sensor.pending)
         sensor.pending.clear()
 
-    def _on_event(self, pdo_map: Any) -> None:
-        self._heard(pdo_map.timestamp)
-        record = EVENT_TPDO1.decode(bytes(pdo_map.data))
-        received = time.monotonic_ns() - round((time.time() - pdo_map.timestamp) * 1e9)
+    def _on_event(self, data: bytes, stamp: float) -> None:
+        self._heard(stamp)
+        record = EVENT_TPDO1.decode(data)
+        received = time.monotonic_ns() - round((time.time() - stamp) * 1e9)
         self.feedback.publish_detection(Detection(record.event_id, record.body_id, record.direction,
                                                   event_tilt(record), received - event_age_ns(record)))
 
     def _frame_pose(self, frame: dict[int, int]) -> np.ndarray:
-        """The pose (6,) of the leg positions [µm] one SYNC's TPDOs reported (forward kinematics)."""
-        lengths = np.array(self.scaling.lengths([frame[leg] for leg in range(len(self._drives))]))
+        """The pose (6,) of the leg positions [drive units] one SYNC's TPDOs reported (forward kinematics)."""
+        lengths = np.array([link.scaling.length(frame[leg]) for leg, link in enumerate(self._drives)])
         return self.table.pose_from_leg_lengths(lengths, guess=self._measured)
 
     def _measured_pose(self) -> np.ndarray:
-        lengths = np.array(self.scaling.lengths([link.position for link in self._drives]))
+        lengths = np.array([link.scaling.length(link.position) for link in self._drives])
         self._measured = self.table.pose_from_leg_lengths(lengths, guess=self._measured)
         return self._measured.copy()
 

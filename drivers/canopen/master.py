@@ -18,6 +18,7 @@ import numpy as np
 from analysis.table.model import TableModel
 from analysis.table.moves import Move, axis_limits
 from drivers.canopen.nodes import DriveLink, NodeLink, SensorLink
+from drivers.canopen.survey import DriveReport
 from drivers.canopen.trajectory import Trajectory
 from drivers.controller import FaultSource, TableController, TableError
 from protocols.canopen import (
@@ -26,14 +27,14 @@ from protocols.canopen import (
     LEG_NODE_IDS,
     TPDO1,
     TPDO1_COUNTED,
-    LegScaling,
+    BusLoadError,
     PdoSpec,
     bus_load,
     check_bus_load,
     cycle_period_us,
 )
 from protocols.canopen.od import SYNC_COUNTER_MAX
-from protocols.canopen.sensors import ACCEL_TPDO1, ACCEL_TPDO1_COUNTED, ACCELEROMETER_NODE_IDS
+from protocols.canopen.sensors import ACCEL_TPDO1, ACCEL_TPDO1_COUNTED, ACCELEROMETER_NODE_IDS, DETECTOR_NODE_ID
 
 DEFAULT_BITRATE = 1_000_000
 """Bus bitrate [bit/s] unless the URL or an option says otherwise."""
@@ -52,7 +53,15 @@ heartbeats among them (:meth:`~drivers.canopen.faults.FaultSupervision.silent`).
 DRIVING_STATES = frozenset({"armed", "homing", "tilting", "streaming"})
 """States in which the drives follow the master's reference."""
 
-_QUERY = ("interface", "bitrate", "rate", "accelerometers")
+_QUERY = ("interface", "bitrate", "rate", "accelerometers", "sync_counter")
+
+
+def _flag(value: str | None, url: str) -> bool | None:
+    if value is None:
+        return None
+    if value not in ("0", "1", "true", "false"):
+        raise ValueError(f"table URL {url!r}: sync_counter must be 0 or 1, got {value!r}")
+    return value in ("1", "true")
 
 
 def _query(url: str) -> tuple[str, dict[str, str]]:
@@ -61,7 +70,8 @@ def _query(url: str) -> tuple[str, dict[str, str]]:
     unknown = sorted(set(query) - set(_QUERY))
     if parts.scheme != "canopen" or not parts.netloc or unknown:
         raise ValueError(f"table URL {url!r}: expected canopen://CHANNEL?interface=NAME[&bitrate=N][&rate=HZ]"
-                         f"[&accelerometers=N]" + (f" (unknown {', '.join(unknown)})" if unknown else ""))
+                         f"[&accelerometers=N][&sync_counter=0|1]" + (f" (unknown {', '.join(unknown)})" if unknown
+                                                                      else ""))
     return parts.netloc, query
 
 
@@ -73,7 +83,7 @@ class MasterBase(TableController):
     def __init__(self, url: str, *, interface: str | None = None, bitrate: int | None = None,
                  rate: float | None = None, accelerometers: int | None = None, detector: bool = True,
                  table: TableModel | None = None, connect_timeout: float = 5.0, command_timeout: float = 2.0,
-                 consumer_time: float = NODE_CONSUMER_TIME) -> None:
+                 consumer_time: float = NODE_CONSUMER_TIME, sync_counter: bool | None = None) -> None:
         super().__init__(url)
         if not (math.isfinite(consumer_time) and consumer_time > 0):
             raise ValueError(f"consumer_time must be > 0 s, got {consumer_time!r}")
@@ -89,24 +99,37 @@ class MasterBase(TableController):
             raise ValueError(f"table URL {url!r}: the python-can interface is missing (?interface=NAME)") from None
         if not 0 <= count <= len(ACCELEROMETER_NODE_IDS):
             raise ValueError(f"accelerometers must be 0..{len(ACCELEROMETER_NODE_IDS)}, got {count}")
+        self.table = table or TableModel()
+        self.drive_settings = self.table.drives
+        """The rig configuration's ``[drives]`` (units, node ids, EDS files, options: :mod:`analysis.table.drives`)."""
+        counted = _flag(query.get("sync_counter"), url) if sync_counter is None else sync_counter
+        counted = self.drive_settings.sync_counter if counted is None else counted
         self.bus_load = check_bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, accelerometers=count)
         """Worst-case share of the bitrate the cycle takes."""
-        counted = bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, count, counted=True) <= DEFAULT_LIMIT
-        self.sync_counter = SYNC_COUNTER_MAX if counted else 0
-        """The SYNC counter's overflow value (0x1019) the master sets, 0 when off: on wherever the bus has room for
-        the counter in SYNC and the answered SYNC's in every TPDO (:mod:`protocols.canopen.pdo_maps`), so an answer
-        is dated by the SYNC it names however late it arrives (up to ``sync_counter`` cycles); off, by the last SYNC
-        sent before its receive time, exact for drives that answer within the cycle."""
         if counted:
             self.bus_load = bus_load(self.rate, len(LEG_NODE_IDS), self.bitrate, count, counted=True)
+            if self.bus_load > DEFAULT_LIMIT:
+                raise BusLoadError(f"counted SYNCs at {self.rate:g} Hz take {self.bus_load:.1%} of {self.bitrate} "
+                                   f"bit/s, beyond {DEFAULT_LIMIT:.0%}: lower the rate or leave sync_counter off")
+        self.sync_counter = SYNC_COUNTER_MAX if counted else 0
+        """The SYNC counter's overflow value (0x1019) the master sets, 0 when off. Opt-in (``sync_counter=1`` in the
+        URL, the keyword, or ``[drives] sync_counter = true``), and refused at connect unless every drive's profile
+        echoes the answered SYNC's counter (:mod:`drivers.canopen.profiles`): each SYNC then carries the counter and
+        every TPDO the answered SYNC's (:mod:`protocols.canopen.pdo_maps`), so an answer is dated by its SYNC however
+        late it comes (up to 240 cycles); off, by the last SYNC sent before its receive time, exact for drives that
+        answer within the cycle."""
         self.drive_tpdo: PdoSpec = TPDO1_COUNTED if counted else TPDO1
         """The map of the drives' TPDO1."""
         self.accel_tpdo: PdoSpec = ACCEL_TPDO1_COUNTED if counted else ACCEL_TPDO1
         """The map of the accelerometers' TPDO1."""
         self.period_ns = cycle_period_us(self.rate) * 1000
-        self.table = table or TableModel()
-        geometry = self.table.geometry
-        self.scaling = LegScaling(geometry.leg_min, geometry.leg_max)
+        self.node_ids = tuple(leg.node_id for leg in self.drive_settings.legs)
+        """The leg drives' node ids, leg 1..6 (``[drives.leg.N] node_id``; default the leg's number)."""
+        clash = set(self.node_ids) & {*ACCELEROMETER_NODE_IDS[:count], *([DETECTOR_NODE_ID] if detector else [])}
+        if clash:
+            raise ValueError(f"drive node id {min(clash)} is a sensor's (accelerometers from "
+                             f"0x{ACCELEROMETER_NODE_IDS[0]:02X}, detector 0x{DETECTOR_NODE_ID:02X}): give the drive "
+                             "another one")
         lim = self.table.limits
         self._bounds = np.array([lim.surge.displacement, lim.lateral.displacement, lim.heave.displacement,
                                  lim.tilt.angle, lim.tilt.angle, math.inf])
@@ -116,9 +139,13 @@ class MasterBase(TableController):
         self.connect_timeout = connect_timeout
         self.command_timeout = command_timeout
         self.target_delay_ns = 0
-        """The drives' target delay (0x2010) [ns]: a target latched at a SYNC is reached this long after it."""
+        """The drives' target delay [ns]: a target latched at a SYNC is reached this long after it (their profile's,
+        else ``[drives] target_delay_s``, else one cycle: a CSP drive reaches its target at the next SYNC)."""
         self.feedback_delay_ns = 0
-        """The drives' feedback delay (0x2011) [ns]: a TPDO's position was measured this long before its SYNC."""
+        """The drives' feedback delay [ns]: a TPDO's position was measured this long before its SYNC (their
+        profile's, else ``[drives] feedback_delay_s``, else 0)."""
+        self.reports: list[DriveReport] = []
+        """What each leg drive is (:mod:`drivers.canopen.survey`), read at connect."""
         self.sample_delay_ns = 0
         """The accelerometers' sample delay (0x2101) [ns]."""
         self.receive_buffer_bytes = 0
@@ -163,8 +190,9 @@ class MasterBase(TableController):
         """Largest lateness of a cycle [ns]."""
         self.silent_drives: set[int] = set()
         """Legs (1..6) whose heartbeat was lost since the last ARM."""
-        self.following_error_window_um = round(FOLLOWING_ERROR_LAG * self.table.geometry.leg_speed * 1e6)
-        """The following error window 0x6065 written to every drive [µm] (:data:`FOLLOWING_ERROR_LAG`)."""
+        self.following_error_window: float | None = FOLLOWING_ERROR_LAG * self.table.geometry.leg_speed
+        """The following error window 0x6065 written to every drive that has it [m of leg, converted to its units;
+        None: off] (:data:`FOLLOWING_ERROR_LAG`)."""
         self._sources: list[FaultSource] = []  # EMCYs since the last status (under _lock)
         self._heard_stamp = 0.0  # the time stamp of the newest PDO handled [s, the bus's clock]
         self._heard_ns = 0  # when it was handled [host ns]

@@ -7,7 +7,7 @@ import time
 
 import canopen
 
-from protocols.canopen import State, decode_statusword
+from protocols.canopen import LegScaling, State, decode_statusword
 
 NMT_OPERATIONAL = 0x05
 """The NMT state a heartbeat reports for *operational*."""
@@ -38,10 +38,12 @@ class NodeLink:
 
 
 class DriveLink(NodeLink):
-    """A leg drive: its last statusword and position, the controlword last sent."""
+    """A leg drive: its leg's scaling (metres ↔ the drive's units, established at connect), its last statusword and
+    position [drive units], the controlword last sent."""
 
-    def __init__(self, node: canopen.RemoteNode) -> None:
+    def __init__(self, node: canopen.RemoteNode, scaling: LegScaling) -> None:
         super().__init__(node)
+        self.scaling = scaling
         self.statusword: int | None = None
         self.position = 0
         self.answered = -1  # the SYNC whose answer gave statusword and position

@@ -31,12 +31,17 @@ ERROR_REGISTER = 0x1001
 COB_ID_SYNC = 0x1005
 COMMUNICATION_CYCLE_PERIOD = 0x1006
 """SYNC period [µs]."""
+GUARD_TIME = 0x100C
+"""UNSIGNED16 [ms]: the period at which the master guards the node (node guarding, CiA 301)."""
+LIFE_TIME_FACTOR = 0x100D
+"""UNSIGNED8: the node's life time is guard time × this: no guarding request for that long → life guarding event."""
 COB_ID_EMCY = 0x1014
 CONSUMER_HEARTBEAT_TIME = 0x1016
 """ARRAY; sub 1 holds one :func:`heartbeat_consumer_entry`."""
 PRODUCER_HEARTBEAT_TIME = 0x1017
 """Heartbeat period [ms]; 0 = off."""
 IDENTITY = 0x1018
+"""RECORD: sub 1 vendor-ID, sub 2 product code, sub 3 revision number, sub 4 serial number (UNSIGNED32 each)."""
 CONTROLWORD = 0x6040
 STATUSWORD = 0x6041
 MODES_OF_OPERATION = 0x6060
@@ -50,20 +55,34 @@ SOFTWARE_POSITION_LIMIT = 0x607D
 """ARRAY; sub 1 min, sub 2 max position limit [increments]."""
 MAX_PROFILE_VELOCITY = 0x607F
 """[increments/s]."""
+POLARITY = 0x607E
+"""UNSIGNED8: bit 7 position polarity (the drive negates positions itself), bit 6 velocity polarity."""
+POSITION_ENCODER_RESOLUTION = 0x608F
+"""ARRAY: sub 1 encoder increments, sub 2 motor revolutions (UNSIGNED32)."""
+GEAR_RATIO = 0x6091
+"""ARRAY: sub 1 motor shaft revolutions, sub 2 driving shaft revolutions (UNSIGNED32)."""
+FEED_CONSTANT = 0x6092
+"""ARRAY: sub 1 feed [position units], sub 2 driving shaft revolutions (UNSIGNED32)."""
 SI_UNIT_POSITION = 0x60A8
+"""UNSIGNED32: the position unit (:mod:`protocols.canopen.units`)."""
 SI_UNIT_VELOCITY = 0x60A9
+INTERPOLATION_TIME_PERIOD = 0x60C2
+"""RECORD: sub 1 mantissa (UNSIGNED8), sub 2 index (INTEGER8): the period the drive interpolates its targets over,
+mantissa × 10^index s (:func:`protocols.canopen.units.interpolation_period`)."""
 FOLLOWING_ERROR_ACTUAL_VALUE = 0x60F4
 """[increments]: position demand − position actual value (readable by SDO, not in TPDO1)."""
 SUPPORTED_DRIVE_MODES = 0x6502
 TARGET_DELAY = 0x2010
-"""Manufacturer-specific, [µs]: a target position latched at a SYNC is reached this long after that SYNC (a CSP
+"""Manufacturer-specific (the project's leg drive, :data:`LEG_DRIVE_PRODUCT_CODE`: other vendors' 0x2010 means
+something else), [µs]: a target position latched at a SYNC is reached this long after that SYNC (a CSP
 drive: one cycle, the next SYNC). The master computes each target for its SYNC's time plus this."""
 FEEDBACK_DELAY = 0x2011
-"""Manufacturer-specific, [µs]: the position actual value in TPDO1 was measured this long before its SYNC."""
+"""Manufacturer-specific (the project's leg drive), [µs]: the position actual value in TPDO1 was measured this long
+before its SYNC."""
 ANSWERED_SYNC = 0x2012
-"""Manufacturer-specific UNSIGNED8, PDO-mappable: the counter of the SYNC the drive's TPDO1 answers (0 when the SYNC
-carries none). Mapped by :data:`~protocols.canopen.pdo_maps.TPDO1_COUNTED`, it makes every answer say which SYNC it
-answers, however late it arrives."""
+"""Manufacturer-specific (the project's leg drive) UNSIGNED8, PDO-mappable: the counter of the SYNC the drive's
+TPDO1 answers (0 when the SYNC carries none). Mapped by :data:`~protocols.canopen.pdo_maps.TPDO1_COUNTED`, it
+makes every answer say which SYNC it answers, however late it arrives."""
 SYNC_COUNTER_OVERFLOW = 0x1019
 """UNSIGNED8 (CiA 301): the SYNC counter's overflow value: 0, a SYNC without data; 2..240, every SYNC carries a
 counter counting 1, 2, … up to this value, then from 1 again."""
@@ -72,6 +91,16 @@ counter counting 1, 2, … up to this value, then from 1 again."""
 
 DEVICE_TYPE_CIA402_SERVO = 0x0002_0192
 """0x1000 of a CiA 402 servo drive: profile number 402 (0x0192) in the low word, type 0x02 (servo) above."""
+
+CIA402_PROFILE = 402
+"""The low word of 0x1000 of any CiA 402 drive (servo, stepper, frequency converter)."""
+
+LEG_DRIVE_VENDOR_ID = 0x0000_0000
+"""0x1018 sub 1 of the project's leg drive (``leg_drive.eds``, the emulated drives)."""
+
+LEG_DRIVE_PRODUCT_CODE = 0x534B_5401
+"""0x1018 sub 2 of the project's leg drive ("SKT" and 1): with :data:`LEG_DRIVE_VENDOR_ID` it identifies a drive
+whose manufacturer objects are 0x2010..0x2012 (``drivers.canopen.profiles``)."""
 
 SYNC_COUNTER_MAX = 240
 """The largest SYNC counter overflow value CiA 301 allows (0x1019): the counter's period in SYNCs."""

@@ -58,6 +58,7 @@ def register(app: typer.Typer) -> None:
         """Identify the table's frequency response, then play, measure and correct the record's drive until the
         plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
         from analysis.table.model import TableModel, TableModelError
+        from drivers.controller import TableError
         from rig import __version__
         from rig.compensation.safety import LEVEL_STEP_DB, PredictedLimitError
         from rig.compensation.session import LAWS, iterate_on_table
@@ -139,6 +140,9 @@ def register(app: typer.Typer) -> None:
             raise typer.Exit(EXIT_REFUSED) from None
         except (SessionError, DriveFileError, OSError, ValueError) as exc:
             fail(str(exc))
+        except TableError as exc:  # the table refused, failed or fell silent: its one line, no traceback
+            print_error(err_console, "error", str(exc))
+            raise typer.Exit(EXIT_STOPPED) from None
         except RuntimeError as exc:
             print_error(err_console, "error", str(exc))
             raise typer.Exit(EXIT_STOPPED) from None

@@ -44,7 +44,8 @@ class NoTableError(ValueError):
 
 
 class TableUnreachableError(RuntimeError):
-    """The table at the URL did not answer (or its URL or key cannot be used); nothing was written."""
+    """The table at the URL did not answer, or answered and cannot be used (its URL or key, a drive the CANopen
+    master refuses: the message says which); nothing was written."""
 
 
 @dataclass(frozen=True)
@@ -137,13 +138,15 @@ def probe_table(url: str, options: dict[str, Any], sequence: Sequence) -> None:
     """Connect to the table at ``url``, compare the bodies it reports with the sequence's, and let go:
     TableUnreachableError unless it answers (its clock and a status: `drivers.controller.TableController.connect`),
     BodiesMismatchError (`rig.orchestrator.bodies`) when its bodies are not the sequence's."""
-    from drivers.controller import TableError, open_table
+    from drivers.controller import TableError, TableTimeoutError, open_table
 
     try:
         with open_table(url, **options) as table:
             reported = table.bodies()
-    except (TableError, OSError, ValueError) as exc:
+    except (TableTimeoutError, OSError) as exc:
         raise TableUnreachableError(f"the table at {url} did not answer: {exc}") from None
+    except (TableError, ValueError) as exc:  # it answered, and refused (a drive it cannot drive, a bad option)
+        raise TableUnreachableError(f"the table at {url} cannot be used: {exc}") from None
     if reported is None:
         warnings.warn(f"the table at {url} does not report the bodies on its plate: they are not checked against "
                       "the sequence's (docs/table-controller.md, Bodies on the plate)", stacklevel=2)
@@ -167,7 +170,9 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
         if url is None:
             raise NoTableError("no table: the sequence has no table_url, none was given, and the emulated table was "
                                "not asked for")
-        options = {"key_file": str(key_file)} if key_file else {}
+        options: dict[str, Any] = {"key_file": str(key_file)} if key_file else {}
+        if url.startswith("canopen:"):  # this host is the drives' master: it needs the rig's [drives] and geometry
+            options = {"table": sequence.table}
         probe_table(url, options, sequence)
         yield url, options, None
         return

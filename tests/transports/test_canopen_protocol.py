@@ -101,7 +101,7 @@ def test_eds_has_every_object_of_the_drive() -> None:
             od[objects.SOFTWARE_POSITION_LIMIT][2].default) == SCALING.software_position_limits == (0, 1_250_000)
     assert od[objects.MAX_PROFILE_VELOCITY].default == velocity_increments(GEOMETRY.leg_speed) == 900_000
     assert od[objects.CONSUMER_HEARTBEAT_TIME][0].default == 1
-    assert od[objects.IDENTITY][2].default == 0x402
+    assert od[objects.IDENTITY][2].default == objects.LEG_DRIVE_PRODUCT_CODE
 
 
 def test_eds_lists_exactly_its_objects_and_every_entry_has_a_default() -> None:

@@ -543,7 +543,7 @@ def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -
     faulted, and the fault event names leg 3 and the code. ARM resets the fault."""
     t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))  # leg 3 lengthens by 53 mm, up to 25 mm/s
     with emulated(leg_stall=(3, 1.5)) as emulator, master(emulator) as table:
-        assert isinstance(table, CanopenTable) and table.following_error_window_um == 9000
+        assert isinstance(table, CanopenTable) and table.following_error_window == pytest.approx(0.009)
         faults = table.faults()
         table.arm()
         with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
@@ -574,7 +574,7 @@ def test_a_move_whose_leg_never_arrives_is_a_drive_fault_of_the_master() -> None
     move's end still show it short — and it stops the table with DRIVE: no EMCY, no silent drive."""
     with emulated(leg_stall=(3, 0.0)) as emulator:
         table = master(emulator)
-        table.following_error_window_um = 0xFFFFFFFF  # type: ignore[attr-defined]  # written to 0x6065 at connect
+        table.following_error_window = None  # type: ignore[attr-defined]  # 0x6065 = 0xFFFFFFFF at connect
         with table:
             table.arm()
             started = time.monotonic()
@@ -602,15 +602,19 @@ def test_injected_loss_and_delay_are_survived() -> None:
     assert link["rpdos_lost"] > 0 and link["frames_not_sent"] > 0 and lost > 0 and link["emcy_sent"] == 0
 
 
-def test_the_sync_counter_is_on_where_the_bus_has_room_for_it() -> None:
-    """At the default 500 Hz with one accelerometer the counted cycle (1630 bits, 81.5 %) is over the 80 % limit:
-    the counter stays off and the cycle is the plain 1550 bits; at 400 Hz it fits (65.2 %) and is on."""
-    plain = CanopenTable("canopen://x?interface=virtual")
-    assert plain.sync_counter == 0 and plain.bus_load == pytest.approx(0.775)
+def test_the_sync_counter_is_opt_in_and_must_fit_the_bus() -> None:
+    """Counted SYNCs are asked for (URL, keyword or ``[drives] sync_counter``), never turned on by themselves (no
+    real drive echoes the counter): off at 400 Hz unless asked; asked for at 400 Hz it fits (1630 bits, 65.2 %); at
+    the default 500 Hz with one accelerometer the counted cycle (81.5 %) is over the 80 % limit and refused."""
+    plain = CanopenTable("canopen://x?interface=virtual&rate=400")
+    assert plain.sync_counter == 0 and plain.bus_load == pytest.approx(1550 * 400 / 1e6)
     assert (plain.drive_tpdo, plain.accel_tpdo) == (TPDO1, ACCEL_TPDO1)
-    counted = CanopenTable("canopen://x?interface=virtual&rate=400")
-    assert counted.sync_counter == 240 and counted.bus_load == pytest.approx(1630 * 400 / 1e6)
-    assert (counted.drive_tpdo, counted.accel_tpdo) == (TPDO1_COUNTED, ACCEL_TPDO1_COUNTED)
+    for counted in (CanopenTable("canopen://x?interface=virtual&rate=400&sync_counter=1"),
+                    CanopenTable("canopen://x?interface=virtual&rate=400", sync_counter=True)):
+        assert counted.sync_counter == 240 and counted.bus_load == pytest.approx(1630 * 400 / 1e6)
+        assert (counted.drive_tpdo, counted.accel_tpdo) == (TPDO1_COUNTED, ACCEL_TPDO1_COUNTED)
+    with pytest.raises(BusLoadError, match=r"counted SYNCs at 500 Hz take 81\.5% of 1000000 bit/s"):
+        CanopenTable("canopen://x?interface=virtual&sync_counter=1")
 
 
 def test_answers_that_come_late_are_dated_by_the_sync_they_name() -> None:
@@ -618,7 +622,7 @@ def test_answers_that_come_late_are_dated_by_the_sync_they_name() -> None:
     answers), its TPDOs stamped then: dated by the last SYNC sent before them, statuses would be 120 ms late (the
     sine's 0.02 m · 2π/1.5 s × 0.12 s = 10 mm off) and samples taken twice; dated by the counter each answer carries,
     the statuses follow the command within the legs' lag and every sample comes once, one per SYNC."""
-    with emulated(delay=0.12) as emulator, master(emulator) as table:
+    with emulated(delay=0.12) as emulator, master(emulator, sync_counter=True) as table:
         statuses, accel = table.statuses(), table.accelerations()
         table.arm()
         t = np.arange(1501) * 1e-3
@@ -684,12 +688,13 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     if not _can_unshare():
         pytest.skip("cannot create a network namespace here (needs unshare and CAP_SYS_ADMIN)")
     group = f"239.74.163.{secrets.randbelow(200) + 20}"
-    url = f"canopen://{group}?interface=udp_multicast"  # the host's; the emulator's adds its drives' target delay
+    url = f"canopen://{group}?interface=udp_multicast"  # the emulator's; it adds its drives' target delay
     key = tmp_path / "key"
     key.write_text(secrets.token_hex(32))
     host = tmp_path / "host.py"
     settle = UDP_TARGET_DELAY_S + 0.3
-    host.write_text(textwrap.dedent(_HOST.format(url=url, rate=UDP_RATE, lead=UDP_LEAD_S, settle=settle)))
+    host_url = f"{url}&sync_counter=1"  # two processes on a busy host: answers dated by the SYNC they name
+    host.write_text(textwrap.dedent(_HOST.format(url=host_url, rate=UDP_RATE, lead=UDP_LEAD_S, settle=settle)))
     counters = tmp_path / "counters.json"
     emulator = shlex.join([sys.executable, "-m", "sim_table", "--listen", f"{url}&target_delay={UDP_TARGET_DELAY_S}",
                            "--key-file", str(key),
