@@ -107,8 +107,9 @@ def _read(path: Path, option: str) -> bytes:
 
 
 def _certificate(path: Path, option: str, now: dt.datetime) -> x509.Certificate:
+    data = _read(path, option)
     try:
-        certificates = x509.load_pem_x509_certificates(_read(path, option))
+        certificates = x509.load_pem_x509_certificates(data)
     except ValueError as exc:
         raise TlsError(f"{option} {path}: not a PEM certificate ({exc})") from None
     certificate = certificates[0]
