@@ -36,6 +36,7 @@ from rig.cli import (
     sessions,
     specimens,
     study,
+    table_list,
 )
 
 app = typer.Typer(help="Shake-table rig: records, analysis, studies and design of controlled overturning.",
@@ -56,7 +57,7 @@ def _options(version: Annotated[bool, typer.Option("--version", callback=_print_
     """Shake-table rig: records, analysis, studies and design of controlled overturning."""
 
 for command in (study, demo, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report,
-                iterate, plan, certs):
+                iterate, plan, certs, table_list):
     command.register(app)
 
 

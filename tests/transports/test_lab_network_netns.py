@@ -166,3 +166,20 @@ def test_a_plain_table_url_off_loopback_is_refused_before_any_link(tmp_path: Pat
         f"error: the table at zenoh://{TABLE_ADDRESS}:7447/lab did not answer: table URL "
         f"'zenoh://{TABLE_ADDRESS}:7447/lab': endpoint 'tcp/{TABLE_ADDRESS}:7447' is off loopback and not encrypted")
     assert "Traceback" not in done.stderr
+
+
+def test_rig_table_list_finds_the_table_across_hosts_over_tls(tmp_path: Path, namespaces: None) -> None:
+    """The controller declares a liveliness token: ``rig table list`` on the other host finds it, with its transport
+    and its state verified with the rig's key."""
+    key = tmp_path / "rig.key"
+    key.write_text("12" * 32 + "\n")
+    certs = _identities(tmp_path)
+    table = [sys.executable, "-m", "sim_table", "--listen", f"zenoh://{TABLE_ADDRESS}:7447/lab", "--key-file",
+             str(key), *_tls(certs, "table"), "--counters", str(tmp_path / "counters.json")]
+    listing = [sys.executable, "-m", "rig.cli", "table", "list", "--connect", f"tls/{TABLE_ADDRESS}:7447",
+               "--key-file", str(key), "--json", *_tls(certs, "rig")]
+    done = _two_hosts(table, tmp_path / "table.log", listing, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == {"found": [{
+        "name": "lab", "role": "table", "transport": f"zenoh mutual TLS via tls/{TABLE_ADDRESS}:7447",
+        "state": "idle"}]}
