@@ -468,7 +468,7 @@ def _listen(address: TableUrl, security: LinkSecurity) -> tuple[zenoh.Session, T
     """A session listening on ``address`` with ``security`` (port 0: a free port), and the address with the port it
     got. :class:`ValueError` for an endpoint ``security`` does not allow (plain text off loopback)."""
     try:
-        address.endpoint_for(security)
+        address._replace(port=address.port or 1).endpoint_for(security)  # port 0: any, probed below
     except EndpointError as exc:
         raise ValueError(f"--listen {address.url}: {exc}") from None
     error: Exception | None = None
