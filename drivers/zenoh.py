@@ -1,7 +1,9 @@
-"""The table controller over zenoh: ``open_table("zenoh://HOST:PORT/TABLE", key_file=...)``.
+"""The table controller over zenoh: ``open_table("zenoh://HOST:PORT/TABLE", key_file=..., tls=...)``.
 
-The controller's zenoh session listens on ``tcp/HOST:PORT`` (loopback); this host opens a peer session that
-connects there (scouting off, :func:`protocols.zenoh.session_config`) and speaks the table link of
+The controller's zenoh session listens on ``tls/HOST:PORT`` (mutual TLS with the lab's certificates, ``tls``: a
+:class:`~protocols.zenoh.tls.TlsFiles`) or ``tcp/HOST:PORT`` (loopback, or any address with
+``insecure_plain_tcp``); this host opens a peer session that connects there (scouting off,
+:func:`protocols.zenoh.session_config`) and speaks the table link of
 :mod:`protocols.zenoh.table` on ``shaketable/TABLE/controller/...`` (the controller side is
 ``sim_table.zenoh_endpoint``). Every command, setpoint chunk and heartbeat is signed (:mod:`protocols.zenoh.auth`:
 HMAC-SHA256 with the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``, a random sender id per connection
@@ -45,7 +47,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from typing import TypeVar
+from typing import NoReturn, TypeVar
 
 import numpy as np
 import zenoh
@@ -66,7 +68,7 @@ from drivers.controller import (
     sleep_until,
 )
 from protocols.mavlink import load_signing_key
-from protocols.zenoh import session_config, table_accel_selector, table_key
+from protocols.zenoh import EndpointError, LinkSecurity, session_config, table_accel_selector, table_key
 from protocols.zenoh.auth import Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
@@ -89,6 +91,7 @@ from protocols.zenoh.table import (
     fault_names,
     parse_table_url,
 )
+from protocols.zenoh.tls import TlsFiles, why_no_link
 
 T = TypeVar("T")
 
@@ -137,16 +140,24 @@ class _QueryAnswer(CommandAnswer):
 class ZenohTable(ChunkedStreamController):
     """A table controller at ``zenoh://HOST:PORT/TABLE`` (module docstring).
 
-    Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``command_timeout`` [s] per attempt and
-    ``retries``; ``connect_timeout`` [s].
+    Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``tls`` this host's TLS identity (the link is then
+    ``tls/``) and ``insecure_plain_tcp`` (a plain ``tcp/`` link off loopback: nothing encrypted); ``command_timeout``
+    [s] per attempt and ``retries``; ``connect_timeout`` [s]. A bad address for the link raises
+    :class:`ValueError` here.
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, command_timeout: float = 0.15, retries: int = 4,
-                 connect_timeout: float = 3.0) -> None:
+                 connect_timeout: float = 3.0, tls: TlsFiles | None = None, insecure_plain_tcp: bool = False) -> None:
         super().__init__(url)
         self.address = parse_table_url(url)
+        self.security = LinkSecurity(tls, insecure_plain_tcp)
+        try:
+            self.endpoint = self.address.endpoint_for(self.security)
+            """The zenoh endpoint the host connects to (``tls/…`` or ``tcp/…``)."""
+        except EndpointError as exc:
+            raise ValueError(f"table URL {url!r}: {exc}") from None
         self.key_file = key_file
         self.command_timeout = command_timeout
         self.retries = retries
@@ -188,7 +199,7 @@ class ZenohTable(ChunkedStreamController):
         deadline = time.monotonic() + self.connect_timeout
         self.heap.hold()
         try:
-            session = zenoh.open(session_config(connect=[self.address.endpoint]))
+            session = zenoh.open(session_config(connect=[self.endpoint], security=self.security))
         except zenoh.ZError as exc:
             self.heap.release()
             raise TableError(f"{self.url}: cannot open a zenoh session: {exc}") from None
@@ -216,6 +227,14 @@ class ZenohTable(ChunkedStreamController):
         except BaseException:
             self.close()
             raise
+
+    def _no_answer(self) -> NoReturn:
+        """As :meth:`ChunkedStreamController._no_answer`; over TLS, when nothing came at all, why the link was not
+        made (:func:`~protocols.zenoh.tls.why_no_link`: which side refused which certificate)."""
+        if self.security.tls is not None and self.feedback.latest is None and not any(self.refused.values()):
+            raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s "
+                                    f"over {self.endpoint}: {why_no_link(self.endpoint, self.security.tls)}")
+        super()._no_answer()
 
     def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
         """The bodies on the plate, from the controller's ``bodies`` queryable (a BODIES reply); None if it gives

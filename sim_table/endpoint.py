@@ -25,6 +25,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from analysis.table.model import TableModel
+from protocols.zenoh.config import PLAIN, LinkSecurity
 from sim_table.controller import ControllerCore, Done, Snapshot, State
 
 Action = Callable[[ControllerCore], None]
@@ -57,7 +58,8 @@ class EndpointOptions:
     ns to controller ns; ``table`` the table model (leg scaling on CANopen); ``loss`` (probability) and
     ``delay`` [s] inject faults on every message both ways with ``seed``; ``virtual_time``: the controller's clock
     is virtual (``--speed max``), so it may wait for the link rather than drop telemetry; ``bodies`` the specimens
-    on the plate in body-id order (reported to the host).
+    on the plate in body-id order (reported to the host); ``security`` the zenoh link's TLS identity, or plain text
+    off loopback explicitly allowed (zenoh only; ``protocols.zenoh.config``).
     """
 
     key: bytes = field(repr=False)
@@ -68,6 +70,7 @@ class EndpointOptions:
     seed: int = 0
     virtual_time: bool = False
     bodies: tuple[BodyOnPlate, ...] = ()
+    security: LinkSecurity = PLAIN
 
 
 class Endpoint(Protocol):

@@ -82,6 +82,14 @@ def argument_parser() -> argparse.ArgumentParser:
                         "no emulator is left holding its port")
     p.add_argument("--key-file", type=Path, metavar="FILE",
                    help=f"signing key file (default: ${KEY_ENV}); mavlink and zenoh only: canopen does not sign")
+    p.add_argument("--tls-ca", type=Path, metavar="FILE",
+                   help="zenoh: the lab's CA certificate; with --tls-cert and --tls-key the link is tls/HOST:PORT with "
+                        "mutual authentication (rig certs make; docs/lab-network.md)")
+    p.add_argument("--tls-cert", type=Path, metavar="FILE", help="zenoh: this controller's certificate (signed by the "
+                                                                  "CA, naming the address it listens on)")
+    p.add_argument("--tls-key", type=Path, metavar="FILE", help="zenoh: the private key of --tls-cert (mode 0600)")
+    p.add_argument("--insecure-plain-tcp", action="store_true",
+                   help="zenoh: allow a plain tcp/ link off loopback (nothing encrypted; a bench network only)")
     p.add_argument("--rig-config", type=Path, metavar="FILE",
                    help="rig configuration TOML (default: Table IV, default hexapod)")
     p.add_argument("--leg-noise", type=float, metavar="M",

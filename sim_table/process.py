@@ -66,6 +66,8 @@ import numpy as np
 
 from analysis.table.model import TableModel
 from protocols.mavlink import KEY_ENV, load_signing_key
+from protocols.zenoh.config import PLAIN, LinkSecurity
+from protocols.zenoh.tls import load_tls
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
@@ -169,6 +171,7 @@ class EmulatorConfig:
     seed: int = 0
     watchdog: float | None = None
     buffer: float | None = None
+    security: LinkSecurity = PLAIN
 
     def __post_init__(self) -> None:
         if not (self.speed > 0):  # math.inf: virtual time (--speed max)
@@ -192,6 +195,9 @@ class EmulatorConfig:
         if scheme in SIGNING_SCHEMES and self.key is None:
             raise ValueError(f"--listen {self.listen}: {scheme} signs motion commands and setpoints and needs the "
                              f"rig's signing key: give --key-file FILE or set {KEY_ENV} (64 hexadecimal digits)")
+        if scheme != "zenoh" and self.security != PLAIN:
+            raise ValueError(f"--listen {self.listen}: --tls-ca/--tls-cert/--tls-key and --insecure-plain-tcp are "
+                             "options of a zenoh link")
 
 
 class Emulator:
@@ -226,7 +232,7 @@ class Emulator:
         self._start = time.monotonic_ns()
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
-            seed=config.seed + 2, virtual_time=self.virtual,
+            seed=config.seed + 2, virtual_time=self.virtual, security=config.security,
             bodies=tuple(BodyOnPlate(s.body.b, s.body.h, s.depth, s.x, s.y) for s in config.specimens)))
         self.url = self.endpoint.url
         self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
@@ -517,7 +523,8 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
             stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed, watchdog=args.watchdog,
-            buffer=args.buffer)
+            buffer=args.buffer, security=LinkSecurity(load_tls(args.tls_ca, args.tls_cert, args.tls_key),
+                                                      args.insecure_plain_tcp))
     except ValueError as exc:
         p.error(str(exc))
     return config, args.counters, args.exit_with_parent
@@ -557,6 +564,9 @@ def main(argv: list[str] | None = None) -> int:
     gc.collect()
     gc.freeze()  # the set-up out of reach of the collector: its full passes stay short while serving (drivers/heap)
     speed = "max" if emulator.virtual else f"{config.speed:g}"
+    if config.security.insecure:
+        print(f"sim_table: WARNING: --insecure-plain-tcp: the link at {emulator.url} may be plain text off loopback "
+              "(nothing encrypted)", file=sys.stderr, flush=True)
     print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
           f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
     try:

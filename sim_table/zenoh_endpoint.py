@@ -1,8 +1,10 @@
 """The emulator's zenoh side: the controller end of the table link (``protocols.zenoh.table``).
 
-``zenoh://HOST:PORT/TABLE`` opens a zenoh peer session listening on ``tcp/HOST:PORT`` (loopback, scouting off:
+``zenoh://HOST:PORT/TABLE`` opens a zenoh peer session listening on ``tls/HOST:PORT`` with a TLS identity (mutual
+TLS, the lab's certificates) or on ``tcp/HOST:PORT`` (loopback unless explicitly insecure; scouting off:
 ``protocols.zenoh.session_config``; port 0: a free port, probed) and serves the keys
-``shaketable/TABLE/controller/...`` (``protocols.zenoh.keys``). The host side is ``drivers.zenoh``.
+``shaketable/TABLE/controller/...`` (``protocols.zenoh.keys``). The host side is ``drivers.zenoh``. It declares the
+liveliness token ``shaketable/TABLE/alive/table`` while it serves: a ``rig table list`` on the network finds it.
 
 Threads: zenoh's callback threads stamp every host message with its arrival time and queue it (answering a clock
 query at once unless a delay is injected); the emulator's tick thread takes the queue in arrival order
@@ -55,8 +57,9 @@ from typing import Any
 import numpy as np
 import zenoh
 
-from protocols.zenoh import session_config, table_key
+from protocols.zenoh import EndpointError, LinkSecurity, alive_key, session_config, table_key
 from protocols.zenoh.auth import Signer, Verdict, Verifier, sender_of, split_signed
+from protocols.zenoh.config import PLAIN
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
     ACCEL_PER_BATCH,
@@ -140,7 +143,7 @@ class ZenohEndpoint(BatchedTelemetry):
 
     def __init__(self, address: TableUrl, key: bytes, clock: Callable[[int], int], *, loss: float = 0.0,
                  delay: float = 0.0, seed: int = 0, virtual_time: bool = False,
-                 bodies: tuple[BodyOnPlate, ...] = ()) -> None:
+                 bodies: tuple[BodyOnPlate, ...] = (), security: LinkSecurity = PLAIN) -> None:
         if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
         self.clock = clock
@@ -155,7 +158,7 @@ class ZenohEndpoint(BatchedTelemetry):
         self._armer: int | None = None  # sender id of the host whose ARM was accepted
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()  # the random numbers, the inbox, the counters of several threads
-        self._session, self.address = _listen(address)
+        self._session, self.address = _listen(address, security)
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
                                    "heartbeat", "tilt", "bodies")}
@@ -196,6 +199,7 @@ class ZenohEndpoint(BatchedTelemetry):
                                        lambda s: self._arrived("setpoints", None, s.payload.to_bytes())),
             session.declare_subscriber(self._keys["host-heartbeat"],
                                        lambda s: self._arrived("heartbeat", None, s.payload.to_bytes())),
+            session.liveliness().declare_token(alive_key(self.address.table, "table")),
         ]
 
     # ----- receiving (zenoh's threads) ------------------------------------------------------------------
@@ -460,14 +464,20 @@ def _payload(query: zenoh.Query) -> bytes:
     return query.payload.to_bytes() if query.payload is not None else b""
 
 
-def _listen(address: TableUrl) -> tuple[zenoh.Session, TableUrl]:
-    """A session listening on ``address`` (port 0: a free port), and the address with the port it got."""
+def _listen(address: TableUrl, security: LinkSecurity) -> tuple[zenoh.Session, TableUrl]:
+    """A session listening on ``address`` with ``security`` (port 0: a free port), and the address with the port it
+    got. :class:`ValueError` for an endpoint ``security`` does not allow (plain text off loopback)."""
+    try:
+        address._replace(port=address.port or 1).endpoint_for(security)  # port 0: any, probed below
+    except EndpointError as exc:
+        raise ValueError(f"--listen {address.url}: {exc}") from None
     error: Exception | None = None
     for _ in range(PORT_ATTEMPTS if address.port == 0 else 1):
         port = address.port or _free_port(address.host)
         resolved = address._replace(port=port)
         try:
-            return zenoh.open(session_config(listen=[resolved.endpoint])), resolved
+            config = session_config(listen=[resolved.endpoint_for(security)], security=security)
+            return zenoh.open(config), resolved
         except zenoh.ZError as exc:
             error = exc
     raise OSError(f"cannot listen on {address.url}: {error}")
@@ -483,4 +493,4 @@ def open_endpoint(url: str, options: EndpointOptions) -> ZenohEndpoint:
     """The endpoint for ``zenoh://HOST:PORT/TABLE`` (port 0: any free port) — `sim_table.endpoint`'s factory."""
     return ZenohEndpoint(parse_table_url(url, any_port=True), options.key, options.clock, loss=options.loss,
                          delay=options.delay, seed=options.seed, virtual_time=options.virtual_time,
-                         bodies=options.bodies)
+                         bodies=options.bodies, security=options.security)

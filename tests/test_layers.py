@@ -32,7 +32,7 @@ RIG_LAYERS = {
     "service": 3,
     "orchestrator": 2, "report": 2, "emulator": 2, "compensation": 2,
     "sequence": 1, "analyze": 1, "study_file": 1, "study_summary": 1,
-    "session": 0, "records": 0, "drive": 0, "json_numpy": 0,
+    "session": 0, "certs": 0, "records": 0, "drive": 0, "json_numpy": 0,
 }
 """Inside ``rig``: a unit (a subpackage such as ``cli``, or a top-level module) may
 import units of its own layer or below (docs/architecture.md, Inside rig). ``rig`` itself holds only

@@ -2,12 +2,13 @@
 
 - :mod:`~protocols.zenoh.keys` — key expressions ``shaketable/<rig>/{service,telemetry,alive,controller}/...``
 - :mod:`~protocols.zenoh.payloads` — versioned payloads (8-byte header; JSON bodies, binary accelerometer batches)
-- :mod:`~protocols.zenoh.config` — ``session_config``: explicit loopback endpoints, scouting off
+- :mod:`~protocols.zenoh.config` — ``session_config``: explicit endpoints, mutual TLS off loopback, scouting off
+- :mod:`~protocols.zenoh.tls` — a process's TLS identity (CA, certificate, key) checked, and why a TLS link fails
 - :mod:`~protocols.zenoh.table` — the table link (``zenoh://HOST:PORT/TABLE``): its URL and binary payloads
 - :mod:`~protocols.zenoh.auth` — HMAC-SHA256 signatures of every payload of the table link
 """
 
-from protocols.zenoh.config import EndpointError, check_endpoint, loopback_endpoint, session_config
+from protocols.zenoh.config import EndpointError, LinkSecurity, check_endpoint, loopback_endpoint, session_config
 from protocols.zenoh.keys import (
     ROOT,
     SERVICE_COMMANDS,
@@ -55,6 +56,7 @@ __all__ = [
     "Key",
     "KeyExprError",
     "Kind",
+    "LinkSecurity",
     "PayloadError",
     "alive_key",
     "alive_selector",

@@ -3,8 +3,9 @@
 The link between the lab host (``drivers.zenoh``) and the table controller (``sim_table.zenoh_endpoint``) carries
 the behaviour of ``docs/table-controller.md``; keys are :func:`protocols.zenoh.keys.table_key`, signatures
 :mod:`protocols.zenoh.auth`. URL: ``zenoh://HOST:PORT/TABLE`` — the controller's zenoh session listens on
-``tcp/HOST:PORT`` (a loopback address, :func:`protocols.zenoh.session_config`), ``TABLE`` names the table in the
-key space (default :data:`DEFAULT_TABLE`).
+``tls/HOST:PORT`` when the processes have a TLS identity, else on ``tcp/HOST:PORT`` (loopback unless explicitly
+insecure: :func:`protocols.zenoh.session_config`); ``TABLE`` names the table in the key space (default
+:data:`DEFAULT_TABLE`).
 
 Every payload starts with an 8-byte little-endian header ``magic b"SHTC", version (UNSIGNED16) = 1, kind
 (UNSIGNED16, :class:`TableKind`)`` (the rig service's payloads, :mod:`protocols.zenoh.payloads`, use another
@@ -56,7 +57,7 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from protocols.zenoh.auth import TRAILER_BYTES, Received
-from protocols.zenoh.config import check_endpoint
+from protocols.zenoh.config import PLAIN, LinkSecurity
 from protocols.zenoh.keys import check_name
 from protocols.zenoh.payloads import PayloadError
 
@@ -126,7 +127,7 @@ class TableKind(IntEnum):
 
 
 class TableUrl(NamedTuple):
-    """A parsed ``zenoh://HOST:PORT/TABLE``: loopback ``host``, ``port`` (0: any free one) and ``table`` name."""
+    """A parsed ``zenoh://HOST:PORT/TABLE``: ``host`` an IP address, ``port`` (0: any free one) and ``table`` name."""
 
     host: str
     port: int
@@ -134,8 +135,13 @@ class TableUrl(NamedTuple):
 
     @property
     def endpoint(self) -> str:
-        """The controller's zenoh endpoint ``tcp/HOST:PORT``."""
-        return tcp_endpoint(self.host, self.port)
+        """The controller's plain zenoh endpoint ``tcp/HOST:PORT`` (loopback)."""
+        return self.endpoint_for(PLAIN)
+
+    def endpoint_for(self, security: LinkSecurity) -> str:
+        """The controller's zenoh endpoint with ``security``: ``tls/HOST:PORT`` with a TLS identity, else
+        ``tcp/HOST:PORT`` (:class:`~protocols.zenoh.config.EndpointError` off loopback unless insecure)."""
+        return security.endpoint(self.host, self.port)
 
     @property
     def url(self) -> str:
@@ -229,8 +235,9 @@ class Overturn(NamedTuple):
 
 
 def parse_table_url(url: str, *, any_port: bool = False) -> TableUrl:
-    """The parts of ``zenoh://HOST:PORT[/TABLE]``; HOST a loopback IP address, PORT 1..65535 (0 too with
-    ``any_port``: the listener picks one); :class:`ValueError` otherwise."""
+    """The parts of ``zenoh://HOST:PORT[/TABLE]``; HOST an IP address, PORT 1..65535 (0 too with ``any_port``: the
+    listener picks one); :class:`ValueError` otherwise. Whether the address may be used without TLS is judged where
+    the endpoint is made (:meth:`TableUrl.endpoint_for`)."""
     parts = urlsplit(url)
     try:
         port = parts.port
@@ -243,15 +250,8 @@ def parse_table_url(url: str, *, any_port: bool = False) -> TableUrl:
     try:
         host = str(ipaddress.ip_address(parts.hostname))
     except ValueError:
-        raise ValueError(f"table URL {url!r}: HOST must be a loopback IP address (127.0.0.1, ::1)") from None
-    tcp_endpoint(host, port or 1)  # loopback only
+        raise ValueError(f"table URL {url!r}: HOST must be an IP address (e.g. 127.0.0.1, 10.231.0.2, ::1)") from None
     return TableUrl(host, port, check_name(parts.path.strip("/") or DEFAULT_TABLE, "table name"))
-
-
-def tcp_endpoint(host: str, port: int) -> str:
-    """``tcp/HOST:PORT`` (``tcp/[HOST]:PORT`` for IPv6), checked to be loopback
-    (:class:`~protocols.zenoh.config.EndpointError` otherwise)."""
-    return check_endpoint(f"tcp/[{host}]:{port}" if ":" in host else f"tcp/{host}:{port}")
 
 
 # ----- header -------------------------------------------------------------------------------------------------

@@ -22,6 +22,7 @@ import typer
 
 from rig.cli import (
     analyze,
+    certs,
     demo,
     design,
     emulate,
@@ -56,7 +57,7 @@ def _options(version: Annotated[bool, typer.Option("--version", callback=_print_
     """Shake-table rig: records, analysis, studies and design of controlled overturning."""
 
 for command in (study, demo, records, prepare, design, emulate, run, sessions, specimens, serve, analyze, report,
-                iterate, plan, table):
+                iterate, plan, certs, table):
     command.register(app)
 
 

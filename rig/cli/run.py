@@ -31,6 +31,7 @@ from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail, require_file
+from rig.cli.network import INSECURE_NOTE, Insecure, TlsCa, TlsCert, TlsKey, link_security, table_options
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -134,6 +135,8 @@ def run_session(sequence: Sequence, log: SessionLog, url: str, options: dict[str
 
     operator = None if yes else TerminalOperator()
     orchestrator = Orchestrator(sequence, url, log, table_options=options, operator=operator)
+    if options.get("insecure_plain_tcp"):
+        orchestrator.log_event(INSECURE_NOTE)
     screen = Screen(orchestrator.progress)
     result: list[OrchestratorState | BaseException] = []
 
@@ -307,6 +310,8 @@ def register(app: typer.Typer) -> None:
                      "showing the final state and the report until Ctrl-C)")] = None,
             as_json: Annotated[bool, typer.Option("--json", help="print one JSON object (the session's outcome) "
                                                   "on stdout, the progress on stderr; needs --yes")] = False,
+            tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
+            insecure_plain_tcp: Insecure = False,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file. With --resume the session
         continues on the table it ran on (its URL, or the emulated table at its speed) unless --table or --emulate
@@ -318,6 +323,7 @@ def register(app: typer.Typer) -> None:
             fail("--json needs --yes (no operator prompts) and is not taken with --service or --console")
         speed_given = speed
         speed = 1.0 if speed is None else speed
+        security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
         if console_at is not None:
             from rig.cli.with_console import run_with_console
 
@@ -346,7 +352,8 @@ def register(app: typer.Typer) -> None:
             from rig.cli.serve import drive_service
 
             raise typer.Exit(drive_service(service, sequence_file, table=table, emulate=emulate, output=output,
-                                           resume=resume, yes=yes, console=console, key_file=key_file, speed=speed))
+                                           resume=resume, yes=yes, console=console, key_file=key_file, speed=speed,
+                                           security=security))
         screen = err_console if as_json else console
         ending: list[str] = []
         try:
@@ -360,7 +367,9 @@ def register(app: typer.Typer) -> None:
                 sequence = load_checked(sequence_file)
                 path = output or default_session_path(sequence)
             choice = choose_table(sequence, table, emulate, speed_given, stored)
-            with table_for(sequence, choice.url, choice.emulate, key_file, choice.speed) as (url, options, counters):
+            link = {} if choice.emulate else table_options(choice.url or sequence.table_url, security)
+            with table_for(sequence, choice.url, choice.emulate, key_file, choice.speed, link) as (url, options,
+                                                                                                  counters):
                 log = resume_log(path) if resume is not None else create_log(sequence, path, choice)
                 screen.print(f"session file: {path}", highlight=False)
                 try:

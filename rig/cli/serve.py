@@ -23,8 +23,10 @@ from rich.prompt import Confirm
 from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, handle_sigint, print_error
+from rig.cli.network import Insecure, TlsCa, TlsCert, TlsKey, link_security
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
+    from protocols.zenoh import LinkSecurity
     from rig.service import ServiceClient, TelemetryFeed
 
 DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
@@ -39,20 +41,22 @@ KeyOption = Annotated[Path | None, typer.Option(help="the rig's key file (defaul
 
 def drive_service(connect: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
                   resume: Path | None, yes: bool, console: Any, key_file: Path | None = None,
-                  speed: float = 1.0, resume_with: str | None = None) -> int:
+                  speed: float = 1.0, resume_with: str | None = None, security: LinkSecurity | None = None) -> int:
     """Start ``sequence`` (or ``resume`` a session file) on the rig service at ``connect`` and follow it.
 
     The status line shows the service's telemetry. Ctrl-C sends pause (the session pauses at the end of the current
     record; then: resume, or end the session there — with ``yes`` it ends there), a second Ctrl-C sends abort.
     Without ``yes`` the operator confirms the start first (the service runs sequences unattended). A session that
     stopped early names the command that continues it: ``rig run RESUME_WITH --resume SESSION`` (default
-    ``--service CONNECT``: this service again). Returns the exit code: 0 all runs done, 1 the session stopped early
+    ``--service CONNECT``: this service again). ``security``: the zenoh link's TLS identity. Returns the exit code:
+    0 all runs done, 1 the session stopped early
     (or was not started), 2 the service refused or is absent.
     """
     from rig.service import ServiceClient, ServiceError
 
     try:
-        client = ServiceClient(connect, key_file)
+        link: dict[str, Any] = {} if security is None else {"security": security}
+        client = ServiceClient(connect, key_file, **link)
     except ServiceError as exc:
         print_error(console, "error", str(exc))
         return EXIT_USAGE
@@ -230,17 +234,19 @@ def status_line(status: dict[str, Any]) -> Text:
 
 
 def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool, fail: Callable[[str], Any],
-          http: str | None = None) -> None:
+          http: str | None = None, security: LinkSecurity | None = None) -> None:
     """Run the service until SIGINT/SIGTERM (module docstring); with ``http`` (``HOST:PORT``) the operator's
-    console (``rig.console``) too, as a child process subscribed to the service's telemetry."""
+    console (``rig.console``) too, as a child process subscribed to the service's telemetry; ``security`` the zenoh
+    session's TLS identity (the console uses it too)."""
     from rig.service import OrchestratorService, ServiceError
 
     def say(message: str) -> None:
         print(f"rig serve: {message}", file=sys.stderr, flush=True)
 
     try:
+        link: dict[str, Any] = {} if security is None else {"security": security}
         service = OrchestratorService(listen, key_file=key_file, sessions_dir=sessions_dir,
-                                      require_auth=not no_auth, say=say)
+                                      require_auth=not no_auth, say=say, **link)
     except ServiceError as exc:
         fail(str(exc))
     signals = [0]
@@ -260,12 +266,14 @@ def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool,
 
             try:
                 console = ConsoleProcess(listen, http, key_file=key_file, say=lambda line: print(line, file=sys.stderr,
-                                                                                                 flush=True))
+                                                                                                 flush=True), **link)
             except ConsoleError as exc:
                 service.close()
                 fail(str(exc))
         auth = "start/resume must be signed" if service.authenticated else "start/resume NOT authenticated"
-        say(f"listening on {listen} (sessions in {service.sessions_dir}; {auth})")
+        encrypted = ("mutual TLS" if listen.startswith("tls/") else
+                     "PLAIN TEXT (--insecure-plain-tcp)" if security is not None and security.insecure else "loopback")
+        say(f"listening on {listen} ({encrypted}; sessions in {service.sessions_dir}; {auth})")
         while not stop.wait(0.5):
             pass
         say("stopping")
@@ -290,27 +298,32 @@ def register(app: typer.Typer) -> None:
 
     @app.command("serve")
     def serve_cmd(
-        listen: Annotated[str, typer.Option(help="zenoh endpoint to listen on (loopback)")] = DEFAULT_ENDPOINT,
+        listen: Annotated[str, typer.Option(help="zenoh endpoint to listen on: tcp/ on loopback, tls/ADDRESS:PORT "
+                                                 "across hosts (with --tls-*)")] = DEFAULT_ENDPOINT,
         sessions_dir: Annotated[Path, typer.Option(help="where the session files go")] = Path("."),
         key_file: KeyOption = None,
         no_auth: Annotated[bool, typer.Option("--no-auth", help="accept unsigned start/resume (a bench without a "
                                                                 "table)")] = False,
         http: Annotated[str | None, typer.Option(help="also serve the operator's console (a web page) at HOST:PORT, "
                                                       "e.g. 127.0.0.1:8080")] = None,
+        tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
     ) -> None:
         """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
-        serve(listen, sessions_dir, key_file, no_auth, fail, http)
+        serve(listen, sessions_dir, key_file, no_auth, fail, http,
+              link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp))
 
     @app.command("console")
     def console_cmd(
         http: Annotated[str, typer.Option(help="HOST:PORT to serve the page on")] = "127.0.0.1:8080",
         connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
+        tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
     ) -> None:
         """Serve the operator's console (live web page and controls) for a running `rig serve`."""
         from rig.console import ConsoleError, serve_console
 
+        security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
         try:
-            serve_console(connect, http, key_file=key_file,
+            serve_console(connect, http, key_file=key_file, security=security,
                           say=lambda message: print(f"rig console: {message}", file=sys.stderr, flush=True))
         except ConsoleError as exc:
             fail(str(exc))
@@ -321,11 +334,13 @@ def register(app: typer.Typer) -> None:
         @service_app.command(name, help=help_text)
         def run_command(connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
                         as_json: Annotated[bool, typer.Option("--json", help="print the reply as JSON")] = False,
-                        ) -> None:
+                        tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
+                        insecure_plain_tcp: Insecure = False) -> None:
             from rig.service import ServiceClient, ServiceError
 
+            security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
             try:
-                with ServiceClient(connect, key_file) as client:
+                with ServiceClient(connect, key_file, security=security) as client:
                     reply = getattr(client, method)()
             except ServiceError as exc:
                 fail(str(exc))

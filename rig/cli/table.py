@@ -14,13 +14,16 @@ from typing import Annotated, Any
 
 import typer
 
+from rig.cli import table_list
 from rig.cli._common import EXIT_REFUSED, console, emit_json, err_console, fail, print_error
 
 
 def register(app: typer.Typer) -> None:
-    """Add the ``table`` group (``rig table check``) to the main application."""
-    group = typer.Typer(help="The table itself: what it is and whether it can be driven.", no_args_is_help=True)
+    """Add the ``table`` group (``rig table check``, ``rig table list``) to the main application."""
+    group = typer.Typer(help="The table itself: what it is, whether it can be driven, which are on the network.",
+                        no_args_is_help=True)
     group.command("check")(check_cmd)
+    table_list.add_list(group)
     app.add_typer(group, name="table")
 
 

@@ -13,6 +13,8 @@ import time
 from collections.abc import Callable
 from pathlib import Path
 
+from protocols.zenoh import LinkSecurity
+from protocols.zenoh.tls import TlsError, load_tls
 from rig.console.server import ConsoleError, serve_console
 
 PARENT_POLL_S = 0.2
@@ -41,6 +43,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--http", required=True, help="HOST:PORT to serve the page on (loopback)")
     parser.add_argument("--key-file", type=Path, default=None, help="the rig's key (default $SHAKETABLE_MAVLINK_KEY)")
     parser.add_argument("--rig", default="rig", help="the rig's name in the key space")
+    parser.add_argument("--tls-ca", type=Path, help="the lab's CA certificate (zenoh link to the service over TLS)")
+    parser.add_argument("--tls-cert", type=Path, help="this console's certificate, signed by the lab's CA")
+    parser.add_argument("--tls-key", type=Path, help="the private key of --tls-cert")
+    parser.add_argument("--insecure-plain-tcp", action="store_true", help="allow a plain tcp/ link off loopback")
     parser.add_argument("--exit-with-parent", action="store_true",
                         help="stop when the process that started the console exits (how rig starts it)")
     args = parser.parse_args(argv)
@@ -51,7 +57,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.exit_with_parent:
         end_with_parent(say)
     try:
-        serve_console(args.connect, args.http, key_file=args.key_file, rig=args.rig, say=say)
+        security = LinkSecurity(load_tls(args.tls_ca, args.tls_cert, args.tls_key), args.insecure_plain_tcp)
+    except TlsError as exc:
+        say(f"error: {exc}")
+        return 2
+    try:
+        serve_console(args.connect, args.http, key_file=args.key_file, rig=args.rig, say=say, security=security)
     except ConsoleError as exc:
         say(f"error: {exc}")
         return 2

@@ -9,7 +9,8 @@ from typing import Any
 
 import zenoh
 
-from protocols.zenoh import session_config
+from protocols.zenoh import LinkSecurity, session_config
+from protocols.zenoh.config import PLAIN
 from protocols.zenoh.payloads import Kind, PayloadError, decode_json
 from rig.service.keys import DEFAULT_RIG, ServiceKeys
 from rig.service.telemetry import live_key
@@ -18,12 +19,14 @@ from rig.service.telemetry import live_key
 class TelemetrySubscription:
     """Subscribes to the service at ``connect`` (``tcp/127.0.0.1:7447``) and calls ``deliver(kind, body)``
     (``kind`` ``"status"`` or ``"live"``) from zenoh's threads for every publication; payloads that are not the
-    service's are ignored. ``deliver`` must not block (the console hands it to its event loop)."""
+    service's are ignored (``security``: the zenoh link's TLS identity). ``deliver`` must not block (the console
+    hands it to its event loop)."""
 
-    def __init__(self, connect: str, deliver: Callable[[str, dict[str, Any]], None], rig: str = DEFAULT_RIG) -> None:
+    def __init__(self, connect: str, deliver: Callable[[str, dict[str, Any]], None], rig: str = DEFAULT_RIG,
+                 security: LinkSecurity = PLAIN) -> None:
         keys = ServiceKeys.for_rig(rig)
         self._deliver = deliver
-        self._session = zenoh.open(session_config(connect=[connect]))
+        self._session = zenoh.open(session_config(connect=[connect], security=security))
         self._subscribers = [self._session.declare_subscriber(keys.status, lambda s: self._on(s, "status")),
                              self._session.declare_subscriber(live_key(keys), lambda s: self._on(s, "live"))]
 

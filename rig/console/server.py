@@ -20,6 +20,8 @@ from pathlib import Path
 from typing import Any
 
 from protocols.mavlink import SigningKeyError
+from protocols.zenoh import LinkSecurity
+from protocols.zenoh.config import PLAIN
 from rig.console.app import Console, create_app
 from rig.console.feed import TelemetrySubscription
 from rig.console.guard import ConnectionGuard, guarded_protocol
@@ -94,9 +96,10 @@ def console_server(console: Console, host: str, port: int, *, say: Callable[[str
 
 
 def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
-                  say: Callable[[str], None] = lambda message: None) -> None:
+                  say: Callable[[str], None] = lambda message: None, security: LinkSecurity = PLAIN) -> None:
     """Serve the console at ``http`` (``HOST:PORT``) for the rig service at ``connect`` until SIGINT/SIGTERM.
-    Without the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) the page is read-only."""
+    Without the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) the page is read-only. ``security``: the
+    zenoh link to the service (its TLS identity)."""
     host, port = parse_http(http)
     try:
         token: str | None = token_from_key_file(key_file)
@@ -106,14 +109,14 @@ def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig:
     from rig.service import ServiceError
 
     try:
-        client = ServiceClient(connect, key_file if token else None)
+        client = ServiceClient(connect, key_file if token else None, security=security)
     except ServiceError as exc:
         raise ConsoleError(str(exc)) from None
     console = Console(ServiceControls(client), token, allowed_hosts=allowed_hosts(host, port))
     subscription: list[TelemetrySubscription] = []
 
     def startup(loop: Any) -> None:
-        subscription.append(TelemetrySubscription(connect, console.deliver_from(loop), rig))
+        subscription.append(TelemetrySubscription(connect, console.deliver_from(loop), rig, security))
 
     def shutdown() -> None:
         for sub in subscription:
@@ -147,12 +150,17 @@ class ConsoleProcess:
     ends it (SIGTERM)."""
 
     def __init__(self, connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
-                 say: Callable[[str], None] = lambda message: None) -> None:
+                 say: Callable[[str], None] = lambda message: None, security: LinkSecurity = PLAIN) -> None:
         parse_http(http)
         command = [sys.executable, "-m", "rig.console", "--connect", connect, "--http", http, "--rig", rig,
                    "--exit-with-parent"]
         if key_file is not None:
             command += ["--key-file", str(key_file)]
+        if security.tls is not None:
+            command += ["--tls-ca", str(security.tls.ca), "--tls-cert", str(security.tls.certificate),
+                        "--tls-key", str(security.tls.key)]
+        if security.insecure:
+            command += ["--insecure-plain-tcp"]
         self.url: str | None = None
         self._say = say
         self._ready = threading.Event()

@@ -155,7 +155,8 @@ def probe_table(url: str, options: dict[str, Any], sequence: Sequence) -> None:
 
 @contextlib.contextmanager
 def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Path | None,
-              speed: float) -> Iterator[tuple[str, dict[str, Any], Counters | None]]:
+              speed: float, link: dict[str, Any] | None = None,
+              ) -> Iterator[tuple[str, dict[str, Any], Counters | None]]:
     """The table URL, the driver options and (emulated) the emulator's counters.
 
     ``table`` (else the sequence's ``table_url``) is used once it answered (:func:`probe_table`:
@@ -163,14 +164,14 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
     (and stopped on exit) with the sequence's bodies on its plate and its rig configuration (limits, hexapod,
     ``[dynamics]``; written out as TOML when it is not the default), ``speed`` its controller time per real time
     (math.inf: virtual time), and a one-session signing key unless ``key_file`` is given. NoTableError when there
-    is neither.
+    is neither. ``link``: more options of the table's driver (a zenoh table's TLS identity: ``rig.cli.network``).
     """
     if not emulate:
         url = table or sequence.table_url
         if url is None:
             raise NoTableError("no table: the sequence has no table_url, none was given, and the emulated table was "
                                "not asked for")
-        options: dict[str, Any] = {"key_file": str(key_file)} if key_file else {}
+        options: dict[str, Any] = {**({"key_file": str(key_file)} if key_file else {}), **(link or {})}
         if url.startswith("canopen:"):  # this host is the drives' master: it needs the rig's [drives] and geometry
             options = {"table": sequence.table}
         probe_table(url, options, sequence)

@@ -33,9 +33,11 @@ from typing import Any
 import zenoh
 
 from protocols.mavlink import KEY_ENV, SigningKeyError, load_signing_key
-from protocols.zenoh import EndpointError, session_config
+from protocols.zenoh import EndpointError, LinkSecurity, session_config
 from protocols.zenoh.auth import Signer
+from protocols.zenoh.config import PLAIN
 from protocols.zenoh.payloads import Kind, PayloadError, decode_json
+from protocols.zenoh.tls import why_no_link
 from rig.service.keys import DEFAULT_RIG, ServiceKeys
 from rig.service.session import StartRequest
 from rig.service.telemetry import IDLE_PERIOD
@@ -107,18 +109,21 @@ class TelemetryFeed:
 class ServiceClient:
     """A connection to the rig service listening at ``connect`` (``tcp/127.0.0.1:7447``) (module docstring).
 
-    Raises :class:`ServiceUnavailableError` when nothing answers within ``connect_timeout`` [s]; ``timeout`` [s]
-    bounds each command but ``start``.
+    Raises :class:`ServiceUnavailableError` when nothing answers within ``connect_timeout`` [s] (over TLS, why the
+    link was not made); ``timeout`` [s] bounds each command but ``start``; ``security`` this client's TLS identity
+    (``connect`` a ``tls/`` endpoint) or plain text off loopback allowed.
     """
 
     def __init__(self, connect: str, key_file: Path | None = None, *, rig: str = DEFAULT_RIG,
-                 connect_timeout: float = CONNECT_TIMEOUT, timeout: float = COMMAND_TIMEOUT) -> None:
+                 connect_timeout: float = CONNECT_TIMEOUT, timeout: float = COMMAND_TIMEOUT,
+                 security: LinkSecurity = PLAIN) -> None:
         self.endpoint = connect
+        self.security = security
         self.keys = ServiceKeys.for_rig(rig)
         self.timeout = timeout
         self._signer = _signer(key_file)
         try:
-            self._session = zenoh.open(session_config(connect=[connect]))
+            self._session = zenoh.open(session_config(connect=[connect], security=security))
         except EndpointError as exc:
             raise ServiceError(str(exc)) from None
         except zenoh.ZError as exc:
@@ -135,8 +140,10 @@ class ServiceClient:
         try:
             while not all(q.matching_status.matching for q in queriers):
                 if time.monotonic() > deadline:
+                    why = (f": {why_no_link(self.endpoint, self.security.tls)}" if self.security.tls is not None
+                           else f": is `rig serve --listen {self.endpoint}` running?")
                     raise ServiceUnavailableError(f"no rig service at {self.endpoint} (nothing answered within "
-                                                  f"{timeout:g} s: is `rig serve --listen {self.endpoint}` running?)")
+                                                  f"{timeout:g} s{why})")
                 time.sleep(0.02)
         finally:
             for querier in queriers:

@@ -59,8 +59,9 @@ from typing import Any
 import zenoh
 
 from protocols.mavlink import KEY_ENV, SigningKeyError, load_signing_key
-from protocols.zenoh import EndpointError, session_config
+from protocols.zenoh import EndpointError, LinkSecurity, session_config
 from protocols.zenoh.auth import Verdict, Verifier
+from protocols.zenoh.config import PLAIN
 from protocols.zenoh.payloads import PayloadError
 from rig.orchestrator import Progress
 from rig.service.audit import escaped, request_source
@@ -88,13 +89,17 @@ class OrchestratorService:
 
     ``sessions_dir`` holds the session files (created if missing; relative paths of requests are taken from it);
     ``key_file`` the rig's key (else ``$SHAKETABLE_MAVLINK_KEY``); ``rig`` the rig's name in the key space;
-    ``say(message)`` reports what happens (e.g. to stderr). Raises :class:`ServiceError` when it cannot listen or
+    ``say(message)`` reports what happens (e.g. to stderr); ``security`` the zenoh session's TLS identity (listen on
+    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``). Raises
+    :class:`ServiceError` when it cannot listen or
     has no key while ``require_auth``. :meth:`close` aborts a running session and closes the zenoh session.
     """
 
     def __init__(self, listen: str, *, key_file: Path | None = None, sessions_dir: Path, rig: str = DEFAULT_RIG,
-                 require_auth: bool = True, say: Callable[[str], None] = lambda message: None) -> None:
+                 require_auth: bool = True, say: Callable[[str], None] = lambda message: None,
+                 security: LinkSecurity = PLAIN) -> None:
         self.listen = listen
+        self.security = security
         self.keys = ServiceKeys.for_rig(rig)
         self.key_file = key_file
         self.sessions_dir = Path(sessions_dir).expanduser().resolve()
@@ -111,7 +116,7 @@ class OrchestratorService:
         except OSError as exc:
             raise ServiceError(f"sessions directory {self.sessions_dir}: {exc}") from None
         try:
-            self._zenoh = zenoh.open(session_config(listen=[listen]))
+            self._zenoh = zenoh.open(session_config(listen=[listen], security=security))
         except EndpointError as exc:
             raise ServiceError(str(exc)) from None
         except zenoh.ZError as exc:
@@ -289,8 +294,10 @@ class OrchestratorService:
             with self._lock:
                 busy = self._starting or self._current
                 if busy is None or not busy.alive:
+                    link = ({} if self.security == PLAIN else
+                            {"tls": self.security.tls, "insecure_plain_tcp": self.security.insecure})
                     session = ServiceSession(request, sessions_dir=self.sessions_dir, key_file=self.key_file,
-                                             on_update=self._telemetry.changed, say=self._say)
+                                             on_update=self._telemetry.changed, say=self._say, link=link)
                     self._starting = session
                     break
                 if busy is self._starting or not busy.finished or time.monotonic() > deadline:

@@ -131,10 +131,13 @@ class ServiceSession:
     """
 
     def __init__(self, request: StartRequest, *, sessions_dir: Path, key_file: Path | None,
-                 on_update: Callable[[], None], say: Callable[[str], None] = lambda message: None) -> None:
+                 on_update: Callable[[], None], say: Callable[[str], None] = lambda message: None,
+                 link: dict[str, Any] | None = None) -> None:
         self.request = request
         self.sessions_dir = sessions_dir
         self.key_file = key_file
+        self.link = link or {}
+        """More options of a zenoh table's driver: the service's TLS identity (``rig.orchestrator.setup.table_for``)."""
         self.path: Path | None = None
         self.progress = Progress(message="preparing the session: checking the sequence")
         self.orchestrator: Orchestrator | None = None
@@ -251,7 +254,8 @@ class ServiceSession:
             self._note("preparing the session: starting the emulated table" if choice.emulate
                        else "preparing the session")
             self._url, self._options, self._counters = stack.enter_context(
-                table_for(sequence, choice.url, choice.emulate, self.key_file, choice.speed))
+                table_for(sequence, choice.url, choice.emulate, self.key_file, choice.speed,
+                          self.link if (choice.url or "").startswith("zenoh://") else None))
             if log is None:
                 log = create_log(sequence, self.path, choice)
                 stack.callback(log.close)

@@ -264,10 +264,12 @@ def test_session_config_is_loopback_only_without_scouting() -> None:
 
 
 @pytest.mark.parametrize(("endpoint", "message"), [
-    ("tcp/0.0.0.0:7447", r"'tcp/0\.0\.0\.0:7447' is not on loopback"),
-    ("tcp/[::]:7447", r"is not on loopback"),
-    ("tcp/192.168.1.20:7447", r"is not on loopback"),
-    ("tcp/localhost:7447", r"is not of the form tcp/127\.0\.0\.1:PORT, tcp/\[::1\]:PORT \(or udp/\.\.\.\)"),
+    ("tcp/0.0.0.0:7447", r"'tcp/0\.0\.0\.0:7447' is off loopback and not encrypted: use tls/0\.0\.0\.0:7447"),
+    ("tcp/[::]:7447", r"is off loopback and not encrypted: use tls/\[::\]:7447"),
+    ("udp/192.168.1.20:7447", r"is off loopback and not encrypted.*--insecure-plain-tcp"),
+    ("tls/192.168.1.20:7447", r"is TLS but no TLS identity is given \(--tls-ca, --tls-cert, --tls-key\)"),
+    ("tcp/localhost:7447", r"is not of the form tls/ADDRESS:PORT, tcp/127\.0\.0\.1:PORT, tcp/\[::1\]:PORT "
+                           r"\(or udp/\.\.\.\)"),
     ("quic/127.0.0.1:7447", r"is not of the form"),
     ("tcp/127.0.0.1", r"is not of the form"),
     ("tcp/127.0.0.1:0", r"needs an explicit port in 1\.\.65535"),

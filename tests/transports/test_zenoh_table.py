@@ -24,7 +24,16 @@ from stream_checks import drive_excerpt, stream_and_check
 
 from drivers.controller import TableError, TableTimeoutError, open_table
 from drivers.zenoh import ZenohTable
-from protocols.zenoh import Key, KeyExprError, parse_key, session_config, table_accel_selector, table_key
+from protocols.zenoh import (
+    EndpointError,
+    Key,
+    KeyExprError,
+    LinkSecurity,
+    parse_key,
+    session_config,
+    table_accel_selector,
+    table_key,
+)
 from protocols.zenoh.auth import FRESHNESS, TRAILER_BYTES, Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
@@ -106,11 +115,14 @@ def test_table_urls() -> None:
     for url, message in [("zenoh://127.0.0.1:0/t", "expected zenoh://HOST:PORT/TABLE"),
                          ("zenoh://127.0.0.1/t", "expected zenoh://HOST:PORT/TABLE"),
                          ("mavlink://127.0.0.1:7447", "expected zenoh://"),
-                         ("zenoh://localhost:7447/t", "loopback IP address"),
-                         ("zenoh://192.168.1.2:7447/t", "not on loopback"),
+                         ("zenoh://localhost:7447/t", "HOST must be an IP address"),
                          ("zenoh://127.0.0.1:7447/Lab A", "table name 'Lab A' is not valid")]:
         with pytest.raises(ValueError, match=message):
             parse_table_url(url)
+    lan = parse_table_url("zenoh://10.231.0.2:7447/t")  # any address; plain text off loopback refused at the link
+    with pytest.raises(EndpointError, match=r"'tcp/10\.231\.0\.2:7447' is off loopback and not encrypted"):
+        _ = lan.endpoint
+    assert lan.endpoint_for(LinkSecurity(insecure=True)) == "tcp/10.231.0.2:7447"
 
 
 def test_payloads_round_trip() -> None:

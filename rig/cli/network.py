@@ -1,0 +1,54 @@
+"""The lab-network options every zenoh command shares (``--tls-ca``, ``--tls-cert``, ``--tls-key``,
+``--insecure-plain-tcp``; ``docs/lab-network.md``) and what they become: a ``protocols.zenoh.LinkSecurity`` for a
+zenoh session of this process, and the table driver's options for a ``zenoh://`` table."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Annotated, Any
+
+import typer
+
+from rig.cli._common import err_console, fail
+
+if TYPE_CHECKING:  # imported where used (rig --help loads no zenoh)
+    from protocols.zenoh import LinkSecurity
+
+TlsCa = Annotated[Path | None, typer.Option("--tls-ca", metavar="FILE",
+                                            help="zenoh: the lab's CA certificate; with --tls-cert and --tls-key "
+                                                 "links are tls/ with mutual authentication (rig certs make)")]
+TlsCert = Annotated[Path | None, typer.Option("--tls-cert", metavar="FILE",
+                                              help="zenoh: this process's certificate, signed by the lab's CA")]
+TlsKey = Annotated[Path | None, typer.Option("--tls-key", metavar="FILE",
+                                             help="zenoh: the private key of --tls-cert (mode 0600)")]
+Insecure = Annotated[bool, typer.Option("--insecure-plain-tcp",
+                                        help="zenoh: allow plain tcp/ endpoints off loopback (nothing encrypted; "
+                                             "said in the log and the session's events)")]
+
+INSECURE_NOTE = "link: --insecure-plain-tcp: zenoh links off loopback may be plain text (nothing encrypted)"
+"""What a session's events and the log say when plain text off loopback was allowed."""
+
+
+def link_security(ca: Path | None, cert: Path | None, key: Path | None, insecure: bool) -> LinkSecurity:
+    """The options as a ``LinkSecurity`` (the TLS files checked: ``protocols.zenoh.tls.load_tls``); exits 2 with
+    the option, the file and what is wrong."""
+    from protocols.zenoh import LinkSecurity
+    from protocols.zenoh.tls import TlsError, load_tls
+
+    try:
+        security = LinkSecurity(load_tls(ca, cert, key), insecure)
+    except TlsError as exc:
+        fail(str(exc))
+    if insecure:
+        err_console.print(f"warning: {INSECURE_NOTE}", highlight=False, markup=False, soft_wrap=True)
+    return security
+
+
+def table_options(url: str | None, security: LinkSecurity) -> dict[str, Any]:
+    """The zenoh table driver's options for ``security`` (none when it is plain loopback); exits 2 when they are
+    given for a table that is not ``zenoh://``."""
+    if security.tls is None and not security.insecure:
+        return {}
+    if url is not None and not url.lower().startswith("zenoh://"):
+        fail(f"--tls-ca/--tls-cert/--tls-key and --insecure-plain-tcp apply to a zenoh:// table, not {url}")
+    return {"tls": security.tls, "insecure_plain_tcp": security.insecure}

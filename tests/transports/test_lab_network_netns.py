@@ -1,0 +1,185 @@
+"""The lab network across two hosts, as a lab sets it up (docs/lab-network.md): two network namespaces the test
+creates (``unshare --net``, gone with their processes) joined by a veth pair, the rig at 10.231.0.1 and the table
+controller (``python -m sim_table``) at 10.231.0.2. Nothing leaves the namespaces: no traffic goes to an address
+the test did not make.
+
+``rig run`` plays a one-run sequence on the table over MAVLink and over zenoh with mutual TLS; a client with a
+certificate of another CA, one that trusts another CA, and a plain ``tcp/`` table URL off loopback are each refused
+with one line that says which.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from rig.certs import make_identity
+from rig.emulator import specimen_flags
+from rig.sequence import load_sequence
+
+pytestmark = pytest.mark.integration  # starts processes and opens sockets (tests/conftest.py)
+
+ROOT = Path(__file__).parents[2]
+RIG_ADDRESS, TABLE_ADDRESS = "10.231.0.1", "10.231.0.2"
+
+_SEQUENCE = """
+name = "labnet"
+angles_deg = [0]
+records = [{{ record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 2.0] }}]
+[rig]
+config = {rig_config!r}
+[drive]
+corner_hz = 1.0
+settle_s = 0.2
+[operator]
+confirm_before_run = false
+ask_detections = false
+[[bodies]]
+table5 = 4
+x = 0.0
+y = -0.15
+"""
+
+
+def _can_make_namespaces() -> bool:
+    if shutil.which("unshare") is None or shutil.which("ip") is None:
+        return False
+    probe = subprocess.run(["unshare", "--net", "sh", "-c", "ip link add va type veth peer name vb"],
+                           capture_output=True, timeout=30)
+    return probe.returncode == 0
+
+
+@pytest.fixture(scope="module")
+def namespaces() -> None:
+    if not _can_make_namespaces():
+        pytest.skip("cannot create network namespaces and a veth pair here (needs unshare, ip, CAP_NET_ADMIN)")
+
+
+def _two_hosts(table_command: list[str], table_log: Path, rig_command: list[str], timeout: float = 240.0,
+               ) -> subprocess.CompletedProcess[str]:
+    """Run ``table_command`` (the controller, until SIGINT) in a namespace at 10.231.0.2 and, once it logged
+    ``listening``, ``rig_command`` in another at 10.231.0.1; the rig command's result (its exit status, stdout,
+    stderr)."""
+    log = shlex.quote(str(table_log))
+    table = (f"ip link set lo up && until ip link show vb >/dev/null 2>&1; do sleep 0.02; done && "
+             f"ip addr add {TABLE_ADDRESS}/24 dev vb && ip link set vb up && exec {shlex.join(table_command)} 2> {log}")
+    script = (f"ip link set lo up && {{ unshare --net sh -c {shlex.quote(table)} & }} && child=$! && "
+              'while [ "$(readlink /proc/$child/ns/net)" = "$(readlink /proc/self/ns/net)" ]; do sleep 0.02; done && '
+              f"ip link add va type veth peer name vb netns $child && ip addr add {RIG_ADDRESS}/24 dev va && "
+              f"ip link set va up && "
+              f"until grep -qs listening {log}; do kill -0 $child 2>/dev/null || exit 97; sleep 0.05; done && "
+              f"{shlex.join(rig_command)}; status=$?; kill -INT $child; wait $child; exit $status")
+    return subprocess.run(["unshare", "--net", "sh", "-c", script], capture_output=True, text=True, timeout=timeout,
+                          cwd=ROOT)
+
+
+def _sequence(tmp_path: Path) -> tuple[Path, list[str]]:
+    path = tmp_path / "labnet.toml"
+    path.write_text(_SEQUENCE.format(rig_config=str(ROOT / "examples" / "rig-table4.toml")))
+    return path, specimen_flags(load_sequence(path).bodies)
+
+
+def _identities(tmp_path: Path) -> Path:
+    certs = tmp_path / "certs"
+    make_identity(certs, "table", addresses=(TABLE_ADDRESS,))
+    make_identity(certs, "rig")
+    return certs
+
+
+def _tls(certs: Path, name: str, ca: Path | None = None) -> list[str]:
+    return ["--tls-ca", str(ca or certs / "ca.pem"), "--tls-cert", str(certs / f"{name}.pem"),
+            "--tls-key", str(certs / f"{name}.key")]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("transport", ["mavlink", "zenoh-tls"])
+def test_rig_run_across_two_hosts(transport: str, tmp_path: Path, namespaces: None) -> None:
+    sequence, bodies = _sequence(tmp_path)
+    key = tmp_path / "rig.key"
+    key.write_text("ab" * 32 + "\n")
+    certs = _identities(tmp_path)
+    if transport == "mavlink":
+        listen = url = f"mavlink://{TABLE_ADDRESS}:14600"
+        table_tls: list[str] = []
+        rig_tls: list[str] = []
+    else:
+        listen = url = f"zenoh://{TABLE_ADDRESS}:7447/lab"
+        table_tls, rig_tls = _tls(certs, "table"), _tls(certs, "rig")
+    table = [sys.executable, "-m", "sim_table", "--listen", listen, "--key-file", str(key), *bodies, *table_tls,
+             "--counters", str(tmp_path / "counters.json")]
+    output = tmp_path / "session.h5"
+    rig = [sys.executable, "-m", "rig.cli", "run", str(sequence), "--table", url, "--key-file", str(key), "--yes",
+           "--json", "-o", str(output), *rig_tls]
+    done = _two_hosts(table, tmp_path / "table.log", rig)
+    assert done.returncode == 0, done.stderr + (tmp_path / "table.log").read_text()
+    outcome = json.loads(done.stdout)
+    assert outcome["complete"] is True and outcome["runs_done"] == outcome["runs_total"] == 1, outcome
+    counters = json.loads((tmp_path / "counters.json").read_text())
+    assert counters["underruns"] == 0 and counters["state"] == "idle", counters
+
+
+def test_certificates_the_other_side_does_not_trust_are_refused_clearly(tmp_path: Path, namespaces: None) -> None:
+    """The table listens with the lab's certificate. A rig given a certificate of another lab (another CA signed it)
+    is refused before it sends anything; a rig whose whole identity is another lab's refuses the table's certificate
+    (an unknown CA): each says so in one line, naming the file."""
+    sequence, bodies = _sequence(tmp_path)
+    key = tmp_path / "rig.key"
+    key.write_text("cd" * 32 + "\n")
+    certs = _identities(tmp_path)
+    other = tmp_path / "other"
+    make_identity(other, "rig")
+    table = [sys.executable, "-m", "sim_table", "--listen", f"zenoh://{TABLE_ADDRESS}:7447/lab", "--key-file",
+             str(key), *bodies, *_tls(certs, "table")]
+    run = [sys.executable, "-m", "rig.cli", "run", str(sequence), "--table", f"zenoh://{TABLE_ADDRESS}:7447/lab",
+           "--key-file", str(key), "--yes", "-o", str(tmp_path / "s.h5")]
+    attempts = [  # (our CA, our certificate's directory): a wrong certificate, then an unknown CA
+        (certs / "ca.pem", other), (other / "ca.pem", other)]
+    script = " ; ".join(f"{shlex.join([*run, *_tls(directory, 'rig', ca)])} ; echo exit=$?"
+                        for ca, directory in attempts)
+    done = _two_hosts(table, tmp_path / "table.log", ["sh", "-c", script])
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert [line for line in done.stdout.splitlines() if line.startswith("exit=")] == ["exit=2", "exit=2"], done
+    assert len(errors) == 2, done.stderr
+    assert errors[0] == (f"error: --tls-cert {other / 'rig.pem'}: not signed by the CA {certs / 'ca.pem'} "
+                         "(CN=shaketable-rig lab CA (certs))")
+    assert (f"the certificate of the listener at {TABLE_ADDRESS}:7447 is not trusted by the CA "
+            f"{other / 'ca.pem'}") in errors[1]
+    assert not (tmp_path / "s.h5").exists()  # nothing was written
+
+
+def test_a_plain_table_url_off_loopback_is_refused_before_any_link(tmp_path: Path) -> None:
+    """No namespace needed: the refusal comes before a socket is opened."""
+    sequence, _ = _sequence(tmp_path)
+    key = tmp_path / "rig.key"
+    key.write_text("ef" * 32 + "\n")
+    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", str(sequence), "--table",
+                           f"zenoh://{TABLE_ADDRESS}:7447/lab", "--key-file", str(key), "--yes"],
+                          capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert done.returncode == 2
+    assert done.stderr.strip().splitlines()[-1].startswith(
+        f"error: the table at zenoh://{TABLE_ADDRESS}:7447/lab did not answer: table URL "
+        f"'zenoh://{TABLE_ADDRESS}:7447/lab': endpoint 'tcp/{TABLE_ADDRESS}:7447' is off loopback and not encrypted")
+    assert "Traceback" not in done.stderr
+
+
+def test_rig_table_list_finds_the_table_across_hosts_over_tls(tmp_path: Path, namespaces: None) -> None:
+    """The controller declares a liveliness token: ``rig table list`` on the other host finds it, with its transport
+    and its state verified with the rig's key."""
+    key = tmp_path / "rig.key"
+    key.write_text("12" * 32 + "\n")
+    certs = _identities(tmp_path)
+    table = [sys.executable, "-m", "sim_table", "--listen", f"zenoh://{TABLE_ADDRESS}:7447/lab", "--key-file",
+             str(key), *_tls(certs, "table"), "--counters", str(tmp_path / "counters.json")]
+    listing = [sys.executable, "-m", "rig.cli", "table", "list", "--connect", f"tls/{TABLE_ADDRESS}:7447",
+               "--key-file", str(key), "--json", *_tls(certs, "rig")]
+    done = _two_hosts(table, tmp_path / "table.log", listing, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout) == {"found": [{
+        "name": "lab", "role": "table", "transport": f"zenoh mutual TLS via tls/{TABLE_ADDRESS}:7447",
+        "state": "idle"}]}
