@@ -1,7 +1,7 @@
 """The table controller over MAVLink 2 on UDP: ``open_table("mavlink://HOST:PORT", key_file=...)``.
 
 The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with
-the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.mavlink.load_signing_key`) both
+the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.signing_key.load_signing_key`) both
 ways: what the controller sends is taken only when signed with that key, fresh, by a stream not replayed
 (:func:`protocols.mavlink.parse_verified`); the rest is dropped and counted
 (:meth:`MavlinkTable.link_stats`:
@@ -70,7 +70,6 @@ from protocols.mavlink import (
     dialect,
     enable_signing,
     follow_wall_clock,
-    load_signing_key,
     parse_verified,
     setpoint_chunks,
     stale_new_stream,
@@ -78,6 +77,7 @@ from protocols.mavlink import (
     unpack_tilt_batch,
     whole_frames,
 )
+from protocols.signing_key import load_signing_key
 
 RECEIVE_BUFFER = 4 << 20
 """Requested socket receive buffer [bytes]."""

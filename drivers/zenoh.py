@@ -65,7 +65,7 @@ from drivers.controller import (
     register_scheme,
     sleep_until,
 )
-from protocols.mavlink import load_signing_key
+from protocols.signing_key import load_signing_key
 from protocols.zenoh import session_config, table_accel_selector, table_key
 from protocols.zenoh.auth import Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError

@@ -7,7 +7,7 @@ import argparse
 import math
 from pathlib import Path
 
-from protocols.mavlink.signing import KEY_ENV
+from protocols.signing_key import KEY_ENV
 
 DYNAMICS = ("lag", "servo")
 """The emulator's leg models: ``lag`` (first-order lag, :mod:`sim_table.actuators`) and ``servo``

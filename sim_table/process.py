@@ -65,7 +65,7 @@ from typing import Any
 import numpy as np
 
 from analysis.table.model import TableModel
-from protocols.mavlink import KEY_ENV, load_signing_key
+from protocols.signing_key import KEY_ENV, load_signing_key
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State

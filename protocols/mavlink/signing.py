@@ -3,10 +3,8 @@
 Motion commands are signed (docs/architecture.md §5): the host signs everything it sends; the controller refuses a
 message that :func:`requires_signature` unless :func:`signed_with_key` holds for it.
 
-**Key.** One 32-byte secret shared by the host and the controller, from :envvar:`SHAKETABLE_MAVLINK_KEY`
-(64 hexadecimal digits) or from a key file: either exactly 32 raw bytes, or 64 hexadecimal digits (surrounding
-whitespace allowed). An all-zero key is refused (MAVLink implementations treat it as "no key"). Make one with
-``python -c "import secrets; print(secrets.token_hex(32))"``.
+**Key.** The rig's 32-byte secret, read by :func:`protocols.signing_key.load_signing_key` (a key file or
+``$SHAKETABLE_MAVLINK_KEY``; what a key must be is said there).
 
 **Receiving.** :func:`enable_signing` installs pymavlink's ``allow_unsigned_callback`` so that unsigned and
 badly signed messages are still *delivered*, flagged by ``msg.get_signed() == False``, instead of being raised
@@ -29,19 +27,11 @@ from __future__ import annotations
 
 import calendar
 import functools
-import os
 import time
-from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 from protocols.mavlink.codegen import dialect
-
-KEY_ENV = "SHAKETABLE_MAVLINK_KEY"
-"""Environment variable holding the signing key as 64 hexadecimal digits."""
-
-KEY_BYTES = 32
-"""Length of a MAVLink 2 signing key."""
+from protocols.signing_key import KEY_BYTES, SigningKeyError
 
 SIGNED_FRAME = 0x01
 """MAVLINK_IFLAG_SIGNED, the signed bit of a MAVLink 2 frame's ``incompat_flags`` (its third byte)."""
@@ -54,51 +44,6 @@ REPLAY_WINDOW = 5.0
 
 TIMESTAMP_UNITS_PER_S = 100_000
 """Signing timestamp units (10 µs) per second."""
-
-
-class SigningKeyError(ValueError):
-    """The signing key is missing or malformed; the message says where it came from and what is wrong."""
-
-
-def _parse_hex(text: str, source: str) -> bytes:
-    text = text.strip()
-    if len(text) != 2 * KEY_BYTES:
-        raise SigningKeyError(f"{source}: expected {2 * KEY_BYTES} hexadecimal digits, got {len(text)} characters")
-    try:
-        return bytes.fromhex(text)
-    except ValueError:
-        raise SigningKeyError(f"{source}: not hexadecimal") from None
-
-
-def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping[str, str] = os.environ) -> bytes:
-    """The 32-byte signing key: from the key file ``path`` if given, else from ``env[SHAKETABLE_MAVLINK_KEY]``.
-
-    A key file holds exactly 32 raw bytes, or 64 hexadecimal digits; the variable holds 64 hexadecimal digits.
-    Raises :class:`SigningKeyError` when there is no key, or it has the wrong length or format, or is all zero.
-    """
-    if path is not None:
-        source = f"signing key file {os.fspath(path)}"
-        try:
-            data = Path(path).read_bytes()
-        except OSError as exc:
-            raise SigningKeyError(f"{source}: {exc.strerror or exc}") from exc
-        if len(data) == KEY_BYTES:
-            key = data
-        else:
-            try:
-                text = data.decode("ascii")
-            except UnicodeDecodeError:
-                raise SigningKeyError(f"{source}: {len(data)} bytes, neither {KEY_BYTES} raw bytes nor "
-                                      f"{2 * KEY_BYTES} hexadecimal digits") from None
-            key = _parse_hex(text, source)
-    elif env.get(KEY_ENV):
-        source = f"environment variable {KEY_ENV}"
-        key = _parse_hex(env[KEY_ENV], source)
-    else:
-        raise SigningKeyError(f"no MAVLink signing key: set {KEY_ENV} (64 hexadecimal digits) or give a key file")
-    if not any(key):
-        raise SigningKeyError(f"{source}: the all-zero key means 'no key' to MAVLink; make a random one")
-    return key
 
 
 def signing_timestamp(unix_time: float | None = None) -> int:

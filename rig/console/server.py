@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from protocols.mavlink import SigningKeyError
+from protocols.signing_key import SigningKeyError
 from rig.console.app import Console, create_app
 from rig.console.feed import TelemetrySubscription
 from rig.console.guard import ConnectionGuard, guarded_protocol

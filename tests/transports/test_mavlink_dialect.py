@@ -23,14 +23,12 @@ from hypothesis import strategies as st
 from protocols.mavlink import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
-    KEY_ENV,
     REPLAY_WINDOW,
     SETPOINTS_PER_CHUNK,
     TILT_PER_BATCH,
     DialectError,
     FramingError,
     SequenceGapError,
-    SigningKeyError,
     UdpLink,
     accel_batches,
     badly_signed,
@@ -39,7 +37,6 @@ from protocols.mavlink import (
     enable_signing,
     join_accel_batches,
     join_setpoint_chunks,
-    load_signing_key,
     mavlink_connection,
     parse_verified,
     requires_signature,
@@ -53,6 +50,7 @@ from protocols.mavlink import (
     whole_frames,
 )
 from protocols.mavlink.signing import signing_timestamp
+from protocols.signing_key import SigningKeyError
 
 # A schema change must show up here: update the numbers together with both ends of the link.
 PINNED = {  # name: (message id, CRC_EXTRA)
@@ -398,40 +396,6 @@ def test_stopping_needs_no_signature_everything_else_that_moves_does(d):
     assert requires_signature(setpoint_chunks(np.zeros((1, 6)), 0, 1)[0])
     assert not requires_signature(d.MAVLink_heartbeat_message(0, 0, 0, 0, 0, 3))
     assert not requires_signature(_examples(d)[3])  # status
-
-
-def test_signing_key_from_file_or_environment(tmp_path):
-    raw = tmp_path / "raw.key"
-    raw.write_bytes(b"\n" + KEY[1:])  # 32 raw bytes, whitespace included, are raw
-    assert load_signing_key(raw, env={}) == b"\n" + KEY[1:]
-    hexa = tmp_path / "hex.key"
-    hexa.write_text(KEY.hex().upper() + "\n")
-    assert load_signing_key(str(hexa), env={}) == KEY
-    assert load_signing_key(env={KEY_ENV: f"  {KEY.hex()} "}) == KEY
-    assert load_signing_key(hexa, env={KEY_ENV: "00" * 32}) == KEY  # a file given wins
-
-
-@pytest.mark.parametrize(("content", "env", "why"), [
-    (None, {}, "no MAVLink signing key: set SHAKETABLE_MAVLINK_KEY"),
-    (None, {KEY_ENV: "ab" * 16}, "SHAKETABLE_MAVLINK_KEY: expected 64 hexadecimal digits, got 32"),
-    (None, {KEY_ENV: "zz" * 32}, "SHAKETABLE_MAVLINK_KEY: not hexadecimal"),
-    (None, {KEY_ENV: "00" * 32}, "all-zero key"),
-    (b"\x00" * 32, {}, "all-zero key"),
-    (b"\xff" * 31, {}, "31 bytes, neither 32 raw bytes nor 64 hexadecimal digits"),
-    (b"ab" * 31 + b"\n", {}, "expected 64 hexadecimal digits, got 62"),
-    ("missing", {}, "No such file"),
-])
-def test_a_bad_signing_key_is_refused_with_its_source(tmp_path, content, env, why):
-    path = None
-    if content == "missing":
-        path = tmp_path / "missing.key"
-    elif content is not None:
-        path = tmp_path / "bad.key"
-        path.write_bytes(content)
-    with pytest.raises(SigningKeyError, match=why) as err:
-        load_signing_key(path, env=env)
-    if path is not None:
-        assert str(path) in str(err.value)
 
 
 def test_enable_signing_refuses_a_bad_key_or_link_id(d):

@@ -24,6 +24,7 @@ from stream_checks import drive_excerpt, stream_and_check
 
 from drivers.controller import TableError, TableTimeoutError, open_table
 from drivers.zenoh import ZenohTable
+from protocols.signing_key import write_signing_key
 from protocols.zenoh import Key, KeyExprError, parse_key, session_config, table_accel_selector, table_key
 from protocols.zenoh.auth import FRESHNESS, TRAILER_BYTES, Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError
@@ -225,7 +226,7 @@ def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess
 @pytest.fixture(scope="module")
 def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("key") / "rig.key"
-    path.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(path)
     return path
 
 
