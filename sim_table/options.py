@@ -82,6 +82,10 @@ def argument_parser() -> argparse.ArgumentParser:
                         "no emulator is left holding its port")
     p.add_argument("--key-file", type=Path, metavar="FILE",
                    help=f"signing key file (default: ${KEY_ENV}); mavlink and zenoh only: canopen does not sign")
+    p.add_argument("--replay-state", type=Path, metavar="FILE",
+                   help="where the signatures' last stamps are kept across restarts, written crash-safe (default: "
+                        "beside --key-file, KEYFILE.<transport>-replay.json; required with the key from "
+                        f"${KEY_ENV}); mavlink and zenoh only")
     p.add_argument("--rig-config", type=Path, metavar="FILE",
                    help="rig configuration TOML (default: Table IV, default hexapod)")
     p.add_argument("--leg-noise", type=float, metavar="M",

@@ -37,13 +37,15 @@ from protocols.mavlink.framing import (
 from protocols.mavlink.link import UdpLink, mavlink_connection, whole_frames
 from protocols.mavlink.signing import (
     REPLAY_WINDOW,
+    STAMP_AHEAD,
     badly_signed,
     enable_signing,
     follow_wall_clock,
+    parse_guarded,
     parse_verified,
+    replay_guard,
     requires_signature,
     signed_with_key,
-    stale_new_stream,
 )
 
 __all__ = [
@@ -52,6 +54,7 @@ __all__ = [
     "END_OF_STREAM",
     "REPLAY_WINDOW",
     "SETPOINTS_PER_CHUNK",
+    "STAMP_AHEAD",
     "TILT_PER_BATCH",
     "DialectError",
     "FramingError",
@@ -66,11 +69,12 @@ __all__ = [
     "join_accel_batches",
     "join_setpoint_chunks",
     "mavlink_connection",
+    "parse_guarded",
     "parse_verified",
+    "replay_guard",
     "requires_signature",
     "setpoint_chunks",
     "signed_with_key",
-    "stale_new_stream",
     "tilt_batches",
     "unpack_accel_batch",
     "unpack_setpoint_chunk",

@@ -15,12 +15,13 @@ reordered signed messages count as unsigned.
 
 **Timestamps.** A signature carries a 48-bit timestamp in units of 10 µs since 2015-01-01 00:00:00 UTC; a
 sender starts from its wall clock (:func:`signing_timestamp`), pymavlink adds one per message sent, and
-:func:`follow_wall_clock` before each send keeps it at or above the wall clock (so that a long connection does not
-fall behind it). pymavlink accepts a stream's message only when its timestamp is above the stream's last one, and
-the first message of a stream it has not heard up to one minute behind the receiver; :func:`stale_new_stream`
-narrows that to :data:`REPLAY_WINDOW` behind the receiver's wall clock (MAVLink's signing specification: "a small
-window"), so that a message captured earlier is refused by a controller that restarted since — host and
-controller clocks must agree within that window.
+:func:`follow_wall_clock` before each send keeps it at or above the receiver side's current stamp (its wall clock,
+or more: the largest stamp it has taken), so that a long connection does not fall behind. What a receiver takes is
+decided by its :class:`protocols.replay.ReplayGuard` (:func:`replay_guard`: MAVLink's timestamp rules, a new stream
+at most :data:`REPLAY_WINDOW` behind the current stamp instead of the specification's minute, no stamp more than
+:data:`STAMP_AHEAD` beyond it) before pymavlink parses the frame (:func:`parse_guarded`): a controller that keeps
+its guard's state across restarts (``sim_table.replay_store``) refuses a capture replayed after a restart whatever
+its clock says, and a message stamped from a clock far ahead is refused.
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ import time
 from typing import Any
 
 from protocols.mavlink.codegen import dialect
+from protocols.replay import Freshness, ReplayGuard, ReplayState
 from protocols.signing_key import KEY_BYTES, SigningKeyError
 
 SIGNED_FRAME = 0x01
@@ -40,7 +42,10 @@ SIGNING_EPOCH = calendar.timegm((2015, 1, 1, 0, 0, 0))
 """The MAVLink signing epoch, 2015-01-01 00:00:00 UTC, in Unix seconds."""
 
 REPLAY_WINDOW = 5.0
-"""How far behind the receiver's wall clock the first signed message of a stream it has not heard may be [s]."""
+"""How far behind the receiver's current stamp the first signed message of a stream it has not heard may be [s]."""
+
+STAMP_AHEAD = 5.0
+"""How far beyond the receiver's current stamp a signed message may be stamped [s]."""
 
 TIMESTAMP_UNITS_PER_S = 100_000
 """Signing timestamp units (10 µs) per second."""
@@ -52,10 +57,18 @@ def signing_timestamp(unix_time: float | None = None) -> int:
     return max(0, int((now - SIGNING_EPOCH) * TIMESTAMP_UNITS_PER_S))
 
 
-def follow_wall_clock(mav: Any) -> None:
-    """Raise the next outgoing signing timestamp of ``mav`` to the wall clock if it fell behind (call before a
-    send, under the lock that serialises sends)."""
-    mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp())
+def follow_wall_clock(mav: Any, guard: ReplayGuard | None = None) -> None:
+    """Raise the next outgoing signing timestamp of ``mav`` to the wall clock, or to ``guard``'s current stamp (the
+    receiving side of the same link), if it fell behind (call before a send, under the lock that serialises
+    sends)."""
+    mav.signing.timestamp = max(mav.signing.timestamp, guard.current() if guard is not None else signing_timestamp())
+
+
+def replay_guard(state: ReplayState | None = None) -> ReplayGuard:
+    """A receiver's :class:`~protocols.replay.ReplayGuard` for MAVLink signatures (streams: link id, system,
+    component; stamps in 10 µs since 2015), from ``state`` if it was kept."""
+    return ReplayGuard(signing_timestamp, round(REPLAY_WINDOW * TIMESTAMP_UNITS_PER_S),
+                       round(STAMP_AHEAD * TIMESTAMP_UNITS_PER_S), state=state)
 
 
 def signature_stream(frame: bytes) -> tuple[tuple[int, int, int], int] | None:
@@ -66,14 +79,16 @@ def signature_stream(frame: bytes) -> tuple[tuple[int, int, int], int] | None:
     return (frame[-13], frame[5], frame[6]), int.from_bytes(frame[-12:-6], "little")
 
 
-def stale_new_stream(mav: Any, frame: bytes, window: float = REPLAY_WINDOW) -> bool:
-    """Whether ``frame`` is signed, opens a stream the receiving ``mav`` has not heard, and is stamped more than
-    ``window`` [s] behind the wall clock: a replay to a receiver that restarted (module docstring). pymavlink
-    would take it up to one minute late: give the answer to :func:`parse_verified`."""
+def parse_guarded(mav: Any, guard: ReplayGuard, frame: bytes) -> tuple[list[Any], Freshness | None]:
+    """The messages of one MAVLink 2 ``frame`` parsed by ``mav`` (signing enabled), flagged signed only when the
+    signature verified and ``guard`` found its stamp fresh, and that freshness (None: an unsigned frame). A signed
+    message taken moves its stream in ``guard``; a stale or future one moves nothing (:func:`parse_verified`)."""
     stream = signature_stream(frame)
-    if stream is None or stream[0] in mav.signing.stream_timestamps:
-        return False
-    return stream[1] < signing_timestamp() - round(window * TIMESTAMP_UNITS_PER_S)
+    freshness = None if stream is None else guard.check(*stream)
+    messages = parse_verified(mav, frame, stale=freshness not in (None, Freshness.FRESH))
+    if stream is not None and freshness is Freshness.FRESH and any(msg.get_signed() for msg in messages):
+        guard.accept(*stream)
+    return messages, freshness
 
 
 def enable_signing(mav: Any, key: bytes, *, link_id: int, sign_outgoing: bool = True,
@@ -111,7 +126,8 @@ def signed_with_key(msg: Any) -> bool:
 
 def parse_verified(mav: Any, frame: bytes, *, stale: bool = False) -> list[Any]:
     """The messages of ``frame`` parsed by ``mav`` (signing enabled), BAD_DATA left out, each flagged as
-    :func:`signed_with_key` says; ``stale`` (:func:`stale_new_stream`) flags them unsigned whatever pymavlink found.
+    :func:`signed_with_key` says; ``stale`` (the guard refused the stamp, :func:`parse_guarded`) flags them unsigned
+    whatever pymavlink found.
     A badly signed or stale message does not move its stream's timestamp: pymavlink records it before checking the
     signature, so one forged message with a future timestamp would lock the real sender out, and a replayed one
     would open its stream to the rest of the capture; it is restored."""

@@ -236,7 +236,9 @@ def injected_drive_fault_under_delay(listen: str, key_file: Path, monkeypatch: p
     undone. With ``table_type`` the URL must open one."""
     env = {KEY_ENV: key_file.read_text().strip()}
     monkeypatch.setenv(KEY_ENV, env[KEY_ENV])
-    emulator = EmulatorProcess.start(listen, "--delay", "10", "--drive-fault-at", "1.0", "--speed", "2", env=env)
+    replay_state = key_file.parent / f"env-key.{listen.split(':')[0]}-replay.json"  # no key file to put it beside
+    emulator = EmulatorProcess.start(listen, "--delay", "10", "--drive-fault-at", "1.0", "--speed", "2",
+                                     "--replay-state", str(replay_state), env=env)
     try:
         with open_table(emulator.url) as table:
             if table_type is not None:

@@ -25,6 +25,7 @@ from protocols.mavlink import (
     END_OF_STREAM,
     REPLAY_WINDOW,
     SETPOINTS_PER_CHUNK,
+    STAMP_AHEAD,
     TILT_PER_BATCH,
     DialectError,
     FramingError,
@@ -38,11 +39,11 @@ from protocols.mavlink import (
     join_accel_batches,
     join_setpoint_chunks,
     mavlink_connection,
-    parse_verified,
+    parse_guarded,
+    replay_guard,
     requires_signature,
     setpoint_chunks,
     signed_with_key,
-    stale_new_stream,
     tilt_batches,
     unpack_accel_batch,
     unpack_setpoint_chunk,
@@ -50,6 +51,7 @@ from protocols.mavlink import (
     whole_frames,
 )
 from protocols.mavlink.signing import signing_timestamp
+from protocols.replay import Freshness
 from protocols.signing_key import SigningKeyError
 
 # A schema change must show up here: update the numbers together with both ends of the link.
@@ -616,17 +618,23 @@ def test_a_new_stream_stamped_more_than_the_window_behind_the_wall_clock_is_stal
     key = bytes(range(1, 33))
     receiver = d.MAVLink(None, srcSystem=1, srcComponent=1)
     enable_signing(receiver, key, link_id=0, sign_outgoing=False)
+    guard = replay_guard()
     now = time.time()
     captured = _heartbeat(d, key, timestamp=signing_timestamp(now - 36.0))
     late = _heartbeat(d, key, timestamp=signing_timestamp(now - REPLAY_WINDOW - 0.5), system=254)
     fresh = _heartbeat(d, key, timestamp=signing_timestamp(now - REPLAY_WINDOW + 1.0), system=253)
-    assert stale_new_stream(receiver, captured) and stale_new_stream(receiver, late)
-    assert not stale_new_stream(receiver, fresh) and not stale_new_stream(receiver, _heartbeat(d))
-    # pymavlink alone takes the 36 s old one (its window is a minute); flagged stale, it is unsigned and its stream
+    ahead = _heartbeat(d, key, timestamp=signing_timestamp(now + STAMP_AHEAD + 1.0), system=252)
+    # pymavlink alone takes the 36 s old one (its window is a minute); found stale, it is unsigned and its stream
     # stays closed, so the rest of the capture is stale too
-    (replayed,) = parse_verified(receiver, captured, stale=True)
-    assert not signed_with_key(replayed) and badly_signed(replayed)
-    assert receiver.signing.stream_timestamps == {}
-    (taken,) = parse_verified(receiver, fresh)
-    assert signed_with_key(taken)
+    for frame, freshness in ((captured, Freshness.STALE), (late, Freshness.STALE), (ahead, Freshness.FUTURE)):
+        (refused,), found = parse_guarded(receiver, guard, frame)
+        assert found is freshness and not signed_with_key(refused) and badly_signed(refused)
+    assert receiver.signing.stream_timestamps == {} and guard.state().streams == ()
+    (unsigned,), found = parse_guarded(receiver, guard, _heartbeat(d))
+    assert found is None and not signed_with_key(unsigned)
+    (taken,), found = parse_guarded(receiver, guard, fresh)
+    assert found is Freshness.FRESH and signed_with_key(taken)
     assert list(receiver.signing.stream_timestamps) == [(3, 253, 190)]
+    assert [stream for stream, _ in guard.state().streams] == [(3, 253, 190)]
+    (again,), found = parse_guarded(receiver, guard, fresh)  # the same frame again: a replay within its stream
+    assert found is Freshness.STALE and not signed_with_key(again)
