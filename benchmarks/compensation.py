@@ -35,7 +35,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import secrets
 import statistics
 import sys
 import tempfile
@@ -48,6 +47,7 @@ import numpy as np
 from analysis.body import TABLE_V
 from analysis.table.dynamics import PlateLoad, plate_modes
 from analysis.table.model import TableModel
+from protocols.signing_key import write_signing_key
 from rig.compensation.identify import frequency_response, identification_drive
 from rig.compensation.iteration import Compensation, compensate, pooled_floor
 from rig.compensation.laws import DiagonalLaw, MimoLaw
@@ -144,7 +144,7 @@ def _emulator(args: argparse.Namespace, table: TableModel, specs: list[str], scr
     from rig.emulator import EmulatorProcess
 
     key = scratch / "bench.key"
-    key.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(key)
     flags, bodies = ["--dynamics", "servo", "--speed", "max"], []
     gap = 0.05
     edge = -(sum(body.depth for body in TABLE_V) + gap * (len(TABLE_V) - 1)) / 2

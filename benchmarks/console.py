@@ -27,7 +27,6 @@ import ast
 import asyncio
 import json
 import os
-import secrets
 import signal
 import socket
 import subprocess
@@ -41,6 +40,7 @@ from typing import Any
 import h5py
 import numpy as np
 
+from protocols.signing_key import write_signing_key
 from rig.console import operator_token
 from rig.service import ServiceClient
 
@@ -167,7 +167,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="console-bench-") as scratch:
         root = Path(scratch)
         key_file = root / "rig.key"
-        key_file.write_text(secrets.token_hex(32) + "\n")
+        write_signing_key(key_file)
         sequence = root / "bench.toml"
         sequence.write_text(SEQUENCE.format(end=4.0 + args.seconds))
         endpoint = f"tcp/127.0.0.1:{free_port()}"

@@ -22,7 +22,6 @@ import argparse
 import gc
 import json
 import math
-import secrets
 import statistics
 import tempfile
 import time
@@ -36,6 +35,7 @@ import rig.orchestrator.orchestrator  # noqa: F401
 import sim_table.process  # noqa: F401
 from drivers.controller import open_table
 from drivers.heap import HeapHold
+from protocols.signing_key import write_signing_key
 from rig.drive.prepare import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
@@ -71,7 +71,7 @@ class PauseWatch:
 def stream_pauses(directory: Path) -> dict[str, object]:
     """Stream 16 s of NORTHR/MUL009 at 5° to an emulator at --speed max while :class:`PauseWatch` watches."""
     key_file = directory / "rig.key"
-    key_file.write_text(secrets.token_hex(32))
+    write_signing_key(key_file)
     drive = prepare_drive(load_record("fema:NORTHR/MUL009"), angle=math.radians(5))
     drive_t, poses = drive.t[:16_000], drive.poses[:16_000]
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", "--body", "0.2x0.6", "--speed", "max",

@@ -38,6 +38,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from protocols.signing_key import write_signing_key
 from rig.session import SessionLog
 
 TARGET = 1_000_000.0  # [samples/s] the issue's target
@@ -184,7 +185,6 @@ def measure_streaming(seconds: float, channels: int, *, logging: bool, directory
     """Stream a ``seconds`` long 1 kHz drive (a 0.5 Hz, 50 mm surge sine between quintic ramps) over MAVLink to
     the emulator; with ``logging``, `measure_writer` saturates a session writer in this process meanwhile. The
     emulator's underruns, the chunks' send lateness [ms] and, with logging, the writer's rate [samples/s]."""
-    import secrets
 
     from drivers.controller import open_table
     from rig.emulator import EmulatorProcess
@@ -195,7 +195,7 @@ def measure_streaming(seconds: float, channels: int, *, logging: bool, directory
     poses[:, 0] = 0.05 * envelope**3 * (10 - 15 * envelope + 6 * envelope**2) * np.sin(2 * np.pi * 0.5 * t)
     with tempfile.TemporaryDirectory(prefix="sess_bench_key_") as tmp:
         key = Path(tmp) / "rig.key"
-        key.write_text(secrets.token_hex(32) + "\n")
+        write_signing_key(key)
         emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", key_file=key)
         writer: dict = {}
         try:

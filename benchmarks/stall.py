@@ -32,7 +32,6 @@ import argparse
 import json
 import math
 import os
-import secrets
 import signal
 import subprocess
 import sys
@@ -46,6 +45,7 @@ from scipy import signal as dsp
 
 from analysis.table.link import LinkSettings
 from drivers.controller import StreamAbortedError, TableError, open_table
+from protocols.signing_key import write_signing_key
 from rig.emulator import EmulatorProcess
 from rig.sequence import load_sequence
 
@@ -188,7 +188,7 @@ def main() -> None:
     }
     with tempfile.TemporaryDirectory() as scratch:
         key = Path(scratch) / "key"
-        key.write_text(secrets.token_hex(32))
+        write_signing_key(key)
         for transport in LISTEN if args.transport == "all" else (args.transport,):
             cases = {f"{f:g}x_lead": case(transport, f * lead, key) for f in fractions}
             stop = case(transport, 0.0, key, stop_mid=True)

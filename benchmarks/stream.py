@@ -63,6 +63,7 @@ import numpy as np
 
 from analysis.body import TABLE_V
 from drivers.controller import DEFAULT_LEAD, StreamAbortedError, open_table
+from protocols.signing_key import write_signing_key
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess, parse_speed, speed_flags
 from rig.records import load_record
@@ -171,7 +172,7 @@ def run(transport: str, record: str, angle_deg: float, lead: float, speed: float
     canopen = transport == "canopen"
     with tempfile.TemporaryDirectory(prefix="stream-bench-") as scratch:
         key_file = Path(scratch) / "rig.key"
-        key_file.write_text(secrets.token_hex(32))
+        write_signing_key(key_file)
         with _started(transport, placed, speed, key_file, dynamics) as emulator:
             try:
                 options = {} if canopen else {"key_file": str(key_file)}

@@ -1,11 +1,11 @@
 """The table controller over MAVLink 2 on UDP: ``open_table("mavlink://HOST:PORT", key_file=...)``.
 
 The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with
-the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.mavlink.load_signing_key`) both
+the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.signing_key.load_signing_key`) both
 ways: what the controller sends is taken only when signed with that key, fresh, by a stream not replayed
-(:func:`protocols.mavlink.parse_verified`); the rest is dropped and counted
-(:meth:`MavlinkTable.link_stats`:
-``junk_datagrams``, ``refused_unsigned``, ``refused_bad_signature``, ``refused_stale``), so that no local process
+(:func:`protocols.mavlink.parse_guarded`: the stamps' rules of :mod:`protocols.replay`); the rest is dropped and
+counted (:meth:`MavlinkTable.link_stats`: ``junk_datagrams``, ``refused_unsigned``, ``refused_bad_signature``,
+``refused_stale``, ``refused_future``), so that no local process
 can put an overturn, an accelerometer sample or a status into the record.
 
 Threads: a **receive thread** drains the socket continuously (receive buffer enlarged to
@@ -70,14 +70,15 @@ from protocols.mavlink import (
     dialect,
     enable_signing,
     follow_wall_clock,
-    load_signing_key,
-    parse_verified,
+    parse_guarded,
+    replay_guard,
     setpoint_chunks,
-    stale_new_stream,
     unpack_accel_batch,
     unpack_tilt_batch,
     whole_frames,
 )
+from protocols.replay import Freshness
+from protocols.signing_key import load_signing_key
 
 RECEIVE_BUFFER = 4 << 20
 """Requested socket receive buffer [bytes]."""
@@ -167,10 +168,13 @@ class MavlinkTable(ChunkedStreamController):
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
-        self.refused = {"junk_datagrams": 0, "refused_unsigned": 0, "refused_bad_signature": 0, "refused_stale": 0}
+        self.refused = {"junk_datagrams": 0, "refused_unsigned": 0, "refused_bad_signature": 0, "refused_stale": 0,
+                        "refused_future": 0}
         """What the receive thread dropped: datagrams that are not whole MAVLink 2 frames, messages without a
-        signature, with one that did not verify (another key, altered, replayed within its stream), opening a stream
-        with a stale timestamp (:func:`protocols.mavlink.stale_new_stream`)."""
+        signature, with one that did not verify (another key, altered), with a stale timestamp (replayed or
+        reordered within its stream, or opening a stream too far behind) or one too far ahead
+        (:mod:`protocols.replay`)."""
+        self._guard = replay_guard()
 
     # ----- connection -----------------------------------------------------------------------------------
 
@@ -185,6 +189,7 @@ class MavlinkTable(ChunkedStreamController):
         self._link = UdpLink.open((local, 0), (host, port), source_system=self.system,
                                   source_component=self.component, key=key, link_id=link_id,
                                   receive_buffer=RECEIVE_BUFFER)
+        self._guard = replay_guard()  # the controller's streams, heard afresh on each connection
         self._parser = self.d.MAVLink(None, srcSystem=self.system, srcComponent=self.component)
         self._parser.robust_parsing = True
         enable_signing(self._parser, key, link_id=link_id, sign_outgoing=False)
@@ -239,11 +244,11 @@ class MavlinkTable(ChunkedStreamController):
             return []
         verified = []
         for frame in frames:
-            if stale_new_stream(self._parser, frame):
-                self.refused["refused_stale"] += 1
-                parse_verified(self._parser, frame, stale=True)  # a replayed stream must not stay open
+            messages, freshness = parse_guarded(self._parser, self._guard, frame)
+            if freshness in (Freshness.STALE, Freshness.FUTURE):
+                self.refused[f"refused_{freshness.value}"] += 1
                 continue
-            for msg in parse_verified(self._parser, frame):
+            for msg in messages:
                 if msg.get_signed():
                     verified.append(msg)
                 else:
@@ -319,7 +324,7 @@ class MavlinkTable(ChunkedStreamController):
         if link is None:
             raise TableError(f"{self.url}: not connected")
         with self._send_lock:
-            follow_wall_clock(link.mav)
+            follow_wall_clock(link.mav, self._guard)
             link.send(msg)
 
     # ----- commands (ChunkedStreamController) ---------------------------------------------------------

@@ -9,8 +9,8 @@ The controller's zenoh session listens on ``tls/HOST:PORT`` (mutual TLS with the
 HMAC-SHA256 with the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``, a random sender id per connection
 and a strictly increasing µs stamp against replay), and so is everything the controller sends: a publication or
 reply without a valid, fresh signature is dropped and counted (:meth:`ZenohTable.link_stats`: ``refused_unsigned``,
-``refused_bad_signature``, ``refused_stale``), so that no other zenoh peer can put an overturn, an accelerometer
-sample or a status into the record.
+``refused_bad_signature``, ``refused_stale``, ``refused_future``), so that no other zenoh peer can put an overturn,
+an accelerometer sample or a status into the record.
 
 Threads: zenoh's callback threads stamp each publication of the controller with its arrival time and publish it
 to the feedback (status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id, final
@@ -67,7 +67,7 @@ from drivers.controller import (
     register_scheme,
     sleep_until,
 )
-from protocols.mavlink import load_signing_key
+from protocols.signing_key import load_signing_key
 from protocols.zenoh import EndpointError, LinkSecurity, session_config, table_accel_selector, table_key
 from protocols.zenoh.auth import Received, Signer, Verdict, Verifier, split_signed
 from protocols.zenoh.payloads import PayloadError
@@ -109,7 +109,7 @@ RETRY_SPACING = 0.01
 """Least time between two attempts of a command [s] (a query without a route ends at once)."""
 
 _REFUSED = {Verdict.UNSIGNED: "refused_unsigned", Verdict.BAD_SIGNATURE: "refused_bad_signature",
-            Verdict.STALE: "refused_stale"}
+            Verdict.STALE: "refused_stale", Verdict.FUTURE: "refused_future"}
 
 
 class _QueryAnswer(CommandAnswer):
@@ -183,8 +183,8 @@ class ZenohTable(ChunkedStreamController):
         """Host time [ns] of the controller's last HEARTBEAT."""
         self.refused = dict.fromkeys(_REFUSED.values(), 0)
         """Payloads of the controller dropped: without a signature (too short to hold one), with one that did not
-        verify (another key or key expression, altered; an unsigned payload long enough to hold one), or stale
-        (replayed, reordered, too old)."""
+        verify (another key or key expression, altered; an unsigned payload long enough to hold one), stale
+        (replayed, reordered, too old) or stamped too far ahead (:mod:`protocols.replay`)."""
         self._verifier: Verifier | None = None
         self._verify_lock = threading.Lock()  # zenoh calls back on several threads
 
@@ -194,8 +194,8 @@ class ZenohTable(ChunkedStreamController):
         if self._session is not None:
             return
         key = load_signing_key(self.key_file)
-        self._signer = Signer(key, secrets.randbits(64))
         self._verifier = Verifier(key)
+        self._signer = Signer(key, secrets.randbits(64), self._verifier.guard.current)
         deadline = time.monotonic() + self.connect_timeout
         self.heap.hold()
         try:

@@ -19,6 +19,7 @@ from __future__ import annotations
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, NamedTuple, Protocol, runtime_checkable
 from urllib.parse import urlsplit
 
@@ -59,7 +60,9 @@ class EndpointOptions:
     ``delay`` [s] inject faults on every message both ways with ``seed``; ``virtual_time``: the controller's clock
     is virtual (``--speed max``), so it may wait for the link rather than drop telemetry; ``bodies`` the specimens
     on the plate in body-id order (reported to the host); ``security`` the zenoh link's TLS identity, or plain text
-    off loopback explicitly allowed (zenoh only; ``protocols.zenoh.config``).
+    off loopback explicitly allowed (zenoh only; ``protocols.zenoh.config``); ``replay_state`` the file that keeps
+    the signatures' stamps across restarts (``sim_table.replay_store``; None: in memory only, the transports that
+    sign).
     """
 
     key: bytes = field(repr=False)
@@ -71,6 +74,7 @@ class EndpointOptions:
     virtual_time: bool = False
     bodies: tuple[BodyOnPlate, ...] = ()
     security: LinkSecurity = PLAIN
+    replay_state: Path | None = None
 
 
 class Endpoint(Protocol):

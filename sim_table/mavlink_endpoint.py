@@ -29,10 +29,13 @@ Protocol decisions (the host side is ``drivers.mavlink``):
   transmission lost — it is taken for a retransmission of the first and answered with its result.
 - **Signatures.** Unsigned or badly signed ARM, HOME, SET_TILT, START_STREAM and setpoint chunks are refused;
   STOP, DISARM and EMERGENCY_STOP are accepted unsigned. A badly signed message must not move pymavlink's
-  per-stream replay timestamp (:func:`protocols.mavlink.parse_verified`). A signed message opening a stream
-  this controller has not heard counts as unsigned when stamped more than :data:`~protocols.mavlink.REPLAY_WINDOW`
-  s behind the wall clock (``stale_signatures``): a capture replayed after a restart is denied. Everything the
-  controller sends is signed with the same key (the host drops what is not).
+  per-stream replay timestamp (:func:`protocols.mavlink.parse_verified`). A signed message counts as unsigned when
+  its stamp is stale (not above its stream's last one, or opening a stream more than
+  :data:`~protocols.mavlink.REPLAY_WINDOW` s behind the current stamp: ``stale_signatures``) or more than
+  :data:`~protocols.mavlink.STAMP_AHEAD` s ahead of it (``future_signatures``): ``protocols.replay``. With a
+  ``replay_state`` file (``sim_table.replay_store``) the streams' stamps survive a restart, so a capture replayed
+  after one is denied whatever the controller's clock says. Everything the controller sends is signed with the same
+  key (the host drops what is not), its stamps following the current stamp.
 - **Heartbeats.** Only a signed HEARTBEAT makes its sender a peer (telemetry goes to it), and only a signed one
   from the host that armed the table (address, system, component of the accepted ARM) feeds the watchdog; the
   others are counted (``heartbeats_refused`` unsigned or badly signed, ``heartbeats_other_host``).
@@ -60,6 +63,7 @@ import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
@@ -75,15 +79,17 @@ from protocols.mavlink import (
     dialect,
     enable_signing,
     follow_wall_clock,
-    parse_verified,
+    parse_guarded,
+    replay_guard,
     signed_with_key,
-    stale_new_stream,
     tilt_batches,
     unpack_setpoint_chunk,
     whole_frames,
 )
+from protocols.replay import Freshness
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
+from sim_table.replay_store import ReplayStore
 
 DEDUP_WINDOW = 1.0
 """How long a command is remembered for recognising its retransmissions [s, real time]."""
@@ -127,7 +133,9 @@ class LinkCounters:
     packets_not_sent: int = 0  # injected loss, outbound
     bad_data: int = 0
     junk_datagrams: int = 0  # not whole MAVLink 2 frames: dropped unparsed
-    stale_signatures: int = 0  # a new stream stamped too far behind the wall clock (a replay after a restart)
+    stale_signatures: int = 0  # not above its stream's last stamp, or a new stream too far behind (a replay)
+    future_signatures: int = 0  # stamped too far ahead of the current stamp
+    replay_state_unsaved: int = 0  # motion commands refused: the replay state could not be written first
     heartbeats_refused: int = 0  # unsigned or badly signed host heartbeats
     heartbeats_other_host: int = 0  # signed, from another host than the one that armed the table
     timesync_answered: int = 0
@@ -158,12 +166,14 @@ class MavlinkEndpoint(BatchedTelemetry):
     ``key`` (32 bytes) verifies the host's signatures and signs what the controller sends; ``clock`` maps host
     monotonic ns to controller ns; ``system``/``component`` are the controller's MAVLink ids; ``loss``
     (probability) and ``delay`` [s] inject faults with ``seed``; ``bodies`` the specimens on the plate (sent as
-    SHAKETABLE_BODY).
+    SHAKETABLE_BODY); ``replay_state`` the file that keeps the signatures' stamps across restarts
+    (``sim_table.replay_store``; None: kept in memory only). :class:`~sim_table.replay_store.ReplayStateError` when
+    that file cannot be trusted.
     """
 
     def __init__(self, local: tuple[str, int], key: bytes, clock: Callable[[int], int], *, system: int = 1,
                  component: int = 1, loss: float = 0.0, delay: float = 0.0, seed: int = 0,
-                 bodies: tuple[BodyOnPlate, ...] = ()) -> None:
+                 bodies: tuple[BodyOnPlate, ...] = (), replay_state: Path | None = None) -> None:
         if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
         self.d = dialect()
@@ -174,12 +184,16 @@ class MavlinkEndpoint(BatchedTelemetry):
         self.stall_chunks = False
         """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
         self._rng = np.random.default_rng(seed)
+        self._store = ReplayStore(replay_state, "mavlink") if replay_state is not None else None
+        self._guard = replay_guard(self._store.load() if self._store is not None else None)
         self._link = UdpLink.open(local, source_system=system, source_component=component,
                                   receive_buffer=RECEIVE_BUFFER)
         self._parser = self.d.MAVLink(None, srcSystem=system, srcComponent=component)
         self._parser.robust_parsing = True
         enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
-        enable_signing(self._link.mav, key, link_id=0)
+        enable_signing(self._link.mav, key, link_id=0, timestamp=self._guard.current())
+        if self._store is not None:
+            self._store.keep(self._guard)
         _enable_kernel_stamps(self._link.sock)
         self._receive_lock = threading.Lock()
         self._send_lock = threading.Lock()
@@ -273,9 +287,9 @@ class MavlinkEndpoint(BatchedTelemetry):
             return []
         messages = []
         for frame in frames:
-            stale = stale_new_stream(self._parser, frame)
-            self.counters.stale_signatures += stale
-            parsed = parse_verified(self._parser, frame, stale=stale)
+            parsed, freshness = parse_guarded(self._parser, self._guard, frame)
+            self.counters.stale_signatures += freshness is Freshness.STALE
+            self.counters.future_signatures += freshness is Freshness.FUTURE
             if not parsed:
                 self.counters.bad_data += 1
             messages += parsed
@@ -372,6 +386,9 @@ class MavlinkEndpoint(BatchedTelemetry):
             self.counters.duplicate_commands += 1
             self._ack(msg.command, self._results[last[2]], 0, source, sender)
             return
+        if signed and command in SIGNED_COMMANDS and not self._saved_replay_state():
+            self._ack(msg.command, self._results[core.refuse()], 0, source, sender)
+            return
         result = core.command(command, params, signed, arrival)
         if command is Command.ARM and result is Result.ACCEPTED:
             self._armer = (source, *sender)
@@ -380,6 +397,14 @@ class MavlinkEndpoint(BatchedTelemetry):
         if result is Result.IN_PROGRESS:
             self._requesters[command] = (source, *sender)
         self._ack(msg.command, self._results[result], 0, source, sender)
+
+    def _saved_replay_state(self) -> bool:
+        """Write the replay state before a signed motion command takes effect (its stamp must survive a crash);
+        whether it is written (or there is no file to write)."""
+        if self._store is None or self._store.save():
+            return True
+        self.counters.replay_state_unsaved += 1
+        return False
 
     def command_done(self, done: Done) -> None:
         """The final answer to a command that was IN_PROGRESS."""
@@ -471,7 +496,7 @@ class MavlinkEndpoint(BatchedTelemetry):
                 to = [addr for addr, seen in self._peers.items() if seen >= limit]
             if not to:
                 return
-            follow_wall_clock(self._link.mav)
+            follow_wall_clock(self._link.mav, self._guard)
             data = msg.pack(self._link.mav)
             self._link.mav.seq = (self._link.mav.seq + 1) % 256
             for addr in to:
@@ -494,6 +519,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         if self._thread.is_alive():
             self._thread.join(timeout=1.0)
         self._link.close()
+        if self._store is not None:
+            self._store.close()
 
     def counters_dict(self) -> dict[str, int]:
         return asdict(self.counters)
@@ -509,4 +536,5 @@ def open_endpoint(url: str, options: EndpointOptions) -> MavlinkEndpoint:
     if parts.scheme != "mavlink" or port is None or not parts.hostname:
         raise ValueError(f"--listen {url!r}: expected mavlink://HOST:PORT (port 0: any free port)")
     return MavlinkEndpoint((parts.hostname, port), options.key, options.clock, loss=options.loss,
-                           delay=options.delay, seed=options.seed, bodies=options.bodies)
+                           delay=options.delay, seed=options.seed, bodies=options.bodies,
+                           replay_state=options.replay_state)

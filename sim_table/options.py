@@ -7,7 +7,7 @@ import argparse
 import math
 from pathlib import Path
 
-from protocols.mavlink.signing import KEY_ENV
+from protocols.signing_key import KEY_ENV
 
 DYNAMICS = ("lag", "servo")
 """The emulator's leg models: ``lag`` (first-order lag, :mod:`sim_table.actuators`) and ``servo``
@@ -90,6 +90,10 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--tls-key", type=Path, metavar="FILE", help="zenoh: the private key of --tls-cert (mode 0600)")
     p.add_argument("--insecure-plain-tcp", action="store_true",
                    help="zenoh: allow a plain tcp/ link off loopback (nothing encrypted; a bench network only)")
+    p.add_argument("--replay-state", type=Path, metavar="FILE",
+                   help="where the signatures' last stamps are kept across restarts, written crash-safe (default: "
+                        "beside --key-file, KEYFILE.<transport>-replay.json; required with the key from "
+                        f"${KEY_ENV}); mavlink and zenoh only")
     p.add_argument("--rig-config", type=Path, metavar="FILE",
                    help="rig configuration TOML (default: Table IV, default hexapod)")
     p.add_argument("--leg-noise", type=float, metavar="M",

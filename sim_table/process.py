@@ -42,7 +42,8 @@ S seconds (controller time) after the first START_STREAM. At exit (SIGINT, SIGTE
 one JSON object to stdout, or to ``--counters FILE``.
 
 Signing key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``): needed on the transports that sign, mavlink and
-zenoh; not on canopen, which has no authentication (the bus is a private cable).
+zenoh; not on canopen, which has no authentication (the bus is a private cable). On those two the signatures' last
+stamps are kept across restarts in ``--replay-state FILE`` (default: beside the key file, ``sim_table.replay_store``).
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ from typing import Any
 import numpy as np
 
 from analysis.table.model import TableModel
-from protocols.mavlink import KEY_ENV, load_signing_key
+from protocols.signing_key import KEY_ENV, load_signing_key
 from protocols.zenoh.config import PLAIN, LinkSecurity
 from protocols.zenoh.tls import load_tls
 from sim_table.accelerometers import Accelerometers, PlateTrack
@@ -74,6 +75,7 @@ from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
 from sim_table.dynamics import make_actuators, specimen_loads
 from sim_table.endpoint import BodyOnPlate, EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.options import argument_parser
+from sim_table.replay_store import default_path
 from sim_table.scene import Specimen, parse_body
 from sim_table.specimens import SpecimenScene
 
@@ -148,7 +150,9 @@ class EmulatorConfig:
     """Everything the emulator runs with (see :func:`parse_args` for the command line).
 
     ``key``: the signing key, required on the transports that sign (:data:`SIGNING_SCHEMES`), unused on CANopen;
-    ``leg_stall``: (leg 1..6, seconds after the first START_STREAM) when that leg's actuator seizes.
+    ``leg_stall``: (leg 1..6, seconds after the first START_STREAM) when that leg's actuator seizes;
+    ``replay_state``: the file that keeps the signatures' stamps across restarts (``sim_table.replay_store``; None:
+    in memory only — the command line always gives one on the transports that sign).
     ``watchdog`` [s, controller time]: the host-heartbeat and setpoint watchdogs at 1x and faster (None: the
     table's ``link.watchdog_s``; virtual time uses :data:`VIRTUAL_WATCHDOG_SECONDS`); ``buffer`` [s]: the
     setpoint buffer's capacity (None: the table's ``link.buffer_s``).
@@ -172,6 +176,7 @@ class EmulatorConfig:
     watchdog: float | None = None
     buffer: float | None = None
     security: LinkSecurity = PLAIN
+    replay_state: Path | None = None
 
     def __post_init__(self) -> None:
         if not (self.speed > 0):  # math.inf: virtual time (--speed max)
@@ -233,7 +238,8 @@ class Emulator:
         self.endpoint = open_endpoint(config.listen, EndpointOptions(
             key=config.key or b"", clock=self.controller_time, table=table, loss=config.loss, delay=config.delay,
             seed=config.seed + 2, virtual_time=self.virtual, security=config.security,
-            bodies=tuple(BodyOnPlate(s.body.b, s.body.h, s.depth, s.x, s.y) for s in config.specimens)))
+            bodies=tuple(BodyOnPlate(s.body.b, s.body.h, s.depth, s.x, s.y) for s in config.specimens),
+            replay_state=config.replay_state))
         self.url = self.endpoint.url
         self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
         self._next_tick = self.tick_ns
@@ -513,8 +519,15 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
     p = argument_parser()
     args = p.parse_args(argv)
     try:
-        signs = listen_scheme(args.listen) in SIGNING_SCHEMES
+        scheme = listen_scheme(args.listen)
+        signs = scheme in SIGNING_SCHEMES
         key = load_signing_key(args.key_file) if signs and (args.key_file or os.environ.get(KEY_ENV)) else None
+        replay_state = args.replay_state
+        if key is not None and replay_state is None:
+            if args.key_file is None:
+                raise ValueError(f"--replay-state FILE is needed with the key from ${KEY_ENV}: the controller keeps "
+                                 "the signatures' last stamps there across restarts (docs/table-controller.md)")
+            replay_state = default_path(args.key_file, scheme)
         config = EmulatorConfig(
             listen=args.listen, key=key, speed=args.speed,
             specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
@@ -524,7 +537,8 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
             stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed, watchdog=args.watchdog,
             buffer=args.buffer, security=LinkSecurity(load_tls(args.tls_ca, args.tls_cert, args.tls_key),
-                                                      args.insecure_plain_tcp))
+                                                      args.insecure_plain_tcp),
+            replay_state=replay_state if signs else None)
     except ValueError as exc:
         p.error(str(exc))
     return config, args.counters, args.exit_with_parent

@@ -24,8 +24,10 @@ Protocol decisions:
 - **Signatures** (``protocols.zenoh.auth``, the rig's key): ARM, HOME, SET_TILT, START_STREAM and setpoint
   chunks without a valid, fresh signature are refused (``refused_commands``, answered ``denied``); STOP, DISARM
   and EMERGENCY_STOP are accepted unsigned. The counters say why (``unsigned``, ``bad_signatures``,
-  ``stale_signatures``). Everything the controller sends — replies, statuses, answers, batches, overturn events
-  (each copy signed afresh), heartbeats — is signed as one sender (random per start); the host drops the rest.
+  ``stale_signatures``, ``future_signatures``). With a ``replay_state`` file (``sim_table.replay_store``) the
+  senders' stamps survive a restart, written before every signed motion command takes effect. Everything the
+  controller sends — replies, statuses, answers, batches, overturn events (each copy signed afresh), heartbeats —
+  is signed as one sender (random per start), its stamps following the current stamp; the host drops the rest.
 - **Heartbeats** of the host are signed; only those of the sender whose ARM was accepted feed the watchdog
   (``heartbeats_refused``: without a valid, fresh signature; ``heartbeats_other_host``: another sender's).
 - **Clock**: a query on ``clock`` is answered with the controller time when it is answered.
@@ -52,13 +54,14 @@ import time
 from collections import OrderedDict, deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import zenoh
 
 from protocols.zenoh import EndpointError, LinkSecurity, alive_key, session_config, table_key
-from protocols.zenoh.auth import Signer, Verdict, Verifier, sender_of, split_signed
+from protocols.zenoh.auth import Signer, Verdict, Verifier, replay_guard, sender_of, split_signed
 from protocols.zenoh.config import PLAIN
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
@@ -87,6 +90,7 @@ from protocols.zenoh.table import (
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
+from sim_table.replay_store import ReplayStore
 
 REMEMBERED_COMMANDS = 256
 """Commands remembered by id for recognising retries."""
@@ -104,7 +108,7 @@ PORT_ATTEMPTS = 5
 """Free ports tried for port 0 (another process may take a probed port before zenoh binds it)."""
 
 _VERDICT_COUNTERS = {Verdict.UNSIGNED: "unsigned", Verdict.BAD_SIGNATURE: "bad_signatures",
-                     Verdict.STALE: "stale_signatures"}
+                     Verdict.STALE: "stale_signatures", Verdict.FUTURE: "future_signatures"}
 
 
 @dataclass
@@ -119,6 +123,8 @@ class LinkCounters:
     unsigned: int = 0  # commands and chunks without a signature
     bad_signatures: int = 0
     stale_signatures: int = 0  # replayed, reordered or too old
+    future_signatures: int = 0  # stamped too far ahead of the current stamp
+    replay_state_unsaved: int = 0  # motion commands refused: the replay state could not be written first
     heartbeats_refused: int = 0  # host heartbeats without a valid, fresh signature
     heartbeats_other_host: int = 0  # signed by another sender than the one whose ARM was accepted
     clock_answered: int = 0
@@ -138,12 +144,14 @@ class ZenohEndpoint(BatchedTelemetry):
 
     ``key`` (32 bytes) verifies the host's signatures and signs what the controller sends; ``clock`` maps host
     monotonic ns to controller ns; ``loss`` (probability) and ``delay`` [s] inject faults with ``seed``; ``bodies``
-    the specimens on the plate (the ``bodies`` queryable's reply).
+    the specimens on the plate (the ``bodies`` queryable's reply); ``replay_state`` the file that keeps the signatures'
+    stamps across restarts (``sim_table.replay_store``; None: in memory only).
     """
 
     def __init__(self, address: TableUrl, key: bytes, clock: Callable[[int], int], *, loss: float = 0.0,
                  delay: float = 0.0, seed: int = 0, virtual_time: bool = False,
-                 bodies: tuple[BodyOnPlate, ...] = (), security: LinkSecurity = PLAIN) -> None:
+                 bodies: tuple[BodyOnPlate, ...] = (), security: LinkSecurity = PLAIN,
+                 replay_state: Path | None = None) -> None:
         if not (0.0 <= loss < 1.0 and delay >= 0.0 and math.isfinite(delay)):
             raise ValueError(f"loss must be in [0, 1) and delay >= 0 s, got {loss!r}, {delay!r}")
         self.clock = clock
@@ -153,12 +161,15 @@ class ZenohEndpoint(BatchedTelemetry):
         self.counters = LinkCounters()
         self.stall_chunks = False
         """Set by the owner to drop every setpoint chunk from then on (injected stalled stream)."""
-        self._verifier = Verifier(key)
-        self._signer = Signer(key, secrets.randbits(64))
+        self._store = ReplayStore(replay_state, "zenoh") if replay_state is not None else None
+        self._verifier = Verifier(key, replay_guard(self._store.load() if self._store is not None else None))
+        self._signer = Signer(key, secrets.randbits(64), self._verifier.guard.current)
         self._armer: int | None = None  # sender id of the host whose ARM was accepted
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()  # the random numbers, the inbox, the counters of several threads
         self._session, self.address = _listen(address, security)
+        if self._store is not None:
+            self._store.keep(self._verifier.guard)
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
                                    "heartbeat", "tilt", "bodies")}
@@ -319,6 +330,9 @@ class ZenohEndpoint(BatchedTelemetry):
             self._count("duplicate_commands")
             self._reply_answer(query, Answer(request.cmd_id, known[1].value, arrival))
             return
+        if signed and command in SIGNED_COMMANDS and not self._saved_replay_state():
+            self._reply_answer(query, Answer(request.cmd_id, core.refuse().value, arrival))
+            return
         result = core.command(command, request.params, signed, arrival)
         if command is Command.ARM and result is Result.ACCEPTED:
             self._armer = sender_of(received)
@@ -330,6 +344,14 @@ class ZenohEndpoint(BatchedTelemetry):
         if result is Result.IN_PROGRESS:
             self._requesters[command] = request.cmd_id
         self._reply_answer(query, Answer(request.cmd_id, result.value, arrival))
+
+    def _saved_replay_state(self) -> bool:
+        """Write the replay state before a signed motion command takes effect (its stamp must survive a crash);
+        whether it is written (or there is no file to write)."""
+        if self._store is None or self._store.save():
+            return True
+        self._count("replay_state_unsaved")
+        return False
 
     def command_done(self, done: Done) -> None:
         """The final answer to a command that was ``in_progress``, published on ``answer``."""
@@ -455,6 +477,8 @@ class ZenohEndpoint(BatchedTelemetry):
             discard()
         with contextlib.suppress(zenoh.ZError):
             self._session.close()
+        if self._store is not None:
+            self._store.close()
 
     def counters_dict(self) -> dict[str, int]:
         return asdict(self.counters)
@@ -493,4 +517,4 @@ def open_endpoint(url: str, options: EndpointOptions) -> ZenohEndpoint:
     """The endpoint for ``zenoh://HOST:PORT/TABLE`` (port 0: any free port) — `sim_table.endpoint`'s factory."""
     return ZenohEndpoint(parse_table_url(url, any_port=True), options.key, options.clock, loss=options.loss,
                          delay=options.delay, seed=options.seed, virtual_time=options.virtual_time,
-                         bodies=options.bodies, security=options.security)
+                         bodies=options.bodies, security=options.security, replay_state=options.replay_state)

@@ -4,7 +4,8 @@
   (cached per user, never committed) and imports it: :func:`dialect`.
 - :mod:`~protocols.mavlink.framing`: setpoint arrays (N, 6) ↔ SHAKETABLE_SETPOINT_CHUNK messages, accelerometer
   arrays (N, 3) ↔ SHAKETABLE_ACCEL_BATCH messages, a body's tilt angles (N,) ↔ SHAKETABLE_TILT_BATCH messages.
-- :mod:`~protocols.mavlink.signing`: the rig's signing key, MAVLink 2 signing on a link, which messages need it.
+- :mod:`~protocols.mavlink.signing`: MAVLink 2 signing on a link (the rig's key: :mod:`protocols.signing_key`), which
+  messages need it.
 - :mod:`~protocols.mavlink.link`: a UDP endpoint speaking the dialect (:class:`UdpLink`), or pymavlink's mavutil
   with it (:func:`mavlink_connection`).
 
@@ -35,32 +36,30 @@ from protocols.mavlink.framing import (
 )
 from protocols.mavlink.link import UdpLink, mavlink_connection, whole_frames
 from protocols.mavlink.signing import (
-    KEY_ENV,
     REPLAY_WINDOW,
-    SigningKeyError,
+    STAMP_AHEAD,
     badly_signed,
     enable_signing,
     follow_wall_clock,
-    load_signing_key,
+    parse_guarded,
     parse_verified,
+    replay_guard,
     requires_signature,
     signed_with_key,
-    stale_new_stream,
 )
 
 __all__ = [
     "ACCEL_PER_BATCH",
     "DIALECT_NAME",
     "END_OF_STREAM",
-    "KEY_ENV",
     "REPLAY_WINDOW",
     "SETPOINTS_PER_CHUNK",
+    "STAMP_AHEAD",
     "TILT_PER_BATCH",
     "DialectError",
     "FramingError",
     "SequenceGapError",
     "Series",
-    "SigningKeyError",
     "UdpLink",
     "accel_batches",
     "badly_signed",
@@ -69,13 +68,13 @@ __all__ = [
     "follow_wall_clock",
     "join_accel_batches",
     "join_setpoint_chunks",
-    "load_signing_key",
     "mavlink_connection",
+    "parse_guarded",
     "parse_verified",
+    "replay_guard",
     "requires_signature",
     "setpoint_chunks",
     "signed_with_key",
-    "stale_new_stream",
     "tilt_batches",
     "unpack_accel_batch",
     "unpack_setpoint_chunk",

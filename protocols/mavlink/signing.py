@@ -3,10 +3,8 @@
 Motion commands are signed (docs/architecture.md §5): the host signs everything it sends; the controller refuses a
 message that :func:`requires_signature` unless :func:`signed_with_key` holds for it.
 
-**Key.** One 32-byte secret shared by the host and the controller, from :envvar:`SHAKETABLE_MAVLINK_KEY`
-(64 hexadecimal digits) or from a key file: either exactly 32 raw bytes, or 64 hexadecimal digits (surrounding
-whitespace allowed). An all-zero key is refused (MAVLink implementations treat it as "no key"). Make one with
-``python -c "import secrets; print(secrets.token_hex(32))"``.
+**Key.** The rig's 32-byte secret, read by :func:`protocols.signing_key.load_signing_key` (a key file or
+``$SHAKETABLE_MAVLINK_KEY``; what a key must be is said there).
 
 **Receiving.** :func:`enable_signing` installs pymavlink's ``allow_unsigned_callback`` so that unsigned and
 badly signed messages are still *delivered*, flagged by ``msg.get_signed() == False``, instead of being raised
@@ -17,31 +15,25 @@ reordered signed messages count as unsigned.
 
 **Timestamps.** A signature carries a 48-bit timestamp in units of 10 µs since 2015-01-01 00:00:00 UTC; a
 sender starts from its wall clock (:func:`signing_timestamp`), pymavlink adds one per message sent, and
-:func:`follow_wall_clock` before each send keeps it at or above the wall clock (so that a long connection does not
-fall behind it). pymavlink accepts a stream's message only when its timestamp is above the stream's last one, and
-the first message of a stream it has not heard up to one minute behind the receiver; :func:`stale_new_stream`
-narrows that to :data:`REPLAY_WINDOW` behind the receiver's wall clock (MAVLink's signing specification: "a small
-window"), so that a message captured earlier is refused by a controller that restarted since — host and
-controller clocks must agree within that window.
+:func:`follow_wall_clock` before each send keeps it at or above the receiver side's current stamp (its wall clock,
+or more: the largest stamp it has taken), so that a long connection does not fall behind. What a receiver takes is
+decided by its :class:`protocols.replay.ReplayGuard` (:func:`replay_guard`: MAVLink's timestamp rules, a new stream
+at most :data:`REPLAY_WINDOW` behind the current stamp instead of the specification's minute, no stamp more than
+:data:`STAMP_AHEAD` beyond it) before pymavlink parses the frame (:func:`parse_guarded`): a controller that keeps
+its guard's state across restarts (``sim_table.replay_store``) refuses a capture replayed after a restart whatever
+its clock says, and a message stamped from a clock far ahead is refused.
 """
 
 from __future__ import annotations
 
 import calendar
 import functools
-import os
 import time
-from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 from protocols.mavlink.codegen import dialect
-
-KEY_ENV = "SHAKETABLE_MAVLINK_KEY"
-"""Environment variable holding the signing key as 64 hexadecimal digits."""
-
-KEY_BYTES = 32
-"""Length of a MAVLink 2 signing key."""
+from protocols.replay import Freshness, ReplayGuard, ReplayState
+from protocols.signing_key import KEY_BYTES, SigningKeyError
 
 SIGNED_FRAME = 0x01
 """MAVLINK_IFLAG_SIGNED, the signed bit of a MAVLink 2 frame's ``incompat_flags`` (its third byte)."""
@@ -50,55 +42,13 @@ SIGNING_EPOCH = calendar.timegm((2015, 1, 1, 0, 0, 0))
 """The MAVLink signing epoch, 2015-01-01 00:00:00 UTC, in Unix seconds."""
 
 REPLAY_WINDOW = 5.0
-"""How far behind the receiver's wall clock the first signed message of a stream it has not heard may be [s]."""
+"""How far behind the receiver's current stamp the first signed message of a stream it has not heard may be [s]."""
+
+STAMP_AHEAD = 5.0
+"""How far beyond the receiver's current stamp a signed message may be stamped [s]."""
 
 TIMESTAMP_UNITS_PER_S = 100_000
 """Signing timestamp units (10 µs) per second."""
-
-
-class SigningKeyError(ValueError):
-    """The signing key is missing or malformed; the message says where it came from and what is wrong."""
-
-
-def _parse_hex(text: str, source: str) -> bytes:
-    text = text.strip()
-    if len(text) != 2 * KEY_BYTES:
-        raise SigningKeyError(f"{source}: expected {2 * KEY_BYTES} hexadecimal digits, got {len(text)} characters")
-    try:
-        return bytes.fromhex(text)
-    except ValueError:
-        raise SigningKeyError(f"{source}: not hexadecimal") from None
-
-
-def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping[str, str] = os.environ) -> bytes:
-    """The 32-byte signing key: from the key file ``path`` if given, else from ``env[SHAKETABLE_MAVLINK_KEY]``.
-
-    A key file holds exactly 32 raw bytes, or 64 hexadecimal digits; the variable holds 64 hexadecimal digits.
-    Raises :class:`SigningKeyError` when there is no key, or it has the wrong length or format, or is all zero.
-    """
-    if path is not None:
-        source = f"signing key file {os.fspath(path)}"
-        try:
-            data = Path(path).read_bytes()
-        except OSError as exc:
-            raise SigningKeyError(f"{source}: {exc.strerror or exc}") from exc
-        if len(data) == KEY_BYTES:
-            key = data
-        else:
-            try:
-                text = data.decode("ascii")
-            except UnicodeDecodeError:
-                raise SigningKeyError(f"{source}: {len(data)} bytes, neither {KEY_BYTES} raw bytes nor "
-                                      f"{2 * KEY_BYTES} hexadecimal digits") from None
-            key = _parse_hex(text, source)
-    elif env.get(KEY_ENV):
-        source = f"environment variable {KEY_ENV}"
-        key = _parse_hex(env[KEY_ENV], source)
-    else:
-        raise SigningKeyError(f"no MAVLink signing key: set {KEY_ENV} (64 hexadecimal digits) or give a key file")
-    if not any(key):
-        raise SigningKeyError(f"{source}: the all-zero key means 'no key' to MAVLink; make a random one")
-    return key
 
 
 def signing_timestamp(unix_time: float | None = None) -> int:
@@ -107,10 +57,18 @@ def signing_timestamp(unix_time: float | None = None) -> int:
     return max(0, int((now - SIGNING_EPOCH) * TIMESTAMP_UNITS_PER_S))
 
 
-def follow_wall_clock(mav: Any) -> None:
-    """Raise the next outgoing signing timestamp of ``mav`` to the wall clock if it fell behind (call before a
-    send, under the lock that serialises sends)."""
-    mav.signing.timestamp = max(mav.signing.timestamp, signing_timestamp())
+def follow_wall_clock(mav: Any, guard: ReplayGuard | None = None) -> None:
+    """Raise the next outgoing signing timestamp of ``mav`` to the wall clock, or to ``guard``'s current stamp (the
+    receiving side of the same link), if it fell behind (call before a send, under the lock that serialises
+    sends)."""
+    mav.signing.timestamp = max(mav.signing.timestamp, guard.current() if guard is not None else signing_timestamp())
+
+
+def replay_guard(state: ReplayState | None = None) -> ReplayGuard:
+    """A receiver's :class:`~protocols.replay.ReplayGuard` for MAVLink signatures (streams: link id, system,
+    component; stamps in 10 µs since 2015), from ``state`` if it was kept."""
+    return ReplayGuard(signing_timestamp, round(REPLAY_WINDOW * TIMESTAMP_UNITS_PER_S),
+                       round(STAMP_AHEAD * TIMESTAMP_UNITS_PER_S), state=state)
 
 
 def signature_stream(frame: bytes) -> tuple[tuple[int, int, int], int] | None:
@@ -121,14 +79,16 @@ def signature_stream(frame: bytes) -> tuple[tuple[int, int, int], int] | None:
     return (frame[-13], frame[5], frame[6]), int.from_bytes(frame[-12:-6], "little")
 
 
-def stale_new_stream(mav: Any, frame: bytes, window: float = REPLAY_WINDOW) -> bool:
-    """Whether ``frame`` is signed, opens a stream the receiving ``mav`` has not heard, and is stamped more than
-    ``window`` [s] behind the wall clock: a replay to a receiver that restarted (module docstring). pymavlink
-    would take it up to one minute late: give the answer to :func:`parse_verified`."""
+def parse_guarded(mav: Any, guard: ReplayGuard, frame: bytes) -> tuple[list[Any], Freshness | None]:
+    """The messages of one MAVLink 2 ``frame`` parsed by ``mav`` (signing enabled), flagged signed only when the
+    signature verified and ``guard`` found its stamp fresh, and that freshness (None: an unsigned frame). A signed
+    message taken moves its stream in ``guard``; a stale or future one moves nothing (:func:`parse_verified`)."""
     stream = signature_stream(frame)
-    if stream is None or stream[0] in mav.signing.stream_timestamps:
-        return False
-    return stream[1] < signing_timestamp() - round(window * TIMESTAMP_UNITS_PER_S)
+    freshness = None if stream is None else guard.check(*stream)
+    messages = parse_verified(mav, frame, stale=freshness not in (None, Freshness.FRESH))
+    if stream is not None and freshness is Freshness.FRESH and any(msg.get_signed() for msg in messages):
+        guard.accept(*stream)
+    return messages, freshness
 
 
 def enable_signing(mav: Any, key: bytes, *, link_id: int, sign_outgoing: bool = True,
@@ -166,7 +126,8 @@ def signed_with_key(msg: Any) -> bool:
 
 def parse_verified(mav: Any, frame: bytes, *, stale: bool = False) -> list[Any]:
     """The messages of ``frame`` parsed by ``mav`` (signing enabled), BAD_DATA left out, each flagged as
-    :func:`signed_with_key` says; ``stale`` (:func:`stale_new_stream`) flags them unsigned whatever pymavlink found.
+    :func:`signed_with_key` says; ``stale`` (the guard refused the stamp, :func:`parse_guarded`) flags them unsigned
+    whatever pymavlink found.
     A badly signed or stale message does not move its stream's timestamp: pymavlink records it before checking the
     signature, so one forged message with a future timestamp would lock the real sender out, and a replayed one
     would open its stream to the rest of the capture; it is restored."""

@@ -1,7 +1,7 @@
 """Authentication of the table link over zenoh: HMAC-SHA256 signatures on every payload of the link.
 
 zenoh has nothing like MAVLink 2 signing, so the table link signs its payloads itself, with the rig's 32-byte key
-(``protocols.mavlink.load_signing_key``: a key file or ``$SHAKETABLE_MAVLINK_KEY``). A signed payload is the
+(``protocols.signing_key.load_signing_key``: a key file or ``$SHAKETABLE_MAVLINK_KEY``). A signed payload is the
 payload as it would travel unsigned (header and body, :mod:`protocols.zenoh.table`) followed by a 48-byte trailer::
 
     offset       size  field
@@ -12,12 +12,14 @@ payload as it would travel unsigned (header and body, :mod:`protocols.zenoh.tabl
 
 The key expression the payload travels on is inside the tag, so a signed chunk is worthless on another table's
 keys or as a command. A receiver (:class:`Verifier`) takes a payload as **signed** only when the tag verifies
-(constant-time comparison) and the stamp is fresh: above the last stamp it accepted from that sender on that key
-expression, and for a sender it has not heard on that key, at most :data:`FRESHNESS` behind its own wall clock.
-Replayed, reordered and stale payloads therefore count as unsigned, as in MAVLink signing. Only a payload whose
-tag verified moves the sender's stamp: a forged one with a future stamp cannot lock the real sender out. A
-receiver that restarted accepts, once, only a payload recorded less than :data:`FRESHNESS` (a few seconds) before
-from a sender it has not heard since; host and controller clocks must agree within that.
+(constant-time comparison) and its :class:`~protocols.replay.ReplayGuard` finds the stamp fresh, by MAVLink's
+rules (:mod:`protocols.replay`; a stream is a sender on a key expression): above the last stamp it accepted from
+that sender on that key expression; for a sender it has not heard there, at most :data:`FRESHNESS` behind its
+current stamp (the largest of its wall clock, the stamps it has taken and those a controller restored at start);
+and never more than :data:`STAMP_AHEAD` beyond it. Replayed, reordered, stale and future payloads therefore count
+as unsigned, as in MAVLink signing. Only a payload whose tag verified moves the guard: a forged one with a future
+stamp cannot lock the real sender out. A controller keeps its guard's state across restarts
+(``sim_table.replay_store``), so a capture replayed after a restart is refused whatever its clock says.
 
 The host signs its commands, setpoint chunks and heartbeats; the controller signs everything it sends (statuses,
 answers, clock replies, accelerometer and tilt batches, overturn events, heartbeats), each copy of a resent
@@ -32,8 +34,10 @@ import hmac
 import struct
 import threading
 import time
-from collections import OrderedDict
+from collections.abc import Callable
 from typing import NamedTuple
+
+from protocols.replay import Freshness, ReplayGuard, ReplayState
 
 KEY_BYTES = 32
 """Length of the rig's key."""
@@ -47,14 +51,13 @@ TRAILER_BYTES = _TRAILER.size + TAG_BYTES
 """Length of a signature's trailer: sender, stamp, tag."""
 
 FRESHNESS = 5.0
-"""How far behind the receiver's wall clock the first stamp of a sender may be [s] (MAVLink's
+"""How far behind the receiver's current stamp the first stamp of a sender may be [s] (MAVLink's
 ``protocols.mavlink.REPLAY_WINDOW``)."""
 
+STAMP_AHEAD = 5.0
+"""How far beyond the receiver's current stamp a stamp may be [s] (MAVLink's ``protocols.mavlink.STAMP_AHEAD``)."""
+
 _HEADER_BYTES = 8  # the table link's payload header (protocols.zenoh.table)
-
-REMEMBERED_SENDERS = 1024
-"""(sender, key expression) pairs whose last stamp a :class:`Verifier` remembers (the least recent is forgotten)."""
-
 
 class Received(NamedTuple):
     """A received payload split into the ``message`` (header and body) and its ``trailer`` (empty: unsigned)."""
@@ -70,6 +73,7 @@ class Verdict(enum.Enum):
     UNSIGNED = "unsigned"  # no trailer
     BAD_SIGNATURE = "bad_signature"  # another key, another key expression, or altered
     STALE = "stale"  # a stamp not above the sender's last one (replayed, reordered) or too old
+    FUTURE = "future"  # a stamp too far ahead of the receiver's current stamp
 
 
 def split_signed(payload: bytes) -> Received:
@@ -98,34 +102,47 @@ def _tag(key: bytes, key_expr: str, covered: bytes) -> bytes:
     return hmac.new(key, key_expr.encode() + b"\0" + covered, hashlib.sha256).digest()
 
 
-class Signer:
-    """Signs payloads as one sender (module docstring); ``sender`` a 64-bit id, random per connection. Thread-safe:
-    stamps increase in the order of the calls."""
+def wall_stamp() -> int:
+    """The wall clock as a stamp [µs since 1970-01-01 UTC]."""
+    return time.time_ns() // 1000
 
-    def __init__(self, key: bytes, sender: int) -> None:
+
+def replay_guard(state: ReplayState | None = None) -> ReplayGuard:
+    """A receiver's :class:`~protocols.replay.ReplayGuard` for this link's stamps (µs since 1970; streams: sender
+    id and key expression), from ``state`` if it was kept."""
+    return ReplayGuard(wall_stamp, round(FRESHNESS * 1e6), round(STAMP_AHEAD * 1e6), state=state)
+
+
+class Signer:
+    """Signs payloads as one sender (module docstring); ``sender`` a 64-bit id, random per connection; ``clock()``
+    the stamp it never signs below [µs since 1970] (default the wall clock; a controller gives its guard's current
+    stamp, :meth:`~protocols.replay.ReplayGuard.current`). Thread-safe: stamps increase in the order of the calls."""
+
+    def __init__(self, key: bytes, sender: int, clock: Callable[[], int] = wall_stamp) -> None:
         self._key = _check_key(key)
         if not 0 <= sender < 2**64:
             raise ValueError(f"sender must be a 64-bit unsigned integer, got {sender}")
         self.sender = sender
+        self._clock = clock
         self._stamp = 0
         self._lock = threading.Lock()
 
     def sign(self, key_expr: str, message: bytes) -> bytes:
         """``message`` with its trailer, for the key expression ``key_expr`` it will travel on."""
         with self._lock:
-            self._stamp = max(self._stamp + 1, time.time_ns() // 1000)
+            self._stamp = max(self._stamp + 1, self._clock())
             stamp = self._stamp
         covered = bytes(message) + _TRAILER.pack(self.sender, stamp)
         return covered + _tag(self._key, key_expr, covered)
 
 
 class Verifier:
-    """Checks signatures (module docstring) and remembers each sender's last stamp per key expression. Not thread-safe:
-    verify a key expression's payloads from one thread, in the order they arrived."""
+    """Checks signatures (module docstring); ``guard`` (default: a new one, :func:`replay_guard`) keeps each sender's
+    last stamp per key expression. Verify a key expression's payloads from one thread, in the order they arrived."""
 
-    def __init__(self, key: bytes) -> None:
+    def __init__(self, key: bytes, guard: ReplayGuard | None = None) -> None:
         self._key = _check_key(key)
-        self._last: OrderedDict[tuple[int, str], int] = OrderedDict()
+        self.guard = guard if guard is not None else replay_guard()
 
     def _tag_verdict(self, key_expr: str, received: Received) -> Verdict:
         if not received.trailer:
@@ -139,14 +156,17 @@ class Verifier:
 
     def verify_reply(self, key_expr: str, received: Received) -> Verdict:
         """Whether ``received``, a reply to one of this receiver's own queries, came on ``key_expr`` with a valid
-        signature stamped at most :data:`FRESHNESS` behind the wall clock. Replies to different queries may arrive
-        in any order, so their stamps are not ordered; the caller matches the reply to its query (a command id, a
-        clock request's send time), which a replayed reply does not."""
+        signature stamped at most :data:`FRESHNESS` behind the current stamp and :data:`STAMP_AHEAD` beyond it.
+        Replies to different queries may arrive in any order, so their stamps are not ordered; the caller matches the
+        reply to its query (a command id, a clock request's send time), which a replayed reply does not."""
         verdict = self._tag_verdict(key_expr, received)
         if verdict is not Verdict.SIGNED:
             return verdict
         stamp = _TRAILER.unpack_from(received.trailer)[1]
-        return Verdict.STALE if stamp < time.time_ns() // 1000 - round(FRESHNESS * 1e6) else Verdict.SIGNED
+        now = self.guard.current()
+        if stamp > now + self.guard.ahead:
+            return Verdict.FUTURE
+        return Verdict.STALE if stamp < now - self.guard.window else Verdict.SIGNED
 
     def verify(self, key_expr: str, received: Received) -> Verdict:
         """Whether ``received`` came on ``key_expr`` with a valid, fresh signature; a signed one moves the stamp."""
@@ -154,13 +174,7 @@ class Verifier:
         if verdict is not Verdict.SIGNED:
             return verdict
         sender, stamp = _TRAILER.unpack_from(received.trailer)
-        last = self._last.get((sender, key_expr))
-        if last is None:
-            last = time.time_ns() // 1000 - round(FRESHNESS * 1e6) - 1
-        if stamp <= last:
-            return Verdict.STALE
-        self._last[(sender, key_expr)] = stamp
-        self._last.move_to_end((sender, key_expr))
-        if len(self._last) > REMEMBERED_SENDERS:
-            self._last.popitem(last=False)
-        return Verdict.SIGNED
+        return _VERDICTS[self.guard.admit((sender, key_expr), stamp)]
+
+
+_VERDICTS = {Freshness.FRESH: Verdict.SIGNED, Freshness.STALE: Verdict.STALE, Freshness.FUTURE: Verdict.FUTURE}

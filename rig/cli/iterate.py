@@ -15,6 +15,7 @@ from typing import Annotated, Any
 
 import typer
 
+from protocols.signing_key import write_signing_key
 from rig.cli._common import EXIT_REFUSED, EXIT_STOPPED, console, emit_json, err_console, fail, print_error
 
 
@@ -201,7 +202,6 @@ class _Table:
     def __enter__(self) -> tuple[str, dict[str, Any]]:
         if not self.emulate:
             return str(self.url), ({"key_file": str(self.key_file)} if self.key_file else {})
-        import secrets
         import tempfile
 
         from rig.emulator import EmulatorProcess
@@ -211,7 +211,7 @@ class _Table:
         if key_file is None:
             self._scratch = tempfile.TemporaryDirectory(prefix="rig-iterate-")
             key_file = Path(self._scratch.name) / "session.key"
-            key_file.write_text(secrets.token_hex(32) + "\n")
+            write_signing_key(key_file)
         self._emulator = EmulatorProcess.start(EMULATOR_LISTEN, *self.flags, key_file=key_file)
         return self._emulator.url, {"key_file": str(key_file)}
 

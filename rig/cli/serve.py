@@ -386,7 +386,7 @@ def register(app: typer.Typer) -> None:
     @service_app.command("token")
     def token_cmd(key_file: KeyOption = None) -> None:
         """Print the operator token the console's controls ask for: HMAC-SHA256(rig key, "operator-console")."""
-        from protocols.mavlink import SigningKeyError
+        from protocols.signing_key import SigningKeyError
         from rig.console import token_from_key_file
 
         try:

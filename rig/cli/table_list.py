@@ -33,7 +33,7 @@ def add_list(table_app: typer.Typer) -> None:
         as_json: Annotated[bool, typer.Option("--json", help="print the list as JSON")] = False,
     ) -> None:
         """List the table controllers and rig services reachable through the endpoints (their liveliness tokens)."""
-        from protocols.mavlink import SigningKeyError
+        from protocols.signing_key import SigningKeyError
         from protocols.zenoh import EndpointError
 
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
@@ -61,7 +61,7 @@ def discover(connect: list[str], security: Any, key_file: Path | None) -> list[d
 
     import zenoh
 
-    from protocols.mavlink import load_signing_key
+    from protocols.signing_key import load_signing_key
     from protocols.zenoh import alive_selector, parse_key, session_config, table_key, telemetry_key
     from protocols.zenoh.auth import Verdict, Verifier, split_signed
     from protocols.zenoh.payloads import Kind, PayloadError, decode_json

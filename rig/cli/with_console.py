@@ -18,13 +18,13 @@ from __future__ import annotations
 
 import math
 import os
-import secrets
 import socket
 import tempfile
 import time
 from pathlib import Path
 from typing import Any
 
+from protocols.signing_key import write_signing_key
 from rig.cli._common import EXIT_USAGE, handle_sigint, print_error
 
 
@@ -61,7 +61,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
     """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``,
     which stays up after it for ``linger_s`` s (None: until Ctrl-C) (module docstring); the exit code of ``rig run
     --service`` (0 all runs done, 1 stopped early, 2 refused)."""
-    from protocols.mavlink import KEY_ENV
+    from protocols.signing_key import KEY_ENV
     from rig.cli.serve import drive_service
     from rig.console.server import ConsoleError, ConsoleProcess
     from rig.console.token import token_from_key_file
@@ -87,7 +87,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
     with tempfile.TemporaryDirectory(prefix="rig-console-") as scratch:
         if key_file is None and not os.environ.get(KEY_ENV):
             key_file = Path(scratch) / "session.key"
-            key_file.write_text(secrets.token_hex(32) + "\n")
+            write_signing_key(key_file)
         endpoint = _free_endpoint()
         try:
             service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),

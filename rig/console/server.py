@@ -19,7 +19,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from protocols.mavlink import SigningKeyError
+from protocols.signing_key import SigningKeyError
 from protocols.zenoh import LinkSecurity
 from protocols.zenoh.config import PLAIN
 from rig.console.app import Console, create_app

@@ -14,7 +14,7 @@ import hashlib
 import hmac
 from pathlib import Path
 
-from protocols.mavlink import load_signing_key
+from protocols.signing_key import load_signing_key
 
 TOKEN_CONTEXT = b"operator-console"
 """The HMAC message that derives the operator token from the rig's key."""

@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import json
 import math
-import secrets
 import tempfile
 import warnings
 from collections.abc import Callable, Iterator
@@ -26,6 +25,7 @@ from typing import Any
 import tomli_w
 
 from analysis.table.model import TableModel
+from protocols.signing_key import SigningKeyError, load_signing_key, write_signing_key
 from rig import __version__
 from rig.emulator import EmulatorProcess, specimen_flags, speed_flags
 from rig.orchestrator.bodies import check_bodies
@@ -143,6 +143,8 @@ def probe_table(url: str, options: dict[str, Any], sequence: Sequence) -> None:
     try:
         with open_table(url, **options) as table:
             reported = table.bodies()
+    except SigningKeyError as exc:
+        raise TableUnreachableError(f"the table at {url} was not contacted: {exc}") from None
     except (TableTimeoutError, OSError) as exc:
         raise TableUnreachableError(f"the table at {url} did not answer: {exc}") from None
     except (TableError, ValueError) as exc:  # it answered, and refused (a drive it cannot drive, a bad option)
@@ -166,6 +168,11 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
     (math.inf: virtual time), and a one-session signing key unless ``key_file`` is given. NoTableError when there
     is neither. ``link``: more options of the table's driver (a zenoh table's TLS identity: ``rig.cli.network``).
     """
+    if key_file is not None:
+        try:
+            load_signing_key(key_file)  # the emulator would refuse it too, less readably
+        except SigningKeyError as exc:
+            raise TableUnreachableError(f"the table was not contacted: {exc}") from None
     if not emulate:
         url = table or sequence.table_url
         if url is None:
@@ -180,7 +187,7 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
     with tempfile.TemporaryDirectory(prefix="rig-run-") as scratch:
         if key_file is None:
             key_file = Path(scratch) / "session.key"
-            key_file.write_text(secrets.token_hex(32) + "\n")
+            write_signing_key(key_file)
         flags = [*specimen_flags(sequence.bodies), *speed_flags(speed)]
         if sequence.table != TableModel():  # the emulated table is the sequence's rig, not the default one
             rig = Path(scratch) / "rig.toml"

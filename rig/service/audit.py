@@ -52,4 +52,5 @@ def request_source(claimed: object, verdict: Verdict | None, attachment: bytes |
         return "zenoh client (signatures not checked: --no-auth)"
     if verdict is Verdict.UNSIGNED:
         return "unsigned zenoh client"
-    return f"zenoh client with a {'stale' if verdict is Verdict.STALE else 'bad'} signature"
+    kind = {Verdict.STALE: "stale", Verdict.FUTURE: "future-stamped"}.get(verdict, "bad")
+    return f"zenoh client with a {kind} signature"

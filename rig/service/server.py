@@ -58,7 +58,7 @@ from typing import Any
 
 import zenoh
 
-from protocols.mavlink import KEY_ENV, SigningKeyError, load_signing_key
+from protocols.signing_key import KEY_ENV, SigningKeyError, load_signing_key
 from protocols.zenoh import EndpointError, LinkSecurity, session_config
 from protocols.zenoh.auth import Verdict, Verifier
 from protocols.zenoh.config import PLAIN

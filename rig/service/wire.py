@@ -64,7 +64,8 @@ REFUSALS = {
     Verdict.UNSIGNED: "not signed: commands that move the table must be signed with the rig's key (give the "
                       "client --key-file or set $SHAKETABLE_MAVLINK_KEY)",
     Verdict.BAD_SIGNATURE: "bad signature (not the service's rig key, or altered on the way)",
-    Verdict.STALE: "stale signature (replayed, reordered, or the client's clock is more than a minute behind)",
+    Verdict.STALE: "stale signature (replayed, reordered, or the client's clock is more than 5 s behind)",
+    Verdict.FUTURE: "signature stamped in the future (the client's clock is more than 5 s ahead of the service's)",
 }
 """Why a signed command was refused, by the verifier's verdict."""
 

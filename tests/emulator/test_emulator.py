@@ -19,7 +19,8 @@ import pytest
 from analysis.body import G
 from analysis.table.model import TableModel
 from analysis.table.moves import IN_POSITION, SETTLE_TIME_NS
-from protocols.mavlink import KEY_ENV, TILT_PER_BATCH
+from protocols.mavlink import TILT_PER_BATCH
+from protocols.signing_key import KEY_ENV, write_signing_key
 from rig.drive.tilt import ramp_duration
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import Actuators, ActuatorSettings
@@ -570,7 +571,7 @@ def test_the_bodies_tilt_sensors_sample_every_fifth_tick_on_a_contiguous_grid(mo
 
 def test_speed_max_parses_and_canopen_refuses_it(tmp_path: Path) -> None:
     key = tmp_path / "rig.key"
-    key.write_text("ab" * 32)
+    write_signing_key(key)
     config, _, _ = parse_args(["--listen", "zenoh://127.0.0.1:0/t", "--speed", "max", "--key-file", str(key)])
     assert math.isinf(config.speed)
     with pytest.raises(SystemExit):

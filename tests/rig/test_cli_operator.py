@@ -13,7 +13,6 @@ import json
 import math
 import os
 import re
-import secrets
 import shlex
 import signal
 import subprocess
@@ -28,6 +27,7 @@ from test_cli_startup import HEAVY
 from test_orchestrator import TINY
 
 from drivers.controller import open_table
+from protocols.signing_key import write_signing_key
 from rig.cli import app
 from rig.emulator import EmulatorProcess, specimen_flags
 from rig.orchestrator.bodies import mismatch
@@ -64,7 +64,7 @@ def options_of(*command: str) -> set[str]:
 @pytest.fixture
 def key_file(tmp_path: Path) -> Path:
     path = tmp_path / "rig.key"
-    path.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(path)
     return path
 
 

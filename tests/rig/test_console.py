@@ -80,6 +80,7 @@ def test_the_operator_token_is_the_rfc_2104_hmac_of_the_rig_key(key: bytes, tmp_
     assert token != operator_token(secrets.token_bytes(32))
     key_file = tmp_path / "rig.key"
     key_file.write_text(key.hex() + "\n")
+    key_file.chmod(0o600)
     assert token_from_key_file(key_file) == token
 
 

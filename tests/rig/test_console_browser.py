@@ -9,7 +9,6 @@ request is refused, and every control request is in the session file's events wi
 from __future__ import annotations
 
 import os
-import secrets
 import signal
 import subprocess
 import time
@@ -22,6 +21,7 @@ import pytest
 from test_orchestrator import TINY
 from test_service import free_port, serve_command
 
+from protocols.signing_key import write_signing_key
 from rig.console import operator_token
 from rig.service import ServiceClient
 
@@ -39,7 +39,7 @@ class ServiceWithConsole:
     def __init__(self, root: Path) -> None:
         self.sessions = root / "sessions"
         self.key_file = root / "rig.key"
-        self.key_file.write_text(secrets.token_hex(32) + "\n")
+        write_signing_key(self.key_file)
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
         self.url = f"http://127.0.0.1:{free_port()}/"
         self.log = root / "serve.log"

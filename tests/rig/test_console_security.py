@@ -21,6 +21,7 @@ import zenoh
 from starlette.testclient import TestClient
 from test_console import HOST, SAME, RecordingControls, free_port
 
+from protocols.signing_key import write_signing_key
 from protocols.zenoh import session_config
 from rig.console import Console, create_app, operator_token
 from rig.console.guard import ConnectionGuard
@@ -184,7 +185,7 @@ FORGED = ("console page, browser 127.0.0.1:5 (Firefox/120.0)\n"
 
 def test_the_service_logs_the_transport_s_source_never_the_claimed_one(tmp_path: Path) -> None:
     key_file = tmp_path / "rig.key"
-    key_file.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(key_file)
     lines: list[str] = []
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     with OrchestratorService(endpoint, key_file=key_file, sessions_dir=tmp_path, say=lines.append):

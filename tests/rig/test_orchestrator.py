@@ -5,7 +5,6 @@ a run that cannot be played is refused and logged, resume from the first run tha
 from __future__ import annotations
 
 import itertools
-import secrets
 import threading
 import time
 from pathlib import Path
@@ -14,6 +13,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from protocols.signing_key import write_signing_key
 from rig.emulator import EmulatorProcess, specimen_flags
 from rig.orchestrator import FINAL_STATES, TRANSITIONS, Orchestrator, OrchestratorState, Progress
 from rig.sequence import Sequence, load_sequence
@@ -46,7 +46,7 @@ y = 0.0
 @pytest.fixture(scope="module")
 def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("key") / "rig.key"
-    path.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(path)
     return path
 
 

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import contextlib
 import os
-import secrets
 import signal
 import socket
 import subprocess
@@ -22,6 +21,7 @@ import zenoh
 from test_cli_run import child_of, running
 from test_orchestrator import TINY
 
+from protocols.signing_key import write_signing_key
 from protocols.zenoh import session_config
 from protocols.zenoh.auth import Signer
 from rig.service import ServiceClient, ServiceError, ServiceKeys, ServiceUnavailableError
@@ -52,7 +52,7 @@ class Service:
         self.root = root
         self.sessions = root / "sessions"
         self.key_file = root / "rig.key"
-        self.key_file.write_text(secrets.token_hex(32) + "\n")
+        write_signing_key(self.key_file)
         self.endpoint = f"tcp/127.0.0.1:{free_port()}"
         self.log = root / "serve.log"
         env = {k: v for k, v in os.environ.items() if k != "SHAKETABLE_MAVLINK_KEY"}

@@ -6,7 +6,6 @@ hand-driven host. A plain module, imported by the transport tests."""
 from __future__ import annotations
 
 import math
-import secrets
 import threading
 import time
 from collections.abc import Callable
@@ -27,7 +26,7 @@ from drivers.controller import (
     TableTimeoutError,
     open_table,
 )
-from protocols.mavlink import KEY_ENV
+from protocols.signing_key import KEY_ENV, write_signing_key
 from rig.emulator import EmulatorProcess
 
 # ----- a hand-driven host -------------------------------------------------------------------------------------
@@ -111,7 +110,7 @@ def wrong_key_is_refused(url: str, directory: Path) -> None:
     """A driver with another key (written to ``directory``) does not connect, and says why: the controller's
     messages (signed, as everything it sends) do not verify with its key."""
     other = directory / "other.key"
-    other.write_text(secrets.token_hex(32))
+    write_signing_key(other)
     with pytest.raises(TableError, match="did not verify with this host's signing key: are host and controller "
                                          "using the same signing key"):
         open_table(url, key_file=str(other), connect_timeout=1.0).connect()
@@ -237,7 +236,9 @@ def injected_drive_fault_under_delay(listen: str, key_file: Path, monkeypatch: p
     undone. With ``table_type`` the URL must open one."""
     env = {KEY_ENV: key_file.read_text().strip()}
     monkeypatch.setenv(KEY_ENV, env[KEY_ENV])
-    emulator = EmulatorProcess.start(listen, "--delay", "10", "--drive-fault-at", "1.0", "--speed", "2", env=env)
+    replay_state = key_file.parent / f"env-key.{listen.split(':')[0]}-replay.json"  # no key file to put it beside
+    emulator = EmulatorProcess.start(listen, "--delay", "10", "--drive-fault-at", "1.0", "--speed", "2",
+                                     "--replay-state", str(replay_state), env=env)
     try:
         with open_table(emulator.url) as table:
             if table_type is not None:

@@ -94,6 +94,7 @@ from protocols.canopen.sensors import (
     load_accelerometer_od,
     load_detector_od,
 )
+from protocols.signing_key import write_signing_key
 from sim_table.canopen_endpoint import FEEDBACK_DELAY, TARGET_DELAY, Recent, SyncGrid, open_endpoint
 from sim_table.endpoint import EndpointOptions
 from sim_table.process import Emulator, EmulatorConfig, parse_body
@@ -690,7 +691,7 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     group = f"239.74.163.{secrets.randbelow(200) + 20}"
     url = f"canopen://{group}?interface=udp_multicast"  # the emulator's; it adds its drives' target delay
     key = tmp_path / "key"
-    key.write_text(secrets.token_hex(32))
+    write_signing_key(key)
     host = tmp_path / "host.py"
     settle = UDP_TARGET_DELAY_S + 0.3
     host_url = f"{url}&sync_counter=1"  # two processes on a busy host: answers dated by the SYNC they name

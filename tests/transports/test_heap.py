@@ -10,6 +10,7 @@ import pytest
 
 from drivers.controller import open_table
 from drivers.heap import HeapHold
+from protocols.signing_key import write_signing_key
 from rig.emulator import EmulatorProcess
 
 
@@ -72,7 +73,7 @@ def test_a_frozen_cycle_is_freed_after_the_release_a_cycle_made_while_held_at_on
 @pytest.mark.integration  # starts the emulator (tests/conftest.py)
 def test_a_mavlink_link_holds_the_heap_from_connect_to_close(tmp_path: Path) -> None:
     key_file = tmp_path / "rig.key"
-    key_file.write_text("ab" * 32)
+    write_signing_key(key_file)
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", "--speed", "max", key_file=key_file)
     try:
         table = open_table(emulator.url, key_file=str(key_file))

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import pytest
 
+from protocols.signing_key import write_signing_key
 from rig.certs import make_identity
 from rig.emulator import specimen_flags
 from rig.sequence import load_sequence
@@ -102,7 +103,7 @@ def _tls(certs: Path, name: str, ca: Path | None = None) -> list[str]:
 def test_rig_run_across_two_hosts(transport: str, tmp_path: Path, namespaces: None) -> None:
     sequence, bodies = _sequence(tmp_path)
     key = tmp_path / "rig.key"
-    key.write_text("ab" * 32 + "\n")
+    write_signing_key(key)
     certs = _identities(tmp_path)
     if transport == "mavlink":
         listen = url = f"mavlink://{TABLE_ADDRESS}:14600"
@@ -130,7 +131,7 @@ def test_certificates_the_other_side_does_not_trust_are_refused_clearly(tmp_path
     (an unknown CA): each says so in one line, naming the file."""
     sequence, bodies = _sequence(tmp_path)
     key = tmp_path / "rig.key"
-    key.write_text("cd" * 32 + "\n")
+    write_signing_key(key)
     certs = _identities(tmp_path)
     other = tmp_path / "other"
     make_identity(other, "rig")
@@ -157,7 +158,7 @@ def test_a_plain_table_url_off_loopback_is_refused_before_any_link(tmp_path: Pat
     """No namespace needed: the refusal comes before a socket is opened."""
     sequence, _ = _sequence(tmp_path)
     key = tmp_path / "rig.key"
-    key.write_text("ef" * 32 + "\n")
+    write_signing_key(key)
     done = subprocess.run([sys.executable, "-m", "rig.cli", "run", str(sequence), "--table",
                            f"zenoh://{TABLE_ADDRESS}:7447/lab", "--key-file", str(key), "--yes"],
                           capture_output=True, text=True, timeout=120, cwd=ROOT)
@@ -172,7 +173,7 @@ def test_rig_table_list_finds_the_table_across_hosts_over_tls(tmp_path: Path, na
     """The controller declares a liveliness token: ``rig table list`` on the other host finds it, with its transport
     and its state verified with the rig's key."""
     key = tmp_path / "rig.key"
-    key.write_text("12" * 32 + "\n")
+    write_signing_key(key)
     certs = _identities(tmp_path)
     table = [sys.executable, "-m", "sim_table", "--listen", f"zenoh://{TABLE_ADDRESS}:7447/lab", "--key-file",
              str(key), *_tls(certs, "table"), "--counters", str(tmp_path / "counters.json")]

@@ -23,14 +23,13 @@ from hypothesis import strategies as st
 from protocols.mavlink import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
-    KEY_ENV,
     REPLAY_WINDOW,
     SETPOINTS_PER_CHUNK,
+    STAMP_AHEAD,
     TILT_PER_BATCH,
     DialectError,
     FramingError,
     SequenceGapError,
-    SigningKeyError,
     UdpLink,
     accel_batches,
     badly_signed,
@@ -39,13 +38,12 @@ from protocols.mavlink import (
     enable_signing,
     join_accel_batches,
     join_setpoint_chunks,
-    load_signing_key,
     mavlink_connection,
-    parse_verified,
+    parse_guarded,
+    replay_guard,
     requires_signature,
     setpoint_chunks,
     signed_with_key,
-    stale_new_stream,
     tilt_batches,
     unpack_accel_batch,
     unpack_setpoint_chunk,
@@ -53,6 +51,8 @@ from protocols.mavlink import (
     whole_frames,
 )
 from protocols.mavlink.signing import signing_timestamp
+from protocols.replay import Freshness
+from protocols.signing_key import SigningKeyError
 
 # A schema change must show up here: update the numbers together with both ends of the link.
 PINNED = {  # name: (message id, CRC_EXTRA)
@@ -400,40 +400,6 @@ def test_stopping_needs_no_signature_everything_else_that_moves_does(d):
     assert not requires_signature(_examples(d)[3])  # status
 
 
-def test_signing_key_from_file_or_environment(tmp_path):
-    raw = tmp_path / "raw.key"
-    raw.write_bytes(b"\n" + KEY[1:])  # 32 raw bytes, whitespace included, are raw
-    assert load_signing_key(raw, env={}) == b"\n" + KEY[1:]
-    hexa = tmp_path / "hex.key"
-    hexa.write_text(KEY.hex().upper() + "\n")
-    assert load_signing_key(str(hexa), env={}) == KEY
-    assert load_signing_key(env={KEY_ENV: f"  {KEY.hex()} "}) == KEY
-    assert load_signing_key(hexa, env={KEY_ENV: "00" * 32}) == KEY  # a file given wins
-
-
-@pytest.mark.parametrize(("content", "env", "why"), [
-    (None, {}, "no MAVLink signing key: set SHAKETABLE_MAVLINK_KEY"),
-    (None, {KEY_ENV: "ab" * 16}, "SHAKETABLE_MAVLINK_KEY: expected 64 hexadecimal digits, got 32"),
-    (None, {KEY_ENV: "zz" * 32}, "SHAKETABLE_MAVLINK_KEY: not hexadecimal"),
-    (None, {KEY_ENV: "00" * 32}, "all-zero key"),
-    (b"\x00" * 32, {}, "all-zero key"),
-    (b"\xff" * 31, {}, "31 bytes, neither 32 raw bytes nor 64 hexadecimal digits"),
-    (b"ab" * 31 + b"\n", {}, "expected 64 hexadecimal digits, got 62"),
-    ("missing", {}, "No such file"),
-])
-def test_a_bad_signing_key_is_refused_with_its_source(tmp_path, content, env, why):
-    path = None
-    if content == "missing":
-        path = tmp_path / "missing.key"
-    elif content is not None:
-        path = tmp_path / "bad.key"
-        path.write_bytes(content)
-    with pytest.raises(SigningKeyError, match=why) as err:
-        load_signing_key(path, env=env)
-    if path is not None:
-        assert str(path) in str(err.value)
-
-
 def test_enable_signing_refuses_a_bad_key_or_link_id(d):
     with pytest.raises(SigningKeyError, match="32 bytes, got 16"):
         enable_signing(_mav(d), KEY[:16], link_id=0)
@@ -652,17 +618,23 @@ def test_a_new_stream_stamped_more_than_the_window_behind_the_wall_clock_is_stal
     key = bytes(range(1, 33))
     receiver = d.MAVLink(None, srcSystem=1, srcComponent=1)
     enable_signing(receiver, key, link_id=0, sign_outgoing=False)
+    guard = replay_guard()
     now = time.time()
     captured = _heartbeat(d, key, timestamp=signing_timestamp(now - 36.0))
     late = _heartbeat(d, key, timestamp=signing_timestamp(now - REPLAY_WINDOW - 0.5), system=254)
     fresh = _heartbeat(d, key, timestamp=signing_timestamp(now - REPLAY_WINDOW + 1.0), system=253)
-    assert stale_new_stream(receiver, captured) and stale_new_stream(receiver, late)
-    assert not stale_new_stream(receiver, fresh) and not stale_new_stream(receiver, _heartbeat(d))
-    # pymavlink alone takes the 36 s old one (its window is a minute); flagged stale, it is unsigned and its stream
+    ahead = _heartbeat(d, key, timestamp=signing_timestamp(now + STAMP_AHEAD + 1.0), system=252)
+    # pymavlink alone takes the 36 s old one (its window is a minute); found stale, it is unsigned and its stream
     # stays closed, so the rest of the capture is stale too
-    (replayed,) = parse_verified(receiver, captured, stale=True)
-    assert not signed_with_key(replayed) and badly_signed(replayed)
-    assert receiver.signing.stream_timestamps == {}
-    (taken,) = parse_verified(receiver, fresh)
-    assert signed_with_key(taken)
+    for frame, freshness in ((captured, Freshness.STALE), (late, Freshness.STALE), (ahead, Freshness.FUTURE)):
+        (refused,), found = parse_guarded(receiver, guard, frame)
+        assert found is freshness and not signed_with_key(refused) and badly_signed(refused)
+    assert receiver.signing.stream_timestamps == {} and guard.state().streams == ()
+    (unsigned,), found = parse_guarded(receiver, guard, _heartbeat(d))
+    assert found is None and not signed_with_key(unsigned)
+    (taken,), found = parse_guarded(receiver, guard, fresh)
+    assert found is Freshness.FRESH and signed_with_key(taken)
     assert list(receiver.signing.stream_timestamps) == [(3, 253, 190)]
+    assert [stream for stream, _ in guard.state().streams] == [(3, 253, 190)]
+    (again,), found = parse_guarded(receiver, guard, fresh)  # the same frame again: a replay within its stream
+    assert found is Freshness.STALE and not signed_with_key(again)

@@ -38,6 +38,7 @@ from protocols.mavlink import (
     tilt_batches,
 )
 from protocols.mavlink.signing import signing_timestamp
+from protocols.signing_key import write_signing_key
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
@@ -64,7 +65,7 @@ def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess
 @pytest.fixture(scope="module")
 def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("key") / "rig.key"
-    path.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(path)
     return path
 
 

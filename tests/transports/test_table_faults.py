@@ -4,7 +4,6 @@ a replayed signed MAVLink message. Real sockets, the emulator and the killed hos
 
 from __future__ import annotations
 
-import secrets
 import signal
 import socket
 import subprocess
@@ -22,6 +21,7 @@ from stream_checks import drive_excerpt
 from analysis.table.link import LinkSettings
 from drivers.controller import StreamAbortedError, TableStatus, open_table
 from protocols.mavlink import UdpLink, dialect, enable_signing
+from protocols.signing_key import write_signing_key
 from rig.emulator import EmulatorProcess
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
@@ -34,7 +34,7 @@ MOVING = ("stopping", "homing", "tilting", "streaming")
 @pytest.fixture(scope="module")
 def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("key") / "rig.key"
-    path.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(path)
     return path
 
 

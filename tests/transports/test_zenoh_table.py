@@ -24,6 +24,7 @@ from stream_checks import drive_excerpt, stream_and_check
 
 from drivers.controller import TableError, TableTimeoutError, open_table
 from drivers.zenoh import ZenohTable
+from protocols.signing_key import write_signing_key
 from protocols.zenoh import (
     EndpointError,
     Key,
@@ -34,7 +35,16 @@ from protocols.zenoh import (
     table_accel_selector,
     table_key,
 )
-from protocols.zenoh.auth import FRESHNESS, TRAILER_BYTES, Received, Signer, Verdict, Verifier, split_signed
+from protocols.zenoh.auth import (
+    FRESHNESS,
+    STAMP_AHEAD,
+    TRAILER_BYTES,
+    Received,
+    Signer,
+    Verdict,
+    Verifier,
+    split_signed,
+)
 from protocols.zenoh.payloads import PayloadError
 from protocols.zenoh.table import (
     COMMANDS,
@@ -207,7 +217,11 @@ def test_signatures() -> None:
     forged = sign_by_hand(other, where, message, 42, now_us + 3_600_000_000)  # the sender's id, an hour ahead
     assert verdict(forged) is Verdict.BAD_SIGNATURE
     assert verdict(signer.sign(where, message)) is Verdict.SIGNED  # the forgery did not move the stamp
-    assert verdict(sign_by_hand(key, where, message, 42, now_us + 10**9)) is Verdict.SIGNED  # by hand = documented
+    # stamps from the future (issue 42): more than STAMP_AHEAD beyond the receiver's clock refused and moving
+    # nothing; within it taken (by hand = documented)
+    assert verdict(sign_by_hand(key, where, message, 42, now_us + 10**9)) is Verdict.FUTURE
+    assert verdict(sign_by_hand(key, where, message, 42, now_us + round((STAMP_AHEAD + 1) * 1e6))) is Verdict.FUTURE
+    assert verdict(sign_by_hand(key, where, message, 42, now_us + 1_000_000)) is Verdict.SIGNED
     # a new sender (as every sender is to a controller that restarted): a capture 36 s old is refused (issue 25: it
     # tilted the plate), one within the few seconds host and controller clocks must agree taken
     assert verdict(sign_by_hand(key, where, message, 7, now_us - 36_000_000)) is Verdict.STALE
@@ -222,6 +236,8 @@ def test_signatures() -> None:
         is Verdict.BAD_SIGNATURE
     assert verifier.verify_reply(answer, decode_command(sign_by_hand(key, answer, message, 42,
                                                                      now_us - 36_000_000))[1]) is Verdict.STALE
+    assert verifier.verify_reply(answer, decode_command(sign_by_hand(key, answer, message, 42,
+                                                                     now_us + 60_000_000))[1]) is Verdict.FUTURE
 
 
 # ----- the emulator process -----------------------------------------------------------------------------------
@@ -237,7 +253,7 @@ def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess
 @pytest.fixture(scope="module")
 def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     path = tmp_path_factory.mktemp("key") / "rig.key"
-    path.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(path)
     return path
 
 
@@ -429,7 +445,8 @@ def test_tilt_payloads_are_published_and_each_bodys_lost_ones_counted() -> None:
     assert [(b.body_id, b.seq) for b in got] == [(0, 2**32 - 2), (7, 0), (0, 0), (7, 3), (0, 1)]
     assert table.link_stats()["tilt_batches_lost"] == table.tilt_batches_lost == 3 and table.bad_payloads == 1
     # an unsigned payload long enough to hold a trailer counts as badly signed (protocols.zenoh.auth.split_signed)
-    assert table.refused == {"refused_unsigned": 0, "refused_bad_signature": 2, "refused_stale": 0}
+    assert table.refused == {"refused_unsigned": 0, "refused_bad_signature": 2, "refused_stale": 0,
+                             "refused_future": 0}
     np.testing.assert_array_equal(got[3].angles, angles + 7)
     assert (got[3].t_start_ns, got[3].spacing_ns) == (20_000_000, 5_000_000)
 

@@ -1,0 +1,128 @@
+"""The rig's signing key: the one place a key is read (a key file or ``$SHAKETABLE_MAVLINK_KEY``) and written.
+
+One 32-byte secret shared by the host and the controller signs the table link (MAVLink 2 signing,
+:mod:`protocols.mavlink.signing`; zenoh's HMAC, :mod:`protocols.zenoh.auth`), the rig service's commands and the
+console's operator token. Every reader of a key calls :func:`load_signing_key`; every writer of a new one
+:func:`write_signing_key`.
+
+**What a key must be**: 32 bytes from a cryptographic random source — ``python -c "import secrets;
+print(secrets.token_hex(32))"`` or ``openssl rand -hex 32`` — given as 64 hexadecimal digits (surrounding
+whitespace allowed) in :envvar:`SHAKETABLE_MAVLINK_KEY` or in a key file, or as exactly 32 raw bytes in a key file.
+Refused, each with a one-line :class:`SigningKeyError` naming the source:
+
+- a key file that group or others may access (mode & 0o077, as ssh refuses a private key): the message says the
+  ``chmod 600`` to run; a key file that is not a regular file;
+- the all-zero key (MAVLink implementations treat it as "no key");
+- a key with too little entropy to be random: fewer than :data:`MIN_DISTINCT` distinct byte values among its 32,
+  or among the 31 differences of successive bytes (``00…01``, ``abab…``, a repeated or counting pattern). A random
+  key fails this with probability below 1e-15;
+- 32 raw bytes that are all printable ASCII: a typed password or 32 hexadecimal digits (half a key), not a random
+  key (a random raw key is all printable with probability 2e-14).
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+import shlex
+import stat
+from collections.abc import Mapping
+from pathlib import Path
+
+KEY_ENV = "SHAKETABLE_MAVLINK_KEY"
+"""Environment variable holding the signing key as 64 hexadecimal digits."""
+
+KEY_BYTES = 32
+"""Length of the rig's key [bytes]."""
+
+MIN_DISTINCT = 16
+"""Fewest distinct byte values a key must have among its 32 bytes, and among the 31 differences of successive
+bytes (module docstring)."""
+
+_MAX_KEY_FILE = 4096  # a key file is 32 or 64-odd bytes: a larger one is not a key file
+
+
+class SigningKeyError(ValueError):
+    """The signing key is missing, unsafe or malformed; the message says where it came from and what is wrong."""
+
+
+def _parse_hex(text: str, source: str) -> bytes:
+    text = text.strip()
+    if len(text) != 2 * KEY_BYTES:
+        raise SigningKeyError(f"{source}: expected {2 * KEY_BYTES} hexadecimal digits, got {len(text)} characters")
+    try:
+        return bytes.fromhex(text)
+    except ValueError:
+        raise SigningKeyError(f"{source}: not hexadecimal") from None
+
+
+def _read_key_file(path: Path, source: str) -> bytes:
+    """The bytes of the key file ``path``, refused when others may read it or it is no regular file."""
+    try:
+        with path.open("rb") as file:
+            info = os.fstat(file.fileno())
+            if not stat.S_ISREG(info.st_mode):
+                raise SigningKeyError(f"{source}: not a regular file")
+            mode = stat.S_IMODE(info.st_mode)
+            if os.name == "posix" and mode & 0o077:
+                raise SigningKeyError(f"{source}: mode {mode:04o} lets other users read the rig's key; run: "
+                                      f"chmod 600 {shlex.quote(str(path))}")
+            return file.read(_MAX_KEY_FILE + 1)
+    except OSError as exc:
+        raise SigningKeyError(f"{source}: {exc.strerror or exc}") from exc
+
+
+def check_key_strength(key: bytes, source: str) -> bytes:
+    """``key`` if it can be a random 32-byte key (module docstring), else :class:`SigningKeyError` naming
+    ``source``."""
+    if len(key) != KEY_BYTES:
+        raise SigningKeyError(f"{source}: a key has {KEY_BYTES} bytes, got {len(key)}")
+    if not any(key):
+        raise SigningKeyError(f"{source}: the all-zero key means 'no key' to MAVLink; make a random one "
+                              f"(python -c \"import secrets; print(secrets.token_hex(32))\")")
+    steps = {(b - a) % 256 for a, b in itertools.pairwise(key)}
+    if len(set(key)) < MIN_DISTINCT or len(steps) < MIN_DISTINCT:
+        raise SigningKeyError(f"{source}: too little entropy to be a random key ({len(set(key))} distinct byte values "
+                              f"of {KEY_BYTES}, a pattern); make one with python -c \"import secrets; "
+                              f"print(secrets.token_hex(32))\"")
+    return key
+
+
+def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping[str, str] = os.environ) -> bytes:
+    """The 32-byte signing key: from the key file ``path`` if given, else from ``env[SHAKETABLE_MAVLINK_KEY]``.
+
+    A key file holds exactly 32 raw bytes, or 64 hexadecimal digits, and only its owner may access it; the variable
+    holds 64 hexadecimal digits. Raises :class:`SigningKeyError` (module docstring) when there is no key, or the file
+    is open to others, or the key has the wrong length or format, or too little entropy.
+    """
+    if path is not None:
+        source = f"signing key file {os.fspath(path)}"
+        data = _read_key_file(Path(path), source)
+        if len(data) == KEY_BYTES and all(32 <= b < 127 for b in data):
+            raise SigningKeyError(f"{source}: 32 printable characters: a password or half a hexadecimal key, not "
+                                  f"{KEY_BYTES} random raw bytes nor {2 * KEY_BYTES} hexadecimal digits")
+        if len(data) == KEY_BYTES:
+            key = data
+        else:
+            try:
+                text = data.decode("ascii")
+            except UnicodeDecodeError:
+                raise SigningKeyError(f"{source}: {len(data)} bytes, neither {KEY_BYTES} raw bytes nor "
+                                      f"{2 * KEY_BYTES} hexadecimal digits") from None
+            key = _parse_hex(text, source)
+    elif env.get(KEY_ENV):
+        source = f"environment variable {KEY_ENV}"
+        key = _parse_hex(env[KEY_ENV], source)
+    else:
+        raise SigningKeyError(f"no MAVLink signing key: set {KEY_ENV} (64 hexadecimal digits) or give a key file")
+    return check_key_strength(key, source)
+
+
+def write_signing_key(path: str | os.PathLike[str]) -> bytes:
+    """Make a new random key and write it to ``path`` as 64 hexadecimal digits and a newline, readable by its owner
+    only (mode 0600 from creation, whatever the umask); FileExistsError if ``path`` exists. Returns the key."""
+    key = os.urandom(KEY_BYTES)
+    fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w", encoding="ascii") as file:
+        file.write(key.hex() + "\n")
+    return key

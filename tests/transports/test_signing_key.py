@@ -1,0 +1,88 @@
+"""The rig's signing key (protocols/signing_key.py): read from a key file or the environment, refused when the file
+is open to other users or the key cannot be random, written new readable by its owner only (issue 42, item 6)."""
+
+from __future__ import annotations
+
+import os
+import stat
+from pathlib import Path
+
+import pytest
+
+from protocols.signing_key import KEY_ENV, SigningKeyError, load_signing_key, write_signing_key
+
+KEY = bytes.fromhex("d31206b30393bd1c639b2d588f463d4518c16a9a1d39a506bfefb510bc70d4e3")  # secrets.token_hex(32)
+
+
+def key_file(path: Path, content: bytes, mode: int = 0o600) -> Path:
+    path.write_bytes(content)
+    path.chmod(mode)
+    return path
+
+
+def test_signing_key_from_file_or_environment(tmp_path: Path) -> None:
+    raw = key_file(tmp_path / "raw.key", b"\n" + KEY[1:])  # 32 raw bytes, whitespace included, are raw
+    assert load_signing_key(raw, env={}) == b"\n" + KEY[1:]
+    hexa = key_file(tmp_path / "hex.key", KEY.hex().upper().encode() + b"\n")
+    assert load_signing_key(str(hexa), env={}) == KEY
+    assert load_signing_key(env={KEY_ENV: f"  {KEY.hex()} "}) == KEY
+    assert load_signing_key(hexa, env={KEY_ENV: "00" * 32}) == KEY  # a file given wins
+    assert load_signing_key(key_file(tmp_path / "read-only.key", KEY.hex().encode(), 0o400), env={}) == KEY
+
+
+@pytest.mark.parametrize("mode", [0o644, 0o666, 0o640, 0o604, 0o610])
+def test_a_key_file_other_users_may_read_is_refused_with_the_chmod_to_run(tmp_path: Path, mode: int) -> None:
+    path = key_file(tmp_path / "rig.key", KEY.hex().encode() + b"\n", mode)
+    with pytest.raises(SigningKeyError) as err:
+        load_signing_key(path, env={})
+    assert str(err.value) == (f"signing key file {path}: mode {mode:04o} lets other users read the rig's key; run: "
+                              f"chmod 600 {path}")
+
+
+@pytest.mark.parametrize(("content", "env", "why"), [
+    (None, {}, "no MAVLink signing key: set SHAKETABLE_MAVLINK_KEY"),
+    (None, {KEY_ENV: "ab" * 16}, "SHAKETABLE_MAVLINK_KEY: expected 64 hexadecimal digits, got 32"),
+    (None, {KEY_ENV: "zz" * 32}, "SHAKETABLE_MAVLINK_KEY: not hexadecimal"),
+    (None, {KEY_ENV: "00" * 32}, "all-zero key"),
+    (None, {KEY_ENV: "00" * 31 + "01"}, "too little entropy"),
+    (None, {KEY_ENV: "ab" * 32}, "too little entropy"),
+    (None, {KEY_ENV: "0123456789abcdef" * 4}, "too little entropy"),
+    (None, {KEY_ENV: bytes(range(1, 33)).hex()}, "too little entropy"),  # 32 distinct bytes, counting
+    (b"\x00" * 32, {}, "all-zero key"),
+    (b"\x00" * 31 + b"\x01", {}, "too little entropy"),
+    (("00" * 31 + "01\n").encode(), {}, "too little entropy"),
+    (b"correct horse battery staple 42", {}, "expected 64 hexadecimal digits, got 31"),
+    (b"correct horse battery staple 42!", {}, "32 printable characters: a password or half a hexadecimal key"),
+    (KEY.hex()[:32].encode(), {}, "32 printable characters"),
+    (b"\xff" * 31, {}, "31 bytes, neither 32 raw bytes nor 64 hexadecimal digits"),
+    (b"ab" * 31 + b"\n", {}, "expected 64 hexadecimal digits, got 62"),
+    ("missing", {}, "No such file"),
+])
+def test_a_bad_signing_key_is_refused_with_its_source(tmp_path: Path, content: bytes | str | None,
+                                                      env: dict[str, str], why: str) -> None:
+    path = None
+    if content == "missing":
+        path = tmp_path / "missing.key"
+    elif isinstance(content, bytes):
+        path = key_file(tmp_path / "bad.key", content)
+    with pytest.raises(SigningKeyError, match=why) as err:
+        load_signing_key(path, env=env)
+    assert "\n" not in str(err.value)
+    assert (str(path) if path is not None else KEY_ENV) in str(err.value)
+
+
+def test_a_random_key_passes_the_entropy_check() -> None:
+    for _ in range(2000):  # refused with probability < 1e-15 each
+        key = os.urandom(32)
+        assert load_signing_key(env={KEY_ENV: key.hex()}) == key
+
+
+def test_a_written_key_is_random_owner_only_and_never_overwrites(tmp_path: Path) -> None:
+    path = tmp_path / "new.key"
+    key = write_signing_key(path)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert load_signing_key(path, env={}) == key
+    assert write_signing_key(tmp_path / "other.key") != key
+    with pytest.raises(FileExistsError):
+        write_signing_key(path)
+    assert load_signing_key(path, env={}) == key
