@@ -671,15 +671,14 @@ class CanopenEndpoint:
         targets = [d.target for d in self.drives]
         if targets != self._targets:  # held targets (an armed table at rest) need no forward kinematics
             self._targets = targets
-            lengths = np.array(self.scaling.lengths(targets))
-            problem = self._target_problem(lengths)
+            pose, problem = self._target_pose(np.array(self.scaling.lengths(targets)))
             if problem is not None:  # the core refuses it and stops; the pose stays the last one played
                 seq = self._next_seq
                 self._next_seq = (seq + 1) % 2**32
                 self.counters.targets_refused += 1
                 self._post(host_ns, arrival, lambda core: core.refuse_chunk(seq, problem, arrival))
                 return
-            self._pose = self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
+            self._pose = pose
         seq, pose = self._next_seq, self._pose.copy()
         self._next_seq = (seq + 1) % 2**32
         self._last_sample_ns = due
@@ -687,22 +686,21 @@ class CanopenEndpoint:
         period = self._sync_grid().period_ns
         self._post(host_ns, arrival, lambda core: core.chunk(seq, due, period, pose[None, :], False, True, arrival))
 
-    def _target_problem(self, lengths: np.ndarray) -> str | None:
-        """Why the six drives' targets, as leg ``lengths`` (6,) [m], have no pose to play: a target outside its leg's
-        stroke (0x607D, with ``analysis.table.setpoints.POSITION_ALLOWANCE``), or legs no pose has (forward kinematics
-        finds none); None when they have one (the core then checks that pose as any setpoint)."""
+    def _target_pose(self, lengths: np.ndarray) -> tuple[np.ndarray, None] | tuple[None, str]:
+        """The pose of the six drives' targets, as leg ``lengths`` (6,) [m] (forward kinematics from the last one;
+        the core then checks it as any setpoint), or why they have none: a target outside its leg's stroke (0x607D,
+        with ``analysis.table.setpoints.POSITION_ALLOWANCE``), or lengths no pose has."""
         g = self.table.geometry
         low, high = g.leg_min - POSITION_ALLOWANCE, g.leg_max + POSITION_ALLOWANCE
         outside = np.flatnonzero((lengths < low) | (lengths > high))
         if len(outside):
             leg = int(outside[0])
-            return (f"leg {leg + 1} target {lengths[leg]:.6f} m outside its stroke [{g.leg_min:.4f}, "
-                    f"{g.leg_max:.4f}] m")
+            return None, (f"leg {leg + 1} target {lengths[leg]:.6f} m outside its stroke [{g.leg_min:.4f}, "
+                          f"{g.leg_max:.4f}] m")
         try:
-            self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
+            return self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7), None
         except TableModelError as exc:
-            return f"leg targets {', '.join(f'{v:.6f}' for v in lengths)} m: no pose ({exc})"
-        return None
+            return None, f"leg targets {', '.join(f'{v:.6f}' for v in lengths)} m: no pose ({exc})"
 
     def _end_stream(self, host_ns: int, arrival: int) -> None:
         """The drives were disabled (at rest): end the stream at the last target; once the core played it,

@@ -70,15 +70,29 @@ def check_setpoints(table: TableModel, samples: np.ndarray, spacing_s: float,
     clean = np.where(finite[:, None], samples, 0.0)
     outside = np.abs(clean) > bounds + POSITION_ALLOWANCE
     inside = finite & ~outside.any(axis=1)
-    lengths = table.leg_lengths(np.where(inside[:, None], clean, 0.0))
+    before, after = _neighbour(previous), _neighbour(following)
+    poses = np.vstack([*([before[0]] if before else []), np.where(inside[:, None], clean, 0.0),
+                       *([after[0]] if after else [])])
+    all_lengths = table.leg_lengths(poses)  # one pass: the neighbours' lengths for the rates too
+    lengths = all_lengths[1:1 + n] if before else all_lengths[:n]
     over = (lengths > g.leg_max + POSITION_ALLOWANCE) | (lengths < g.leg_min - POSITION_ALLOWANCE)
     sound = inside & ~over.any(axis=1)
     problems = [_first_non_finite(samples, finite), _first_outside(clean, outside, bounds),
                 _first_stroke(lengths, over, table)]
     if sound.all():
-        problems.append(_first_rate(table, samples, spacing_s, previous, following))
+        times = spacing_s * np.arange(n, dtype=np.float64)
+        times = np.concatenate([[-before[1]] if before else [], times, [times[-1] + after[1]] if after else []])
+        problems.append(_first_rate(table, poses, all_lengths, times, 0 if before else 1))
     found = [p for p in problems if p is not None]
     return min(found, key=lambda p: p.sample) if found else None
+
+
+def _neighbour(given: tuple[np.ndarray, float] | None) -> tuple[np.ndarray, float] | None:
+    """A neighbouring pose and its distance in time [s], when it is one to check a step against (finite, over
+    more than no time)."""
+    if given is None or not given[1] > 0 or not np.isfinite(given[0]).all():
+        return None
+    return np.asarray(given[0], dtype=np.float64), float(given[1])
 
 
 def _first_non_finite(samples: np.ndarray, finite: np.ndarray) -> SetpointProblem | None:
@@ -112,22 +126,13 @@ def _first_stroke(lengths: np.ndarray, over: np.ndarray, table: TableModel) -> S
                                           f"[{g.leg_min:.4f}, {g.leg_max:.4f}] m")
 
 
-def _first_rate(table: TableModel, samples: np.ndarray, spacing_s: float,
-                previous: tuple[np.ndarray, float] | None, following: tuple[np.ndarray, float] | None
+def _first_rate(table: TableModel, poses: np.ndarray, all_lengths: np.ndarray, times: np.ndarray, first: int
                 ) -> SetpointProblem | None:
-    """The first step whose leg speed or tilt rate is beyond its limit: step k ends at sample k (step 0 starts at
-    ``previous``; the step to ``following`` is numbered ``n``)."""
-    poses, times, first = samples, spacing_s * np.arange(len(samples), dtype=np.float64), 1
-    if previous is not None and previous[1] > 0 and np.isfinite(previous[0]).all():
-        poses = np.vstack([previous[0], poses])
-        times = np.concatenate([[-previous[1]], times])
-        first = 0
-    if following is not None and following[1] > 0 and np.isfinite(following[0]).all():
-        poses = np.vstack([poses, following[0]])
-        times = np.concatenate([times, [times[-1] + following[1]]])
+    """The first step between consecutive ``poses`` (their leg lengths ``all_lengths``, at ``times`` [s]) whose leg
+    speed or tilt rate is beyond its limit, numbered by the sample it ends at: step k ends at sample ``k + first``
+    (``first`` 0 when the first pose is the one before the samples, else 1)."""
     if len(poses) < 2:
         return None
-    all_lengths = table.leg_lengths(poses)
     dt = np.diff(times)[:, None]
     leg_speed = np.abs(np.diff(all_lengths, axis=0)) / dt
     tilt_rate = np.abs(np.diff(poses[:, 3:5], axis=0)) / dt
