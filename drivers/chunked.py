@@ -54,6 +54,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from analysis.table.model import TableModel
 from drivers.clock import ClockSync
 from drivers.controller import (
     DEFAULT_LEAD,
@@ -62,6 +63,7 @@ from drivers.controller import (
     TILT_AXES,
     AccelBatch,
     CommandFailedError,
+    SetpointRefusal,
     StreamAbortedError,
     StreamReport,
     TableController,
@@ -69,7 +71,7 @@ from drivers.controller import (
     TableStatus,
     TableTimeoutError,
     TiltBatch,
-    finite_poses,
+    playable_poses,
     sample_spacing,
 )
 
@@ -84,6 +86,10 @@ sample (module docstring): statuses may be this late before the bound delays a r
 RESEND_S = 0.1
 """The host waits in slices of this [s], the link checked between them; after each, if no status shows the chunk it
 sent last taken, it sends that chunk again (module docstring)."""
+
+REFUSAL_WAIT = 0.5
+"""A stream stopped with ``SETPOINT_REFUSED`` waits at most this long [s] for the controller's reason (sent before the
+status that shows the stop; a lost one is sent again with the next statuses)."""
 
 MOTION_STATES = frozenset({"homing", "tilting"})
 """The controller's states while a HOME or SET_TILT moves the table."""
@@ -140,8 +146,13 @@ class ChunkedStreamController(TableController):
     motion_stopped_result: str
     """The result named by the :class:`CommandFailedError` of a motion stopped before its target."""
 
-    def __init__(self, url: str) -> None:
+    def __init__(self, url: str, table: TableModel | None = None) -> None:
         super().__init__(url)
+        self.table = table or TableModel()
+        """The table model a trajectory is checked against before it is streamed (``analysis.table.setpoints``):
+        the controller's, the rig configuration's (default: Table IV and the default hexapod)."""
+        self.refusals: list[SetpointRefusal] = []
+        """The setpoint chunks the controller refused for their values, each once, in the order they came."""
         self.clock = ClockSync()
         self._next_seq = 0
         self._accel_lost = LostBatches()
@@ -197,6 +208,12 @@ class ChunkedStreamController(TableController):
         """Count a received accelerometer batch's gap, then publish it."""
         self._accel_lost.receive(batch.sensor_id, batch.seq)
         self.feedback.publish_accel(batch)
+
+    def _publish_refusal(self, refusal: SetpointRefusal) -> None:
+        """Keep a refusal the controller sent (each once: it sends it several times), and wake the waits."""
+        if refusal not in self.refusals:
+            self.refusals.append(refusal)
+            self.feedback.notify()
 
     def _publish_tilt(self, batch: TiltBatch) -> None:
         """Count a received body-tilt batch's gap, then publish it."""
@@ -269,10 +286,11 @@ class ChunkedStreamController(TableController):
     def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = DEFAULT_LEAD,
                on_progress: Callable[[int, int], None] | None = None,
                on_start: Callable[[int], None] | None = None) -> StreamReport:
-        poses = finite_poses(poses)
-        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
+        spacing = sample_spacing(t, len(poses))
         if not (math.isfinite(lead) and lead > 0):
             raise ValueError(f"lead must be > 0 s, got {lead!r}")
+        poses = playable_poses(self.url, self.table, poses, spacing, (self.status().pose, lead))
+        spacing_ns = round(spacing * 1e9)
         lead_ns = round(lead * 1e9)
         per_chunk = self.samples_per_chunk
         capacity = self.status().buffer_capacity
@@ -283,6 +301,7 @@ class ChunkedStreamController(TableController):
                              "[controller] lead_s or raise the controller's buffer_s")
         self.heap.hold()  # refreeze: what the runs before made is not visited by the stream's collections
         underruns_before = self.status().underruns
+        refusals_before = len(self.refusals)
         first_seq = self._next_seq
         self._command("start_stream", (float(first_seq), 0.0))
         count = math.ceil(len(poses) / per_chunk)
@@ -311,8 +330,7 @@ class ChunkedStreamController(TableController):
             self.check_link()
             latest = self.feedback.latest
             if latest is not None and (latest.state in STOPPED_STATES or _left_stream(latest, t_start)):
-                raise StreamAbortedError(f"the table stopped the stream ({latest.state}, faults "
-                                         f"{', '.join(latest.faults) or 'none'})", report(k, latest))
+                raise StreamAbortedError(self._stopped(latest, "", refusals_before), report(k, latest))
             self._send_chunk(message)
             if previous is not None:
                 self._send_chunk(previous)
@@ -330,10 +348,21 @@ class ChunkedStreamController(TableController):
         if on_progress is not None:
             on_progress(len(poses), len(poses))
         if final.state != "armed" or final.last_chunk_seq != last_seq:  # stopped (and home) before its end
-            raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
-                                     f"{', '.join(final.faults) or 'none'}, last chunk taken "
-                                     f"{final.last_chunk_seq} of {first_seq}…{last_seq})", report(count, final))
+            raise StreamAbortedError(self._stopped(final, f", last chunk taken {final.last_chunk_seq} of "
+                                                          f"{first_seq}…{last_seq}", refusals_before),
+                                     report(count, final))
         return report(count, final)
+
+    def _stopped(self, status: TableStatus, detail: str, refusals_before: int) -> str:
+        """Why the table stopped the stream, as its :class:`StreamAbortedError` says: ``status``'s state and faults,
+        ``detail``, and when it refused a chunk (``SETPOINT_REFUSED``) the reason it gave (refusals after the first
+        ``refusals_before`` are this stream's; waited for at most :data:`REFUSAL_WAIT`)."""
+        message = f"the table stopped the stream ({status.state}, faults {', '.join(status.faults) or 'none'}{detail})"
+        if "SETPOINT_REFUSED" not in status.faults:
+            return message
+        if not self.wait(lambda: len(self.refusals) > refusals_before, REFUSAL_WAIT):
+            return f"{message}: it refused a setpoint chunk (its reason did not arrive)"
+        return f"{message}: it refused {self.refusals[refusals_before].reason}"
 
     def _until_end_taken(self, message: Any, last_seq: int, t_start: int) -> None:
         """Wait until a status shows the END_OF_STREAM chunk ``message`` (number ``last_seq``) taken or the table out

@@ -31,6 +31,8 @@ from urllib.parse import urlsplit
 import numpy as np
 
 from analysis.table.link import LinkSettings
+from analysis.table.model import TableModel
+from analysis.table.setpoints import check_setpoints
 from drivers.bodies import TableBody
 from drivers.heap import HeapHold
 
@@ -95,6 +97,12 @@ class CommandFailedError(CommandRefusedError):
 
 class TableLinkLostError(TableError):
     """No status from the controller for longer than the link timeout: the link, or the controller, is gone."""
+
+
+class SetpointError(TableError, ValueError):
+    """A trajectory the table must not play (``analysis.table.setpoints``: a sample not finite, outside the envelope
+    or a leg's stroke, a step beyond the leg speed or tilt rate): refused by the host before anything is sent. A
+    ValueError too, as the bad arguments of :meth:`TableController.stream` it replaces."""
 
 
 class StreamAbortedError(TableError):
@@ -189,6 +197,16 @@ class FaultSource(NamedTuple):
 
     node: int
     code: int
+
+
+@dataclass(frozen=True)
+class SetpointRefusal:
+    """The controller refused setpoint chunk ``seq`` that reached it at ``t_ns`` [ns, controller time] for its
+    values, and stopped the table (fault ``SETPOINT_REFUSED``); ``reason`` says which sample broke which limit."""
+
+    t_ns: int
+    seq: int
+    reason: str
 
 
 @dataclass(frozen=True)
@@ -610,13 +628,20 @@ def sleep_until(deadline_ns: int) -> int:
     return time.monotonic_ns() - deadline_ns
 
 
-def finite_poses(poses: Any) -> np.ndarray:
-    """``poses`` as a finite float64 (N, 6) array, else :class:`ValueError`."""
+def playable_poses(url: str, table: TableModel, poses: Any, spacing_s: float,
+                   held: tuple[np.ndarray, float] | None) -> np.ndarray:
+    """``poses`` as a float64 (N, 6) array the controller at ``url`` will play (``analysis.table.setpoints`` on
+    ``table``, sampled every ``spacing_s`` [s], blended into from ``held``: the pose the table holds and how long
+    before the first sample it leaves it [s]); else :class:`SetpointError` naming the first bad sample, its time
+    and the limit (:class:`ValueError` for an array of another shape)."""
     arr = np.asarray(poses, dtype=np.float64)
     if arr.ndim != 2 or arr.shape[1] != 6 or len(arr) == 0:
         raise ValueError(f"poses must have shape (N, 6) with N >= 1, got {arr.shape}")
-    if not np.isfinite(arr).all():
-        raise ValueError("poses must be finite")
+    problem = check_setpoints(table, arr, spacing_s, previous=held)
+    if problem is not None:
+        after = " (from the pose the table holds)" if problem.kind == "rate" and problem.sample == 0 else ""
+        raise SetpointError(f"{url}: trajectory not sent: sample {problem.sample} (t = "
+                            f"{problem.sample * spacing_s:.3f} s): {problem.detail}{after}")
     return arr
 
 

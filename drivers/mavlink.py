@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.model import TableModel
 from drivers.bodies import BodyReports, TableBody
 from drivers.chunked import MOTION_STATES, ChunkedStreamController, CommandAnswer
 from drivers.controller import (
@@ -55,6 +56,7 @@ from drivers.controller import (
     CommandFailedError,
     CommandRejectedError,
     Detection,
+    SetpointRefusal,
     TableError,
     TableStatus,
     TableTimeoutError,
@@ -138,15 +140,17 @@ class MavlinkTable(ChunkedStreamController):
     ids; ``target_system``/``target_component`` the controller's; ``link_id`` of the signatures (default: random
     per connection, so that two hosts with the same ids are two signing streams, not one whose timestamps
     interleave and get refused as replays);
-    ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s].
+    ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s]; ``table`` the table model streamed
+    trajectories are checked against (default: Table IV and the default hexapod).
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, system: int = 255, component: int = 190,
                  target_system: int = 1, target_component: int = 1, link_id: int | None = None,
-                 command_timeout: float = 0.15, retries: int = 4, connect_timeout: float = 3.0) -> None:
-        super().__init__(url)
+                 command_timeout: float = 0.15, retries: int = 4, connect_timeout: float = 3.0,
+                 table: TableModel | None = None) -> None:
+        super().__init__(url, table)
         self.address = host_port(url)
         self.key_file = key_file
         self.system, self.component = system, component
@@ -266,6 +270,8 @@ class MavlinkTable(ChunkedStreamController):
         elif kind == "SHAKETABLE_BODY":
             self._body_reports.add(msg.count, TableBody(msg.body_id, msg.b, msg.h, msg.depth, msg.x, msg.y)
                                    if msg.count else None)
+        elif kind == "SHAKETABLE_CHUNK_REFUSED":
+            self._publish_refusal(SetpointRefusal(msg.t_ns, msg.chunk_seq, msg.reason))
         elif kind == "SHAKETABLE_OVERTURN_EVENT":
             self.feedback.publish_detection(Detection(msg.event_id, msg.body_id, msg.direction, msg.tilt, msg.t_ns))
         elif kind == "COMMAND_ACK":

@@ -52,6 +52,7 @@ from typing import NoReturn, TypeVar
 import numpy as np
 import zenoh
 
+from analysis.table.model import TableModel
 from drivers.bodies import TableBody
 from drivers.chunked import ChunkedStreamController, CommandAnswer
 from drivers.controller import (
@@ -60,6 +61,7 @@ from drivers.controller import (
     CommandFailedError,
     CommandRejectedError,
     Detection,
+    SetpointRefusal,
     TableError,
     TableStatus,
     TableTimeoutError,
@@ -82,6 +84,7 @@ from protocols.zenoh.table import (
     decode_clock_reply,
     decode_heartbeat,
     decode_overturn,
+    decode_refusal,
     decode_status,
     decode_tilt,
     encode_clock_request,
@@ -142,15 +145,17 @@ class ZenohTable(ChunkedStreamController):
 
     Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``tls`` this host's TLS identity (the link is then
     ``tls/``) and ``insecure_plain_tcp`` (a plain ``tcp/`` link off loopback: nothing encrypted); ``command_timeout``
-    [s] per attempt and ``retries``; ``connect_timeout`` [s]. A bad address for the link raises
+    [s] per attempt and ``retries``; ``connect_timeout`` [s]; ``table`` the table model streamed trajectories are
+    checked against (default: Table IV and the default hexapod). A bad address for the link raises
     :class:`ValueError` here.
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, command_timeout: float = 0.15, retries: int = 4,
-                 connect_timeout: float = 3.0, tls: TlsFiles | None = None, insecure_plain_tcp: bool = False) -> None:
-        super().__init__(url)
+                 connect_timeout: float = 3.0, tls: TlsFiles | None = None, insecure_plain_tcp: bool = False,
+                 table: TableModel | None = None) -> None:
+        super().__init__(url, table)
         self.address = parse_table_url(url)
         self.security = LinkSecurity(tls, insecure_plain_tcp)
         try:
@@ -165,7 +170,7 @@ class ZenohTable(ChunkedStreamController):
         self._keys = {kind: table_key(self.address.table, kind) for kind in ("command", "clock", "setpoints",
                                                                             "host-heartbeat", "answer", "status",
                                                                             "overturn", "heartbeat", "tilt",
-                                                                            "bodies")}
+                                                                            "bodies", "refusal")}
         self._session: zenoh.Session | None = None
         self._signer: Signer | None = None
         self._command_lock = threading.Lock()  # command ids, signing and sending a command
@@ -209,7 +214,7 @@ class ZenohTable(ChunkedStreamController):
             keys = self._keys
             for key, handler in ((keys["status"], self._on_status), (keys["answer"], self._on_answer),
                                  (keys["overturn"], self._on_overturn), (keys["heartbeat"], self._on_heartbeat),
-                                 (keys["tilt"], self._on_tilt),
+                                 (keys["tilt"], self._on_tilt), (keys["refusal"], self._on_refusal),
                                  (table_accel_selector(self.address.table), self._on_accel)):
                 session.declare_subscriber(key, self._receiver(handler))
             self._setpoints = session.declare_publisher(keys["setpoints"], express=True,
@@ -323,6 +328,10 @@ class ZenohTable(ChunkedStreamController):
         event = decode_overturn(payload)
         self.feedback.publish_detection(Detection(event.event_id, event.body_id, event.direction, event.tilt,
                                                   event.t_ns))
+
+    def _on_refusal(self, payload: bytes, now: int) -> None:
+        refusal = decode_refusal(payload)
+        self._publish_refusal(SetpointRefusal(refusal.t_ns, refusal.seq, refusal.reason))
 
     def _on_heartbeat(self, payload: bytes, now: int) -> None:
         decode_heartbeat(payload)

@@ -44,6 +44,11 @@ stream of one-sample chunks:
   core's watchdogs) → the drives concerned (leg 1; all) enter *fault reaction active* and send EMCY 0x5000, 0x8130
   or 0x8700 while the core stops the table, then *fault* once the legs are braked. The core's STROKE and
   SETPOINT_LIMIT set statusword bit 11 (internal limit active) on every drive.
+- *Refused targets.* The core checks every setpoint as on the other transports (``analysis.table.setpoints``: the
+  pose of the six targets inside the envelope, its step from the target before within the leg speed and tilt
+  rate); six targets with no pose to check — one beyond its leg's stroke (0x607D), or lengths no pose has — are
+  refused here before forward kinematics (``targets_refused``). Either refusal stops the table
+  (``SETPOINT_REFUSED``): every drive enters *fault reaction active* and sends EMCY 0x8612 (reference limit).
 - *Following error.* Each enabled drive watches its leg at every tick of the physics while the core streams (its
   servo loop, not its SYNCs: a late SYNC does not let the error grow further): following error = commanded − actual
   leg length [µm], reported in 0x60F4 at the instant of each TPDO1 (the command the physics gave the leg
@@ -112,7 +117,8 @@ import canopen
 import numpy as np
 from can.interfaces.virtual import VirtualBus
 
-from analysis.table.model import TableModel
+from analysis.table.model import TableModel, TableModelError
+from analysis.table.setpoints import POSITION_ALLOWANCE
 from protocols.canopen import (
     LEG_NODE_IDS,
     MASTER_NODE_ID,
@@ -149,7 +155,7 @@ from protocols.canopen.sensors import (
     load_accelerometer_od,
     load_detector_od,
 )
-from sim_table.controller import BRAKED, ControllerCore, Done, Fault, Snapshot
+from sim_table.controller import BRAKED, ControllerCore, Done, Fault, Refused, Snapshot
 from sim_table.controller import Command as CoreCommand
 from sim_table.controller import State as CoreState
 from sim_table.endpoint import Action, BodyOnPlate, EndpointOptions
@@ -207,7 +213,9 @@ _EMCY = {Fault.DRIVE: (drive_od.EMCY_DEVICE_HARDWARE, drive_od.ERROR_REGISTER_GE
          Fault.HEARTBEAT_LOST: (drive_od.EMCY_HEARTBEAT_ERROR,
                                 drive_od.ERROR_REGISTER_GENERIC | drive_od.ERROR_REGISTER_COMMUNICATION),
          Fault.STREAM_SILENT: (drive_od.EMCY_SYNC_LOST,
-                               drive_od.ERROR_REGISTER_GENERIC | drive_od.ERROR_REGISTER_COMMUNICATION)}
+                               drive_od.ERROR_REGISTER_GENERIC | drive_od.ERROR_REGISTER_COMMUNICATION),
+         Fault.SETPOINT_REFUSED: (drive_od.EMCY_REFERENCE_LIMIT,
+                                  drive_od.ERROR_REGISTER_GENERIC | drive_od.ERROR_REGISTER_DEVICE_PROFILE)}
 """EMCY (code, error register) a drive sends when the core raises a stopping fault."""
 _ENABLED = State.OPERATION_ENABLED
 _REMOTE, _VOLTAGE = int(StatusBit.REMOTE), int(StatusBit.VOLTAGE_ENABLED)
@@ -243,6 +251,10 @@ class BusCounters:
     master counts their samples lost rather than being told a later position."""
     accel_samples_sent: int = 0
     emcy_sent: int = 0
+    targets_refused: int = 0
+    """SYNCs whose six targets had no pose (a leg beyond its stroke, or no forward kinematics): refused unplayed."""
+    refusals: int = 0
+    """Setpoints the core refused (those and the poses it refused for their values, rates or envelope)."""
     following_errors: int = 0
     """Drives that faulted on a following error beyond their window 0x6065."""
     following_error_max_um: int = 0
@@ -658,15 +670,37 @@ class CanopenEndpoint:
             return
         targets = [d.target for d in self.drives]
         if targets != self._targets:  # held targets (an armed table at rest) need no forward kinematics
-            lengths = np.array(self.scaling.lengths(targets))
-            self._pose = self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
             self._targets = targets
+            pose, problem = self._target_pose(np.array(self.scaling.lengths(targets)))
+            if problem is not None:  # the core refuses it and stops; the pose stays the last one played
+                seq = self._next_seq
+                self._next_seq = (seq + 1) % 2**32
+                self.counters.targets_refused += 1
+                self._post(host_ns, arrival, lambda core: core.refuse_chunk(seq, problem, arrival))
+                return
+            self._pose = pose
         seq, pose = self._next_seq, self._pose.copy()
         self._next_seq = (seq + 1) % 2**32
         self._last_sample_ns = due
         self.counters.chunks_sent += 1
         period = self._sync_grid().period_ns
         self._post(host_ns, arrival, lambda core: core.chunk(seq, due, period, pose[None, :], False, True, arrival))
+
+    def _target_pose(self, lengths: np.ndarray) -> tuple[np.ndarray, None] | tuple[None, str]:
+        """The pose of the six drives' targets, as leg ``lengths`` (6,) [m] (forward kinematics from the last one;
+        the core then checks it as any setpoint), or why they have none: a target outside its leg's stroke (0x607D,
+        with ``analysis.table.setpoints.POSITION_ALLOWANCE``), or lengths no pose has."""
+        g = self.table.geometry
+        low, high = g.leg_min - POSITION_ALLOWANCE, g.leg_max + POSITION_ALLOWANCE
+        outside = np.flatnonzero((lengths < low) | (lengths > high))
+        if len(outside):
+            leg = int(outside[0])
+            return None, (f"leg {leg + 1} target {lengths[leg]:.6f} m outside its stroke [{g.leg_min:.4f}, "
+                          f"{g.leg_max:.4f}] m")
+        try:
+            return self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7), None
+        except TableModelError as exc:
+            return None, f"leg targets {', '.join(f'{v:.6f}' for v in lengths)} m: no pose ({exc})"
 
     def _end_stream(self, host_ns: int, arrival: int) -> None:
         """The drives were disabled (at rest): end the stream at the last target; once the core played it,
@@ -829,6 +863,11 @@ class CanopenEndpoint:
 
     def command_done(self, done: Done) -> None:
         """Nothing the CANopen side asks of the core answers IN_PROGRESS: no final answer to send."""
+
+    def chunk_refused(self, refused: Refused) -> None:
+        """A refused target: the drives say it with the EMCY of the stopping fault ``SETPOINT_REFUSED``
+        (:data:`~protocols.canopen.od.EMCY_REFERENCE_LIMIT`, sent by :meth:`send_status`); counted here."""
+        self.counters.refusals += 1
 
     def send_status(self, snap: Snapshot) -> None:
         """The core's state and faults: its stopping faults become drive faults with EMCY (module docstring)."""

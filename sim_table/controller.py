@@ -58,6 +58,7 @@ import numpy as np
 
 from analysis.table.model import TableModel
 from analysis.table.moves import Move, axis_limits, shortest_duration
+from analysis.table.setpoints import SetpointProblem, check_setpoints
 
 SEQ_MODULUS = 2**32
 """Chunk sequence numbers are uint32 and wrap."""
@@ -99,9 +100,11 @@ class Fault(enum.IntFlag):
     SETPOINT_LIMIT = 32
     CHUNK_GAP = 64
     UNDERRUN = 128
+    SETPOINT_REFUSED = 256
 
 
-_STOPPING_FAULTS = Fault.DRIVE | Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST | Fault.UNDERRUN
+_STOPPING_FAULTS = (Fault.DRIVE | Fault.STREAM_SILENT | Fault.HEARTBEAT_LOST | Fault.UNDERRUN
+                    | Fault.SETPOINT_REFUSED)
 """Faults that stop the table; the others only latch."""
 
 DEFAULT_BUFFER_CAPACITY = 4000
@@ -160,6 +163,16 @@ class Done:
     result: Result
 
 
+@dataclass(frozen=True)
+class Refused:
+    """The setpoint chunk ``seq`` that arrived at ``t_ns`` was refused: ``reason`` says which sample broke which limit
+    (``chunk 12 sample 3: heave 0.3 m outside [-0.1800, 0.1800] m``); the table stops (``SETPOINT_REFUSED``)."""
+
+    t_ns: int
+    seq: int
+    reason: str
+
+
 @dataclass(frozen=True, eq=False)
 class Snapshot:
     """What one status carries: controller time [ns], state, setpoint samples buffered, the newest chunk accepted,
@@ -196,6 +209,11 @@ class Counters:
     chunks_not_streaming: int = 0
     chunks_overflow: int = 0
     """Chunks refused because the buffer could not hold them (the host's lead exceeds the capacity)."""
+    chunks_refused: int = 0
+    """Chunks refused for their values (``analysis.table.setpoints``: not finite, outside the envelope or a leg's
+    stroke, beyond the leg speed or tilt rate); each stops the table."""
+    last_refusal: str = ""
+    """Why the last refused chunk was refused."""
     samples_late: int = 0
     stops: int = 0
     emergency_stops: int = 0
@@ -241,7 +259,7 @@ class ControllerCore:
         self.last_chunk_seq = 0
         self.first_stream_ns: int | None = None
         """Controller time of the first accepted START_STREAM (fault injection times count from it)."""
-        self._events: list[StateChange | Done] = []
+        self._events: list[StateChange | Done | Refused] = []
         self._p = np.zeros(6) if pose is None else np.array(pose, dtype=float)
         self._v = np.zeros(6)
         self._achieved = self._p.copy()
@@ -317,6 +335,11 @@ class ControllerCore:
         if self._end_seq is not None and (seq - self._end_seq) % SEQ_MODULUS < SEQ_MODULUS // 2:
             self.counters.chunks_after_end += 1
             return False
+        samples = np.asarray(samples, dtype=float)
+        problem = self._check(t_start_ns, spacing_ns, samples)
+        if problem is not None:
+            self._refuse_chunk(seq, f"chunk {seq} {problem.message()}", t_ns)
+            return False
         if len(self._buffer) + len(samples) > self.buffer_capacity:
             self.counters.chunks_overflow += 1
             return False
@@ -344,8 +367,43 @@ class ControllerCore:
         if end_of_stream:
             self._end_seq = seq
             self._end_ns = int(times[-1])
-        self._insert(times, np.asarray(samples, dtype=float))
+        self._insert(times, samples)
         return True
+
+    def _check(self, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> SetpointProblem | None:
+        """What forbids playing ``samples`` (n, 6) due from ``t_start_ns`` every ``spacing_ns`` [ns]: the checks of
+        ``analysis.table.setpoints``, the steps from the sample buffered (or played last) before them and to the one
+        buffered after them included; None when nothing does."""
+        if samples.ndim != 2 or samples.shape[1] != 6 or len(samples) == 0 or spacing_ns <= 0:
+            return SetpointProblem(0, "shape", f"{samples.shape} samples spaced {spacing_ns} ns: expected (n, 6), "
+                                               "spaced > 0 ns")
+        t_end_ns = t_start_ns + spacing_ns * (len(samples) - 1)
+        buffer = self._buffer
+        i = bisect.bisect_left(buffer, t_start_ns, key=lambda item: item[0])
+        before = buffer[i - 1] if i > 0 else self._anchor
+        j = bisect.bisect_right(buffer, t_end_ns, key=lambda item: item[0])
+        after = buffer[j] if j < len(buffer) else None
+        previous = None if before is None else (before[1], (t_start_ns - before[0]) * 1e-9)
+        following = None if after is None else (after[1], (after[0] - t_end_ns) * 1e-9)
+        return check_setpoints(self.table, samples, spacing_ns * 1e-9, previous, following)
+
+    def refuse_chunk(self, seq: int, reason: str, t_ns: int) -> None:
+        """Refuse setpoint chunk ``seq``, arrived at ``t_ns``, for ``reason`` found by the endpoint (CANopen: leg
+        targets outside their stroke, or with no pose): as a chunk :meth:`chunk` refuses for its values, while
+        streaming (else counted in ``chunks_not_streaming``)."""
+        if self.state is not State.STREAMING:
+            self.counters.chunks_not_streaming += 1
+            return
+        self._refuse_chunk(seq, reason, t_ns)
+
+    def _refuse_chunk(self, seq: int, reason: str, t_ns: int) -> None:
+        """Refuse chunk ``seq`` for ``reason`` (arrived at ``t_ns``): count it, tell the endpoint why (a
+        :class:`Refused` event) and stop the table: the buffer is discarded and the reference decelerates from where
+        it is, as in an underrun (never a jump to the refused samples)."""
+        self.counters.chunks_refused += 1
+        self.counters.last_refusal = reason
+        self._events.append(Refused(t_ns, seq, reason))
+        self.raise_fault(Fault.SETPOINT_REFUSED, t_ns)
 
     def raise_fault(self, fault: Fault, t_ns: int) -> None:
         """A fault seen by the physics or injected: latch it; DRIVE (and the watchdogs') also stop the table."""
@@ -382,8 +440,8 @@ class ControllerCore:
         self._p = pose
         return pose, False
 
-    def take_events(self) -> list[StateChange | Done]:
-        """State changes and completed commands since the last call, in order."""
+    def take_events(self) -> list[StateChange | Done | Refused]:
+        """State changes, completed commands and refused chunks since the last call, in order."""
         events, self._events = self._events, []
         return events
 

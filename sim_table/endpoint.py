@@ -6,7 +6,8 @@ An endpoint is the controller end of one transport (``mavlink://HOST:PORT`` → 
 - host messages arrive on the endpoint's own threads and wait in its inbox; :meth:`Endpoint.take` hands them
   over in arrival order as ``(arrival controller ns, action)`` pairs, each action applied to the
   `~sim_table.controller.ControllerCore` between ticks at its arrival time;
-- the loop gives the endpoint what to send: final command answers (:meth:`Endpoint.command_done`), statuses,
+- the loop gives the endpoint what to send: final command answers (:meth:`Endpoint.command_done`), the reason a
+  setpoint chunk was refused (:meth:`Endpoint.chunk_refused`), statuses,
   accelerometer samples, the bodies' tilt samples, overturn events; :meth:`Endpoint.service` sends what is due
   (heartbeats, resends). Evenly spaced samples (accelerometers, tilts) come in pieces that continue each other in
   time; an endpoint that sends them in batches gathers them with a :class:`Batcher`.
@@ -27,7 +28,7 @@ import numpy as np
 
 from analysis.table.model import TableModel
 from protocols.zenoh.config import PLAIN, LinkSecurity
-from sim_table.controller import ControllerCore, Done, Snapshot, State
+from sim_table.controller import ControllerCore, Done, Refused, Snapshot, State
 
 Action = Callable[[ControllerCore], None]
 """A host message as an effect on the controller core."""
@@ -88,6 +89,7 @@ class Endpoint(Protocol):
     def start(self) -> None: ...
     def take(self, now: int) -> list[tuple[int, Action]]: ...
     def command_done(self, done: Done) -> None: ...
+    def chunk_refused(self, refused: Refused) -> None: ...
     def send_status(self, snap: Snapshot) -> None: ...
     def add_accel(self, sensor_id: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> None: ...
     def flush_accel(self) -> None: ...

@@ -45,6 +45,10 @@ Protocol decisions (the host side is ``drivers.mavlink``):
 - **Telemetry** (status, accelerometer batches, tilt batches of :data:`~protocols.mavlink.TILT_PER_BATCH` angles
   per body, overturn events, heartbeats) goes to every address that sent a HEARTBEAT within :data:`PEER_TIMEOUT`
   s. Overturn events are sent at once and again 3 times 100 ms apart (real time), with the same event id.
+- **Refused setpoints.** A signed chunk the core refuses for its values (``analysis.table.setpoints``: not finite,
+  outside the envelope or a leg's stroke, beyond the leg speed or tilt rate) is answered with a
+  SHAKETABLE_CHUNK_REFUSED (chunk_seq, arrival time, the reason) to the peers, sent at once and with the next
+  :data:`REFUSAL_REPEATS` statuses; the statuses carry ``SETPOINT_REFUSED`` while the table stops.
 - **Fault injection**: ``loss`` drops each datagram in either direction with that probability; ``delay`` [s]
   holds each one that long in either direction (seeded).
 """
@@ -87,7 +91,7 @@ from protocols.mavlink import (
     whole_frames,
 )
 from protocols.replay import Freshness
-from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
+from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Refused, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
 from sim_table.replay_store import ReplayStore
 
@@ -108,6 +112,13 @@ EVENT_RESENDS = 3
 
 EVENT_RESEND_PERIOD = 0.1
 """... this far apart [s, real time]."""
+
+REFUSAL_REPEATS = 2
+"""A SHAKETABLE_CHUNK_REFUSED is sent at once and again with this many of the statuses after it (a lost datagram
+does not lose the reason; the fault bit ``SETPOINT_REFUSED`` is in every status anyway)."""
+
+REASON_BYTES = 120
+"""SHAKETABLE_CHUNK_REFUSED.reason's length: a longer reason is cut."""
 
 RECEIVE_BUFFER = 4 << 20
 """Requested socket receive buffer [bytes] (the kernel caps it at net.core.rmem_max)."""
@@ -149,6 +160,7 @@ class LinkCounters:
     tilt_samples_sent: int = 0
     overturn_events: int = 0
     overturn_messages_sent: int = 0
+    refusals_sent: int = 0
     status_sent: int = 0
 
 
@@ -209,6 +221,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._accel = Batcher(ACCEL_PER_BATCH)
         self._tilt = Batcher(TILT_PER_BATCH)
         self._resends: list[tuple[int, int, int, Any]] = []  # (due host ns, copies left, event id, message)
+        self._refusals: list[tuple[Any, int]] = []  # (SHAKETABLE_CHUNK_REFUSED, copies left to send with statuses)
         self._next_heartbeat = 0
         self._bodies = bodies
         self._next_bodies = 0
@@ -430,12 +443,25 @@ class MavlinkEndpoint(BatchedTelemetry):
         return bool(answers)
 
     def send_status(self, snap: Snapshot) -> None:
-        """One SHAKETABLE_STATUS to the peers."""
+        """One SHAKETABLE_STATUS to the peers (then the refusals still to be repeated)."""
         self.counters.status_sent += 1
         self._send(self.d.MAVLink_shaketable_status_message(
             snap.t_ns, getattr(self.d, f"SHAKETABLE_STATE_{snap.state.name}"), min(snap.buffer_depth, 65535),
             snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
             [float(v) for v in snap.pose], snap.buffer_capacity, min(snap.samples_late, 2**32 - 1)))
+        pending, self._refusals = self._refusals, []
+        for message, left in pending:
+            self._send(message)
+            if left > 1:
+                self._refusals.append((message, left - 1))
+
+    def chunk_refused(self, refused: Refused) -> None:
+        """A SHAKETABLE_CHUNK_REFUSED saying why, now and with the next :data:`REFUSAL_REPEATS` statuses."""
+        self.counters.refusals_sent += 1
+        reason = refused.reason.encode("ascii", "replace")[:REASON_BYTES]
+        message = self.d.MAVLink_shaketable_chunk_refused_message(refused.t_ns, refused.seq, reason)
+        self._send(message)
+        self._refusals.append((message, REFUSAL_REPEATS))
 
     def _send_accel(self, batch: Batch) -> None:
         (message,) = accel_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)

@@ -71,7 +71,7 @@ from protocols.zenoh.config import PLAIN, LinkSecurity
 from protocols.zenoh.tls import load_tls
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
-from sim_table.controller import ControllerCore, Done, Fault, Snapshot, State
+from sim_table.controller import ControllerCore, Done, Fault, Refused, Snapshot, State
 from sim_table.dynamics import make_actuators, specimen_loads
 from sim_table.endpoint import BodyOnPlate, EndpointOptions, HeldAnswers, LegFeedback, listen_scheme, open_endpoint
 from sim_table.options import argument_parser
@@ -378,6 +378,8 @@ class Emulator:
         for event in core.take_events():
             if isinstance(event, Done):
                 endpoint.command_done(event)
+            elif isinstance(event, Refused):
+                endpoint.chunk_refused(event)
             else:
                 changed = True
                 if event.new is State.STREAMING and self.scene is not None:
@@ -405,6 +407,8 @@ class Emulator:
             for event in core.take_events():
                 if isinstance(event, Done):
                     endpoint.command_done(event)
+                elif isinstance(event, Refused):
+                    endpoint.chunk_refused(event)
                 else:
                     changed = True
                     if event.new is State.STREAMING:

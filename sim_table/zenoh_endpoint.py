@@ -38,6 +38,9 @@ Protocol decisions:
   queue is :data:`~protocols.zenoh.config.TX_QUEUE_BATCHES` deep): the controller never waits for its host —
   except in virtual time (``--speed max``), where the accelerometer and tilt batches block instead (time waits, and
   no sample is dropped however fast the emulator runs).
+- **Refused setpoints**: a signed chunk the core refuses for its values (``analysis.table.setpoints``) is answered
+  with a REFUSAL on ``refusal`` (the chunk, its arrival time, the reason), published reliably; the statuses carry
+  ``SETPOINT_REFUSED`` while the table stops.
 - **Fault injection**: ``loss`` drops each message in either direction with that probability (a dropped query
   ends without a reply); ``delay`` [s] holds each one that long in either direction (seeded).
 """
@@ -71,6 +74,7 @@ from protocols.zenoh.table import (
     Answer,
     ClockReply,
     Overturn,
+    Refusal,
     StatusReport,
     TableUrl,
     TiltSamples,
@@ -84,11 +88,12 @@ from protocols.zenoh.table import (
     encode_clock_reply,
     encode_heartbeat,
     encode_overturn,
+    encode_refusal,
     encode_status,
     encode_tilt,
     parse_table_url,
 )
-from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Result, Snapshot, State
+from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Refused, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
 from sim_table.replay_store import ReplayStore
 
@@ -136,6 +141,7 @@ class LinkCounters:
     tilt_samples_sent: int = 0
     overturn_events: int = 0
     overturn_messages_sent: int = 0
+    refusals_sent: int = 0
     status_sent: int = 0
 
 
@@ -172,12 +178,13 @@ class ZenohEndpoint(BatchedTelemetry):
             self._store.keep(self._verifier.guard)
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
-                                   "heartbeat", "tilt", "bodies")}
+                                   "heartbeat", "tilt", "bodies", "refusal")}
         self._bodies_payload = encode_bodies([tuple(b) for b in bodies])
         declare = self._session.declare_publisher
         self._status = declare(self._keys["status"], express=True)
         self._answer = declare(self._keys["answer"], express=True)
         self._overturn = declare(self._keys["overturn"])
+        self._refusal = declare(self._keys["refusal"])
         self._heartbeat = declare(self._keys["heartbeat"], express=True)
         self._tilt_publisher = declare(self._keys["tilt"], congestion_control=self._batch_congestion)
         self._accel_publishers: dict[int, zenoh.Publisher] = {}
@@ -361,6 +368,12 @@ class ZenohEndpoint(BatchedTelemetry):
         if cmd_id in self._answers:
             self._answers[cmd_id] = (self._answers[cmd_id][0], done.result)
         self._publish(self._answer, self._keys["answer"], encode_answer(Answer(cmd_id, done.result.value, done.t_ns)))
+
+    def chunk_refused(self, refused: Refused) -> None:
+        """Why a setpoint chunk was refused: a REFUSAL, published reliably on ``refusal``."""
+        self._count("refusals_sent")
+        self._publish(self._refusal, self._keys["refusal"], encode_refusal(Refusal(refused.t_ns, refused.seq,
+                                                                                   refused.reason)))
 
     def send_status(self, snap: Snapshot) -> None:
         """One STATUS."""

@@ -15,11 +15,12 @@ from protocols.canopen import State, StatusBit
 from protocols.canopen import od as drive_od
 
 FAULT_ORDER = ("DRIVE", "STROKE", "STREAM_SILENT", "HEARTBEAT_LOST", "UNSIGNED_COMMAND", "SETPOINT_LIMIT",
-               "CHUNK_GAP", "UNDERRUN")
+               "CHUNK_GAP", "UNDERRUN", "SETPOINT_REFUSED")
 """Fault names in the order of their bits (``docs/table-controller.md``; the same as MAVLink's)."""
 
-_STOPPING_FAULTS = frozenset({"DRIVE", "HEARTBEAT_LOST", "STREAM_SILENT"})
-_EMCY_FAULTS = {drive_od.EMCY_HEARTBEAT_ERROR: "HEARTBEAT_LOST", drive_od.EMCY_SYNC_LOST: "STREAM_SILENT"}
+_STOPPING_FAULTS = frozenset({"DRIVE", "HEARTBEAT_LOST", "STREAM_SILENT", "SETPOINT_REFUSED"})
+_EMCY_FAULTS = {drive_od.EMCY_HEARTBEAT_ERROR: "HEARTBEAT_LOST", drive_od.EMCY_SYNC_LOST: "STREAM_SILENT",
+                drive_od.EMCY_REFERENCE_LIMIT: "SETPOINT_REFUSED"}
 """EMCY codes that name their fault; every other code (except error reset, 0x00xx) is a DRIVE fault."""
 _FAULTY = frozenset({State.FAULT, State.FAULT_REACTION_ACTIVE})
 

@@ -25,7 +25,7 @@ from drivers.controller import (
     StreamReport,
     TableError,
     TableTimeoutError,
-    finite_poses,
+    playable_poses,
     sample_spacing,
 )
 from protocols.canopen import State
@@ -178,11 +178,14 @@ class Motions(MasterBase):
                on_progress: Callable[[int, int], None] | None = None,
                on_start: Callable[[int], None] | None = None) -> StreamReport:
         self._check_alive()
-        poses = finite_poses(poses)
-        spacing_ns = round(sample_spacing(t, len(poses)) * 1e9)
+        spacing = sample_spacing(t, len(poses))
+        spacing_ns = round(spacing * 1e9)
         shortest = (self.target_delay_ns + self.period_ns) * 1e-9
         if not (math.isfinite(lead) and lead > shortest):
             raise ValueError(f"lead must exceed {shortest:g} s (the drives' target delay and a cycle), got {lead!r}")
+        with self._lock:
+            held = self._pose.copy()
+        poses = playable_poses(self.url, self.table, poses, spacing, (held, lead - shortest))  # the blend's least
         self.heap.hold()  # refreeze: what the runs before made is not visited by the stream's collections
         with self._lock:
             if self._state != "armed":
@@ -213,6 +216,8 @@ class Motions(MasterBase):
                                   trajectory.t_start_ns, trajectory.t_end_ns, lead, lateness, final)
             played = self._played is trajectory
         if final.state != "armed" or not played:  # stopped (and home again) before its end
+            refused = (": a leg drive refused its target (EMCY 0x8612, reference limit)"
+                       if "SETPOINT_REFUSED" in final.faults else "")
             raise StreamAbortedError(f"the table stopped the stream ({final.state}, faults "
-                                     f"{', '.join(final.faults) or 'none'})", report)
+                                     f"{', '.join(final.faults) or 'none'}){refused}", report)
         return report

@@ -29,7 +29,8 @@ ANSWER          cmd_id u64, result u8 (:data:`RESULTS`), t_ns i64 (when the cont
 CLOCK_REQUEST   t_send i64 [ns, host monotonic]
 CLOCK_REPLY     t_send i64 (echoed), t_controller i64 (controller time when answered)
 SETPOINTS       seq u32, flags u8 (bit 0 END_OF_STREAM), t_start i64, spacing i64 (> 0), n u16 (1..
-                :data:`MAX_SAMPLES`), n × 6 f64 (finite); [signature]
+                :data:`MAX_SAMPLES`), n × 6 f64 (the controller refuses what it must not play: REFUSAL);
+                [signature]
 STATUS          t_ns i64, state u8 (:data:`STATES`), buffer_depth, last_chunk_seq, underruns, faults (bit i =
                 :data:`FAULTS` [i]), refused_commands u32, pose 6 × f64 (achieved)
 ACCEL           sensor u16, seq u32 (the sensor's batch count), t_start i64, spacing i64, n u32, n × 3 f64
@@ -39,6 +40,8 @@ TILT            body_id u32, seq u32 (the body's batch count), t_start i64, spac
                 tilt [rad])
 BODIES          n u16, n × (b, h, depth, x, y) f64 [m]: the bodies on the plate in body-id order (the reply to a
                 query on ``bodies``; ``docs/table-controller.md``, Bodies on the plate)
+REFUSAL         t_ns i64 (when the chunk arrived), seq u32 (the chunk refused), n u16, n bytes of UTF-8 (the reason,
+                at most :data:`MAX_REASON` bytes): a signed SETPOINTS chunk refused for its values; the table stops
 ==============  ============================================================================================
 
 A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
@@ -77,7 +80,7 @@ STATES = ("idle", "armed", "homing", "tilting", "streaming", "stopping", "faulte
 """State codes (index)."""
 
 FAULTS = ("DRIVE", "STROKE", "STREAM_SILENT", "HEARTBEAT_LOST", "UNSIGNED_COMMAND", "SETPOINT_LIMIT", "CHUNK_GAP",
-          "UNDERRUN")
+          "UNDERRUN", "SETPOINT_REFUSED")
 """Fault bit ``1 << i`` is ``FAULTS[i]``."""
 
 END_OF_STREAM = 1
@@ -85,6 +88,9 @@ END_OF_STREAM = 1
 
 SETPOINTS_PER_CHUNK = 10
 """Samples the host puts in a chunk (10 ms at 1 kHz)."""
+
+MAX_REASON = 1000
+"""Most bytes of a REFUSAL's reason."""
 
 MAX_SAMPLES = 1000
 """Most samples in one SETPOINTS payload."""
@@ -108,6 +114,7 @@ _HEARTBEAT = struct.Struct("<q")
 _TILT = struct.Struct("<IIqqI")
 _BODY = struct.Struct("<5d")
 _COUNT = struct.Struct("<H")
+_REFUSAL = struct.Struct("<qIH")
 
 
 class TableKind(IntEnum):
@@ -124,6 +131,7 @@ class TableKind(IntEnum):
     HEARTBEAT = 9
     TILT = 10
     BODIES = 11
+    REFUSAL = 12
 
 
 class TableUrl(NamedTuple):
@@ -219,6 +227,14 @@ class TiltSamples(NamedTuple):
     t_start_ns: int
     spacing_ns: int
     angles: np.ndarray
+
+
+class Refusal(NamedTuple):
+    """Setpoint chunk ``seq``, arrived at ``t_ns`` [ns, controller time], refused for ``reason``."""
+
+    t_ns: int
+    seq: int
+    reason: str
 
 
 class Overturn(NamedTuple):
@@ -397,8 +413,6 @@ def decode_setpoints(payload: bytes) -> tuple[SetpointChunk, Received]:
     received = _signed(payload, TableKind.SETPOINTS, _SETPOINTS.size + 48 * n)
     samples = np.frombuffer(received.message, dtype="<f8", count=6 * n,
                             offset=_HEADER.size + _SETPOINTS.size).reshape(n, 6).astype(np.float64)
-    if not np.isfinite(samples).all():
-        raise PayloadError("SETPOINTS samples must be finite")
     return SetpointChunk(seq, t_start, spacing, samples, bool(flags & END_OF_STREAM)), received
 
 
@@ -468,6 +482,27 @@ def decode_overturn(payload: bytes) -> Overturn:
     if event.direction not in (-1, 1):
         raise PayloadError(f"OVERTURN direction must be +1 or -1, got {event.direction}")
     return event
+
+
+def encode_refusal(refusal: Refusal) -> bytes:
+    """The REFUSAL payload (the reason cut to :data:`MAX_REASON` bytes at a character's end)."""
+    text = refusal.reason.encode("utf-8")[:MAX_REASON].decode("utf-8", "ignore").encode("utf-8")
+    return _header(TableKind.REFUSAL) + _REFUSAL.pack(refusal.t_ns, refusal.seq, len(text)) + text
+
+
+def decode_refusal(payload: bytes) -> Refusal:
+    body = _body(payload, TableKind.REFUSAL)
+    if len(body) < _REFUSAL.size:
+        raise PayloadError(f"REFUSAL body has {len(body)} bytes, its fixed part alone {_REFUSAL.size}")
+    t_ns, seq, n = _REFUSAL.unpack_from(body)
+    if n > MAX_REASON or len(body) != _REFUSAL.size + n:
+        raise PayloadError(f"REFUSAL body has {len(body)} bytes, a reason of {n} bytes (at most {MAX_REASON}) needs "
+                           f"{_REFUSAL.size + n}")
+    try:
+        reason = body[_REFUSAL.size:].decode("utf-8")
+    except UnicodeDecodeError:
+        raise PayloadError("REFUSAL reason is not UTF-8") from None
+    return Refusal(t_ns, seq, reason)
 
 
 def encode_heartbeat(t_ns: int) -> bytes:

@@ -334,6 +334,7 @@ def register(app: typer.Typer) -> None:
         from rig.emulator import EmulatorError
         from rig.orchestrator.bodies import BodiesMismatchError
         from rig.orchestrator.setup import (
+            CountersNotWrittenError,
             NoTableError,
             TableUnreachableError,
             choose_table,
@@ -377,7 +378,12 @@ def register(app: typer.Typer) -> None:
                                                     with_outcome=True, ending=ending)
                 finally:
                     log.close()
-            emulator_file = write_emulator_counters(path, counters()) if counters is not None else None
+            emulator_file = None
+            if counters is not None:
+                try:
+                    emulator_file = write_emulator_counters(path, counters())
+                except CountersNotWrittenError as exc:  # the session itself is as it ended: end as it ends
+                    err_console.print(f"warning: {exc}", highlight=False, soft_wrap=True)
         except NoTableError:
             fail("no table: give --table URL (or table_url in the sequence), or --emulate")
         except (SequenceError, SessionError, EmulatorError, TableUnreachableError, BodiesMismatchError) as exc:

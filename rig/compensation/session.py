@@ -71,7 +71,8 @@ def iterate_on_table(drive: Drive, url: str, options: dict[str, Any], session: P
     table_model = drive.table
     ident = identification_drive(table_model, drive.angle, duration=identify_seconds, band=band)
     with SessionLog.create(session, rig_config=table_model.to_dict(), sequence=sequence,
-                           software_version=software_version) as log, open_table(url, **options) as table:
+                           software_version=software_version) as log, \
+            open_table(url, **{"table": table_model, **options}) as table:
         player = TablePlayer(table, log, url, bodies=bodies or [])
         try:
             say(f"tilting to {math.degrees(drive.angle):g}°")

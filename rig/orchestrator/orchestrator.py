@@ -90,8 +90,9 @@ class Orchestrator:
 
     ``log`` is an open :class:`rig.session.SessionLog` (new or resumed: a
     :class:`~rig.orchestrator.sinks.SessionSink`); ``table_options`` go to
-    :func:`drivers.controller.open_table` (e.g. ``key_file``); ``sensors`` the accelerometer ids the table reports
-    (logged as ``accel/<id>``); ``operator`` answers the operator's steps (default: unattended);
+    :func:`drivers.controller.open_table` (e.g. ``key_file``; ``table``, the table model every trajectory is checked
+    against before it is streamed, is the sequence's rig unless given); ``sensors`` the accelerometer ids the table
+    reports (logged as ``accel/<id>``); ``operator`` answers the operator's steps (default: unattended);
     ``on_update(progress)`` is called from the orchestrator's threads whenever the state or the progress changes
     (at most about ten times a second while streaming).
     """
@@ -186,7 +187,7 @@ class Orchestrator:
         self.progress.runs_done = self.progress.runs_total - len(plan)
         self._set(State.CONNECTING, f"connecting to {self.table_url}")
         try:
-            with open_table(self.table_url, **self.table_options) as table:
+            with open_table(self.table_url, **{"table": self.sequence.table, **self.table_options}) as table:
                 table.link_timeout = self.sequence.table.link.link_timeout_s
                 with self._lock:
                     self._table = table

@@ -30,7 +30,7 @@ from rig import __version__
 from rig.emulator import EmulatorProcess, specimen_flags, speed_flags
 from rig.orchestrator.bodies import check_bodies
 from rig.sequence import Sequence, load_sequence
-from rig.session import WRITING, SessionError, SessionLog, read_session, writer_state
+from rig.session import WRITING, SessionError, SessionLog, is_disk_full, read_session, writer_state
 
 EMULATOR_LISTEN = "mavlink://127.0.0.1:0"
 """Where an emulated table is started (MAVLink on loopback, any free port)."""
@@ -201,9 +201,22 @@ def table_for(sequence: Sequence, table: str | None, emulate: bool, key_file: Pa
             counters.update(emulator.stop())
 
 
+class CountersNotWrittenError(SessionError):
+    """The emulator's counters could not be written beside the session file (the session file is not affected);
+    the message starts with ``disk full:`` when there was no room."""
+
+
 def write_emulator_counters(session: Path, counters: dict[str, Any]) -> Path:
     """The emulator's counters beside the session file, as ``SESSION.emulator.json``: what the emulated table
-    itself saw, to compare with the session's log."""
+    itself saw, to compare with the session's log. :class:`CountersNotWrittenError` when the file cannot be written
+    (a full disk: often right after a session the disk ended); no part of it is left behind."""
     path = session.with_name(session.name.removesuffix(".h5") + ".emulator.json")
-    path.write_text(json.dumps(counters, indent=1) + "\n")
+    try:
+        path.write_text(json.dumps(counters, indent=1) + "\n")
+    except OSError as exc:
+        with contextlib.suppress(OSError):
+            path.unlink(missing_ok=True)
+        why = "disk full" if is_disk_full(exc) else "cannot write"
+        raise CountersNotWrittenError(f"{why}: {path}: the emulator's counters were not written "
+                                      f"({exc.strerror or exc}); the session file is not affected") from None
     return path

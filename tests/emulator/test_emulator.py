@@ -186,7 +186,7 @@ def test_a_move_ends_when_the_plate_is_in_position_and_a_plate_that_never_arrive
 def test_samples_are_interpolated_linearly_at_the_tick() -> None:
     core = streaming()
     t0 = 10.4  # ms: samples between the ticks
-    values = 0.001 * np.arange(16) ** 2
+    values = 1e-5 * np.arange(16) ** 2  # at most 0.29 m/s: within the legs' speed
     chunk(core, 0, t0, values[:8])
     chunk(core, 1, t0 + 8, values[8:], end=True)
     refs = run(core, 11, 25)
@@ -204,42 +204,42 @@ def test_a_gap_filled_in_time_by_the_hosts_second_copy_is_no_fault() -> None:
     """Chunk 1's first copy lost, its second arriving after chunk 2 (the host sends each chunk again after the
     next): a gap while it is away, then reordered and played as sent — neither missing nor CHUNK_GAP."""
     core = streaming()
-    chunk(core, 0, 1, 0.01 * np.arange(8))
-    chunk(core, 2, 17, 0.01 * np.arange(16, 24))
+    chunk(core, 0, 1, 1e-4 * np.arange(8))
+    chunk(core, 2, 17, 1e-4 * np.arange(16, 24))
     run(core, 1, 6)
-    chunk(core, 1, 9, 0.01 * np.arange(8, 16), arrival_ms=6)
+    chunk(core, 1, 9, 1e-4 * np.arange(8, 16), arrival_ms=6)
     refs = run(core, 7, 24)
-    np.testing.assert_allclose(refs[:, 0], 0.01 * np.arange(6, 24), atol=1e-15)  # the chunk's own samples
+    np.testing.assert_allclose(refs[:, 0], 1e-4 * np.arange(6, 24), atol=1e-15)  # the chunk's own samples
     assert core.counters.chunks_reordered == 1 and core.counters.chunks_missing == 0
     assert not core.faults & Fault.CHUNK_GAP
 
 
 def test_late_chunk_plays_from_now_repeats_are_ignored_a_gap_is_flagged() -> None:
     core = streaming()
-    chunk(core, 0, 1, 0.01 * np.arange(8))
+    chunk(core, 0, 1, 1e-4 * np.arange(8))
     run(core, 1, 4)
-    chunk(core, 1, 9, 0.01 * np.arange(8, 16))
+    chunk(core, 1, 9, 1e-4 * np.arange(8, 16))
     assert not chunk(core, 1, 9, np.ones(8))  # repeated: ignored
     assert core.counters.chunks_duplicate == 1
     refs = run(core, 5, 12)
-    np.testing.assert_allclose(refs[:, 0], 0.01 * np.arange(4, 12), atol=1e-15)
-    chunk(core, 2, 17, 0.01 * np.arange(16, 24), arrival_ms=12)
+    np.testing.assert_allclose(refs[:, 0], 1e-4 * np.arange(4, 12), atol=1e-15)
+    chunk(core, 2, 17, 1e-4 * np.arange(16, 24), arrival_ms=12)
     run(core, 13, 20)
-    chunk(core, 4, 33, 0.01 * np.arange(32, 40), end=True)  # chunk 3 not come: a gap, which it may still fill
+    chunk(core, 4, 33, 1e-4 * np.arange(32, 40), end=True)  # chunk 3 not come: a gap, which it may still fill
     assert not core.faults & Fault.CHUNK_GAP and core.counters.chunks_missing == 0
     before = run(core, 21, 24)  # up to chunk 2's last sample (24 ms): the gap not played yet
     assert not core.faults & Fault.CHUNK_GAP and core.counters.chunks_missing == 0
     refs = np.vstack([before, run(core, 25, 45)])
     assert core.faults & Fault.CHUNK_GAP and core.counters.chunks_missing == 1  # played into it: it is missing
-    np.testing.assert_allclose(refs[:4, 0], 0.01 * np.arange(20, 24), atol=1e-15)
-    np.testing.assert_allclose(refs[12:, 0], np.r_[0.01 * np.arange(32, 40), [0.39] * 5], atol=1e-15)
+    np.testing.assert_allclose(refs[:4, 0], 1e-4 * np.arange(20, 24), atol=1e-15)
+    np.testing.assert_allclose(refs[12:, 0], np.r_[1e-4 * np.arange(32, 40), [0.0039] * 5], atol=1e-15)
     assert np.all(np.diff(refs[3:13, 0]) > 0)  # across the gap: linear between the neighbours
     assert core.state is State.ARMED and core.counters.underruns == 0
     core.command(Command.START_STREAM, (10.0,), True, 46 * MS)
-    chunk(core, 10, 40, 0.4 + 0.01 * np.arange(8), arrival_ms=46)  # 40..45 ms were due by the last tick
+    chunk(core, 10, 40, 0.004 + 1e-4 * np.arange(8), arrival_ms=46)  # 40..45 ms were due by the last tick
     assert core.counters.samples_late == 6
     refs = run(core, 46, 47)
-    np.testing.assert_allclose(refs[:, 0], [0.46, 0.47], atol=1e-15)  # played from the current time on
+    np.testing.assert_allclose(refs[:, 0], [0.0046, 0.0047], atol=1e-15)  # played from the current time on
 
 
 def test_an_underrun_is_a_controlled_stop_that_never_jumps_and_never_resumes() -> None:
@@ -276,7 +276,7 @@ def test_a_chunk_beyond_the_buffer_capacity_is_refused_and_counted() -> None:
 
 def test_stream_silence_stops_the_table_home_and_faults() -> None:
     core = streaming()
-    chunk(core, 0, 1, 0.05 * np.ones(300))  # 300 ms buffered: the watchdog, not the buffer, ends it
+    chunk(core, 0, 1, 2e-4 * np.ones(300))  # 300 ms buffered: the watchdog, not the buffer, ends it
     refs = run(core, 1, 100)
     assert core.state is State.STREAMING  # 100 ms of silence is allowed
     states(core)

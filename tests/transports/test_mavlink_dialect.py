@@ -62,6 +62,7 @@ PINNED = {  # name: (message id, CRC_EXTRA)
     "SHAKETABLE_STATUS": (42503, 161),
     "SHAKETABLE_TILT_BATCH": (42504, 51),
     "SHAKETABLE_BODY": (42505, 200),
+    "SHAKETABLE_CHUNK_REFUSED": (42506, 33),
 }
 COMMANDS = {
     "MAV_CMD_SHAKETABLE_ARM": 42550,
@@ -159,7 +160,8 @@ def test_commands_and_enums_are_pinned(d):
     faults = {e.name.removeprefix("SHAKETABLE_FAULT_"): v for v, e in d.enums["SHAKETABLE_FAULT"].items()
               if not e.name.endswith("_ENUM_END")}
     assert faults == {"DRIVE": 1, "STROKE": 2, "STREAM_SILENT": 4, "HEARTBEAT_LOST": 8, "UNSIGNED_COMMAND": 16,
-                      "SETPOINT_LIMIT": 32, "CHUNK_GAP": 64, "UNDERRUN": 128}
+                      "SETPOINT_LIMIT": 32, "CHUNK_GAP": 64, "UNDERRUN": 128,
+                      "SETPOINT_REFUSED": 256}
     assert (d.SHAKETABLE_TILT_AXIS_PITCH, d.SHAKETABLE_TILT_AXIS_ROLL) == (0, 1)
     assert d.SHAKETABLE_CHUNK_FLAGS_END_OF_STREAM == END_OF_STREAM
 
