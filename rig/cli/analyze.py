@@ -13,7 +13,7 @@ import typer
 from rich import box
 from rich.table import Table
 
-from rig.cli._common import console, emit_json, fail, require_file
+from rig.cli._common import console, emit_json, fail, fail_with, require_file
 
 if TYPE_CHECKING:
     from rig.analyze import SessionAnalysis
@@ -212,7 +212,7 @@ def register(app: typer.Typer) -> None:
             result = analyze_session(path, MODEL_CHOICES[model], solver, sensor=sensor, restitution=impact,
                                      margin=margin / 100.0, write=write, include_degraded=include_degraded)
         except (SessionError, AnalysisInputError, OSError) as exc:
-            fail(str(exc))
+            fail_with(exc)
         if as_json:
             emit_json(result.to_json())
             return
