@@ -18,9 +18,9 @@ import numpy as np
 from rig.analyze.store import read_results, run_predictions
 from rig.session import SCHEMA as SESSION_SCHEMA
 from rig.session import check, read_session
-from rig.session.superblock import SIGNATURE
 from rig.session.reader import iter_runs as session_runs
 from rig.session.reader import plain
+from rig.session.superblock import SIGNATURE
 from rig.study_file import SCHEMA as STUDY_SCHEMA
 
 
