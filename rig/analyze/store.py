@@ -38,8 +38,9 @@ import numpy as np
 from rig import __version__
 from rig.session import SessionError, crashed_message, open_session
 from rig.session.atomic import SessionFile
+from rig.session.check import hdf5_error
 from rig.session.locks import open_locked
-from rig.session.reader import attributes, records
+from rig.session.reader import attributes, child, records
 from rig.session.schema import iso_now
 
 from . import fig13
@@ -144,11 +145,14 @@ def read_results(path: str | os.PathLike[str]) -> tuple[list[dict[str, Any]] | N
     """The session's ``/analysis`` group: its ``fig13`` rows (dicts of plain values; None when the session was not
     analysed) and its attributes (module docstring; empty when not analysed)."""
     with open_session(path) as h5:
-        group = h5.get(GROUP)
-        if not isinstance(group, h5py.Group):
-            return None, {}
-        rows = records(group["fig13"]) if isinstance(group.get("fig13"), h5py.Dataset) else None
-        return rows, attributes(group)
+        try:
+            group = child(h5, GROUP)
+            if not isinstance(group, h5py.Group):
+                return None, {}
+            rows = records(group["fig13"]) if isinstance(child(group, "fig13"), h5py.Dataset) else None
+            return rows, attributes(group)
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            raise hdf5_error(path, exc, f"/{GROUP}") from None
 
 
 def fitted_restitution(attrs: Mapping[str, Any]) -> list[BodyRestitution]:

@@ -68,10 +68,16 @@ err_console = stderr_console()
 plain_warnings()
 
 
-def fail(message: str) -> NoReturn:
-    """Print the error on stderr (one line when stderr is not a terminal) and exit 2."""
-    print_error(err_console, "error", message)
+def fail(message: str, label: str = "error") -> NoReturn:
+    """Print ``label: message`` on stderr (one line when stderr is not a terminal) and exit 2."""
+    print_error(err_console, label, message)
     raise typer.Exit(code=EXIT_USAGE)
+
+
+def fail_with(exc: BaseException) -> NoReturn:
+    """:func:`fail` with an exception's message, under its ``label`` if it has one (``damaged: …`` for
+    `rig.session.DamagedFileError`), else ``error: …``."""
+    fail(str(exc), getattr(exc, "label", "error"))
 
 
 def require_file(path: Path, what: str = "file") -> None:

@@ -16,7 +16,7 @@ from rich.console import RenderableType
 from rich.table import Table
 from rich.text import Text
 
-from rig.cli._common import console, emit_json, fail, require_file
+from rig.cli._common import console, emit_json, fail, fail_with, require_file
 
 if TYPE_CHECKING:
     from rig.analyze import SessionAnalysis
@@ -249,7 +249,7 @@ def register(app: typer.Typer) -> None:
             result = analyze_session(path, MODEL_CHOICES[model], solver, sensor=sensor, restitution=impact,
                                      margin=margin / 100.0, write=write, include_degraded=include_degraded)
         except (SessionError, AnalysisInputError, OSError) as exc:
-            fail(str(exc))
+            fail_with(exc)
         if as_json:
             emit_json(result.to_json())
             return

@@ -10,7 +10,7 @@ from typing import Annotated
 
 import typer
 
-from rig.cli._common import console, emit_json, fail, require_file
+from rig.cli._common import console, emit_json, fail_with, require_file
 
 
 def register(app: typer.Typer) -> None:
@@ -44,7 +44,7 @@ def register(app: typer.Typer) -> None:
 
                     result = write_report(path, target, progress)
         except (ReportError, SessionError, OSError) as exc:
-            fail(str(exc))
+            fail_with(exc)
         if as_json:
             emit_json(result.as_dict())
             return

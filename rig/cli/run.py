@@ -30,7 +30,7 @@ from rich.progress import BarColumn, Progress, TaskProgressColumn, TextColumn, T
 from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
-from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail, require_file
+from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail, fail_with, require_file
 from rig.cli.network import INSECURE_NOTE, Insecure, TlsCa, TlsCert, TlsKey, link_security, table_options
 from rig.emulator import parse_speed
 
@@ -389,7 +389,7 @@ def register(app: typer.Typer) -> None:
         except (SequenceError, SessionError, EmulatorError, TableUnreachableError, BodiesMismatchError) as exc:
             if ending and ending[-1].startswith("disk full:"):
                 _end_disk_full(path)
-            fail(str(exc))
+            fail_with(exc)
         hint = None if complete else resume_hint(path, key_file, yes)
         if as_json:
             emit_json({"session": str(path), "complete": complete, **outcome, "resume": hint,

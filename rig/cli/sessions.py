@@ -10,7 +10,7 @@ from typing import Annotated, Any
 
 import typer
 
-from rig.cli._common import console, emit_json, fail, require_file
+from rig.cli._common import console, emit_json, fail, fail_with, require_file
 
 #: What ``rig sessions list`` shows in its "writer" column for each `rig.session.writer_state`.
 _STATE_SHOWN = {"writing": "writing", "crashed": "CRASHED: rig sessions recover", "closed": ""}
@@ -114,7 +114,7 @@ def register(app: typer.Typer) -> None:
         try:
             found = list_sessions(directory)
         except (SessionError, OSError) as exc:
-            fail(str(exc))
+            fail_with(exc)
         if as_json:
             emit_json({"directory": str(directory), "sessions": found})
             return
@@ -140,7 +140,7 @@ def register(app: typer.Typer) -> None:
             else:
                 print_session(path, console)
         except (SessionError, OSError) as exc:
-            fail(str(exc))
+            fail_with(exc)
 
     @sessions.command("recover")
     def recover_cmd(
@@ -156,7 +156,7 @@ def register(app: typer.Typer) -> None:
         try:
             done = recover(path)
         except (SessionError, OSError) as exc:
-            fail(str(exc))
+            fail_with(exc)
         if as_json:
             emit_json(done.as_dict())
             return

@@ -10,6 +10,7 @@ not be 0; the motion's own clock starts at 0 at the first sample and ``t_0`` goe
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -20,7 +21,7 @@ from .source import DT_RTOL, TextSource, dt_problem
 GRID_TOLERANCE = 0.01
 
 
-def time_step(src: TextSource, times: np.ndarray, lines: list[int], settings: Settings) -> tuple[float, float]:
+def time_step(src: TextSource, times: np.ndarray, lines: Sequence[int], settings: Settings) -> tuple[float, float]:
     """dt [s] and the first time t_0 [s] of an evenly spaced time column; ``lines[i]`` holds ``times[i]``.
 
     A ``# dt`` setting, if any, must agree with the column's dt (relative tolerance `DT_RTOL`).

@@ -13,6 +13,7 @@ A setting given twice, or one whose value does not parse, is an error located at
 from __future__ import annotations
 
 import re
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
 
 from .source import TextSource
@@ -47,10 +48,11 @@ class Settings:
     npts_line: int | None = None
 
 
-def read_settings(src: TextSource) -> Settings:
-    """The ``dt``, ``units`` and ``npts`` settings of ``src`` (see the module docstring)."""
+def read_settings(src: TextSource, numbered: Iterable[tuple[int, str]] | None = None) -> Settings:
+    """The ``dt``, ``units`` and ``npts`` settings of ``src`` (see the module docstring), from its lines or from
+    ``numbered`` (line number, text) pairs, e.g. only its comment lines."""
     values: dict[str, tuple[str, int]] = {}
-    for lineno, text in enumerate(src.lines, start=1):
+    for lineno, text in enumerate(src.lines, start=1) if numbered is None else numbered:
         match = _SETTING_RE.fullmatch(text)
         if match is None:
             continue
@@ -84,7 +86,7 @@ def _dt_value(src: TextSource, lineno: int, value: str) -> float:
     return src.check_dt(lineno, src.number(lineno, match["number"], "dt"), value)
 
 
-def check_npts(src: TextSource, settings: Settings, lines: list[int]) -> None:
+def check_npts(src: TextSource, settings: Settings, lines: Sequence[int]) -> None:
     """Compare a ``# npts`` setting, if any, with the samples found on ``lines`` (one line number each)."""
     if settings.npts is not None and settings.npts != len(lines):
         kind = "truncated data" if len(lines) < settings.npts else "extra data"

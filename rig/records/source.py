@@ -21,6 +21,10 @@ from .motion import RecordError
 #: Largest record file read [bytes]: 64 MiB holds 10 minutes of three channels at 1 kHz several times over.
 MAX_FILE_BYTES = 64 * MIB
 
+#: Most samples a text record may hold [samples]: 2^22 = 4,194,304, 70 minutes at 1 kHz (and 32 MiB of float64 per
+#: channel); counted from the data lines before a number is parsed.
+MAX_SAMPLES = 1 << 22
+
 #: Longest line of a text record [characters]: record lines are tens of characters; the bound keeps every
 #: per-line pattern linear in the file's size.
 MAX_LINE_CHARS = 1000
@@ -43,6 +47,8 @@ _NONFINITE_RE = re.compile(r"[-+]?(?:nan|inf|infinity)", re.I)
 #: line as a text editor shows it.
 _LINE_BREAK_RE = re.compile(r"\r*\n|\r")
 _BOM = b"\xef\xbb\xbf"
+#: The first line longer than `MAX_LINE_CHARS` (in text whose line breaks are LF).
+_LONG_LINE_RE = re.compile(rf"[^\n]{{{MAX_LINE_CHARS + 1},}}")
 
 
 def located(path: Path, line: int | None, message: str) -> RecordError:
@@ -120,10 +126,9 @@ def read_record_bytes(path: Path, expected: str) -> bytes:
         raise located(path, None, str(exc)) from None
 
 
-def read_source(path: Path, expected: str) -> TextSource:
-    """Read ``path`` as a text record file; ``expected`` describes its content for the empty-file error."""
-    raw = read_record_bytes(path, "a record file")
-    sha = hashlib.sha256(raw).hexdigest()
+def _decoded(path: Path, raw: bytes, expected: str) -> str:
+    """The text of a record file's bytes (BOM dropped, line breaks as LF) after the checks every reader shares:
+    not empty, no NUL byte, UTF-8, no line longer than `MAX_LINE_CHARS`."""
     body = raw.removeprefix(_BOM)
     if not body.strip():
         raise located(path, 1, f"the file is empty; expected {expected}")
@@ -138,16 +143,36 @@ def read_source(path: Path, expected: str) -> TextSource:
         raise located(
             path, line, f"byte 0x{body[exc.start]:02x} at column {col} is not UTF-8 text; expected a UTF-8 text file"
         ) from None
-    lines = _LINE_BREAK_RE.split(text)
-    if lines[-1] == "":
-        lines.pop()
-    longest = max(range(len(lines)), key=lambda i: len(lines[i]))
-    if len(lines[longest]) > MAX_LINE_CHARS:
+    del body
+    if "\r" in text:
+        text = _LINE_BREAK_RE.sub("\n", text)
+    longest = max(_LONG_LINE_RE.finditer(text), key=lambda m: m.end() - m.start(), default=None)
+    if longest is not None:  # the match is the whole line: it starts where a line starts
+        line, length = text.count("\n", 0, longest.start()) + 1, longest.end() - longest.start()
         raise located(
-            path, longest + 1, f"the line is {len(lines[longest]):,} characters long; expected lines of at most "
+            path, line, f"the line is {length:,} characters long; expected lines of at most "
             f"{MAX_LINE_CHARS} characters ({expected})",
         )
+    return text
+
+
+def read_source(path: Path, expected: str) -> TextSource:
+    """Read ``path`` as a text record file; ``expected`` describes its content for the empty-file error."""
+    raw = read_record_bytes(path, "a record file")
+    sha = hashlib.sha256(raw).hexdigest()
+    lines = _decoded(path, raw, expected).split("\n")
+    if lines[-1] == "":
+        lines.pop()
     return TextSource(path=path, lines=lines, sha256=sha)
+
+
+def read_text_body(path: Path, expected: str) -> tuple[TextSource, str]:
+    """Read ``path`` as a text record file without splitting it into lines (a record of millions of samples):
+    a `TextSource` with no ``lines`` (for its errors and checksum) and the text, line breaks as LF."""
+    raw = read_record_bytes(path, "a record file")
+    sha = hashlib.sha256(raw).hexdigest()
+    text = _decoded(path, raw, expected)
+    return TextSource(path=path, lines=[], sha256=sha), text
 
 
 def _as_float(value: float) -> float:

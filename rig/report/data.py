@@ -17,9 +17,10 @@ import numpy as np
 
 from rig.analyze.store import read_results, run_predictions
 from rig.session import SCHEMA as SESSION_SCHEMA
-from rig.session import read_session
+from rig.session import check, read_session
 from rig.session.reader import iter_runs as session_runs
 from rig.session.reader import plain
+from rig.session.superblock import SIGNATURE
 from rig.study_file import SCHEMA as STUDY_SCHEMA
 
 
@@ -28,24 +29,34 @@ class ReportError(ValueError):
 
 
 def _open_any(path: str | os.PathLike[str]) -> h5py.File:
-    """Open any of our HDF5 files for reading: as a SWMR reader first (a session file may be being written),
-    else plainly; no HDF5 file lock either way."""
+    """Open any of our HDF5 files for reading, after the checks of `rig.session.check` and with HDF5's retries
+    bounded: as a SWMR reader first (a session file may be being written), else plainly (a study file); no HDF5 file
+    lock either way. `DamagedFileError` (a `SessionError`) for a damaged file."""
     path = Path(path)
     if not path.is_file():
         raise ReportError(f"{path}: no such file")
+    with open(path, "rb") as f:
+        head = f.read(len(SIGNATURE))
+    if head != SIGNATURE and head.strip(b"\0"):  # some other file; one of zeros is a damaged one (check_hdf5)
+        raise ReportError(f"{path}: not an HDF5 file (no HDF5 signature at byte 0); expected a session or study file")
+    check.check_hdf5(path)
     try:
-        return h5py.File(path, "r", swmr=True, locking=False)
+        return check.open_read(path, swmr=True)
     except OSError:
         try:
-            return h5py.File(path, "r", locking=False)
+            return check.open_read(path, swmr=False)
         except OSError as exc:
-            raise ReportError(f"{path}: not an HDF5 file ({exc})") from None
+            raise check.hdf5_error(path, exc) from None
 
 
 def file_kind(path: str | os.PathLike[str]) -> str:
-    """``"session"`` or ``"study"``, by the root ``schema`` attribute; `ReportError` otherwise."""
+    """``"session"`` or ``"study"``, by the root ``schema`` attribute; `ReportError` otherwise, `DamagedFileError`
+    for a file HDF5 cannot read."""
     with _open_any(path) as h5:
-        schema = plain(h5.attrs.get("schema"))
+        try:
+            schema = plain(h5.attrs.get("schema"))
+        except (OSError, RuntimeError, KeyError, ValueError) as exc:
+            raise check.hdf5_error(path, exc, "its root attributes") from None
     if schema == SESSION_SCHEMA:
         return "session"
     if schema == STUDY_SCHEMA:

@@ -16,7 +16,7 @@ or after a crash): `read_session`, `list_sessions`, or
 Crash safety: `rig.session.atomic` (structure changes) and `rig.session.writer` (samples).
 """
 
-from .errors import SessionError, SessionExistsError
+from .errors import DamagedFileError, SessionError, SessionExistsError
 from .log import FLUSH_INTERVAL, MAX_FLUSH_INTERVAL, SessionLog
 from .reader import list_sessions, open_session, read_session, writer_flags
 from .recover import CLOSED, CRASHED, WRITING, Recovery, crashed_message, recover, recover_command, writer_state
@@ -36,6 +36,7 @@ __all__ = [
     "RUNNING",
     "SCHEMA",
     "WRITING",
+    "DamagedFileError",
     "DiskFullError",
     "Recovery",
     "RunInfo",

@@ -4,6 +4,11 @@
   ``v114`` keeps the file readable by HDF5 1.10–1.14 (h5py wheels of the last years) as well as HDF5 2.x.
 * Paged file-space aggregation (``fs_strategy="page"``, 4 KiB pages): HDF5 then never places a metadata block
   smaller than a page across a page boundary, so each in-place metadata rewrite is one write inside one page.
+* Readers bound HDF5's retries of a metadata block whose checksum fails (``H5Pset_metadata_read_attempts``):
+  a SWMR reader retries 100 times by default, sleeping 2^k ns before attempt k, so a damaged block (a truncated
+  or overwritten file) holds it inside HDF5 for ever, where Ctrl-C cannot reach it. `READ_ATTEMPTS` (20: about
+  1 ms of sleeps in all) ends it at once; a reader racing the writer retries in Python instead
+  (`rig.session.reader`), where each try is short and can be interrupted.
 * Link and attribute storage of the groups the log changes after creation is kept *compact* (messages in the
   object header, no fractal heap/B-tree), so that adding a run to ``/runs`` or changing a run's attributes
   rewrites one object-header chunk and nothing else. h5py does not expose the link settings
@@ -54,6 +59,10 @@ def _hdf5() -> Any:
             for fn in (lib.H5Pset_link_phase_change, lib.H5Pset_est_link_info):
                 fn.argtypes = [ctypes.c_int64, ctypes.c_uint, ctypes.c_uint]
                 fn.restype = ctypes.c_int
+            lib.H5Pset_metadata_read_attempts.argtypes = [ctypes.c_int64, ctypes.c_uint]
+            lib.H5Pget_metadata_read_attempts.argtypes = [ctypes.c_int64, ctypes.POINTER(ctypes.c_uint)]
+            for fn in (lib.H5Pset_metadata_read_attempts, lib.H5Pget_metadata_read_attempts):
+                fn.restype = ctypes.c_int
         except (OSError, AttributeError):
             continue
         return lib
@@ -84,6 +93,31 @@ def create_group(parent: h5py.Group, name: str, *, links: int | None = None, nam
 def compact_links_supported() -> bool:
     """Whether the HDF5 library could be reached for the link-storage settings."""
     return _hdf5() is not None
+
+
+#: HDF5's attempts at a metadata block whose checksum fails, for readers (module docstring; HDF5's SWMR default 100).
+READ_ATTEMPTS = 20
+
+
+def read_access() -> h5py.h5p.PropFAID:
+    """File-access properties of every reader: h5py's defaults, HDF5 file locking off, and at most `READ_ATTEMPTS`
+    tries of a metadata block whose checksum fails (HDF5's default when the library cannot be reached)."""
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_file_locking(False, True)
+    lib = _hdf5()
+    if lib is not None and lib.H5Pset_metadata_read_attempts(fapl.id, READ_ATTEMPTS) < 0:
+        raise RuntimeError("H5Pset_metadata_read_attempts failed")
+    return fapl
+
+
+def read_attempts(fapl: h5py.h5p.PropFAID) -> int | None:
+    """The metadata read attempts set in ``fapl`` (an open file's: ``h5.id.get_access_plist()``), None if the
+    library cannot be reached."""
+    lib = _hdf5()
+    value = ctypes.c_uint()
+    if lib is None or lib.H5Pget_metadata_read_attempts(fapl.id, ctypes.byref(value)) < 0:
+        return None
+    return value.value
 
 
 def file_access() -> h5py.h5p.PropFAID:

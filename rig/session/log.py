@@ -29,7 +29,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import failpoints, layout, schema
+from . import check, failpoints, layout, schema
 from .atomic import SessionFile, fsync_dir, remove_stale_temporaries
 from .errors import SessionError, SessionExistsError
 from .hdf5props import LIBVER, PAGE, file_access
@@ -65,8 +65,8 @@ def _check_schema(path: Path) -> None:
     try:
         with open_session(path, timeout=1.0) as h5:
             found = h5.attrs.get("schema")
-    except (OSError, KeyError) as exc:
-        raise SessionError(f"{path}: unreadable session file ({exc})") from None
+    except (OSError, RuntimeError, KeyError, ValueError) as exc:
+        raise check.hdf5_error(path, exc, "its root attributes") from None
     if text(found) != schema.SCHEMA:
         raise SessionError(f"{path}: schema attribute is {found!r}; expected {schema.SCHEMA!r}")
 
@@ -75,7 +75,7 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[RunInfo]]:
     """Root attributes (rig_config and sequence parsed) and run groups of a session file that no one else writes
     (read before a transaction)."""
     try:
-        with h5py.File(path, "r", locking=False) as h5:
+        with check.open_read(path, swmr=False) as h5:
             found = h5.attrs.get("schema")
             if text(found) != schema.SCHEMA:
                 raise SessionError(f"{path}: schema attribute is {found!r}; expected {schema.SCHEMA!r}")
@@ -87,8 +87,8 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[RunInfo]]:
                 root[key] = json.loads(root[key]) if root[key] else {}
             root["table"] = json.loads(root["table"]) if root["table"] else None
             return root, [run_info(name, h5["runs"][name].attrs) for name in sorted(h5["runs"])]
-    except (OSError, KeyError, ValueError) as exc:
-        raise SessionError(f"{path}: unreadable session file ({exc})") from None
+    except (OSError, RuntimeError, KeyError, ValueError) as exc:
+        raise check.hdf5_error(path, exc) from None
 
 
 def _interval(value: float) -> float:

@@ -9,7 +9,9 @@ must not keep the file open across `SessionLog.begin_run` (HDF5 shares one open 
 turn a read-only handle into the SWMR writer): use `read_session`, which opens and closes the file.
 
 A metadata block may be caught half-written by a reader at the moment the writer replaces it (HDF5's
-checksums detect it); `open_session` and `read_session` retry for a while before giving up.
+checksums detect it); `open_session` and `read_session` retry for a while before giving up, but only while a live
+writer holds the file: a file no one writes that fails to read is damaged, and is said to be at once
+(`DamagedFileError`, after the checks of `rig.session.check`; HDF5's own retries are bounded, so no read hangs).
 """
 
 from __future__ import annotations
@@ -24,8 +26,8 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import schema, superblock
-from .errors import SessionError
+from . import check, schema, superblock
+from .errors import DamagedFileError, SessionError
 from .locks import writer_holds
 
 #: How long `read_session` keeps retrying a file caught mid-update [s].
@@ -36,9 +38,19 @@ _RETRYABLE = (OSError, RuntimeError, KeyError, ValueError)
 CLOSED, WRITING, CRASHED = "closed", "writing", "crashed"
 
 
+def _writer_live(path: Path) -> bool:
+    """Whether a live session log holds ``path``, so that a failed read may have met it mid-update."""
+    try:
+        return writer_holds(path)
+    except SessionError:
+        return False
+
+
 def open_session(path: str | os.PathLike[str], *, timeout: float = RETRY_SECONDS) -> h5py.File:
-    """Open a session file for reading the way every reader should (SWMR read, no HDF5 file lock), retrying
-    briefly; `SessionError` if it cannot be opened within ``timeout`` seconds."""
+    """Open a session file for reading the way every reader should (SWMR read, no HDF5 file lock, HDF5's retries
+    bounded: `rig.session.check`). A file that fails the checks or that HDF5 cannot open is retried for up to
+    ``timeout`` seconds only while a live writer holds it (it may be caught mid-update); otherwise, and after
+    that, `DamagedFileError` (a `SessionError`) naming the file and what is wrong."""
     path = Path(path)
     if not path.is_file():
         raise SessionError(f"{path}: no such session file")
@@ -46,10 +58,14 @@ def open_session(path: str | os.PathLike[str], *, timeout: float = RETRY_SECONDS
     delay = 0.005
     while True:
         try:
-            return h5py.File(path, "r", swmr=True, locking=False)
+            check.check_session(path)
+            return check.open_read(path)
+        except DamagedFileError:
+            if time.monotonic() >= deadline or not _writer_live(path):
+                raise
         except OSError as exc:
-            if time.monotonic() >= deadline:
-                raise SessionError(f"{path}: cannot open as an HDF5 session file ({exc})") from None
+            if time.monotonic() >= deadline or not _writer_live(path):
+                raise check.hdf5_error(path, exc) from None
         time.sleep(delay)
         delay = min(delay * 2, 0.2)
 
@@ -66,6 +82,12 @@ def plain(value: Any) -> Any:
     if isinstance(value, np.generic):
         return value.item()
     return value
+
+
+def child(group: h5py.Group, name: str) -> Any:
+    """``group[name]``, or None if ``group`` has no such link. Unlike h5py's ``get``, an object that HDF5 cannot
+    read (a damaged header) raises instead of passing for a missing one."""
+    return group[name] if name in group else None  # noqa: SIM401 (h5py.Group.get hides a damaged object)
 
 
 def records(ds: h5py.Dataset) -> list[dict[str, Any]]:
@@ -102,10 +124,11 @@ def read_run(group: h5py.Group, name: str, data: bool = True) -> dict[str, Any]:
     try:
         run["sensors"] = json.loads(attrs.get("sensors", "[]"))
     except (TypeError, ValueError):
-        run["sensors"] = sorted(group.get("accel", {}))
+        run["sensors"] = sorted(child(group, "accel") or {})
     run["attrs"] = attrs
     if not data:
-        run["samples"] = {f"accel/{s}": group["accel"][s].shape[0] for s in group.get("accel", {})}
+        accel = child(group, "accel") or {}
+        run["samples"] = {f"accel/{s}": accel[s].shape[0] for s in accel}
         return run
     for key in ("commanded", "pose"):
         run[key] = group[key][()] if key in group else np.zeros((0, 7))
@@ -129,7 +152,7 @@ def _read(path: Path, data: bool) -> dict[str, Any]:
         for key in ("rig_config", "sequence"):
             out[key] = json.loads(attrs[key]) if isinstance(attrs.get(key), str) else None
         out["attrs"] = attrs
-        runs = h5.get("runs")
+        runs = child(h5, "runs")
         out["runs"] = [read_run(runs[name], name, data) for name in sorted(runs)] if runs is not None else []
         return out
 
@@ -141,19 +164,24 @@ def read_session(path: str | os.PathLike[str], *, data: bool = True, timeout: fl
     ``attrs`` and, with ``data``, ``commanded``/``pose`` (n, 7) arrays, ``accel`` {sensor: (m, 4) array},
     ``tilt`` {body_id: (l, 2) array of t, angle} (empty without tilt sensors),
     ``detections``/``bodies``/``faults``/``events`` as lists of dicts, ``analysis`` if present (without
-    ``data``: ``samples``, the row count per accelerometer). Strings are ``str``."""
+    ``data``: ``samples``, the row count per accelerometer). Strings are ``str``.
+
+    A read that fails is retried for up to ``timeout`` seconds while a live writer holds the file (`open_session`);
+    otherwise `DamagedFileError` names the file and what HDF5 could not read."""
     path = Path(path)
     deadline = time.monotonic() + timeout
     delay = 0.005
     while True:
         try:
             return _read(path, data)
-        except SessionError as exc:
-            if "schema attribute" in str(exc) or not path.is_file() or time.monotonic() >= deadline:
+        except DamagedFileError:
+            if time.monotonic() >= deadline or not _writer_live(path):
                 raise
+        except SessionError:
+            raise
         except _RETRYABLE as exc:
-            if time.monotonic() >= deadline:
-                raise SessionError(f"{path}: unreadable session file ({exc!r})") from None
+            if time.monotonic() >= deadline or not _writer_live(path):
+                raise check.hdf5_error(path, exc) from None
         time.sleep(delay)
         delay = min(delay * 2, 0.2)
 
@@ -162,9 +190,17 @@ def iter_runs(path: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
     """The session's runs in order, each read (as `read_session` with ``data``) only when it is asked for: one
     run's samples in memory at a time, for campaigns of hundreds of MB. The file stays open meanwhile."""
     with open_session(path) as h5:
-        runs = h5.get("runs")
-        for name in sorted(runs) if runs is not None else []:
-            yield read_run(runs[name], name)
+        try:
+            runs = child(h5, "runs")
+            names = sorted(runs) if runs is not None else []
+        except _RETRYABLE as exc:
+            raise check.hdf5_error(path, exc, "/runs") from None
+        for name in names:
+            try:
+                run = read_run(runs[name], name)
+            except _RETRYABLE as exc:
+                raise check.hdf5_error(path, exc, f"/runs/{name}") from None
+            yield run
 
 
 def writer_flags(path: str | os.PathLike[str]) -> int:

@@ -18,7 +18,7 @@ import os
 import struct
 from dataclasses import dataclass
 
-from .errors import SessionError
+from .errors import DamagedFileError
 
 SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: Bytes of a version 2/3 superblock with 8-byte offsets.
@@ -27,6 +27,8 @@ SIZE = 48
 WRITE_ACCESS = 0x01
 SWMR_WRITE_ACCESS = 0x04
 _EOA = slice(28, 36)
+#: HDF5's "undefined address" (all bits set).
+UNDEFINED = 0xFFFFFFFFFFFFFFFF
 _MASK = 0xFFFFFFFF
 
 
@@ -85,6 +87,9 @@ class Superblock:
     eoa: int
     root: int
     raw: bytes
+    #: Base address (0 in a session file) and the superblock extension's address (`UNDEFINED` if none).
+    base: int = 0
+    extension: int = 0
 
     def patched(self, *, flags: int | None = None, eoa: int | None = None) -> bytes:
         """The 48 bytes with new consistency flags and/or EOA [bytes], and the checksum recomputed."""
@@ -96,22 +101,26 @@ class Superblock:
         return bytes(body) + struct.pack("<I", lookup3(bytes(body)))
 
 
-def parse(raw: bytes, where: object = "file") -> Superblock:
-    """Parse the first bytes of a session file; `SessionError` if they are not a version 2/3 superblock."""
+def parse(raw: bytes, where: str | os.PathLike[str] = "file") -> Superblock:
+    """Parse the first bytes of a session file; `DamagedFileError` (a `SessionError`) if they are not a version 2/3
+    superblock."""
     if len(raw) < SIZE or raw[:8] != SIGNATURE:
-        raise SessionError(f"{where}: no HDF5 signature at byte 0; expected a shaketable-rig session file")
+        raise DamagedFileError(where, "no HDF5 signature at byte 0 (not a shaketable-rig session file, or its first "
+                                      "bytes are lost)")
     version, offsets, lengths = raw[8], raw[9], raw[10]
     if version not in (2, 3) or offsets != 8 or lengths != 8:
-        raise SessionError(f"{where}: HDF5 superblock version {version} with {offsets}-byte addresses; expected "
-                           "version 2 or 3 with 8-byte addresses (a session file written by rig.session)")
+        raise DamagedFileError(where, f"HDF5 superblock version {version} with {offsets}-byte addresses at byte 8; "
+                                      "expected version 2 or 3 with 8-byte addresses (a session file written by "
+                                      "rig.session)")
     (stored,) = struct.unpack("<I", raw[44:48])
     if lookup3(raw[:44]) != stored:
-        raise SessionError(f"{where}: the HDF5 superblock checksum does not match; the file is damaged")
-    eoa, root = struct.unpack("<QQ", raw[28:44])
-    return Superblock(version=version, flags=raw[11], eoa=eoa, root=root, raw=bytes(raw[:SIZE]))
+        raise DamagedFileError(where, "the HDF5 superblock checksum (bytes 44-47) does not match its bytes 0-43")
+    base, extension, eoa, root = struct.unpack("<QQQQ", raw[12:44])
+    return Superblock(version=version, flags=raw[11], eoa=eoa, root=root, raw=bytes(raw[:SIZE]), base=base,
+                      extension=extension)
 
 
-def read(fd: int, where: object = "file") -> Superblock:
+def read(fd: int, where: str | os.PathLike[str] = "file") -> Superblock:
     """Read and parse the superblock of the open file ``fd``."""
     return parse(os.pread(fd, SIZE, 0), where)
 
@@ -141,7 +150,7 @@ def superblock_only_change(old: bytes, new: bytes) -> bool:
         return False
     allowed = [(28, 36), (44, 48)]
     ext = int.from_bytes(old[20:28], "little")
-    if ext != 0xFFFFFFFFFFFFFFFF:
+    if ext != UNDEFINED:
         ranges = _ext_time_ranges(old, ext)
         if ranges is not None and ranges == _ext_time_ranges(new, ext):
             allowed += ranges
