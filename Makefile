@@ -11,6 +11,9 @@ STAMP := $(VENV)/.installed-stamp
 # each tier's per-test durations (JUnit XML) land here; CI keeps them beside its log
 REPORTS ?= test-reports
 PYTEST := $(BIN)/pytest -q
+# byte code cached: pytest's rewritten test modules, the xdist workers and every rig or emulator process a test
+# starts compile the project once, not each time (some shells set PYTHONDONTWRITEBYTECODE)
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: demo test test-integration test-slow test-all browser bench lint clean
 
