@@ -14,18 +14,31 @@ import socket
 import subprocess
 import sys
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 import typer
 
 from analysis import Body
+from protocols.signing_key import write_signing_key
 from rig.cli.records import register as register_records
+
+# the helpers' asserts say what they compared, as a test's own do (before any test module imports them)
+pytest.register_assert_rewrite("tests.helpers")
 
 
 @pytest.fixture
 def v_body() -> Body:
     """The VALIDATION.md block: p = 2 rad/s, α = 0.2 rad (b ≈ 0.729 m, h ≈ 3.61 m)."""
     return Body.from_p_alpha(2.0, 0.2)
+
+
+@pytest.fixture(scope="module")
+def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A signing key for the rig and the emulated table, one per test module (random, mode 0600)."""
+    path = tmp_path_factory.mktemp("key") / "rig.key"
+    write_signing_key(path)
+    return path
 
 
 @pytest.fixture(scope="module")

@@ -16,13 +16,13 @@ import math
 
 import numpy as np
 import pytest
-from newton_euler import centre_from_pivot, newton_euler, rot
 
 from analysis import AnalysisInputError, Body, simulate, uplift_thresholds
 from analysis.body import TABLE_V, G
 from analysis.equations import pivot_reactions, plate_gravity, rocking_acceleration, rocking_sliding_acceleration
 from analysis.fast_general import ST_FLIGHT, ST_ROCK, ST_ROCKSLIDE, landing_omega
 from analysis.simulate import check_angle, resolve_restitutions
+from tests.helpers.newton_euler import centre_from_pivot, newton_euler, rot
 
 T5_1 = Body(b=0.099, h=0.493, depth=0.2012, mass=5.22, b_cg=0.0515, h_cg=0.243, name="T5-1")
 """Table V's body 1 as printed (b_cg read from the −x corner)."""

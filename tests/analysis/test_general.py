@@ -14,7 +14,6 @@ import math
 
 import numpy as np
 import pytest
-from newton_euler import newton_euler, rot
 
 from analysis.body import Body, G
 from analysis.envelope import block_bounds
@@ -31,6 +30,7 @@ from analysis.fast_general import (
 )
 from analysis.reference_general import GeneralTrace, simulate_general_reference
 from analysis.simulate import simulate
+from tests.helpers.newton_euler import newton_euler, rot
 
 V2_BODY = Body.from_p_alpha(2.0, 0.2)
 

@@ -22,17 +22,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 import typer
-from test_cli_run import start_tiny
-from test_cli_startup import HEAVY
-from test_orchestrator import TINY
 
 from drivers.controller import open_table
-from protocols.signing_key import write_signing_key
 from rig.cli import app
 from rig.emulator import EmulatorProcess, specimen_flags
 from rig.orchestrator.bodies import mismatch
 from rig.sequence import load_sequence
 from rig.session import read_session
+from tests.helpers.processes import HEAVY, start_tiny
+from tests.helpers.sequences import TINY
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -60,12 +58,6 @@ def options_of(*command: str) -> set[str]:
         group = group.commands[name]  # type: ignore[attr-defined]
     return {opt for param in group.params for opt in (*param.opts, *param.secondary_opts)}
 
-
-@pytest.fixture
-def key_file(tmp_path: Path) -> Path:
-    path = tmp_path / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 # ----- item 1: resume hints that work as printed -----------------------------------------------------------------

@@ -11,7 +11,6 @@ import os
 import resource
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -20,15 +19,13 @@ from typing import Any
 import h5py
 import numpy as np
 import pytest
-from test_orchestrator import TINY
 
 from rig.sequence import load_sequence
 from rig.session import read_session
+from tests.helpers.processes import RIG, ROOT, child_of, running, start_tiny
+from tests.helpers.sequences import TINY
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
-ROOT = Path(__file__).resolve().parents[2]
-RIG = [sys.executable, "-m", "rig.cli"]
 
 
 def rig(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
@@ -102,40 +99,6 @@ def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp
                                                               (1, "completed")]
     np.testing.assert_array_equal(runs[0]["accel"]["0"][: len(cut["accel"]["0"])], cut["accel"]["0"])
 
-
-def start_tiny(tmp_path: Path, stdin: int | None = None) -> tuple[subprocess.Popen[bytes], Path, float]:
-    """``rig run`` of the tiny sequence on the emulator, in its own process group; returned once it is 1 s into
-    the first record, with the time [s] of the last sample seen then."""
-    (tmp_path / "tiny.toml").write_text(TINY)
-    session = tmp_path / "s.h5"
-    proc = subprocess.Popen([*RIG, "run", "tiny.toml", "--emulate", "--yes", "-o", str(session)], cwd=tmp_path,
-                            stdin=stdin, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
-    seen, deadline = 0.0, time.monotonic() + 120
-    while seen < 1.0:
-        assert time.monotonic() < deadline and proc.poll() is None
-        time.sleep(0.2)
-        if session.exists():
-            runs = read_session(session)["runs"]
-            if runs and len(runs[0]["accel"].get("0", [])):
-                seen = runs[0]["accel"]["0"][-1, 0]
-    return proc, session, seen
-
-
-def running(pid: int, module: bytes) -> bool:
-    """Whether process ``pid`` is ``python -m module`` still running (Linux /proc: gone, or a zombie with no command
-    line, is not)."""
-    try:
-        return module in Path(f"/proc/{pid}/cmdline").read_bytes()
-    except (FileNotFoundError, ProcessLookupError):
-        return False
-
-
-def child_of(proc: subprocess.Popen[Any], module: bytes) -> int:
-    """The pid of the one ``python -m module`` that ``proc`` started (among its children; Linux /proc)."""
-    children = Path(f"/proc/{proc.pid}/task/{proc.pid}/children").read_text().split()
-    found = [int(child) for child in children if running(int(child), module)]
-    assert len(found) == 1, f"{len(found)} {module.decode()} among the children {children} of {proc.pid}"
-    return found[0]
 
 
 class Output:

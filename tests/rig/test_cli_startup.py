@@ -12,15 +12,11 @@ from pathlib import Path
 
 import pytest
 
+from tests.helpers.processes import HEAVY
+
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 REPO = Path(__file__).resolve().parents[2]
-
-#: Modules whose import takes a noticeable part of a second (or pulls in such modules).
-HEAVY = ("numpy", "scipy", "numba", "matplotlib", "h5py", "mujoco", "dask", "distributed", "zenoh", "pymavlink",
-         "canopen", "can", "hypothesis", "rig.records", "rig.session", "rig.orchestrator", "rig.report",
-         "rig.analyze", "rig.drive", "rig.service", "analysis.simulate", "analysis.study", "analysis.design",
-         "analysis.table.model")
 
 _PROBE = r"""
 import json, sys

@@ -18,12 +18,12 @@ from typing import Any
 
 import h5py
 import pytest
-from test_orchestrator import TINY
-from test_service import free_port, serve_command
 
 from protocols.signing_key import write_signing_key
 from rig.console import operator_token
 from rig.service import ServiceClient
+from tests.helpers.processes import free_port, serve_command
+from tests.helpers.sequences import TINY
 
 CHROMIUM = Path("/usr/bin/chromium")
 CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",

@@ -16,8 +16,9 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from test_orchestrator import TINY
-from test_service import free_port
+
+from tests.helpers.processes import free_port
+from tests.helpers.sequences import TINY
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 

@@ -4,8 +4,6 @@ a run that cannot be played is refused and logged, resume from the first run tha
 
 from __future__ import annotations
 
-import itertools
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -13,90 +11,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from protocols.signing_key import write_signing_key
-from rig.emulator import EmulatorProcess, specimen_flags
-from rig.orchestrator import FINAL_STATES, TRANSITIONS, Orchestrator, OrchestratorState, Progress
+from rig.orchestrator import Orchestrator, OrchestratorState
 from rig.sequence import Sequence, load_sequence
 from rig.session import SessionLog, read_session, run_needs, space
+from tests.helpers.sequences import TINY, new_log, play, wait_for
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
-TINY = """\
-name = "tiny"
-angles_deg = [0]
-records = [
-    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] },
-    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },
-]
 
-[drive]
-corner_hz = 1.0
-settle_s = 0.3
-
-[operator]
-confirm_before_run = false
-
-[[bodies]]
-table5 = 5
-x = 0.0
-y = 0.0
-"""
-
-
-@pytest.fixture(scope="module")
-def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("key") / "rig.key"
-    write_signing_key(path)
-    return path
-
-
-@pytest.fixture
-def tiny(tmp_path: Path) -> Sequence:
-    path = tmp_path / "tiny.toml"
-    path.write_text(TINY)
-    return load_sequence(path)
-
-
-def new_log(sequence: Sequence, path: Path) -> SessionLog:
-    return SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
-                             software_version="test")
-
-
-def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None,
-         operator: Any = None, emulator_flags: tuple[str, ...] = ()) -> tuple[OrchestratorState, dict[str, Any]]:
-    """Run the orchestrator in a thread against a fresh emulator (with ``emulator_flags``);
-    ``during(orchestrator)`` from this thread."""
-    emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
-                                     *emulator_flags, key_file=key_file)  # virtual time: the same session as at 1x
-    try:
-        states = [OrchestratorState.IDLE]
-
-        def seen(progress: Progress) -> None:
-            if progress.state is not states[-1]:
-                states.append(progress.state)
-
-        orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
-                                    operator=operator, on_update=seen)
-        result: list[OrchestratorState] = []
-        worker = threading.Thread(target=lambda: result.append(orchestrator.run()), daemon=True)
-        worker.start()
-        if during is not None:
-            during(orchestrator)
-        worker.join(120)
-        assert not worker.is_alive()
-    finally:
-        counters = emulator.stop()
-    # every state change was one the table of transitions allows (the orchestrator checks it; this shows it)
-    assert all(new in TRANSITIONS[old] for old, new in itertools.pairwise(states)), states
-    assert states[-1] is result[0] and result[0] in FINAL_STATES
-    return result[0], counters
-
-
-def wait_for(predicate: Any, timeout: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout
-    while not predicate():
-        assert time.monotonic() < deadline, "timed out"
-        time.sleep(0.02)
 
 
 def test_pause_takes_effect_at_the_end_of_the_record_and_resume_continues(tiny: Sequence, tmp_path: Path,

@@ -11,7 +11,6 @@ from pathlib import Path
 from typing import Any
 
 import pytest
-from test_orchestrator import TINY, key_file, new_log, play, tiny, wait_for  # noqa: F401  (fixtures)
 
 from analysis.table.link import LinkSettings
 from drivers.controller import LINK_GRACE, WAIT_SLICE, open_table
@@ -20,6 +19,7 @@ from rig.emulator import EmulatorProcess, specimen_flags
 from rig.orchestrator import Orchestrator, OrchestratorState
 from rig.sequence import Sequence, load_sequence
 from rig.session import read_session
+from tests.helpers.sequences import TINY, new_log, play, wait_for
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -48,8 +48,8 @@ class SlowOperator:
         return []
 
 
-def test_a_slow_answer_at_the_prompt_keeps_the_table_armed_at_1x(tiny: Sequence, tmp_path: Path,  # noqa: F811
-                                                                  key_file: Path) -> None:  # noqa: F811
+def test_a_slow_answer_at_the_prompt_keeps_the_table_armed_at_1x(tiny: Sequence, tmp_path: Path,
+                                                                  key_file: Path) -> None:
     """At real time the link's heartbeats go on while the operator takes 3 s to place the bodies: the runs play."""
     log = new_log(tiny, tmp_path / "s.h5")
     with EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(tiny.bodies), key_file=key_file) as emulator:
@@ -63,7 +63,7 @@ def test_a_slow_answer_at_the_prompt_keeps_the_table_armed_at_1x(tiny: Sequence,
 
 
 def test_a_table_stopped_while_the_operator_was_asked_ends_the_session_saying_so(
-        tiny: Sequence, tmp_path: Path, key_file: Path) -> None:  # noqa: F811
+        tiny: Sequence, tmp_path: Path, key_file: Path) -> None:
     log = new_log(tiny, tmp_path / "s.h5")
     with EmulatorProcess.start("mavlink://127.0.0.1:0", "--speed", "max", key_file=key_file) as emulator:
         orchestrator = Orchestrator(tiny, emulator.url, log, table_options={"key_file": str(key_file)},
@@ -76,7 +76,7 @@ def test_a_table_stopped_while_the_operator_was_asked_ends_the_session_saying_so
 
 
 def test_a_run_that_lost_samples_is_degraded_and_left_out_of_fig13_unless_asked(
-        tiny: Sequence, tmp_path: Path, key_file: Path) -> None:  # noqa: F811
+        tiny: Sequence, tmp_path: Path, key_file: Path) -> None:
     """10 % of the datagrams lost both ways: the drive plays through (chunks are sent twice), but accelerometer
     batches are missing, so no run may be logged ``completed``."""
     log = new_log(tiny, tmp_path / "s.h5")
@@ -98,8 +98,8 @@ def test_a_run_that_lost_samples_is_degraded_and_left_out_of_fig13_unless_asked(
     assert len(taken.runs) == 2
 
 
-def test_a_table_link_lost_mid_run_ends_the_run_interrupted_at_once(tiny: Sequence, tmp_path: Path,  # noqa: F811
-                                                                    key_file: Path) -> None:  # noqa: F811
+def test_a_table_link_lost_mid_run_ends_the_run_interrupted_at_once(tiny: Sequence, tmp_path: Path,
+                                                                    key_file: Path) -> None:
     """The emulator killed mid-record: the run is ``interrupted: table link lost`` within the link timeout (not
     after the minutes a stop's settle used to wait)."""
     log = new_log(tiny, tmp_path / "s.h5")
@@ -126,7 +126,7 @@ def test_a_table_link_lost_mid_run_ends_the_run_interrupted_at_once(tiny: Sequen
 
 
 def test_a_lead_beyond_the_controller_s_buffer_is_refused_before_the_stream(tmp_path: Path,
-                                                                           key_file: Path) -> None:  # noqa: F811
+                                                                           key_file: Path) -> None:
     """The emulator with a 0.5 s buffer, the sequence's rig asking for a 2 s lead: refused before anything streams,
     naming both."""
     text = TINY + "\n[rig.controller]\nlead_s = 2.0\nbuffer_s = 3.0\nwatchdog_s = 2.0\n"

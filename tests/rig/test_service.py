@@ -7,7 +7,6 @@ from __future__ import annotations
 import contextlib
 import os
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -18,8 +17,6 @@ from typing import Any
 import h5py
 import pytest
 import zenoh
-from test_cli_run import child_of, running
-from test_orchestrator import TINY
 
 from protocols.signing_key import write_signing_key
 from protocols.zenoh import session_config
@@ -27,21 +24,14 @@ from protocols.zenoh.auth import Signer
 from rig.service import ServiceClient, ServiceError, ServiceKeys, ServiceUnavailableError
 from rig.service.wire import decode_reply, encode_request, sign
 from rig.session import read_session
+from tests.helpers.processes import child_of, free_port, running, serve_command
+from tests.helpers.sequences import TINY
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 SETTLE_LINE = 10
 """The line of ``settle_s`` in :data:`TINY`."""
 
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
-
-
-def serve_command() -> list[str]:
-    return [str(Path(sys.executable).with_name("rig")), "serve"]
 
 
 class Service:

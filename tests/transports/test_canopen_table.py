@@ -34,19 +34,6 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from stream_checks import (
-    SLENDER,
-    STOCKY,
-    TAU,
-    assert_overturns_reported_once,
-    assert_played_through,
-    assert_pose_follows,
-    assert_resting_force,
-    drive_excerpt,
-    smooth_ramp,
-    surge,
-)
-from table_checks import emergency_stop_while_streaming
 
 from drivers.canopen import NODE_CONSUMER_TIME, CanopenTable, Move, Trajectory
 from drivers.canopen.feedback import STATUS_RATE
@@ -98,6 +85,19 @@ from protocols.signing_key import write_signing_key
 from sim_table.canopen_endpoint import FEEDBACK_DELAY, TARGET_DELAY, Recent, SyncGrid, open_endpoint
 from sim_table.endpoint import EndpointOptions
 from sim_table.process import Emulator, EmulatorConfig, parse_body
+from tests.helpers.streams import (
+    SLENDER,
+    STOCKY,
+    TAU,
+    assert_overturns_reported_once,
+    assert_played_through,
+    assert_pose_follows,
+    assert_resting_force,
+    drive_excerpt,
+    smooth_ramp,
+    surge,
+)
+from tests.helpers.table_checks import emergency_stop_while_streaming
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 

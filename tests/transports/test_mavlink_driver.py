@@ -21,8 +21,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-import table_checks
-from stream_checks import drive_excerpt, stream_and_check, surge
 
 from drivers.controller import StreamAbortedError, TableError, TableStatus, open_table, register_scheme
 from drivers.mavlink import MavlinkTable
@@ -38,10 +36,11 @@ from protocols.mavlink import (
     tilt_batches,
 )
 from protocols.mavlink.signing import signing_timestamp
-from protocols.signing_key import write_signing_key
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
+from tests.helpers import table_checks
+from tests.helpers.streams import drive_excerpt, stream_and_check, surge
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -61,12 +60,6 @@ def mavlink_address(emulator: EmulatorProcess) -> tuple[str, int]:
 def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess:
     return EmulatorProcess.start(LISTEN, *flags, key_file=key_file)
 
-
-@pytest.fixture(scope="module")
-def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("key") / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 @pytest.fixture(scope="module")

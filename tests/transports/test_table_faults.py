@@ -16,13 +16,12 @@ from typing import Any
 
 import numpy as np
 import pytest
-from stream_checks import drive_excerpt
 
 from analysis.table.link import LinkSettings
 from drivers.controller import StreamAbortedError, TableStatus, open_table
 from protocols.mavlink import UdpLink, dialect, enable_signing
-from protocols.signing_key import write_signing_key
 from rig.emulator import EmulatorProcess
+from tests.helpers.streams import drive_excerpt
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -30,12 +29,6 @@ D = dialect()
 LISTEN = {"mavlink": "mavlink://127.0.0.1:0", "zenoh": "zenoh://127.0.0.1:0/table"}
 MOVING = ("stopping", "homing", "tilting", "streaming")
 
-
-@pytest.fixture(scope="module")
-def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("key") / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 # ----- the host killed mid-stream -------------------------------------------------------------------------------

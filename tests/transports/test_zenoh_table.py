@@ -18,13 +18,10 @@ from typing import Any
 
 import numpy as np
 import pytest
-import table_checks
 import zenoh
-from stream_checks import drive_excerpt, stream_and_check
 
 from drivers.controller import TableError, TableTimeoutError, open_table
 from drivers.zenoh import ZenohTable
-from protocols.signing_key import write_signing_key
 from protocols.zenoh import (
     EndpointError,
     Key,
@@ -82,6 +79,8 @@ from rig.drive import Drive, prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
 from sim_table.controller import Command, Fault, Result, State
+from tests.helpers import table_checks
+from tests.helpers.streams import drive_excerpt, stream_and_check
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -247,12 +246,6 @@ LISTEN = "zenoh://127.0.0.1:0/table"
 def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess:
     return EmulatorProcess.start(LISTEN, *flags, key_file=key_file)
 
-
-@pytest.fixture(scope="module")
-def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("key") / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 @pytest.fixture(scope="module")

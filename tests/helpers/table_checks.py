@@ -14,7 +14,6 @@ from typing import Any
 
 import numpy as np
 import pytest
-from stream_checks import smooth_ramp, surge
 
 from analysis.table.link import LinkSettings
 from drivers.controller import (
@@ -28,6 +27,7 @@ from drivers.controller import (
 )
 from protocols.signing_key import KEY_ENV, write_signing_key
 from rig.emulator import EmulatorProcess
+from tests.helpers.streams import smooth_ramp, surge
 
 # ----- a hand-driven host -------------------------------------------------------------------------------------
 
