@@ -16,7 +16,6 @@ import random
 import signal
 import subprocess
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime
@@ -38,65 +37,32 @@ from rig.session import (
     writer_flags,
 )
 from rig.session.atomic import SessionFile
-from rig.session.writer import BlockWriter
+from tests.helpers.session_writer import (
+    BATCH,
+    BODIES,
+    RATE,
+    RIG_CONFIG,
+    SEQUENCE,
+    WriterChild,
+    accel_values,
+    commanded,
+    final_resume_and_run,
+    pose_values,
+    prefix_rows,
+    sensor_names,
+    writer_config,
+)
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 REPO = Path(__file__).resolve().parents[2]
-RATE = 1000.0  # [Hz] accelerometer and pose rate of the writer processes
-BATCH = 10  # samples per block (10 ms)
 MAX_LOSS = 1.0  # [s] the issue's bound on lost samples
-
-RIG_CONFIG = {"table": {"transport": "emulator", "rate_hz": 1000}, "accelerometers": 8}
-SEQUENCE = {"angles_deg": [0, 4], "records": ["suite:a", "suite:b"], "repetitions": 1}
 
 
 # ------------------------------------------------------------------------------------------------------
 # Signals the writer processes record, and the checks of what they left
 # ------------------------------------------------------------------------------------------------------
-def _accel_values(sensor: int, ks: np.ndarray) -> np.ndarray:
-    """Deterministic, exactly representable samples of sensor ``sensor`` at indices ``ks`` [m/s²]."""
-    base = sensor * 1e6 + ks.astype(np.float64)
-    return np.column_stack([base, -base, ks * 0.5])
 
-
-def _pose_values(ks: np.ndarray) -> np.ndarray:
-    k = ks.astype(np.float64)
-    return np.column_stack([k, k * 2, k * 3, -k, -k * 2, -k * 3]) * 1e-6
-
-
-def _commanded(plan: int) -> np.ndarray:
-    t = np.arange(500) / 100.0
-    return np.column_stack([t, *(np.sin(t + i + plan) * 0.01 for i in range(6))])
-
-
-BODIES = [{"body_id": 1, "b": 0.10, "h": 0.50, "depth": 0.10, "mass": 4.0, "x": 0.20, "y": -0.1, "name": "B1",
-           "b_cg": 0.052, "h_cg": 0.24},
-          {"body_id": 2, "b": 0.05, "h": 0.30, "depth": 0.05, "mass": 1.0, "x": -0.2, "y": 0.1}]
-
-
-def _sensors(n: int) -> list[str]:
-    return [f"acc{i}" for i in range(n)]
-
-
-def _prefix_rows(run: dict, n_sensors: int, speed: int = 1) -> int:
-    """Check every growing dataset of a run is an exact prefix of what the writer appended; the common row count."""
-    counts = []
-    for i, sensor in enumerate(_sensors(n_sensors)):
-        a = run["accel"][sensor]
-        ks = np.arange(len(a))
-        assert a.shape[1] == 4
-        assert np.array_equal(a[:, 0], ks / RATE), f"run {run['name']} {sensor}: time column is not the prefix"
-        assert np.array_equal(a[:, 1:], _accel_values(i, ks)), f"run {run['name']} {sensor}: wrong samples"
-        counts.append(len(a))
-    pose = run["pose"]
-    ks = np.arange(len(pose))
-    assert np.array_equal(pose[:, 0], ks / RATE) and np.array_equal(pose[:, 1:], _pose_values(ks))
-    counts.append(len(pose))
-    # all streams get the same blocks, but each dataset is written separately: a kill between two dataset writes
-    # of one flush may leave them one flush (0.25 s) apart
-    assert max(counts) - min(counts) <= RATE * speed, counts
-    return min(counts)
 
 
 @dataclass
@@ -132,13 +98,13 @@ def _check_after_kill(path: Path, progress: Path, kill_time: float, ended: set[s
     assert [r["name"] for r in session["runs"]] == names
     present = {}
     for run in session["runs"]:
-        present[run["name"]] = _prefix_rows(run, n_sensors, speed)
+        present[run["name"]] = prefix_rows(run, n_sensors, speed)
         old = seen.rows.get(run["name"])
         if old is not None:  # a run of an earlier writer: its data never changes afterwards
             for key, data in old.items():
                 now = run["accel"][key] if key.startswith("acc") else run[key]
                 assert np.array_equal(now, data), f"run {run['name']} {key} changed after its writer died"
-        seen.rows[run["name"]] = {**{s: run["accel"][s] for s in _sensors(n_sensors)}, "pose": run["pose"]}
+        seen.rows[run["name"]] = {**{s: run["accel"][s] for s in sensor_names(n_sensors)}, "pose": run["pose"]}
     statuses = [r["status"] for r in session["runs"]]
     running = [i for i, s in enumerate(statuses) if s == "running"]
     assert len(running) <= 1 and (not running or running[0] == len(statuses) - 1), statuses
@@ -163,116 +129,13 @@ def _check_after_kill(path: Path, progress: Path, kill_time: float, ended: set[s
     return session
 
 
-class _Child:
-    """A writer process (this file run as a script) and its stdout markers."""
-
-    def __init__(self, config: dict, env: dict | None = None) -> None:
-        full_env = {key: value for key, value in os.environ.items() if key != "RIG_SESSION_FAILPOINT"}
-        full_env.update({"PYTHONPATH": str(REPO), **(env or {})})
-        self.proc = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "child", json.dumps(config)],
-                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=full_env,
-                                     cwd=REPO)
-        self.markers: list[tuple[str, float]] = []
-        self._cond = threading.Condition()
-        self._reader = threading.Thread(target=self._read, daemon=True)
-        self._reader.start()
-
-    def _read(self) -> None:
-        assert self.proc.stdout is not None
-        for line in self.proc.stdout:
-            with self._cond:
-                self.markers.append((line.strip(), time.monotonic()))
-                self._cond.notify_all()
-
-    def wait_marker(self, prefix: str, timeout: float) -> bool:
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            while True:
-                if any(m.startswith(prefix) for m, _ in self.markers):
-                    return True
-                left = deadline - time.monotonic()
-                if left <= 0 or self.proc.poll() is not None:
-                    return False
-                self._cond.wait(left)
-
-    def count(self, prefix: str) -> int:
-        with self._cond:
-            return sum(m.startswith(prefix) for m, _ in self.markers)
-
-    def wait_count(self, prefix: str, n: int, timeout: float) -> bool:
-        """Wait until ``n`` markers starting with ``prefix`` have come."""
-        deadline = time.monotonic() + timeout
-        with self._cond:
-            while sum(m.startswith(prefix) for m, _ in self.markers) < n:
-                left = deadline - time.monotonic()
-                if left <= 0 or self.proc.poll() is not None:
-                    return False
-                self._cond.wait(left)
-            return True
-
-    def kill(self) -> float:
-        t = time.monotonic()
-        if self.proc.poll() is None:
-            os.kill(self.proc.pid, signal.SIGKILL)
-        self.proc.wait(timeout=30)
-        self._reader.join(timeout=5)
-        return t
-
-    def wait(self, timeout: float) -> float:
-        self.proc.wait(timeout=timeout)
-        t = time.monotonic()
-        self._reader.join(timeout=5)
-        return t
-
-    def ended(self) -> set[str]:
-        return {m[1:].split()[0] for m, _ in self.markers if m.startswith("e")}
-
-    def stderr(self) -> str:
-        assert self.proc.stderr is not None
-        return self.proc.stderr.read()
-
-
-def _config(path: Path, progress: Path, seed: int, *, sensors: int = 8,
-            run_seconds: tuple[float, float] = (0.3, 1.0), speed: int = 1) -> dict:
-    """``run_seconds``: range of run lengths on the run clock; ``speed``: samples appended ``speed`` times faster
-    than real time (in ``speed``-times larger blocks), for flushes big enough that kills land inside them."""
-    return {"path": str(path), "progress": str(progress), "seed": seed, "sensors": sensors, "plan": 10_000,
-            "run_seconds": list(run_seconds), "speed": speed}
-
-
-def _final_resume_and_run(path: Path, n_sensors: int) -> None:
-    """After all the kills: resume marks the cut run interrupted, and new runs work."""
-    log = SessionLog.resume(path)
-    try:
-        before = log.runs()
-        assert all(r.status != "running" for r in before)
-        done = log.done_plan_indices()
-        assert done == {r.plan_index for r in before if r.status == "completed"}
-        redo = [r.plan_index for r in before if r.status == "interrupted" and r.plan_index not in done]
-        plan = redo[0] if redo else 99_999
-        run = log.begin_run(plan, record="final", scale_factor=1.0, angle_deg=0.0, commanded=_commanded(0),
-                            bodies=BODIES, sensors=_sensors(n_sensors))
-        ks = np.arange(100)
-        for i, sensor in enumerate(_sensors(n_sensors)):
-            run.append_accel(sensor, ks / RATE, _accel_values(i, ks))
-        run.append_pose(ks / RATE, _pose_values(ks))
-        info = run.end("completed")
-        assert info.attempt == 1 + sum(r.plan_index == plan for r in before)
-    finally:
-        log.close()
-    session = read_session(path)
-    assert session["runs"][-1]["status"] == "completed" and _prefix_rows(session["runs"][-1], n_sensors) == 100
-    assert writer_flags(path) == 0
-    with h5py.File(path, "r") as h5:  # after a clean close also a non-SWMR reader opens it
-        assert len(h5["runs"]) == len(before) + 1
-
 
 # ------------------------------------------------------------------------------------------------------
 # Layout, attributes, API
 # ------------------------------------------------------------------------------------------------------
 def _begin(log: SessionLog, plan: int, sensors: list[str], **kw) -> object:
     return log.begin_run(plan, record=kw.pop("record", "RSN1063_NORTHR_RRS228"), scale_factor=0.68, angle_deg=5.0,
-                         commanded=_commanded(plan), bodies=BODIES, sensors=sensors, **kw)
+                         commanded=commanded(plan), bodies=BODIES, sensors=sensors, **kw)
 
 
 def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
@@ -282,8 +145,8 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
     run = _begin(log, 0, ["plate", "body1"], attrs={"governing_axis": "surge", "governing_quantity": "displacement",
                                                      "corner_hz": 0.1, "leg_check": True, "peaks": {"surge": 0.2}})
     ks = np.arange(250)
-    run.append_accel("plate", ks / RATE, _accel_values(0, ks))
-    run.append_pose(ks / RATE, _pose_values(ks))
+    run.append_accel("plate", ks / RATE, accel_values(0, ks))
+    run.append_pose(ks / RATE, pose_values(ks))
     run.append_tilt(2, ks[::5] / RATE, 0.001 * ks[::5])
     run.add_detection(0.2, 1, +1, "sensor")
     run.add_detection(0.3, 2, -1, "operator")
@@ -315,7 +178,7 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
         assert g.attrs["plan_index"] == 0 and g.attrs["attempt"] == 1
         assert g.attrs["governing_axis"] == "surge" and g.attrs["leg_check"] and g.attrs["detections_expected"] == 2
         assert json.loads(g.attrs["peaks"]) == {"surge": 0.2}
-        assert g["commanded"].dtype == np.float64 and np.array_equal(g["commanded"][()], _commanded(0))
+        assert g["commanded"].dtype == np.float64 and np.array_equal(g["commanded"][()], commanded(0))
         assert set(g["accel"]) == {"plate", "body1"}
         assert g["accel/plate"].dtype == np.float64 and g["accel/plate"].shape == (250, 4)
         assert g["accel/body1"].shape == (0, 4)
@@ -478,8 +341,8 @@ def test_done_plan_indices_and_attempts(tmp_path: Path) -> None:
 def test_a_second_process_reads_the_growing_run(tmp_path: Path) -> None:
     path = tmp_path / "live.h5"
     log = SessionLog.create(path, RIG_CONFIG, SEQUENCE, "1")
-    run = _begin(log, 0, _sensors(8))
-    reader = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), "reader", str(path), "2.0"],
+    run = _begin(log, 0, sensor_names(8))
+    reader = subprocess.Popen([sys.executable, "-m", "tests.helpers.session_writer", "reader", str(path), "2.0"],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                               env={**os.environ, "PYTHONPATH": str(REPO)}, cwd=REPO)
     appended = [(time.monotonic(), 0)]  # (time, rows appended by then); CLOCK_MONOTONIC is shared by processes
@@ -488,9 +351,9 @@ def test_a_second_process_reads_the_growing_run(tmp_path: Path) -> None:
     while reader.poll() is None and time.monotonic() - t0 < 20:
         time.sleep(max(0.0, t0 + (k + BATCH) / RATE - time.monotonic()))
         ks = np.arange(k, k + BATCH)
-        for i, sensor in enumerate(_sensors(8)):
-            run.append_accel(sensor, ks / RATE, _accel_values(i, ks))
-        run.append_pose(ks / RATE, _pose_values(ks))
+        for i, sensor in enumerate(sensor_names(8)):
+            run.append_accel(sensor, ks / RATE, accel_values(i, ks))
+        run.append_pose(ks / RATE, pose_values(ks))
         k += BATCH
         appended.append((time.monotonic(), k))
     out, err = reader.communicate(timeout=30)
@@ -536,7 +399,7 @@ def test_structural_changes_stay_on_the_one_page_path(tmp_path: Path) -> None:
     methods = []
     for plan in range(130):
         run = log.begin_run(plan, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((10, 7)),
-                            bodies=BODIES[:1], sensors=_sensors(8), attrs={"governing_axis": "sway"})
+                            bodies=BODIES[:1], sensors=sensor_names(8), attrs={"governing_axis": "sway"})
         methods.append(("begin", log.last_commit.method, log.last_commit.pages))
         run.end("completed", peak=0.1)
         methods.append(("end", log.last_commit.method, log.last_commit.pages))
@@ -551,7 +414,7 @@ def test_a_change_of_two_pages_takes_the_shadow_copy_and_stays_correct(tmp_path:
     log = SessionLog.create(path, {}, {}, "1")
     for plan in range(2):
         run = _begin(log, plan, ["acc0"], attrs={"note": "before"})
-        run.append_accel("acc0", np.arange(5) / RATE, _accel_values(0, np.arange(5)))
+        run.append_accel("acc0", np.arange(5) / RATE, accel_values(0, np.arange(5)))
         run.end("completed", note="after")
         assert log.last_commit.method == "pages"
     log.close()
@@ -566,7 +429,7 @@ def test_a_change_of_two_pages_takes_the_shadow_copy_and_stays_correct(tmp_path:
     log.close()
     s = read_session(path)
     assert [r["attrs"].get("checked") for r in s["runs"]] == [True, True, None]
-    _prefix_rows(s["runs"][0], 1)
+    prefix_rows(s["runs"][0], 1)
     assert len(s["runs"][0]["accel"]["acc0"]) == 5 and s["runs"][0]["attrs"]["note"] == "after"
     assert not list(tmp_path.glob(".*"))
 
@@ -597,7 +460,7 @@ def _kill_campaign(tmp_path: Path, points: int, seed: int, *, speed: int = 1,
     seen = _Seen()
     for i in range(points):
         progress = tmp_path / f"progress{i}.txt"
-        child = _Child(_config(path, progress, seed * 1000 + i, speed=speed,
+        child = WriterChild(writer_config(path, progress, seed * 1000 + i, speed=speed,
                                run_seconds=(0.3 * speed, 1.0 * speed)))
         mode = rng.choice(modes)
         if mode == "time":
@@ -628,7 +491,7 @@ def test_kill_minus_9_at_random_moments(tmp_path: Path) -> None:
           f"{[round(x, 3) for x in seen.losses]}")
     assert seen.losses and max(seen.losses) <= MAX_LOSS
     assert sum(seen.inside.values()) >= 3  # some kills landed inside resume/begin_run/end/a flush
-    _final_resume_and_run(tmp_path / "killed.h5", 8)
+    final_resume_and_run(tmp_path / "killed.h5", 8)
 
 
 @pytest.mark.slow
@@ -636,7 +499,7 @@ def test_kill_minus_9_at_random_moments_exhaustive(tmp_path: Path) -> None:
     seen = _kill_campaign(tmp_path, points=120, seed=7)
     print(f"\nkills inside operations: {seen.inside}; worst loss {max(seen.losses):.3f} s")
     assert sum(seen.inside.values()) >= 10
-    _final_resume_and_run(tmp_path / "killed.h5", 8)
+    final_resume_and_run(tmp_path / "killed.h5", 8)
 
 
 @pytest.mark.slow
@@ -645,7 +508,7 @@ def test_kill_minus_9_during_large_flushes(tmp_path: Path) -> None:
     seen = _kill_campaign(tmp_path, points=40, seed=11, speed=50, modes=("time", "F"))
     print(f"\nkills inside operations: {seen.inside}; worst loss {max(seen.losses):.3f} s over "
           f"{len(seen.losses)} kills with samples in flight")
-    _final_resume_and_run(tmp_path / "killed.h5", 8)
+    final_resume_and_run(tmp_path / "killed.h5", 8)
 
 
 #: (crash point[:pass], what the session must look like afterwards) in chain order; each writer resumes the
@@ -674,9 +537,9 @@ def test_kill_at_every_step_of_a_commit(tmp_path: Path) -> None:
     prev_cut = None
     for i, (point, expect_cut) in enumerate(FAILPOINTS):
         progress = tmp_path / f"progress{i}.txt"
-        config = _config(path, progress, i, sensors=8, run_seconds=(0.4, 0.6))
+        config = writer_config(path, progress, i, sensors=8, run_seconds=(0.4, 0.6))
         env = {"RIG_SESSION_FAILPOINT": point, "RIG_SESSION_FORCE_SHADOW": "1" if point.startswith("shadow") else "0"}
-        child = _Child(config, env=env)
+        child = WriterChild(config, env=env)
         try:
             child.proc.wait(timeout=30)
         except subprocess.TimeoutExpired:
@@ -692,108 +555,16 @@ def test_kill_at_every_step_of_a_commit(tmp_path: Path) -> None:
         if point in ("begin:committed", "end:swmr-closed", "shadow:before-rename:2"):
             assert last["status"] == "running", point
         if point in ("end:swmr-closed", "shadow:before-rename:2"):
-            assert _prefix_rows(last, 8) >= 0.4 * RATE  # everything flushed at the end is there
+            assert prefix_rows(last, 8) >= 0.4 * RATE  # everything flushed at the end is there
         if point == "shadow:renamed:2":
             assert last["status"] == "completed" and last["attrs"]["note"] == "after"
         if point.startswith("shadow:renamed"):
             assert not list(tmp_path.glob(".steps.h5.*"))  # resume removed the leftover of the killed copy
         running = [r["name"] for r in session["runs"] if r["status"] == "running"]
         prev_cut = running[-1] if running else prev_cut
-    _final_resume_and_run(path, 8)
+    final_resume_and_run(path, 8)
 
 
 # ------------------------------------------------------------------------------------------------------
 # The processes these tests start
 # ------------------------------------------------------------------------------------------------------
-def _child_main(config: dict) -> None:
-    """Writer: create or resume the session, then run plan entries not yet done, in real time, forever."""
-    rng = random.Random(config["seed"])
-    path = Path(config["path"])
-    sensors = _sensors(config["sensors"])
-    progress = os.open(config["progress"], os.O_WRONLY | os.O_APPEND | os.O_CREAT, 0o644)
-
-    lock = threading.Lock()
-
-    def mark(text: str) -> None:
-        with lock:
-            sys.stdout.write(text + "\n")
-            sys.stdout.flush()
-
-    original_flush = BlockWriter._flush_once
-
-    def traced_flush(self: BlockWriter) -> None:  # "F" when a flush with data starts, "f" when it is done
-        busy = bool(self._queue)
-        if busy:
-            mark("F")
-        original_flush(self)
-        if busy:
-            mark("f")
-
-    BlockWriter._flush_once = traced_flush  # type: ignore[method-assign]
-
-    if path.exists():
-        mark("R")
-        log = SessionLog.resume(path)
-        mark("r")
-    else:
-        mark("C")
-        log = SessionLog.create(path, RIG_CONFIG, SEQUENCE, "0.1.0+killtest")
-        mark("c")
-    while True:
-        done = log.done_plan_indices()
-        plan = next(i for i in range(config["plan"]) if i not in done)
-        mark(f"B{plan}")
-        attrs = {"note": "before", "governing_axis": "surge"}
-        run = log.begin_run(plan, record=f"REC{plan}", scale_factor=0.5, angle_deg=4.0, commanded=_commanded(plan),
-                            bodies=BODIES, sensors=sensors, attrs=attrs)
-        mark(f"b{run.name}")
-        n_total = int(rng.uniform(*config["run_seconds"]) * RATE)
-        speed = config["speed"]
-        t0 = time.monotonic()
-        k = 0
-        while k < n_total:
-            time.sleep(max(0.0, t0 + (k + BATCH * speed) / (RATE * speed) - time.monotonic()))
-            ks = np.arange(k, min(k + BATCH * speed, n_total))
-            for i, sensor in enumerate(sensors):
-                run.append_accel(sensor, ks / RATE, _accel_values(i, ks))
-            run.append_pose(ks / RATE, _pose_values(ks))
-            if k % (200 * speed) == 0:
-                run.add_event(ks[0] / RATE, f"block {k}")
-            os.write(progress, f"{run.name} {ks[-1]} {time.monotonic():.6f}\n".encode())
-            k = int(ks[-1]) + 1
-        run.add_detection(k / RATE, 1, 1, "sensor")
-        mark(f"E{run.name}")
-        run.end("completed", note="after")
-        mark(f"e{run.name}")
-
-
-def _reader_main(path: str, seconds: float) -> None:
-    """Reader: refused without SWMR; with ``swmr=True`` polls the growing dataset; prints a JSON report."""
-    report: dict = {"sizes": [], "prefix_ok": True}
-    try:
-        with h5py.File(path, "r"):
-            report["plain_open"] = "opened"
-    except OSError:
-        report["plain_open"] = "refused"
-    t0 = time.monotonic()
-    with h5py.File(path, "r", swmr=True) as h5:
-        ds = h5["runs/0001/accel/acc3"]
-        while time.monotonic() - t0 < seconds:
-            ds.refresh()
-            n = ds.shape[0]
-            report["sizes"].append((time.monotonic(), n))
-            if n:
-                data = ds[:n]
-                ks = np.arange(n)
-                report["prefix_ok"] &= bool(np.array_equal(data[:, 0], ks / RATE)
-                                            and np.array_equal(data[:, 1:], _accel_values(3, ks)))
-            time.sleep(0.1)
-    read_session(path)  # and the reader's helper works meanwhile
-    print(json.dumps(report))
-
-
-if __name__ == "__main__":
-    if sys.argv[1] == "child":
-        _child_main(json.loads(sys.argv[2]))
-    elif sys.argv[1] == "reader":
-        _reader_main(sys.argv[2], float(sys.argv[3]))

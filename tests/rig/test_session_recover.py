@@ -18,7 +18,6 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from test_session_log import _Child, _config, _final_resume_and_run
 
 from rig.session import (
     CLOSED,
@@ -31,6 +30,7 @@ from rig.session import (
     writer_flags,
     writer_state,
 )
+from tests.helpers.session_writer import WriterChild, final_resume_and_run, writer_config
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -66,7 +66,7 @@ def _recover_after_kills(tmp_path: Path, kills: int, seed: int) -> int:
     path = tmp_path / "session.h5"
     crashed = 0
     for i in range(kills):
-        child = _Child(_config(path, tmp_path / f"progress{i}.txt", seed * 100 + i, sensors=4,
+        child = WriterChild(writer_config(path, tmp_path / f"progress{i}.txt", seed * 100 + i, sensors=4,
                                run_seconds=(0.3, 1.2)))
         if not child.wait_marker("c" if i == 0 else "r", timeout=60):
             pytest.fail(f"writer never started: {child.stderr()}")
@@ -92,7 +92,7 @@ def _recover_after_kills(tmp_path: Path, kills: int, seed: int) -> int:
         assert set(done.interrupted) == cut
         assert after == {name: ("interrupted" if name in cut else status) for name, status in statuses.items()}
         assert recover(path).changed is False  # a second recovery finds nothing to do
-    _final_resume_and_run(path, 4)  # --resume still works after recoveries
+    final_resume_and_run(path, 4)  # --resume still works after recoveries
     return crashed
 
 
@@ -109,7 +109,7 @@ def test_recover_after_kill_minus_9_at_random_moments_many(tmp_path: Path) -> No
 
 def test_a_live_writer_is_told_apart_and_the_cli_names_the_recover_command(tmp_path: Path) -> None:
     path = tmp_path / "live.h5"
-    child = _Child(_config(path, tmp_path / "progress.txt", 7, sensors=2, run_seconds=(30.0, 30.0)))
+    child = WriterChild(writer_config(path, tmp_path / "progress.txt", 7, sensors=2, run_seconds=(30.0, 30.0)))
     try:
         if not child.wait_marker("b", timeout=60):
             pytest.fail(f"writer never began a run: {child.stderr()}")

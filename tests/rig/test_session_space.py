@@ -8,10 +8,10 @@ import time
 from pathlib import Path
 
 import pytest
-from test_session_log import _Child, _config
 
 from rig.session import SessionError, recover, space, writer_flags
 from rig.session.space import DiskFullError, check_room, is_disk_full, run_needs
+from tests.helpers.session_writer import WriterChild, writer_config
 
 
 def test_a_run_needs_its_rows_twice_over_and_the_reserve() -> None:
@@ -58,7 +58,7 @@ def test_recover_on_a_full_disk_changes_nothing(tmp_path: Path, monkeypatch: pyt
     """A writer killed mid-run leaves a crashed file; with less free than a recovery needs, ``recover`` refuses
     and the file keeps every byte (its writer flags too); with room, it recovers."""
     path = tmp_path / "session.h5"
-    child = _Child(_config(path, tmp_path / "progress.txt", 25, sensors=2, run_seconds=(0.5, 1.0)))
+    child = WriterChild(writer_config(path, tmp_path / "progress.txt", 25, sensors=2, run_seconds=(0.5, 1.0)))
     if not child.wait_marker("c", timeout=60):
         pytest.fail(f"writer never started: {child.stderr()}")
     time.sleep(0.3)
