@@ -73,7 +73,8 @@ def test_the_readme_is_a_guide_that_starts_with_the_two_commands() -> None:
     assert lines[2:6] == ["```sh",
                           "make demo    # set up .venv, start the emulated table and run examples/quick.toml on it "
                           "over MAVLink (~1 min)",
-                          "make test    # set up .venv and run the tests (ruff, mypy, then the in-process tests in parallel)",
+                          "make test    # set up .venv and run the tests (ruff, mypy, then the in-process tests "
+                          "in parallel)",
                           "```"]
     assert len(lines) <= 300
     body = "\n".join(lines)
