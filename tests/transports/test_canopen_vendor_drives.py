@@ -47,6 +47,7 @@ from drivers.canopen import CanopenTable
 from drivers.canopen.clock import SteppedClock
 from drivers.canopen.sdo import DriveSetupError
 from drivers.controller import TableError, TableTimeoutError
+from protocols.signing_key import write_signing_key
 from rig.cli import app
 
 RATE = 100
@@ -343,9 +344,10 @@ class DrivesBus:
 
 
 @contextlib.contextmanager
-def drives_on_bus(models: list[DriveModel], per_metre: float = 1e6) -> Iterator[DrivesBus]:
+def drives_on_bus(models: list[DriveModel], per_metre: float = 1e6,
+                  polarities: tuple[int, ...] = (1,) * 6) -> Iterator[DrivesBus]:
     """Drives (leg k = node k, of ``models[k - 1]``) on a fresh virtual channel, their legs at home in units of
-    ``per_metre``."""
+    ``per_metre``, leg k's position growing as it extends (``polarities[k - 1]`` = 1) or shrinking (-1)."""
     channel = f"drives-{uuid.uuid4().hex}"
     network = canopen.Network(can.Bus(interface="virtual", channel=channel))
     network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle of its receive thread
@@ -353,7 +355,7 @@ def drives_on_bus(models: list[DriveModel], per_metre: float = 1e6) -> Iterator[
     for node_id, model in enumerate(models, start=1):
         node = network.create_node(node_id, model.object_dictionary(node_id))
         node.nmt.state = "PRE-OPERATIONAL"
-        drive = Drive(node, position=round((HOME_LEGS[node_id - 1] - LEG_MIN) * per_metre))
+        drive = Drive(node, position=polarities[node_id - 1] * round((HOME_LEGS[node_id - 1] - LEG_MIN) * per_metre))
         network.subscribe(0x200 + node_id, drive.on_rpdo)
         drives.append(drive)
     lock = threading.Lock()
@@ -420,6 +422,32 @@ def test_each_vendors_drive_arms_tilts_homes_and_disarms(model: DriveModel, rig:
         assert all(drive._value(0x60C2, 1) == 100 and drive._value(0x60C2, 2) == -4 for drive in bus.drives)  # 10 ms
     if model is EVEREST_LIKE:
         assert all(drive.toggle is not None and drive._value(0x100C) == 50 for drive in bus.drives)  # node-guarded
+
+
+def test_legs_of_polarity_minus_one_go_where_they_are_commanded(tmp_path: Path) -> None:
+    """``polarity = -1`` for the table, +1 for leg 4 (``[drives.leg.4]``): each drive's position shrinks as its leg
+    extends but leg 4's; the master reads their home positions as home, tilts 1° with every leg at its length
+    within 0.1 mm (read back with each leg's own sign), sets software limits (−stroke, 0) on the reversed legs and
+    (0, stroke) on leg 4, and homes and disarms without a fault."""
+    per_metre = 40_960_000
+    polarities = (-1, -1, -1, 1, -1, -1)
+    rig = EVEREST_TOML + "polarity = -1\n\n[drives.leg.4]\npolarity = 1\n"
+    with drives_on_bus([EVEREST_LIKE] * 6, per_metre, polarities) as bus, master(bus, rig, tmp_path) as table:
+        table.arm()
+        assert np.abs(table.status().pose).max() < 1e-6  # the reversed positions read as home
+        table.set_tilt(math.radians(1.0))
+        pose = np.zeros(6)
+        pose[4] = math.radians(1.0)
+        lengths = table.table.leg_lengths(pose)
+        held = np.array([p * drive.position for p, drive in zip(polarities, bus.drives, strict=True)]) / per_metre
+        assert np.abs(held + LEG_MIN - lengths).max() < 1e-4, held + LEG_MIN - lengths
+        assert all(np.sign(drive.position) == p for p, drive in zip(polarities, bus.drives, strict=True))
+        stroke = round((LEG_MAX - LEG_MIN) * per_metre)
+        limits = [(drive._value(0x607D, 1), drive._value(0x607D, 2)) for drive in bus.drives]
+        assert limits == [(0, stroke) if p > 0 else (-stroke, 0) for p in polarities], limits
+        table.home()
+        table.disarm()
+        assert table.status().state == "idle" and table.status().faults == ()
 
 
 def test_the_no_csp_drive_is_refused_in_one_line(tmp_path: Path) -> None:
@@ -524,6 +552,26 @@ def test_rig_run_prints_the_refusal_in_one_line_and_exits_non_zero(tmp_path: Pat
     assert len(lines) == 1 and lines[0].startswith("error:"), result.output
     assert "cannot be used" in lines[0] and "no cyclic synchronous position mode" in lines[0], lines[0]
     assert "Traceback" not in result.output and not (tmp_path / "s.h5").exists()
+
+
+def test_rig_iterate_applies_the_rigs_drives_and_refuses_in_one_line(tmp_path: Path) -> None:
+    """``rig iterate --table canopen://…`` opens the table with the rig configuration's ``[drives]`` (here a gear
+    ratio the Everest-like drives contradict: refused before enabling, naming the leg, the node, the object and the
+    file) and a signing key that a CANopen master has no use for: one ``error:`` line, a non-zero exit, no
+    traceback, no session file and nothing written to a drive."""
+    (tmp_path / "rig.toml").write_text("[drives]\nencoder_increments = 4096\ngear_ratio = 20\nfeed_m = 0.002\n")
+    write_signing_key(tmp_path / "rig.key")
+    with drives_on_bus([EVEREST_LIKE] * 6) as bus:
+        result = CliRunner().invoke(app, ["iterate", "fema:KOBE/NIS000", "--angle", "4", "--window", "5,10",
+                                          "--table", bus.url, "--rig-config", str(tmp_path / "rig.toml"),
+                                          "--key-file", str(tmp_path / "rig.key"), "-o", str(tmp_path / "s.h5")])
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert result.exit_code not in (0, None) and not isinstance(result.exception, TypeError), repr(result.exception)
+    assert len(lines) == 1 and lines[0].startswith("error:"), result.output
+    assert f"leg 1 (node 1) ({tmp_path}/rig.toml:1: drives)" in lines[0], lines[0]
+    assert "(0x6091 = 50/1), the configuration expects 20; refused before enabling it" in lines[0], lines[0]
+    assert "Traceback" not in result.output and not (tmp_path / "s.h5").exists()
+    assert all(drive.writes == [] for drive in bus.drives)
 
 
 def test_rig_table_check_reports_each_drive_and_exits_3_when_one_cannot_be_driven(tmp_path: Path) -> None:
