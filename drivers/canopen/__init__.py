@@ -65,7 +65,8 @@ faults            an EMCY (0x8130 → HEARTBEAT_LOST: the drives lost this maste
                   return home), then ``faulted``.
 ================  ================================================================================================
 
-**Time.** On CANopen the controller is this master: controller time is its clock (host monotonic ns). Where the bus
+**Time.** On CANopen the controller is this master: controller time is its clock (host monotonic ns; the ``clock``
+option, :mod:`~drivers.canopen.clock`, gives drives emulated in the same process a stepped one). Where the bus
 has room for it (:attr:`~drivers.canopen.master.MasterBase.sync_counter`: the counted cycle within the 80 % limit,
 e.g. 400 Hz or less with one accelerometer at 1 Mbit/s, not the default 500 Hz) the master turns the SYNC counter on
 (0x1019 = 240 on every drive and accelerometer: each SYNC carries 1..240) and maps the answered SYNC's counter into

@@ -12,7 +12,7 @@ import numpy as np
 from drivers.canopen.feedback import STATUS_RATE
 from drivers.canopen.master import DRIVING_STATES, MasterBase
 from drivers.canopen.nodes import NMT_OPERATIONAL, DriveLink
-from drivers.controller import FaultSource, TableStatus, sleep_until
+from drivers.controller import FaultSource, TableStatus
 from protocols.canopen import MASTER_NODE_ID, RPDO1, Command, Setpoint, State, command_towards_operation, controlword
 
 MASTER_HEARTBEAT_PERIOD = 0.02
@@ -30,12 +30,12 @@ class SyncCycle(MasterBase):
     def _run(self) -> None:
         heartbeat_every = max(1, round(MASTER_HEARTBEAT_PERIOD * 1e9 / self.period_ns))
         status_every = max(1, round(1e9 / STATUS_RATE / self.period_ns))
-        deadline = time.monotonic_ns() + self.period_ns
+        deadline = self.clock.now_ns() + self.period_ns
         index = 0
         try:
             while not self._closing.is_set():
                 self._next_deadline = deadline
-                lateness = sleep_until(deadline)
+                lateness = self.clock.sleep_until(deadline)
                 statuses, sources = self._cycle(index, deadline, lateness, index % heartbeat_every == 0,
                                                 status_every)
                 for status in statuses:
@@ -51,7 +51,7 @@ class SyncCycle(MasterBase):
         """One cycle at ``deadline`` (package docstring); the statuses to publish and the EMCYs received before them
         (the sources of the faults they raise)."""
         assert self._network is not None
-        now = time.monotonic_ns()
+        now = self.clock.now_ns()
         with self._lock:
             self._cycle_index = index
             self._count_lateness(lateness)

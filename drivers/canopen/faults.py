@@ -4,7 +4,6 @@ once all six are enabled, faulted once a stopping fault's reaction is over, a mo
 
 from __future__ import annotations
 
-import time
 from typing import Any
 
 from analysis.table.moves import Move
@@ -32,12 +31,12 @@ class FaultSupervision(MasterBase):
         if error.code & 0xFF00 == 0:
             return  # error reset
         with self._lock:
-            link.emcy.append((error.code, time.monotonic_ns()))
+            link.emcy.append((error.code, self.clock.now_ns()))
             self._sources.append(FaultSource(link.node.id, error.code))
             self._fault(_EMCY_FAULTS.get(error.code, "DRIVE"))
 
     def silent(self, link: NodeLink, now: int) -> bool:
-        """Whether ``link``'s node has fallen silent at ``now`` [host ns]: no heartbeat yet; or none for
+        """Whether ``link``'s node has fallen silent at ``now`` [ns, the master's clock]: no heartbeat yet; or none for
         :attr:`consumer_time` on the bus's clock (PDOs that reached the bus that long after its last heartbeat
         were handled: the master is not merely behind in reading the bus); or nothing at all handled from the bus
         for :attr:`~drivers.controller.TableController.link_timeout` (the rig TOML's ``link_timeout_s``: the whole

@@ -81,7 +81,7 @@ class FeedbackFrames(MasterBase):
     def _on_event(self, data: bytes, stamp: float) -> None:
         self._heard(stamp)
         record = EVENT_TPDO1.decode(data)
-        received = time.monotonic_ns() - round((time.time() - stamp) * 1e9)
+        received = self.clock.now_ns() - round((time.time() - stamp) * 1e9)
         self.feedback.publish_detection(Detection(record.event_id, record.body_id, record.direction,
                                                   event_tilt(record), received - event_age_ns(record)))
 

@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import threading
-import time
 from collections import deque
 from urllib.parse import parse_qs, urlsplit
 
@@ -17,6 +16,7 @@ import numpy as np
 
 from analysis.table.model import TableModel
 from analysis.table.moves import Move, axis_limits
+from drivers.canopen.clock import Clock, WallClock
 from drivers.canopen.nodes import DriveLink, NodeLink, SensorLink
 from drivers.canopen.survey import DriveReport
 from drivers.canopen.trajectory import Trajectory
@@ -83,8 +83,12 @@ class MasterBase(TableController):
     def __init__(self, url: str, *, interface: str | None = None, bitrate: int | None = None,
                  rate: float | None = None, accelerometers: int | None = None, detector: bool = True,
                  table: TableModel | None = None, connect_timeout: float = 5.0, command_timeout: float = 2.0,
-                 consumer_time: float = NODE_CONSUMER_TIME, sync_counter: bool | None = None) -> None:
+                 consumer_time: float = NODE_CONSUMER_TIME, sync_counter: bool | None = None,
+                 clock: Clock | None = None) -> None:
         super().__init__(url)
+        self.clock: Clock = clock or WallClock()
+        """What paces the SYNC cycle and dates what the master stamps [ns] (:mod:`drivers.canopen.clock`: the host's
+        monotonic clock unless given)."""
         if not (math.isfinite(consumer_time) and consumer_time > 0):
             raise ValueError(f"consumer_time must be > 0 s, got {consumer_time!r}")
         self.consumer_time = consumer_time
@@ -195,12 +199,12 @@ class MasterBase(TableController):
         None: off] (:data:`FOLLOWING_ERROR_LAG`)."""
         self._sources: list[FaultSource] = []  # EMCYs since the last status (under _lock)
         self._heard_stamp = 0.0  # the time stamp of the newest PDO handled [s, the bus's clock]
-        self._heard_ns = 0  # when it was handled [host ns]
+        self._heard_ns = 0  # when it was handled [ns, the master's clock]
 
     def _heard(self, stamp: float) -> None:
         """A PDO stamped ``stamp`` [s, the bus's clock] was handled now (the heartbeat consumers' evidence)."""
         self._heard_stamp = max(self._heard_stamp, stamp)
-        self._heard_ns = time.monotonic_ns()
+        self._heard_ns = self.clock.now_ns()
 
     def _links(self) -> list[NodeLink]:
         return [*self._drives, *self._sensors, *([self._detector] if self._detector else [])]

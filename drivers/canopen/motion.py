@@ -66,9 +66,10 @@ class Motions(MasterBase):
     def _refuse(self, name: str, why: str) -> None:
         raise CommandRejectedError(name, "TEMPORARILY_REJECTED", self._state, why)
 
-    def _status_after(self, host_ns: int) -> None:
-        """Wait (at most :data:`STATUS_WAIT`) for a status made after ``host_ns``: it shows what a command did."""
-        self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.host_ns > host_ns,
+    def _status_after(self, now: int) -> None:
+        """Wait (at most :data:`STATUS_WAIT` real seconds) for a status made after ``now`` [ns, the master's clock]:
+        it shows what a command did."""
+        self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.host_ns > now,
                                STATUS_WAIT)
 
     def _wait_state(self, name: str, done: Callable[[], bool], timeout: float) -> None:
@@ -83,7 +84,7 @@ class Motions(MasterBase):
         with self._lock:
             if self._state not in ("idle", "armed", "faulted", "emergency_stopped"):
                 self._refuse("ARM", "not accepted in this state")
-            now = time.monotonic_ns()
+            now = self.clock.now_ns()
             silent = [leg for leg, link in enumerate(self._drives, start=1) if self.silent(link, now)]
             if silent:
                 raise CommandFailedError("ARM", "FAILED", self._state,
@@ -105,7 +106,7 @@ class Motions(MasterBase):
             with self._lock:
                 self._arming = False
             raise
-        self._status_after(time.monotonic_ns())
+        self._status_after(self.clock.now_ns())
 
     def disarm(self) -> None:
         self._check_alive()
@@ -115,7 +116,7 @@ class Motions(MasterBase):
             self._set_state("idle")  # the drives are told to disable operation from the next cycle
         self._wait_state("DISARM", lambda: not any(link.state is State.OPERATION_ENABLED for link in self._drives),
                          self.command_timeout)
-        self._status_after(time.monotonic_ns())
+        self._status_after(self.clock.now_ns())
 
     def _motion(self, name: str, target: Callable[[np.ndarray], np.ndarray], state: str, wait: bool,
                 timeout: float) -> None:
@@ -164,7 +165,7 @@ class Motions(MasterBase):
                 self._move = self._trajectory = None
                 self._stop_reason = None
                 self._set_state("stopping")
-        self._status_after(time.monotonic_ns())
+        self._status_after(self.clock.now_ns())
 
     def emergency_stop(self) -> None:
         self._check_alive()
@@ -172,7 +173,7 @@ class Motions(MasterBase):
             self._arming = False
             self._move = self._trajectory = None
             self._set_state("emergency_stopped")
-        self._status_after(time.monotonic_ns())
+        self._status_after(self.clock.now_ns())
 
     def stream(self, t: np.ndarray, poses: np.ndarray, *, lead: float = DEFAULT_LEAD,
                on_progress: Callable[[int, int], None] | None = None,
@@ -190,7 +191,7 @@ class Motions(MasterBase):
         with self._lock:
             if self._state != "armed":
                 self._refuse("START_STREAM", "not accepted in this state")
-            now = time.monotonic_ns()
+            now = self.clock.now_ns()
             anchor = max(self._tau, self._next_deadline + self.target_delay_ns)
             trajectory = Trajectory(anchor, self._pose.copy(), now + round(lead * 1e9), spacing_ns, poses)
             self._trajectory = trajectory

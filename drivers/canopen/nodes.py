@@ -7,6 +7,7 @@ import time
 
 import canopen
 
+from drivers.canopen.clock import Clock
 from protocols.canopen import LegScaling, State, decode_statusword
 
 NMT_OPERATIONAL = 0x05
@@ -14,20 +15,22 @@ NMT_OPERATIONAL = 0x05
 
 
 class NodeLink:
-    """What the master knows of one node: its ``RemoteNode``, last heartbeat (when handled [host ns] and the frame's
+    """What the master knows of one node: its ``RemoteNode``, last heartbeat (when handled [ns, the master's
+    ``clock``] and the frame's
     time stamp [s, the bus's clock: ``time.time()`` at reception]), the NMT state that heartbeat reported, and EMCYs."""
 
-    def __init__(self, node: canopen.RemoteNode) -> None:
+    def __init__(self, node: canopen.RemoteNode, clock: Clock) -> None:
         self.node = node
+        self.clock = clock
         self.heartbeat_ns: int | None = None
         self.heartbeat_stamp = 0.0
         self.nmt_state: int | None = None
-        self.started_ns = 0  # when the master last sent it the NMT start command [host ns]
-        self.emcy: list[tuple[int, int]] = []  # (code, host ns)
+        self.started_ns = 0  # when the master last sent it the NMT start command [ns, the clock]
+        self.emcy: list[tuple[int, int]] = []  # (code, ns of the clock)
         node.nmt.add_heartbeat_callback(self._beat)
 
     def _beat(self, state: int) -> None:
-        self.heartbeat_ns = time.monotonic_ns()
+        self.heartbeat_ns = self.clock.now_ns()
         stamp = self.node.nmt.timestamp  # the frame's, set by canopen before it calls back
         self.heartbeat_stamp = time.time() if stamp is None else stamp
         self.nmt_state = state
@@ -41,8 +44,8 @@ class DriveLink(NodeLink):
     """A leg drive: its leg's scaling (metres ↔ the drive's units, established at connect), its last statusword and
     position [drive units], the controlword last sent."""
 
-    def __init__(self, node: canopen.RemoteNode, scaling: LegScaling) -> None:
-        super().__init__(node)
+    def __init__(self, node: canopen.RemoteNode, clock: Clock, scaling: LegScaling) -> None:
+        super().__init__(node, clock)
         self.scaling = scaling
         self.statusword: int | None = None
         self.position = 0
@@ -57,8 +60,8 @@ class DriveLink(NodeLink):
 class SensorLink(NodeLink):
     """An accelerometer: the samples waiting to be published as one batch."""
 
-    def __init__(self, node: canopen.RemoteNode, sensor_id: int) -> None:
-        super().__init__(node)
+    def __init__(self, node: canopen.RemoteNode, clock: Clock, sensor_id: int) -> None:
+        super().__init__(node, clock)
         self.sensor_id = sensor_id
         self.pending: list[tuple[int, tuple[float, float, float]]] = []  # (SYNC index, force)
         self.next_index: int | None = None

@@ -59,14 +59,15 @@ class SetUp(MasterBase):
         try:
             network.connect()
             geometry = self.table.geometry
-            self._drives = [DriveLink(network.add_node(node_id, canopen.ObjectDictionary()),
+            self._drives = [DriveLink(network.add_node(node_id, canopen.ObjectDictionary()), self.clock,
                                       LegScaling(geometry.leg_min, geometry.leg_max)) for node_id in self.node_ids]
-            self._sensors = [SensorLink(network.add_node(node_id, load_accelerometer_od(node_id)), k)
+            self._sensors = [SensorLink(network.add_node(node_id, load_accelerometer_od(node_id)), self.clock, k)
                              for k, node_id in enumerate(ACCELEROMETER_NODE_IDS[:self.accelerometer_count])]
-            self._detector = NodeLink(network.add_node(DETECTOR_NODE_ID, load_detector_od())) if self.detector else None
+            self._detector = (NodeLink(network.add_node(DETECTOR_NODE_ID, load_detector_od()), self.clock)
+                              if self.detector else None)
             network.nmt.state = "PRE-OPERATIONAL"
             self._configure()
-            started = time.monotonic_ns()
+            started = self.clock.now_ns()
             network.nmt.state = "OPERATIONAL"
             for link in self._links():
                 link.started_ns = started
@@ -92,7 +93,7 @@ class SetUp(MasterBase):
                                         f"{self.connect_timeout} s ({self._nmt_states()})")
             for link in self._behind():
                 if link.heartbeat_ns is not None and link.heartbeat_ns > link.started_ns:
-                    link.started_ns = time.monotonic_ns()
+                    link.started_ns = self.clock.now_ns()
                     link.node.nmt.state = "OPERATIONAL"
 
     def _behind(self) -> list[NodeLink]:

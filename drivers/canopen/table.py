@@ -4,7 +4,6 @@ motions (:mod:`drivers.canopen.master`) in one `TableController`."""
 from __future__ import annotations
 
 import math
-import time
 from typing import Any
 
 import canopen
@@ -26,7 +25,9 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
     ``accelerometers`` (nodes 0x21…); ``detector`` whether the overturn detector (node 0x30) is on the bus;
     ``table`` the table model (limits, geometry); ``connect_timeout`` and ``command_timeout`` [s] (ARM and DISARM
     wait for the drives' states); ``consumer_time`` [s] of the nodes' heartbeats
-    (:data:`~drivers.canopen.master.NODE_CONSUMER_TIME`). Raises :class:`~protocols.canopen.BusLoadError` when the
+    (:data:`~drivers.canopen.master.NODE_CONSUMER_TIME`); ``clock`` what paces the SYNC cycle
+    (:mod:`drivers.canopen.clock`: the host's monotonic clock unless given; a stepped one for drives emulated in this
+    process). Raises :class:`~protocols.canopen.BusLoadError` when the
     rate does not fit.
     """
 
@@ -70,7 +71,7 @@ class CanopenTable(SetUp, SyncCycle, FaultSupervision, FeedbackFrames, Motions):
         counted lost already: dropped), the SYNC counter's overflow value (0: off), the receive buffer [bytes],
         duplicate overturn events dropped, each node's heartbeat age [s] and NMT state, and the EMCY codes received
         per node."""
-        now = time.monotonic_ns()
+        now = self.clock.now_ns()
         links = self._links()
         return {"rate_hz": self.rate, "bitrate": self.bitrate, "bus_load": self.bus_load,
                 "target_delay_s": self.target_delay_ns * 1e-9, "feedback_delay_s": self.feedback_delay_ns * 1e-9,

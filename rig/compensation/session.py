@@ -70,9 +70,9 @@ def iterate_on_table(drive: Drive, url: str, options: dict[str, Any], session: P
     say = note or (lambda _text: None)
     table_model = drive.table
     ident = identification_drive(table_model, drive.angle, duration=identify_seconds, band=band)
-    with SessionLog.create(session, rig_config=table_model.to_dict(), sequence=sequence,
-                           software_version=software_version) as log, \
-            open_table(url, **{"table": table_model, **options}) as table:
+    with open_table(url, **{"table": table_model, **options}) as table, \
+            SessionLog.create(session, rig_config=table_model.to_dict(), sequence=sequence,
+                              software_version=software_version) as log:  # a table that refuses leaves no file
         player = TablePlayer(table, log, url, bodies=bodies or [])
         try:
             say(f"tilting to {math.degrees(drive.angle):g}°")

@@ -199,7 +199,7 @@ def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
 def test_stream_a_prepared_fema_drive_excerpt_on_the_sync_grid() -> None:
     drive = drive_excerpt()
     with emulated(specimens=(parse_body(SLENDER), parse_body(STOCKY))) as emulator:
-        with master(emulator) as table:
+        with master(emulator, sync_counter=True) as table:  # opt-in: the emulated drives' profile echoes it
             assert isinstance(table, CanopenTable) and table.rate == RATE
             assert table.bus_load == pytest.approx(bus_load(RATE, 6, 1_000_000, accelerometers=1, counted=True))
             assert table.sync_counter == drive_od.SYNC_COUNTER_MAX  # room for it: answers name their SYNC
@@ -649,18 +649,25 @@ def test_answers_that_come_late_are_dated_by_the_sync_they_name() -> None:
 _NETNS_SETUP = "ip link set lo up && ip route add 224.0.0.0/4 dev lo"
 
 _HOST = """
-import json, time
+import json, sys, time
 import numpy as np
-from drivers.controller import open_table
-with open_table({url!r}, rate={rate}) as table:
+from drivers.controller import TableError, open_table
+with open_table({url!r}, rate={rate}, consumer_time={allowance}) as table:
+    table.link_timeout = {allowance}
     statuses, accel = table.statuses(), table.accelerations()
-    table.arm()
-    t = np.arange(1501) * 1e-3
-    poses = np.zeros((len(t), 6))
-    poses[:, 0] = 0.02 * np.sin(2 * np.pi * t / 1.5)
-    report = table.stream(t, poses, lead={lead})
-    table.home()
-    table.disarm()
+    try:
+        table.arm()
+        t = np.arange(1501) * 1e-3
+        poses = np.zeros((len(t), 6))
+        poses[:, 0] = 0.02 * np.sin(2 * np.pi * t / 1.5)
+        report = table.stream(t, poses, lead={lead})
+        table.home()
+        table.disarm()
+    except TableError:  # which fault, and what the master's link knew then
+        link = table.link_stats()
+        print("master:", table.status().faults, {{k: link[k] for k in ("silent_drives", "late_cycles",
+              "lateness_max_s", "heartbeat_age_s", "emcy")}}, file=sys.stderr)
+        raise
     time.sleep({settle})  # the drives' last target played (their target delay): the emulator's core disarms too
     during = [s for s in statuses.drain() if report.t_start_ns <= s.t_ns <= report.t_end_ns]
     error = max(abs(s.pose[0] - 0.02 * np.sin(2 * np.pi * (s.t_ns - report.t_start_ns) * 1e-9 / 1.5))
@@ -695,7 +702,11 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     host = tmp_path / "host.py"
     settle = UDP_TARGET_DELAY_S + 0.3
     host_url = f"{url}&sync_counter=1"  # two processes on a busy host: answers dated by the SYNC they name
-    host.write_text(textwrap.dedent(_HOST.format(url=host_url, rate=UDP_RATE, lead=UDP_LEAD_S, settle=settle)))
+    # the emulated drives' heartbeats come from a Python thread per node, which on a busy host waits its turn
+    # while the tick thread's answers flow (leg 3's heartbeat 0.28 s old, its TPDOs on time: a DRIVE fault beside
+    # the load of other work): the master allows what the in-process tests allow (STALL_ALLOWANCE_S)
+    host.write_text(textwrap.dedent(_HOST.format(url=host_url, rate=UDP_RATE, lead=UDP_LEAD_S, settle=settle,
+                                                 allowance=STALL_ALLOWANCE_S)))
     counters = tmp_path / "counters.json"
     emulator = shlex.join([sys.executable, "-m", "sim_table", "--listen", f"{url}&target_delay={UDP_TARGET_DELAY_S}",
                            "--key-file", str(key),
@@ -713,9 +724,9 @@ def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) 
     assert result["final"] == "armed" and result["faults"] == [] and result["state"] == "idle"
     assert result["rcvbuf"] >= 2 * RECEIVE_BUFFER_BYTES  # root in the namespace: beyond rmem_max (the kernel doubles)
     # Statuses at 50 Hz of the SYNCs' time and accelerometer samples at the SYNC rate, from one end of the stream to
-    # the other: the master counts every sample missing from the stream as lost, and no gap may reach its consumer
-    # time of a node's heartbeat — a node silent that long would have faulted the table, and the stream ended armed
-    # without faults.
+    # the other: the master counts every sample missing from the stream as lost, and no gap may reach the default
+    # consumer time of a node's heartbeat (a node silent that long would fault a table on the defaults), and the
+    # stream ended armed without faults.
     emulated_counters = json.loads(counters.read_text())
     assert emulated_counters["underruns"] == 0 and emulated_counters["state"] == "idle", emulated_counters
     period_ns = round(1e9 / STATUS_RATE)

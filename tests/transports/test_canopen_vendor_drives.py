@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 import can
+import can.interfaces.virtual as virtual_bus
 import canopen
 import numpy as np
 import pytest
@@ -43,8 +44,10 @@ from typer.testing import CliRunner
 
 from analysis.table.model import TableModel, TableModelError
 from drivers.canopen import CanopenTable
+from drivers.canopen.clock import SteppedClock
 from drivers.canopen.sdo import DriveSetupError
 from drivers.controller import TableError, TableTimeoutError
+from protocols.signing_key import write_signing_key
 from rig.cli import app
 
 RATE = 100
@@ -298,17 +301,61 @@ HOME_LEGS = TableModel().leg_lengths(np.zeros(6))
 """The legs' lengths [m] with the plate at home, where the drives start."""
 
 
+class Lockstep(can.Listener):
+    """The drives' side of a stepped master clock (:class:`~drivers.canopen.clock.SteppedClock`): :meth:`settle`
+    returns once the drives have handled every frame put on their bus (this listener, the notifier's last, counts
+    them after the drives' own callbacks ran) and no frame waits in any queue of the virtual channel — the drives
+    answered the last SYNC and their answers reached the master — so each cycle of the master meets drives that
+    are done with the one before. A drive that stays silent holds a cycle at most :data:`SETTLE_LIMIT_S`."""
+
+    SETTLE_LIMIT_S = 1.0
+
+    def __init__(self, channel: str, bus: can.BusABC) -> None:
+        self.channel, self.bus, self.handled = channel, bus, 0
+
+    def on_message_received(self, msg: can.Message) -> None:
+        self.handled += 1
+
+    def _idle(self) -> bool:
+        own = self.bus.queue  # type: ignore[attr-defined]  # python-can's VirtualBus: every frame put is a task
+        with virtual_bus.channels_lock:
+            queues = list(virtual_bus.channels.get(self.channel, []))
+        return own.unfinished_tasks == self.handled and all(q.empty() for q in queues)
+
+    def settle(self) -> None:
+        limit = threading.Event()
+        timer = threading.Timer(self.SETTLE_LIMIT_S, limit.set)
+        timer.start()
+        try:
+            while not self._idle() and not limit.is_set():
+                limit.wait(0.0002)
+        finally:
+            timer.cancel()
+
+
+@dataclass
+class DrivesBus:
+    """Six emulated drives on a virtual channel: the master's URL, the drives, and the stepped clock the master
+    takes to run in lockstep with them."""
+
+    url: str
+    drives: list[Drive]
+    clock: SteppedClock
+
+
 @contextlib.contextmanager
-def drives_on_bus(models: list[DriveModel], per_metre: float = 1e6) -> Iterator[tuple[str, list[Drive]]]:
+def drives_on_bus(models: list[DriveModel], per_metre: float = 1e6,
+                  polarities: tuple[int, ...] = (1,) * 6) -> Iterator[DrivesBus]:
     """Drives (leg k = node k, of ``models[k - 1]``) on a fresh virtual channel, their legs at home in units of
-    ``per_metre``; the master's URL."""
+    ``per_metre``, leg k's position growing as it extends (``polarities[k - 1]`` = 1) or shrinking (-1)."""
     channel = f"drives-{uuid.uuid4().hex}"
     network = canopen.Network(can.Bus(interface="virtual", channel=channel))
+    network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle of its receive thread
     drives = []
     for node_id, model in enumerate(models, start=1):
         node = network.create_node(node_id, model.object_dictionary(node_id))
         node.nmt.state = "PRE-OPERATIONAL"
-        drive = Drive(node, position=round((HOME_LEGS[node_id - 1] - LEG_MIN) * per_metre))
+        drive = Drive(node, position=polarities[node_id - 1] * round((HOME_LEGS[node_id - 1] - LEG_MIN) * per_metre))
         network.subscribe(0x200 + node_id, drive.on_rpdo)
         drives.append(drive)
     lock = threading.Lock()
@@ -322,21 +369,24 @@ def drives_on_bus(models: list[DriveModel], per_metre: float = 1e6) -> Iterator[
     network.connect()
     assert network.notifier is not None
     network.notifier.add_listener(_Guarding({d.node.id: d for d in drives}))
+    lockstep = Lockstep(channel, network.bus)
+    network.notifier.add_listener(lockstep)
     try:
-        yield f"canopen://{channel}?interface=virtual&accelerometers=0&rate={RATE}", drives
+        yield DrivesBus(f"canopen://{channel}?interface=virtual&accelerometers=0&rate={RATE}", drives,
+                        SteppedClock(lockstep.settle))
     finally:
         for drive in drives:
             drive.node.nmt.stop_heartbeat()
         network.disconnect()
 
 
-def master(url: str, rig: str | None, tmp_path: Path) -> CanopenTable:
+def master(bus: DrivesBus, rig: str | None, tmp_path: Path) -> CanopenTable:
     table = None
     if rig is not None:
         path = tmp_path / "rig.toml"
         path.write_text(rig)
         table = TableModel.from_toml(path)
-    controller = CanopenTable(url, detector=False, table=table, consumer_time=ALLOWANCE_S)
+    controller = CanopenTable(bus.url, detector=False, table=table, consumer_time=ALLOWANCE_S, clock=bus.clock)
     controller.link_timeout = ALLOWANCE_S
     return controller
 
@@ -351,34 +401,62 @@ def test_each_vendors_drive_arms_tilts_homes_and_disarms(model: DriveModel, rig:
     commanded tilt within 0.1 mm of every leg, in each drive's own units (the positions the drives hold, converted
     here by the model's own scale, not the master's)."""
     per_metre = {EPOS4_LIKE.name: 2_048_000, EVEREST_LIKE.name: 40_960_000, GENERIC.name: 1_000_000}[model.name]
-    with drives_on_bus([model] * 6, per_metre) as (url, drives), master(url, rig, tmp_path) as table:
+    with drives_on_bus([model] * 6, per_metre) as bus, master(bus, rig, tmp_path) as table:
         table.arm()
         table.set_tilt(math.radians(1.0))
         pose = np.zeros(6)
         pose[4] = math.radians(1.0)
         lengths = table.table.leg_lengths(pose)
-        held = np.array([drive.position for drive in drives]) / per_metre + LEG_MIN
+        held = np.array([drive.position for drive in bus.drives]) / per_metre + LEG_MIN
         assert np.abs(held - lengths).max() < 1e-4, (held - lengths)
         table.home()
         table.disarm()
         status = table.status()
         assert status.state == "idle" and status.faults == ()
-        assert table.link_stats()["emcy"] == {}
-    written = {index for drive in drives for index, _ in drive.writes}
+        stats = table.link_stats()
+        assert stats["emcy"] == {}
+        assert stats["late_cycles"] == 0 and stats["lateness_max_s"] == 0  # on the stepped clock, in lockstep
+    written = {index for drive in bus.drives for index, _ in drive.writes}
     assert 0x2010 not in written  # a vendor object of another meaning: never touched
     if any(index == 0x60C2 for index, *_ in model.arrays):
-        assert all(drive._value(0x60C2, 1) == 100 and drive._value(0x60C2, 2) == -4 for drive in drives)  # 10 ms
+        assert all(drive._value(0x60C2, 1) == 100 and drive._value(0x60C2, 2) == -4 for drive in bus.drives)  # 10 ms
     if model is EVEREST_LIKE:
-        assert all(drive.toggle is not None and drive._value(0x100C) == 50 for drive in drives)  # node-guarded
+        assert all(drive.toggle is not None and drive._value(0x100C) == 50 for drive in bus.drives)  # node-guarded
+
+
+def test_legs_of_polarity_minus_one_go_where_they_are_commanded(tmp_path: Path) -> None:
+    """``polarity = -1`` for the table, +1 for leg 4 (``[drives.leg.4]``): each drive's position shrinks as its leg
+    extends but leg 4's; the master reads their home positions as home, tilts 1° with every leg at its length
+    within 0.1 mm (read back with each leg's own sign), sets software limits (−stroke, 0) on the reversed legs and
+    (0, stroke) on leg 4, and homes and disarms without a fault."""
+    per_metre = 40_960_000
+    polarities = (-1, -1, -1, 1, -1, -1)
+    rig = EVEREST_TOML + "polarity = -1\n\n[drives.leg.4]\npolarity = 1\n"
+    with drives_on_bus([EVEREST_LIKE] * 6, per_metre, polarities) as bus, master(bus, rig, tmp_path) as table:
+        table.arm()
+        assert np.abs(table.status().pose).max() < 1e-6  # the reversed positions read as home
+        table.set_tilt(math.radians(1.0))
+        pose = np.zeros(6)
+        pose[4] = math.radians(1.0)
+        lengths = table.table.leg_lengths(pose)
+        held = np.array([p * drive.position for p, drive in zip(polarities, bus.drives, strict=True)]) / per_metre
+        assert np.abs(held + LEG_MIN - lengths).max() < 1e-4, held + LEG_MIN - lengths
+        assert all(np.sign(drive.position) == p for p, drive in zip(polarities, bus.drives, strict=True))
+        stroke = round((LEG_MAX - LEG_MIN) * per_metre)
+        limits = [(drive._value(0x607D, 1), drive._value(0x607D, 2)) for drive in bus.drives]
+        assert limits == [(0, stroke) if p > 0 else (-stroke, 0) for p in polarities], limits
+        table.home()
+        table.disarm()
+        assert table.status().state == "idle" and table.status().faults == ()
 
 
 def test_the_no_csp_drive_is_refused_in_one_line(tmp_path: Path) -> None:
-    with drives_on_bus([NO_CSP] * 6) as (url, drives), pytest.raises(DriveSetupError) as refused:
-        master(url, None, tmp_path).connect()
+    with drives_on_bus([NO_CSP] * 6) as bus, pytest.raises(DriveSetupError) as refused:
+        master(bus, None, tmp_path).connect()
     message = str(refused.value)
     assert "\n" not in message and "leg 1 (node 1" in message and "no cyclic synchronous position mode" in message
     assert "0x6502 = 0x00000065 (PP, PV, HM, IP)" in message and "did not answer" not in message
-    assert all(drive.writes == [] for drive in drives)
+    assert all(drive.writes == [] for drive in bus.drives)
 
 
 @pytest.mark.parametrize(("rig", "expected"), [
@@ -391,39 +469,39 @@ def test_the_no_csp_drive_is_refused_in_one_line(tmp_path: Path) -> None:
 ], ids=["unknown-scale", "gear-disagrees", "unit-disagrees"])
 def test_a_drive_whose_unit_is_unknown_or_disagrees_is_refused_before_enabling(rig: str | None, expected: str,
                                                                              tmp_path: Path) -> None:
-    with drives_on_bus([EVEREST_LIKE] * 6) as (url, drives), pytest.raises(DriveSetupError) as refused:
-        master(url, rig, tmp_path).connect()
+    with drives_on_bus([EVEREST_LIKE] * 6) as bus, pytest.raises(DriveSetupError) as refused:
+        master(bus, rig, tmp_path).connect()
     assert expected in str(refused.value) and "refused before enabling it" in str(refused.value)
-    assert all(drive.writes == [] and drive.state == _SWITCH_ON_DISABLED for drive in drives)  # nothing written
+    assert all(drive.writes == [] and drive.state == _SWITCH_ON_DISABLED for drive in bus.drives)  # nothing written
 
 
 def test_a_drive_without_a_position_unit_needs_the_configuration_to_state_it(tmp_path: Path) -> None:
     no_unit = DriveModel("no 0x60A8", GENERIC.vendor_id, 2, GENERIC.modes, variables=_HEARTBEATS,
                          arrays=(_CONSUMER,))
-    with drives_on_bus([no_unit] * 6) as (url, _), pytest.raises(DriveSetupError, match="cannot establish its "
+    with drives_on_bus([no_unit] * 6) as bus, pytest.raises(DriveSetupError, match="cannot establish its "
                                                                  "position unit: the drive has no 0x60A8"):
-        master(url, None, tmp_path).connect()
-    with drives_on_bus([no_unit] * 6) as (url, _), master(url, '[drives]\nposition_unit = "um"\n', tmp_path) as table:
+        master(bus, None, tmp_path).connect()
+    with drives_on_bus([no_unit] * 6) as bus, master(bus, '[drives]\nposition_unit = "um"\n', tmp_path) as table:
         table.arm()
         table.disarm()
         assert table.status().faults == ()
 
 
 def test_counted_syncs_are_refused_on_drives_that_cannot_echo_the_counter(tmp_path: Path) -> None:
-    with drives_on_bus([GENERIC] * 6) as (url, drives), pytest.raises(DriveSetupError, match="cannot echo the SYNC "
+    with drives_on_bus([GENERIC] * 6) as bus, pytest.raises(DriveSetupError, match="cannot echo the SYNC "
                                                                                             "counter"):
-        CanopenTable(f"{url}&sync_counter=1", detector=False).connect()
-    assert all(drive.writes == [] for drive in drives)
+        CanopenTable(f"{bus.url}&sync_counter=1", detector=False).connect()
+    assert all(drive.writes == [] for drive in bus.drives)
 
 
 def test_an_object_the_drive_cannot_map_is_one_line_naming_node_object_and_abort(tmp_path: Path) -> None:
     """A drive whose position actual value cannot be mapped (a real drive aborts the mapping entry)."""
     stubborn = DriveModel("unmappable", GENERIC.vendor_id, 3, GENERIC.modes, GENERIC.variables, GENERIC.arrays)
-    with drives_on_bus([stubborn] * 6) as (url, drives):
-        for drive in drives:
+    with drives_on_bus([stubborn] * 6) as bus:
+        for drive in bus.drives:
             drive.node.object_dictionary[0x6064].pdo_mappable = False
         with pytest.raises(TableError) as refused:
-            master(url, None, tmp_path).connect()
+            master(bus, None, tmp_path).connect()
     message = str(refused.value)
     assert "\n" not in message and "leg 1 (node 1), 0x1A00 sub 2 (TPDO1 map: object 0x6064)" in message
     assert "SDO abort 0x06040041 (Object cannot be mapped to the PDO)" in message
@@ -434,10 +512,10 @@ def test_an_unreadable_eds_and_bad_drives_tables_name_file_line_and_field(tmp_pa
     broken.write_text("[1000]\nParameterName=Device type\n[1000]\nDataType=0x0007\n")
     (tmp_path / "rig.toml").write_text('[drives]\n\n[drives.leg.2]\neds = "broken.eds"\n')
     table = TableModel.from_toml(tmp_path / "rig.toml")
-    with drives_on_bus([GENERIC] * 6) as (url, drives), pytest.raises(DriveSetupError) as refused:
-        CanopenTable(url, detector=False, table=table).connect()
+    with drives_on_bus([GENERIC] * 6) as bus, pytest.raises(DriveSetupError) as refused:
+        CanopenTable(bus.url, detector=False, table=table).connect()
     assert f"{tmp_path}/rig.toml:3: drives.leg.2.eds: {broken}:3: not a readable EDS" in str(refused.value)
-    assert all(drive.writes == [] for drive in drives)
+    assert all(drive.writes == [] for drive in bus.drives)
     for text, expected in [
         ("[drives.leg.4]\nnode_id = 200\n", "rig.toml:2: drives.leg.4.node_id: expected a CANopen node id from 1 "
                                             "to 126, got 200"),
@@ -458,8 +536,8 @@ def test_an_unreadable_eds_and_bad_drives_tables_name_file_line_and_field(tmp_pa
 
 def test_silence_is_the_only_did_not_answer() -> None:
     """Drives that never answer SDO: a timeout naming the leg and node (the one case of "does not answer")."""
-    with drives_on_bus([]) as (url, _), pytest.raises(TableTimeoutError, match=r"leg 1 \(node 1\) does not answer"):
-        CanopenTable(url, detector=False, connect_timeout=0.3).connect()
+    with drives_on_bus([]) as bus, pytest.raises(TableTimeoutError, match=r"leg 1 \(node 1\) does not answer"):
+        CanopenTable(bus.url, detector=False, connect_timeout=0.3).connect()
 
 
 def test_rig_run_prints_the_refusal_in_one_line_and_exits_non_zero(tmp_path: Path) -> None:
@@ -467,8 +545,8 @@ def test_rig_run_prints_the_refusal_in_one_line_and_exits_non_zero(tmp_path: Pat
     (not "did not answer"), a non-zero exit, no traceback, no session written."""
     runner = CliRunner()
     sequence = Path(__file__).parents[2] / "examples" / "quick.toml"
-    with drives_on_bus([NO_CSP] * 6) as (url, _):
-        result = runner.invoke(app, ["run", str(sequence), "--table", url, "--yes", "-o", str(tmp_path / "s.h5")])
+    with drives_on_bus([NO_CSP] * 6) as bus:
+        result = runner.invoke(app, ["run", str(sequence), "--table", bus.url, "--yes", "-o", str(tmp_path / "s.h5")])
     lines = [line for line in result.output.splitlines() if line.strip()]
     assert (result.exit_code != 0 and result.exception is None) or isinstance(result.exception, SystemExit), result
     assert len(lines) == 1 and lines[0].startswith("error:"), result.output
@@ -476,19 +554,39 @@ def test_rig_run_prints_the_refusal_in_one_line_and_exits_non_zero(tmp_path: Pat
     assert "Traceback" not in result.output and not (tmp_path / "s.h5").exists()
 
 
+def test_rig_iterate_applies_the_rigs_drives_and_refuses_in_one_line(tmp_path: Path) -> None:
+    """``rig iterate --table canopen://…`` opens the table with the rig configuration's ``[drives]`` (here a gear
+    ratio the Everest-like drives contradict: refused before enabling, naming the leg, the node, the object and the
+    file) and a signing key that a CANopen master has no use for: one ``error:`` line, a non-zero exit, no
+    traceback, no session file and nothing written to a drive."""
+    (tmp_path / "rig.toml").write_text("[drives]\nencoder_increments = 4096\ngear_ratio = 20\nfeed_m = 0.002\n")
+    write_signing_key(tmp_path / "rig.key")
+    with drives_on_bus([EVEREST_LIKE] * 6) as bus:
+        result = CliRunner().invoke(app, ["iterate", "fema:KOBE/NIS000", "--angle", "4", "--window", "5,10",
+                                          "--table", bus.url, "--rig-config", str(tmp_path / "rig.toml"),
+                                          "--key-file", str(tmp_path / "rig.key"), "-o", str(tmp_path / "s.h5")])
+    lines = [line for line in result.output.splitlines() if line.strip()]
+    assert result.exit_code not in (0, None) and not isinstance(result.exception, TypeError), repr(result.exception)
+    assert len(lines) == 1 and lines[0].startswith("error:"), result.output
+    assert f"leg 1 (node 1) ({tmp_path}/rig.toml:1: drives)" in lines[0], lines[0]
+    assert "(0x6091 = 50/1), the configuration expects 20; refused before enabling it" in lines[0], lines[0]
+    assert "Traceback" not in result.output and not (tmp_path / "s.h5").exists()
+    assert all(drive.writes == [] for drive in bus.drives)
+
+
 def test_rig_table_check_reports_each_drive_and_exits_3_when_one_cannot_be_driven(tmp_path: Path) -> None:
     """``rig table check``: per node its identity, modes, unit and what it misses, nothing written; exit 0 for drives
     that can be driven, 3 for drives in increments without a scale in the rig configuration."""
     runner = CliRunner()
-    with drives_on_bus([GENERIC] * 6) as (url, drives):
-        good = runner.invoke(app, ["table", "check", url, "--json"])
+    with drives_on_bus([GENERIC] * 6) as bus:
+        good = runner.invoke(app, ["table", "check", bus.url, "--json"])
     assert good.exit_code == 0, good.output
     report = json.loads(good.output)
     assert report["drivable"] and len(report["drives"]) == 6
     first = report["drives"][0]
     assert first["vendor_id"] == GENERIC.vendor_id and first["modes"] == ["CSP"] and first["position_unit"] == "µm"
     assert "0x607F" in first["optional_missing"] and "0x1016" in first["optional_used"]
-    assert all(drive.writes == [] for drive in drives)
-    with drives_on_bus([EVEREST_LIKE] * 6) as (url, _):
-        bad = runner.invoke(app, ["table", "check", url])
+    assert all(drive.writes == [] for drive in bus.drives)
+    with drives_on_bus([EVEREST_LIKE] * 6) as bus:
+        bad = runner.invoke(app, ["table", "check", bus.url])
     assert bad.exit_code == 3 and "gives no scale" in bad.output and "cannot be driven" in bad.output
