@@ -20,6 +20,10 @@ Prints one JSON object:
   the writer saturated by the same process meanwhile, against the same drive streamed without it (same run):
   the emulator's setpoint underruns, the setpoint sender's lateness, and the logging rate achieved meanwhile.
 
+* ``checksum_cost_per_flush``: the writer's mean time per flush [ms] with the run's checksum table
+  (`rig.session.checksums`: a CRC-32 per block, appended in the next flush) and without it, the same rows paced at
+  the 1,000,000 samples/s target (same run), and the part of it spent on the checksums.
+
 Usage: ``python benchmarks/session_logging.py [--seconds 5] [--channels 8] [--stream-seconds 20] [--dir DIR]``.
 `measure_writer` is importable for benchmarks that stream to the emulator at the same time.
 """
@@ -39,7 +43,9 @@ import h5py
 import numpy as np
 
 from protocols.signing_key import write_signing_key
-from rig.session import SessionLog
+from rig.session import SessionLog, layout, schema
+from rig.session.hdf5props import LIBVER
+from rig.session.writer import BlockWriter
 
 TARGET = 1_000_000.0  # [samples/s] the issue's target
 RATE = 1000.0  # [Hz] real-time rate of each accelerometer and of the commanded stream
@@ -144,12 +150,55 @@ def measure_writer(seconds: float, channels: int = 8, *, rate: float | None = No
         "max_flush_s": stats.max_flush_s,
         "max_flush_gap_s": stats.max_flush_gap_s,
         "flushes": stats.flushes,
+        "checksum_s": stats.checksum_s,
         "writer_busy_fraction": stats.busy_s / (done - start),
         "begin_run_s": begin_s,
         "end_s": done - t_end,
         "file_mb": size / 1e6,
         "pacing_probe_late_ms": pacing_late,
     }
+
+
+def measure_flush_cost(seconds: float, channels: int = 8, *, checksummed: bool, rate: float = TARGET,
+                       block: int = 1000, directory: str | None = None) -> dict:
+    """One run's `BlockWriter` (SWMR, flushing every 0.25 s) fed ``block`` rows per stream per round, paced to
+    ``rate`` samples/s in total for ``seconds``, with the run's checksum table or without it (``checksummed``).
+    Returns the mean and largest time per flush [ms], the mean time per flush spent on checksums [ms] and the
+    rows per flush."""
+    sensors = [f"acc{i}" for i in range(channels)]
+    body = np.array([(1, 0.1, 0.5, 0.1, 4.0, 0.0, 0.0, b"", np.nan, np.nan)], dtype=schema.BODY)
+    with tempfile.TemporaryDirectory(dir=directory, prefix="sess_bench_") as tmp:
+        path = Path(tmp) / "flush.h5"
+        with h5py.File(path, "w", libver=LIBVER) as h5:
+            layout.create_root(h5, software_version="benchmark", created=schema.iso_now(), rig_config="{}",
+                               sequence="{}")
+            layout.create_run(h5["runs"], "0001", plan_index=0, attempt=1, record="benchmark", scale_factor=1.0,
+                              angle_deg=0.0, started=schema.iso_now(), commanded=np.zeros((0, 7)), bodies=body,
+                              sensors=sensors, attrs={})
+        h5 = h5py.File(path, "r+", libver=LIBVER, locking=False)
+        h5.swmr_mode = True
+        group = h5["runs/0001"]
+        datasets = {"commanded": group["commanded"], **{f"accel/{s}": group["accel"][s] for s in sensors}}
+        writer = BlockWriter(h5, datasets, 0.25, group["checksums"] if checksummed else None)
+        rng = np.random.default_rng(1)
+        xyz, pose = rng.normal(size=(block, 4)), rng.normal(size=(block, 7))
+        writer.start()
+        start = time.perf_counter()
+        pushed = k = 0
+        while (now := time.perf_counter()) < start + seconds:
+            time.sleep(max(0.0, start + pushed / rate - now))
+            for sensor in sensors:
+                writer.put(f"accel/{sensor}", xyz)
+            writer.put("commanded", pose)
+            pushed += block * (channels + 1)
+            k += block
+        stats = writer.stop()
+        h5.close()
+    return {"checksummed": checksummed, "flushes": stats.flushes,
+            "mean_flush_ms": round(stats.busy_s / stats.flushes * 1e3, 3),
+            "max_flush_ms": round(stats.max_flush_s * 1e3, 3),
+            "checksum_ms_per_flush": round(stats.checksum_s / stats.flushes * 1e3, 4),
+            "rows_per_flush": round(sum(stats.rows.values()) / stats.flushes)}
 
 
 def measure_pacing_alone(seconds: float) -> dict:
@@ -234,6 +283,8 @@ def main() -> None:
     realtime = measure_writer(args.seconds, args.channels, rate=required, block=10, directory=args.dir, probe=True)
     pacing_alone = measure_pacing_alone(min(args.seconds, 3.0))
     raw = measure_raw_h5py(min(args.seconds, 3.0), args.channels, directory=args.dir)
+    flush_cost = [measure_flush_cost(args.seconds, args.channels, checksummed=checked, directory=args.dir)
+                  for checked in (False, True, False, True)]  # interleaved: drift of a shared machine hits both
     rate = full["samples_per_s"]
     print(json.dumps({
         "figure": "session writer sustained logging rate",
@@ -264,6 +315,13 @@ def main() -> None:
             "underruns_caused_by_logging": streaming_logged["underruns"] - streaming_alone["underruns"],
             "note": "1 kHz drive over MAVLink to the emulator (own process, loopback); the writer saturated by "
                     "the streaming process meanwhile, same run",
+        },
+        "checksum_cost_per_flush": {
+            "without_checksums": [m for m in flush_cost if not m["checksummed"]],
+            "with_checksums": [m for m in flush_cost if m["checksummed"]],
+            "note": "one run's writer flushing every 0.25 s, rows paced at the 1,000,000 samples/s target; each "
+                    "mode twice, interleaved, same run; checksum_ms_per_flush: CRC-32 of the blocks and the "
+                    "checksum table's append",
         },
         "pacing_1khz_thread_late_ms": {
             "with_writer_at_realtime_rate": realtime["pacing_probe_late_ms"],

@@ -26,7 +26,7 @@ from analysis import AnalysisInputError, Body, simulate
 from analysis.agreement import MARGIN
 from analysis.simulate import resolve_restitution
 from rig.sequence import record_of_label
-from rig.session import read_session
+from rig.session import checksums, read_session
 
 from . import fig13, store
 from .fig13 import rule_label
@@ -82,6 +82,7 @@ def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor:
     angle_deg = float(run["angle_deg"])
     beta = math.radians(angle_deg)
     inp = measured_inputs(run["accel"], beta, sensor)
+    inp = replace(inp, notes=(*inp.notes, *checksums.notes(run.get("checksums"))))
     observed = observed_directions(run["detections"])
     predictions: list[Prediction] = []
     skipped: list[tuple[int, str]] = []

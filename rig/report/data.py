@@ -17,7 +17,7 @@ import numpy as np
 
 from rig.analyze.store import read_results, run_predictions
 from rig.session import SCHEMA as SESSION_SCHEMA
-from rig.session import check, read_session
+from rig.session import check, checksums, read_session
 from rig.session.reader import iter_runs as session_runs
 from rig.session.reader import plain
 from rig.session.superblock import SIGNATURE
@@ -90,6 +90,9 @@ class RunData:
     events: list[dict[str, Any]] = field(default_factory=list)
     predictions: list[dict[str, Any]] | None = None
     """``analysis/predictions`` rows, None when the run was not analysed."""
+    checksum_notes: list[str] = field(default_factory=list)
+    """What was not verified of the run's samples (`rig.session.checksums.notes`: a run written before checksums,
+    rows after the last checksummed block); empty when all were."""
 
 
 @dataclass
@@ -125,7 +128,7 @@ def _run(run: dict[str, Any]) -> RunData:
         angle_deg=float(run.get("angle_deg") or 0.0), status=str(run.get("status") or ""), attrs=run["attrs"],
         commanded=run["commanded"], accel=run["accel"], pose=run.get("pose", np.zeros((0, 7))),
         **{key: run[key] for key in ("bodies", "detections", "faults", "events")},
-        predictions=run_predictions(run),
+        predictions=run_predictions(run), checksum_notes=checksums.notes(run.get("checksums")),
     )
 
 

@@ -155,6 +155,7 @@ def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure |
         facts.append(f"underruns {esc(attrs['underruns'])}")
     if attrs.get("reason"):
         facts.append(f'<span class="warn">{esc(attrs["reason"])}</span>')
+    facts.extend(f'<span class="warn">{esc(note)}</span>' for note in run.checksum_notes)
     facts.append(f"{run.commanded.shape[0]} commanded samples, {t_meas.size} measured "
                  f"({esc(', '.join(sensors)) or 'no sensor'})")
     parts = [f'<section class="run" id="run-{esc(run.name)}"><h3>{title}</h3>',

@@ -14,7 +14,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import schema
+from . import checksums, schema
 from .hdf5props import EST_RUN_LINKS, EST_RUNS, create_group
 
 #: HDF5 fixed-length string attributes hold at least one byte.
@@ -77,7 +77,8 @@ def _table(parent: h5py.Group, name: str, dtype: np.dtype, rows: np.ndarray | No
 def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, record: str, scale_factor: float,
                angle_deg: float, started: str, commanded: np.ndarray, bodies: np.ndarray, sensors: Sequence[str],
                attrs: Mapping[str, Any]) -> None:
-    """The run group ``runs/name`` with its attributes (status ``"running"``) and all its datasets."""
+    """The run group ``runs/name`` with its attributes (status ``"running"``), all its datasets and its checksum
+    table (`rig.session.checksums`) holding the checksums of the rows it is created with."""
     group = create_group(runs, name, links=EST_RUN_LINKS, name_len=16)
     group.attrs["record"] = record
     group.attrs["scale_factor"] = np.float64(scale_factor)
@@ -103,6 +104,8 @@ def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, re
     _table(group, "faults", schema.FAULT)
     _table(group, "events", schema.EVENT)
     _table(group, "bodies", schema.BODY, bodies)
+    checksums.create_table(group, {"commanded": np.asarray(commanded, dtype="<f8"),
+                                   "bodies": np.asarray(bodies, dtype=schema.BODY)})
 
 
 def finish_run(group: h5py.Group, *, status: str, ended: str, attrs: Mapping[str, Any]) -> None:

@@ -29,7 +29,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import check, failpoints, layout, schema
+from . import check, checksums, failpoints, layout, schema
 from .atomic import SessionFile, fsync_dir, remove_stale_temporaries
 from .errors import SessionError, SessionExistsError
 from .hdf5props import LIBVER, PAGE, file_access
@@ -306,7 +306,7 @@ class SessionLog:
                             "detections": group["detections"], "faults": group["faults"]}
                 datasets.update({f"accel/{sensor}": group["accel"][sensor] for sensor in sensors})
                 datasets.update({f"tilt/{name}": group["tilt"][name] for name in group["tilt"]})
-                writer = BlockWriter(h5, datasets, self._flush_interval)
+                writer = BlockWriter(h5, datasets, self._flush_interval, group[checksums.TABLE])
             except BaseException:
                 h5.close()
                 raise

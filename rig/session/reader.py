@@ -26,7 +26,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from . import check, schema, superblock
+from . import check, checksums, schema, superblock
 from .errors import DamagedFileError, SessionError
 from .locks import writer_holds
 
@@ -90,11 +90,15 @@ def child(group: h5py.Group, name: str) -> Any:
     return group[name] if name in group else None  # noqa: SIM401 (h5py.Group.get hides a damaged object)
 
 
-def records(ds: h5py.Dataset) -> list[dict[str, Any]]:
-    """A compound dataset's rows as dicts of plain values (bytes → str)."""
-    data = ds[()]
+def _rows(data: np.ndarray) -> list[dict[str, Any]]:
+    """Compound rows as dicts of plain values (bytes → str)."""
     names = data.dtype.names or ()
     return [{name: plain(row[name]) for name in names} for row in np.atleast_1d(data)]
+
+
+def records(ds: h5py.Dataset) -> list[dict[str, Any]]:
+    """A compound dataset's rows as dicts of plain values (bytes → str)."""
+    return _rows(ds[()])
 
 
 def attributes(obj: h5py.HLObject) -> dict[str, Any]:
@@ -115,8 +119,24 @@ def _tree(group: h5py.Group) -> dict[str, Any]:
     return out
 
 
-def read_run(group: h5py.Group, name: str, data: bool = True) -> dict[str, Any]:
-    """One run group as `read_session` gives its runs (with or without ``data``)."""
+def _raw_datasets(group: h5py.Group) -> dict[str, np.ndarray]:
+    """The run's sample datasets as stored, by name inside the run (``accel/plate``, ``tilt/1``, ``events``…)."""
+    raw: dict[str, np.ndarray] = {}
+    for key in ("commanded", "pose", "detections", "bodies", "faults", "events"):
+        if key in group:
+            raw[key] = group[key][()]
+    for sub in ("accel", "tilt"):
+        if sub in group:
+            raw.update({f"{sub}/{name}": ds[()] for name, ds in group[sub].items()})
+    return raw
+
+
+def read_run(group: h5py.Group, name: str, data: bool = True, *, path: str | os.PathLike[str] = "") -> dict[str, Any]:
+    """One run group as `read_session` gives its runs (with or without ``data``). With ``data``, the samples are
+    checked against the run's checksums (`rig.session.checksums`: `DamagedFileError` naming the file ``path``, the
+    run, the dataset and the rows) and ``checksums`` says what was found: ``state`` ``"verified"`` or ``"not
+    checksummed"`` (a run written before checksums), ``unverified`` {dataset: [first, end)} rows after the last
+    checksummed block (a killed writer's last flush, or a run being recorded)."""
     attrs = attributes(group)
     run: dict[str, Any] = {"name": name}
     for key in ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt"):
@@ -130,12 +150,16 @@ def read_run(group: h5py.Group, name: str, data: bool = True) -> dict[str, Any]:
         accel = child(group, "accel") or {}
         run["samples"] = {f"accel/{s}": accel[s].shape[0] for s in accel}
         return run
+    blocks = checksums.read_table(group)  # before the datasets (`checksums.read_table`)
+    raw = _raw_datasets(group)
+    found = checksums.verify(Path(path), name, blocks, raw, recording=run["status"] == schema.RUNNING)
+    run["checksums"] = {"state": found.state, "unverified": {key: list(span) for key, span in found.unverified.items()}}
     for key in ("commanded", "pose"):
-        run[key] = group[key][()] if key in group else np.zeros((0, 7))
-    run["accel"] = {sensor: ds[()] for sensor, ds in group["accel"].items()} if "accel" in group else {}
-    run["tilt"] = {int(body): ds[()] for body, ds in group["tilt"].items()} if "tilt" in group else {}
+        run[key] = raw.get(key, np.zeros((0, 7)))
+    run["accel"] = {key.split("/", 1)[1]: rows for key, rows in raw.items() if key.startswith("accel/")}
+    run["tilt"] = {int(key.split("/", 1)[1]): rows for key, rows in raw.items() if key.startswith("tilt/")}
     for key in ("detections", "bodies", "faults", "events"):
-        run[key] = records(group[key]) if key in group else []
+        run[key] = _rows(raw[key]) if key in raw else []
     if "analysis" in group:
         run["analysis"] = _tree(group["analysis"])
     return run
@@ -153,7 +177,7 @@ def _read(path: Path, data: bool) -> dict[str, Any]:
             out[key] = json.loads(attrs[key]) if isinstance(attrs.get(key), str) else None
         out["attrs"] = attrs
         runs = child(h5, "runs")
-        out["runs"] = [read_run(runs[name], name, data) for name in sorted(runs)] if runs is not None else []
+        out["runs"] = [read_run(runs[name], name, data, path=path) for name in sorted(runs)] if runs is not None else []
         return out
 
 
@@ -197,7 +221,7 @@ def iter_runs(path: str | os.PathLike[str]) -> Iterator[dict[str, Any]]:
             raise check.hdf5_error(path, exc, "/runs") from None
         for name in names:
             try:
-                run = read_run(runs[name], name)
+                run = read_run(runs[name], name, path=path)
             except _RETRYABLE as exc:
                 raise check.hdf5_error(path, exc, f"/runs/{name}") from None
             yield run

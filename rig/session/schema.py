@@ -34,7 +34,9 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
 * ``bodies``: compound `BODY`: body_id, b, h, depth [m], mass [kg], x, y [m, plate frame], name, b_cg, h_cg [m]:
   the centre of gravity from the base's −x corner and above the base (``analysis.Body``), NaN where the sequence
   did not give it (the middle; files written before have neither field);
-* ``faults``: compound `FAULT`: t [s], name, detail; ``events``: compound `EVENT`: t [s], text.
+* ``faults``: compound `FAULT`: t [s], name, detail; ``events``: compound `EVENT`: t [s], text;
+* ``checksums``: compound `rig.session.checksums.CHECKSUM`: dataset, first_row, rows, crc32: the CRC-32 of each
+  block of rows written to the datasets above (absent in files written before checksums: "not checksummed").
 
 Text fields of the compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field size
 (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.

@@ -110,6 +110,11 @@ def _check_after_kill(path: Path, progress: Path, kill_time: float, ended: set[s
     assert len(running) <= 1 and (not running or running[0] == len(statuses) - 1), statuses
     assert set(statuses) <= {"running", "completed", "interrupted"}, statuses
     for run in session["runs"]:
+        # read_session verified every checksummed block (a flip would raise DamagedFileError); only the cut run
+        # may hold rows after its last checksummed block
+        assert run["checksums"]["state"] == "verified", run["checksums"]
+        if run["status"] != "running" and run["name"] in ended:
+            assert run["checksums"]["unverified"] == {}, (run["name"], run["checksums"])
         if run["name"] in ended:
             assert run["status"] == "completed", (run["name"], run["status"])
         if run["status"] != "running":
