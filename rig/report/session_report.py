@@ -303,7 +303,8 @@ def _sequence_section(header: SessionData, body_rows: list[dict[str, Any]]) -> s
         ("operator", f"confirm before each run: {operator.get('confirm_before_run', '–')}, "
                      f"ask detections: {operator.get('ask_detections', '–')}"),
     ]))
-    recs = seq.get("records", []) or []
+    # a record is a table of the sequence file's keys, or (the file's short form) just its name
+    recs = [r if isinstance(r, dict) else {"record": r} for r in seq.get("records", []) or []]
     if recs:
         parts.append(table(["#", "record", "scale", "window [s]", "corner [Hz]"], [
             [i + 1, r.get("record"), r.get("scale"), "–" if not r.get("window_s") else
