@@ -59,7 +59,7 @@ DETECTION_SOURCES = ("sensor", "operator")
 
 #: Attributes every run group has (extra caller attributes may not reuse these names).
 RUN_ATTRS = ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt",
-             "sensors")
+             "sensors", "attribute_units", "clipped")
 
 ACCEL_COLUMNS = ("t", "ax", "ay", "az")
 ACCEL_UNITS = ("s", "m/s^2", "m/s^2", "m/s^2")
@@ -86,6 +86,17 @@ BODY = np.dtype([("body_id", "<i4"), ("b", "<f8"), ("h", "<f8"), ("depth", "<f8"
                  ("x", "<f8"), ("y", "<f8"), ("name", _text(NAME_LEN)), ("b_cg", "<f8"), ("h_cg", "<f8")])
 FAULT = np.dtype([("t", "<f8"), ("name", _text(NAME_LEN)), ("detail", _text(TEXT_LEN))])
 EVENT = np.dtype([("t", "<f8"), ("text", _text(TEXT_LEN))])
+
+NOT_A_QUANTITY = "-"
+"""The unit of a field that is no quantity (text, an identifier); ``"1"`` is a dimensionless number."""
+#: Units of the compound datasets' fields, in field order (attribute ``units``, as the arrays').
+DETECTION_UNITS = ("s", NOT_A_QUANTITY, "1", NOT_A_QUANTITY)
+BODY_UNITS = (NOT_A_QUANTITY, "m", "m", "m", "kg", "m", "m", NOT_A_QUANTITY, "m", "m")
+FAULT_UNITS = ("s", NOT_A_QUANTITY, NOT_A_QUANTITY)
+EVENT_UNITS = ("s", NOT_A_QUANTITY)
+#: Units of the numeric run attributes a run may have (run attribute ``attribute_units``, JSON).
+RUN_ATTR_UNITS = {"scale_factor": "1", "angle_deg": "deg", "rate": "Hz", "corner_frequency": "Hz",
+                  "record_start": "s", "plan_index": "1", "attempt": "1", "repetition": "1"}
 
 
 def fixed_text(text: str, size: int) -> bytes:
