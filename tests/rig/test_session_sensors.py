@@ -104,14 +104,18 @@ def test_the_record_describes_itself(tmp_path: Path) -> None:
                 assert tuple(columns) == fields, name
 
 
-def test_pyfive_reads_the_session_file(tmp_path: Path) -> None:
-    pyfive = pytest.importorskip("pyfive")
-    path = _session(tmp_path, spike=2.0 * G)
+def test_pyfive_reads_the_session_files_description(tmp_path: Path) -> None:
+    """pyfive (pure Python, no HDF5) reads the root: schema, software version, the rig configuration with the
+    sensor sheets. The run groups it cannot read (docs/orchestrator.md, *Readers*; measured by
+    benchmarks/session_attribute_storage.py): their headers store attribute phase-change values, and the
+    SWMR datasets use data layout message version 4, neither of which pyfive 1.3 reads."""
+    import pyfive
+
+    path = _session(tmp_path, spike=0.0)
     with pyfive.File(str(path)) as f:
-        run = f["runs"]["0001"]
-        assert run.attrs["record"] == "test:rest"
-        assert np.asarray(run["accel"]["0"][:]).shape == (800, 4)
-        assert run["bodies"].attrs["units"] == "-,m,m,m,kg,m,m,-,m,m"
+        attrs = {key: value.decode() if isinstance(value, bytes) else value for key, value in f.attrs.items()}
+    assert attrs["schema"] == "shaketable-rig/session/1" and attrs["software_version"] == "9.9.9"
+    assert json.loads(attrs["rig_config"])["sensors"]["0"]["place_m"] == [0.30, -0.20, 0.05]
 
 
 def _sequence(tmp_path: Path, extra: str) -> Path:
