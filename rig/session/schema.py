@@ -9,7 +9,9 @@ Root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), 
 Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (float, degrees), ``plan_index``
 (int, index into the sequence's plan), ``attempt`` (int, 1 for the first run of that plan index),
 ``started`` and ``ended`` (ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``,
-``sensors`` (JSON list of the accelerometer names), plus any extra attributes given by the caller.
+``sensors`` (JSON list of the accelerometer names), ``attribute_units`` (JSON: the units of the numeric run
+attributes present, `RUN_ATTR_UNITS`: ``rate`` in Hz, …), at the end ``clipped`` (JSON {sensor: samples at or
+beyond its full scale}, for the sensors with a calibration sheet), plus any extra attributes given by the caller.
 
 ``status`` is one of `FINAL_STATUSES`, or the transient value ``"running"`` while the run is being
 recorded. ``degraded``: the drive played to its end, but something went wrong while the table moved (an underrun,
@@ -35,6 +37,12 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
   the centre of gravity from the base's −x corner and above the base (``analysis.Body``), NaN where the sequence
   did not give it (the middle; files written before have neither field);
 * ``faults``: compound `FAULT`: t [s], name, detail; ``events``: compound `EVENT`: t [s], text.
+
+Every dataset has attributes ``columns`` and ``units``: one entry per column (arrays) or field (compound datasets), in
+order, comma-separated; ``1`` is dimensionless, ``-`` (`NOT_A_QUANTITY`) text or an identifier. An
+``accel/<sensor>`` whose sensor has a calibration sheet (``analysis.table.sensors``) also has ``place_m`` (x, y, z
+[m], plate frame), ``axes`` (e.g. ``"+x,-y,+z"``), ``range_m_s2``, ``sensitivity``, ``sensitivity_unit``,
+``model``, ``serial``, ``calibrated`` and ``due`` (ISO dates).
 
 Text fields of the compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field size
 (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
