@@ -5,6 +5,7 @@ every field, an overdue sensor warned of (or refused) at start, and the file rea
 from __future__ import annotations
 
 import json
+import re
 import warnings
 from datetime import date
 from pathlib import Path
@@ -18,6 +19,9 @@ from analysis.table.configuration import configuration_dict, read_configuration
 from analysis.table.model import TableModel
 from rig.analyze import analyze_session
 from rig.orchestrator.setup import check_sensors
+from rig.report.data import read_header
+from rig.report.sensors import sensors_table
+from rig.report.session_report import session_body
 from rig.sequence import SequenceError, load_sequence
 from rig.session import SessionLog
 
@@ -150,3 +154,14 @@ def test_the_sheet_survives_the_session_file(tmp_path: Path) -> None:
     original = read_configuration(_rig(tmp_path))
     assert TableModel.from_dict(stored).sensors == original.sensors
     assert configuration_dict(original)["sensors"] == stored["sensors"]
+
+
+def test_the_report_prints_the_sheets_and_the_clipped_samples(tmp_path: Path) -> None:
+    path = _session(tmp_path, spike=-2.5 * G)
+    html = sensors_table(read_header(path).rig_config, read_header(path).runs)
+    row = re.search(r"<tr>.*?LW231455.*?</tr>", html, re.S)
+    assert row is not None, html
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(0), re.S)
+    assert cells == ["0", "PCB 356A16", "LW231455", "100 mV/g", f"±{2 * G:.4g} (±2 g)", "2026-01-15", "2027-01-15",
+                     "0.3, -0.2, 0.05", "+x, -y, +z", "1"]
+    assert "LW231455" in session_body(str(path))[1]
