@@ -50,6 +50,8 @@ its key; a value outside it is refused with the range (``FILE:LINE: key: must be
     watchdog_s = 1.0                   # no host heartbeat (or chunk while streaming) this long: controlled stop
     link_timeout_s = 0.5               # no status this long: the host declares the link lost
 
+    [sensors.0]                        # each accelerometer's calibration sheet (analysis/table/sensors.py)
+
 Only a regular file of at most 1 MiB is read (a FIFO, a device or a symlink to one is refused unread).
 Errors in a file raise `analysis.table.limits.TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
 :func:`configuration_dict` writes the same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit
@@ -82,6 +84,7 @@ from analysis.table.limits import (
 )
 from analysis.table.link import RANGES as LINK_KEYS
 from analysis.table.link import LinkSettings
+from analysis.table.sensors import SensorSheets, read_sensors
 from analysis.table.toml_check import TomlChecker, TomlFileError, read_toml, shown
 from analysis.table.toml_lines import KeyPath
 
@@ -96,6 +99,7 @@ class TableConfiguration(NamedTuple):
     dynamics: TableDynamics
     link: LinkSettings
     drives: DriveSettings
+    sensors: SensorSheets
 
 
 def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
@@ -119,6 +123,8 @@ def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
         out["controller"] = configuration.link.to_dict()
     if configuration.drives != DriveSettings():
         out["drives"] = configuration.drives.to_dict()
+    if configuration.sensors != SensorSheets():
+        out["sensors"] = configuration.sensors.to_dict()
     return out
 
 
@@ -224,7 +230,7 @@ class _Reader(TomlChecker):
         return TableModelError(f"{where}: {'.'.join(map(str, path))}: {problem}" if path else f"{where}: {problem}")
 
     def configuration(self, data: Mapping[str, Any]) -> TableConfiguration:
-        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives"))
+        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives", "sensors"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -241,7 +247,8 @@ class _Reader(TomlChecker):
                                   controller_rate=table["controller_rate"],
                                   dynamics=self.dynamics(top.get("dynamics", {})),
                                   link=self.link(top.get("controller", {})),
-                                  drives=read_drives(self, top.get("drives")))
+                                  drives=read_drives(self, top.get("drives")),
+                                  sensors=read_sensors(self, top.get("sensors")))
 
     def link(self, value: Any) -> LinkSettings:
         """The ``[controller]`` section (``analysis.table.link``); errors name its line and key."""

@@ -49,6 +49,7 @@ from analysis.table.limits import (
     positive,
 )
 from analysis.table.link import LinkSettings
+from analysis.table.sensors import SensorSheets
 
 __all__ = [
     "AXES",
@@ -81,6 +82,8 @@ class TableModel:
     """The host link's lead, buffer, watchdog and link timeout (``[controller]``, ``analysis.table.link``)."""
     drives: DriveSettings = field(default_factory=DriveSettings)
     """The leg drives' units, node ids, EDS files and options (``[drives]``, ``analysis.table.drives``)."""
+    sensors: SensorSheets = field(default_factory=SensorSheets)
+    """The accelerometers' calibration sheets (``[sensors]``, ``analysis.table.sensors``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):
@@ -177,7 +180,7 @@ class TableModel:
     def to_dict(self) -> dict[str, Any]:
         """The configuration as plain JSON types in the TOML file's layout, SI keys, explicit joints."""
         return configuration_dict(TableConfiguration(self.limits, self.geometry, self.controller_rate,
-                                                     self.dynamics, self.link, self.drives))
+                                                     self.dynamics, self.link, self.drives, self.sensors))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TableModel:

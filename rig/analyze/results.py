@@ -63,6 +63,9 @@ class RunAnalysis:
     predictions: list[Prediction]
     skipped_bodies: list[tuple[int, str]] = field(default_factory=list)
     """(body_id, reason) of bodies the models could not take (e.g. one that cannot stand at this angle)."""
+    clipped: dict[str, int] = field(default_factory=dict)
+    """Samples per accelerometer (those with a calibration sheet) at or beyond its full scale: the models were given
+    a cut signal there."""
 
     def to_json(self) -> dict[str, Any]:
         inp = self.input
@@ -74,6 +77,7 @@ class RunAnalysis:
                       "peak_acc_h_g": float(abs(inp.acc_h).max()), "peak_acc_v_g": float(abs(inp.acc_v).max())},
             "predictions": [p.to_json() for p in self.predictions],
             "skipped_bodies": [{"body_id": b, "reason": r} for b, r in self.skipped_bodies],
+            "clipped": dict(self.clipped),
         })
 
 

@@ -25,6 +25,8 @@ from typing import Any
 from analysis import AnalysisInputError, Body, simulate
 from analysis.agreement import MARGIN
 from analysis.simulate import resolve_restitution
+from analysis.table.configuration import configuration_from_dict
+from analysis.table.sensors import clipped_rows
 from rig.sequence import record_of_label
 from rig.session import checksums, read_session
 
@@ -116,6 +118,7 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
         {rule: rule_of[rule] for rule in IMPACT_RULES} if restitution == ALL_RULES
         else {"": rule_of["fit"] if restitution == "fit" else restitution})
     analysed = ANALYSED_STATUSES | ({"degraded"} if include_degraded else set())
+    ranges = full_scales(session.get("rig_config"), path)
     for run in session["runs"]:
         status = str(run["status"])
         if status not in analysed:
@@ -127,7 +130,9 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
             skipped.append(SkippedRun(run["name"], status, str(reason)))
             continue
         try:
-            runs.append(_analyze_rules(run, models, solver, sensor, rules))
+            done = _analyze_rules(run, models, solver, sensor, rules)
+            runs.append(replace(done, clipped={name: len(clipped_rows(run["accel"][name][:, 1:], ranges[name]))
+                                               for name in run["accel"] if name in ranges}))
         except TransformError as exc:
             skipped.append(SkippedRun(run["name"], status, str(exc)))
     labels = tuple(rule_label(m, rule) if rule else m for m in models for rule in rules)
@@ -143,6 +148,16 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
         runs=runs, skipped=skipped, margin=margin,
         fig13=rows, max_difference={m: diff.get(m) for m in labels},
         agreement={m: Agreement.of(m, predictions) for m in labels}, written=written)
+
+
+def full_scales(rig_config: Any, path: Path) -> dict[str, float]:
+    """{sensor: full scale [m/s²]} of the accelerometers with a calibration sheet in a session's stored rig
+    configuration (``[sensors]``, ``analysis.table.sensors``)."""
+    stored = rig_config.get("sensors") if isinstance(rig_config, Mapping) else None
+    if stored is None:
+        return {}
+    sheets = configuration_from_dict({"sensors": stored}, source=f"{path}: rig_config").sensors
+    return {name: sheet.range_m_s2 for name, sheet in sheets.sheets.items()}
 
 
 def _analyze_rules(run: dict[str, Any], models: Sequence[str], solver: str, sensor: str | None,

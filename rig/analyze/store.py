@@ -121,6 +121,7 @@ def _write_run(group: h5py.Group, analysis: SessionAnalysis, run: str, created: 
         "angle_deg": ra.angle_deg, "sensors": json.dumps(list(inp.sensors)), "dt": inp.dt, "t0": inp.t0,
         "duration": inp.duration, "resampled": inp.resampled, "gaps": inp.gaps, "notes": json.dumps(list(inp.notes)),
         "skipped_bodies": json.dumps([{"body_id": b, "reason": r} for b, r in ra.skipped_bodies]),
+        "clipped": json.dumps(ra.clipped),
     })
     group.create_dataset("predictions", data=prediction_rows(analysis, run))
 

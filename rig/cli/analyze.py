@@ -188,6 +188,10 @@ def print_analysis(result: SessionAnalysis, console: Any) -> None:
             console.print(f"  run {run.run}: body {body_id} not analysed: {reason}", highlight=False)
         for note in run.input.notes:
             console.print(f"  run {run.run}: {note}", highlight=False)
+        for sensor, samples in run.clipped.items():
+            if samples:
+                console.print(f"  run {run.run}: [bold]clipped[/]: accelerometer {sensor} at its full scale in "
+                              f"{samples} sample(s); the models were given a cut signal", highlight=False)
     console.print(predictions_table(result))
     from rig.analyze.session import ALL_RULES
 

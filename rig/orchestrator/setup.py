@@ -18,18 +18,19 @@ import tempfile
 import warnings
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
-from datetime import datetime
+from datetime import date, datetime
 from pathlib import Path
 from typing import Any
 
 import tomli_w
 
 from analysis.table.model import TableModel
+from analysis.table.sensors import overdue
 from protocols.signing_key import SigningKeyError, load_signing_key, write_signing_key
 from rig import __version__
 from rig.emulator import EmulatorProcess, specimen_flags, speed_flags
 from rig.orchestrator.bodies import check_bodies
-from rig.sequence import Sequence, load_sequence
+from rig.sequence import Sequence, SequenceError, load_sequence
 from rig.session import WRITING, SessionError, SessionLog, is_disk_full, read_session, writer_state
 
 EMULATOR_LISTEN = "mavlink://127.0.0.1:0"
@@ -95,10 +96,29 @@ def choose_table(sequence: Sequence, table: str | None, emulate: bool, speed: fl
 
 
 def load_checked(path: Path) -> Sequence:
-    """The sequence file read and checked against its table (SequenceError names file, line and field)."""
+    """The sequence file read and checked against its table (SequenceError names file, line and field), and its
+    rig's sensors' calibration dates (:func:`check_sensors`)."""
     sequence = load_sequence(path)
     sequence.check()
+    check_sensors(sequence)
     return sequence
+
+
+def check_sensors(sequence: Sequence, today: date | None = None) -> None:
+    """A warning for each accelerometer of the sequence's rig whose calibration was due on or before ``today``
+    (default: the local date); SequenceError instead when the rig configuration refuses overdue sensors
+    (``[sensors] overdue = "refuse"``, ``analysis.table.sensors``)."""
+    sheets = sequence.table.sensors
+    late = overdue(sheets, today or date.today())
+    if late and sheets.overdue == "refuse":
+        sheet = late[0]
+        raise SequenceError(sheet.source, sheet.due_line, sheet.due_key,
+                            f"{sheet.overdue_problem()}; the rig configuration refuses overdue sensors "
+                            "(sensors.overdue = \"refuse\"): recalibrate it and give its new calibrated and due dates")
+    for sheet in late:
+        where = f"{sheet.source}:{sheet.due_line}" if sheet.due_line else sheet.source
+        warnings.warn(f"{where}: {sheet.due_key}: {sheet.overdue_problem()}: recalibrate it (docs/sensors.md)",
+                      stacklevel=2)
 
 
 def resumed(path: Path) -> tuple[Sequence, dict[str, Any] | None]:
@@ -111,6 +131,7 @@ def resumed(path: Path) -> tuple[Sequence, dict[str, Any] | None]:
     session = read_session(path, data=False)
     sequence = Sequence.from_dict(session["sequence"], source=str(path))
     sequence.check()
+    check_sensors(sequence)
     stored = session["attrs"].get("table")
     return sequence, json.loads(stored) if isinstance(stored, str) and stored else None
 

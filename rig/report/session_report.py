@@ -30,6 +30,7 @@ from . import figures
 from .compensation_report import compensation_section
 from .data import RunData, SessionData, iter_runs, read_header
 from .html import esc, figure, key_values, num, table
+from .sensors import sensors_table
 from .tracking import fall_line_error, leg_strokes
 
 Progress = Callable[[int, int], None]
@@ -286,6 +287,7 @@ def _rig_section(header: SessionData) -> str:
         parts.append(key_values([
             ("tilt limit", f"{num(tilt.get('angle_rad'), '.3g', 180 / math.pi)}° at "
                            f"{num(tilt.get('rate_rad_s'), '.3g', 180 / math.pi)}°/s")]))
+    parts.append(sensors_table(cfg if isinstance(cfg, dict) else {}, header.runs))
     return "\n".join(parts)
 
 

@@ -35,6 +35,8 @@ TABLE = "checksums"
 DATASET_LEN = 64
 CHECKSUM = np.dtype([("dataset", h5py.string_dtype("utf-8", DATASET_LEN)), ("first_row", "<i8"), ("rows", "<i8"),
                      ("crc32", "<u4")])
+#: The unit of each field of `CHECKSUM` (the ``units`` attribute): a name, two row counts, a checksum.
+CHECKSUM_UNITS = (schema.NOT_A_QUANTITY, "1", "1", schema.NOT_A_QUANTITY)
 
 #: `RunChecksums.state` values.
 VERIFIED, NOT_CHECKSUMMED = "verified", "not checksummed"

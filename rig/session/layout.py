@@ -14,6 +14,8 @@ from typing import Any
 import h5py
 import numpy as np
 
+from analysis.table.sensors import SensorSheet
+
 from . import checksums, schema
 from .hdf5props import EST_RUN_LINKS, EST_RUNS, create_group
 
@@ -76,9 +78,11 @@ def _table(parent: h5py.Group, name: str, dtype: np.dtype, rows: np.ndarray | No
 
 def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, record: str, scale_factor: float,
                angle_deg: float, started: str, commanded: np.ndarray, bodies: np.ndarray, sensors: Sequence[str],
-               attrs: Mapping[str, Any]) -> None:
+               attrs: Mapping[str, Any], sheets: Mapping[str, SensorSheet] | None = None) -> None:
     """The run group ``runs/name`` with its attributes (status ``"running"``), all its datasets and its checksum
-    table (`rig.session.checksums`) holding the checksums of the rows it is created with."""
+    table (`rig.session.checksums`) holding the checksums of the rows it is created with; ``sheets``: the
+    calibration sheets (``analysis.table.sensors``) of the sensors that have one, stored as attributes of their
+    ``accel/<sensor>`` datasets."""
     group = create_group(runs, name, links=EST_RUN_LINKS, name_len=16)
     group.attrs["record"] = record
     group.attrs["scale_factor"] = np.float64(scale_factor)
@@ -92,20 +96,42 @@ def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, re
     group.attrs.create("ended", np.bytes_(b""), dtype=h5py.string_dtype("utf-8", _FIXED_LEN))
     for key, value in attrs.items():
         group.attrs[key] = value
+    group.attrs["attribute_units"] = json.dumps({key: unit for key, unit in schema.RUN_ATTR_UNITS.items()
+                                                 if key in group.attrs})
     _columns(_growing(group, "commanded", 7, schema.POSE_CHUNK, commanded), schema.POSE_COLUMNS, schema.POSE_UNITS)
     _columns(_growing(group, "pose", 7, schema.POSE_CHUNK), schema.POSE_COLUMNS, schema.POSE_UNITS)
     accel = create_group(group, "accel")
     for sensor in sensors:
-        _columns(_growing(accel, sensor, 4, schema.ACCEL_CHUNK), schema.ACCEL_COLUMNS, schema.ACCEL_UNITS)
+        dataset = _growing(accel, sensor, 4, schema.ACCEL_CHUNK)
+        _columns(dataset, schema.ACCEL_COLUMNS, schema.ACCEL_UNITS)
+        if sheets and sensor in sheets:
+            _sheet_attrs(dataset, sheets[sensor])
     tilt = create_group(group, "tilt")
     for body_id in bodies["body_id"]:
         _columns(_growing(tilt, str(int(body_id)), 2, schema.TILT_CHUNK), schema.TILT_COLUMNS, schema.TILT_UNITS)
-    _table(group, "detections", schema.DETECTION)
-    _table(group, "faults", schema.FAULT)
-    _table(group, "events", schema.EVENT)
-    _table(group, "bodies", schema.BODY, bodies)
-    checksums.create_table(group, {"commanded": np.asarray(commanded, dtype="<f8"),
-                                   "bodies": np.asarray(bodies, dtype=schema.BODY)})
+    for table, dtype, units, rows in (("detections", schema.DETECTION, schema.DETECTION_UNITS, None),
+                                      ("faults", schema.FAULT, schema.FAULT_UNITS, None),
+                                      ("events", schema.EVENT, schema.EVENT_UNITS, None),
+                                      ("bodies", schema.BODY, schema.BODY_UNITS, bodies)):
+        _columns(_table(group, table, dtype, rows), dtype.names or (), units)
+    table = checksums.create_table(group, {"commanded": np.asarray(commanded, dtype="<f8"),
+                                           "bodies": np.asarray(bodies, dtype=schema.BODY)})
+    _columns(table, checksums.CHECKSUM.names or (), checksums.CHECKSUM_UNITS)
+
+
+def _sheet_attrs(dataset: h5py.Dataset, sheet: SensorSheet) -> None:
+    """A sensor's sheet as attributes of its dataset: ``place_m`` (x, y, z [m], plate frame), ``axes`` (the plate
+    axis of each of its axes, comma-separated), ``range_m_s2`` (full scale [m/s²], ±), ``sensitivity`` (in
+    ``sensitivity_unit``), ``model``, ``serial``, ``calibrated`` and ``due`` (ISO dates)."""
+    dataset.attrs["place_m"] = np.asarray(sheet.place_m, dtype="<f8")
+    dataset.attrs["axes"] = ",".join(sheet.axes)
+    dataset.attrs["range_m_s2"] = np.float64(sheet.range_m_s2)
+    dataset.attrs["sensitivity"] = np.float64(sheet.sensitivity)
+    dataset.attrs["sensitivity_unit"] = sheet.sensitivity_unit
+    dataset.attrs["model"] = sheet.model
+    dataset.attrs["serial"] = sheet.serial
+    dataset.attrs["calibrated"] = sheet.calibrated.isoformat()
+    dataset.attrs["due"] = sheet.due.isoformat()
 
 
 def finish_run(group: h5py.Group, *, status: str, ended: str, attrs: Mapping[str, Any]) -> None:

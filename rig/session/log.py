@@ -29,6 +29,9 @@ from typing import Any
 import h5py
 import numpy as np
 
+from analysis.table.configuration import configuration_from_dict
+from analysis.table.sensors import SensorSheets
+
 from . import check, checksums, failpoints, layout, schema
 from .atomic import SessionFile, fsync_dir, remove_stale_temporaries
 from .errors import SessionError, SessionExistsError
@@ -211,6 +214,14 @@ class SessionLog:
         """Where the session plays, as stored at creation (root attribute ``table``), or None (not stored)."""
         return self._root["table"]
 
+    def sensor_sheets(self) -> SensorSheets:
+        """The accelerometers' calibration sheets of the stored rig configuration (``[sensors]``; none if it has
+        none); ValueError naming the file if they cannot be read."""
+        stored = self.rig_config.get("sensors") if isinstance(self.rig_config, Mapping) else None
+        if stored is None:
+            return SensorSheets()
+        return configuration_from_dict({"sensors": stored}, source=f"{self.path}: rig_config").sensors
+
     @property
     def software_version(self) -> str:
         return self._root["software_version"]
@@ -285,6 +296,7 @@ class SessionLog:
                 raise ValueError(f"scale_factor is {scale_factor!r}; expected a number (NaN if unknown)")
             angle = schema.finite(angle_deg, "angle_deg")
             plan = int(plan_index)
+            sheets = {name: sheet for name, sheet in self.sensor_sheets().sheets.items() if name in sensors}
         except (ValueError, TypeError, KeyError) as exc:
             raise SessionError(f"{self.path}: begin_run: {exc}") from None
         extra = self.checked_run_attrs(attrs)
@@ -295,7 +307,7 @@ class SessionLog:
         with self._file.transaction() as h5:
             layout.create_run(h5["runs"], info.name, plan_index=plan, attempt=info.attempt, record=info.record,
                               scale_factor=scale, angle_deg=angle, started=info.started, commanded=commanded,
-                              bodies=body_rows, sensors=sensors, attrs=extra)
+                              bodies=body_rows, sensors=sensors, attrs=extra, sheets=sheets)
         self._runs.append(info)
         failpoints.hit("begin:committed")
         try:
@@ -314,7 +326,8 @@ class SessionLog:
             self.finish_run(info, "interrupted", {"begin_error": str(exc)[:500]})
             raise
         writer.start()
-        self._active = RunLog(self, info, sensors, [int(b) for b in body_rows["body_id"]], h5, writer)
+        self._active = RunLog(self, info, sensors, [int(b) for b in body_rows["body_id"]], h5, writer,
+                              {name: sheet.range_m_s2 for name, sheet in sheets.items()})
         return self._active
 
     @staticmethod

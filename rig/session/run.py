@@ -4,6 +4,7 @@ attributes."""
 
 from __future__ import annotations
 
+import json
 import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -11,6 +12,8 @@ from typing import Any, Protocol
 
 import h5py
 import numpy as np
+
+from analysis.table.sensors import clipped_rows
 
 from . import failpoints, schema
 from .errors import SessionError
@@ -53,7 +56,7 @@ class RunLog:
     the disk."""
 
     def __init__(self, session: RunOwner, info: RunInfo, sensors: Sequence[str], body_ids: Sequence[int],
-                 h5: h5py.File, writer: BlockWriter) -> None:
+                 h5: h5py.File, writer: BlockWriter, ranges: Mapping[str, float] | None = None) -> None:
         self._session = session
         self.info = info
         self.sensors = tuple(sensors)
@@ -63,6 +66,10 @@ class RunLog:
         self._lock = threading.Lock()  # an append racing `end` is either written or refused, never dropped
         self._accel_keys = {sensor: f"accel/{sensor}" for sensor in sensors}
         self._tilt_keys = {body_id: f"tilt/{body_id}" for body_id in body_ids}
+        self._ranges = dict(ranges or {})
+        self.clipped = dict.fromkeys(self._ranges, 0)
+        """Samples (rows) per sensor with a sheet that reached its full scale on some axis (run attribute
+        ``clipped``, JSON, at the end)."""
 
     @property
     def name(self) -> str:
@@ -92,12 +99,29 @@ class RunLog:
             self._writer.put(key, rows)
 
     def append_accel(self, sensor: str, t: np.ndarray, xyz: np.ndarray) -> None:
-        """Accelerometer samples: ``t`` (k,) [s], ``xyz`` (k, 3) [m/s², plate frame]."""
+        """Accelerometer samples: ``t`` (k,) [s], ``xyz`` (k, 3) [m/s², plate frame]. A sample at or beyond the
+        sensor's full scale (its sheet's range, ±) on any axis is counted as clipped; the first of the run adds the
+        event ``clipped: …``."""
         key = self._accel_keys.get(sensor)
         if key is None:
             raise SessionError(f"{self._session.path}: run {self.name}: unknown sensor {sensor!r}; expected one "
                                f"of {list(self.sensors)}")
-        self._put(key, _rows(t, xyz, 3, f"accel {sensor!r}"))
+        rows = _rows(t, xyz, 3, f"accel {sensor!r}")
+        self._put(key, rows)
+        full_scale = self._ranges.get(sensor)
+        if full_scale is None:
+            return
+        clipped = clipped_rows(rows[:, 1:], full_scale)
+        if not len(clipped):
+            return
+        first = self.clipped[sensor] == 0
+        self.clipped[sensor] += len(clipped)
+        if first:
+            row = int(clipped[0])
+            column = 1 + int(np.argmax(np.abs(rows[row, 1:]) >= full_scale))
+            self.add_event(float(rows[row, 0]), f"clipped: accelerometer {sensor} {schema.ACCEL_COLUMNS[column]} = "
+                                                f"{rows[row, column]:.4g} m/s² at its full scale ±{full_scale:.4g} "
+                                                "m/s²")
 
     def append_tilt(self, body_id: int, t: np.ndarray, angle: np.ndarray) -> None:
         """A body's tilt-sensor samples: ``t`` (k,) [s], ``angle`` (k,) [rad, relative to the plate, > 0 towards
@@ -141,6 +165,8 @@ class RunLog:
         if status not in schema.FINAL_STATUSES:
             raise SessionError(f"run status {status!r}; expected one of {list(schema.FINAL_STATUSES)}")
         extra = self._session.checked_run_attrs(attrs)
+        if self._ranges:
+            extra["clipped"] = json.dumps(self.clipped)
         with self._lock:
             if self._ended:
                 raise SessionError(f"{self._session.path}: run {self.name} has already ended ({self.info.status})")

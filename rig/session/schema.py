@@ -9,7 +9,9 @@ Root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), 
 Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (float, degrees), ``plan_index``
 (int, index into the sequence's plan), ``attempt`` (int, 1 for the first run of that plan index),
 ``started`` and ``ended`` (ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``,
-``sensors`` (JSON list of the accelerometer names), plus any extra attributes given by the caller.
+``sensors`` (JSON list of the accelerometer names), ``attribute_units`` (JSON: the units of the numeric run
+attributes present, `RUN_ATTR_UNITS`: ``rate`` in Hz, …), at the end ``clipped`` (JSON {sensor: samples at or
+beyond its full scale}, for the sensors with a calibration sheet), plus any extra attributes given by the caller.
 
 ``status`` is one of `FINAL_STATUSES`, or the transient value ``"running"`` while the run is being
 recorded. ``degraded``: the drive played to its end, but something went wrong while the table moved (an underrun,
@@ -38,6 +40,12 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
 * ``checksums``: compound `rig.session.checksums.CHECKSUM`: dataset, first_row, rows, crc32: the CRC-32 of each
   block of rows written to the datasets above (absent in files written before checksums: "not checksummed").
 
+Every dataset has attributes ``columns`` and ``units``: one entry per column (arrays) or field (compound datasets), in
+order, comma-separated; ``1`` is dimensionless, ``-`` (`NOT_A_QUANTITY`) text or an identifier. An
+``accel/<sensor>`` whose sensor has a calibration sheet (``analysis.table.sensors``) also has ``place_m`` (x, y, z
+[m], plate frame), ``axes`` (e.g. ``"+x,-y,+z"``), ``range_m_s2``, ``sensitivity``, ``sensitivity_unit``,
+``model``, ``serial``, ``calibrated`` and ``due`` (ISO dates).
+
 Text fields of the compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field size
 (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
 """
@@ -61,7 +69,7 @@ DETECTION_SOURCES = ("sensor", "operator")
 
 #: Attributes every run group has (extra caller attributes may not reuse these names).
 RUN_ATTRS = ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt",
-             "sensors")
+             "sensors", "attribute_units", "clipped")
 
 ACCEL_COLUMNS = ("t", "ax", "ay", "az")
 ACCEL_UNITS = ("s", "m/s^2", "m/s^2", "m/s^2")
@@ -88,6 +96,17 @@ BODY = np.dtype([("body_id", "<i4"), ("b", "<f8"), ("h", "<f8"), ("depth", "<f8"
                  ("x", "<f8"), ("y", "<f8"), ("name", _text(NAME_LEN)), ("b_cg", "<f8"), ("h_cg", "<f8")])
 FAULT = np.dtype([("t", "<f8"), ("name", _text(NAME_LEN)), ("detail", _text(TEXT_LEN))])
 EVENT = np.dtype([("t", "<f8"), ("text", _text(TEXT_LEN))])
+
+NOT_A_QUANTITY = "-"
+"""The unit of a field that is no quantity (text, an identifier); ``"1"`` is a dimensionless number."""
+#: Units of the compound datasets' fields, in field order (attribute ``units``, as the arrays').
+DETECTION_UNITS = ("s", NOT_A_QUANTITY, "1", NOT_A_QUANTITY)
+BODY_UNITS = (NOT_A_QUANTITY, "m", "m", "m", "kg", "m", "m", NOT_A_QUANTITY, "m", "m")
+FAULT_UNITS = ("s", NOT_A_QUANTITY, NOT_A_QUANTITY)
+EVENT_UNITS = ("s", NOT_A_QUANTITY)
+#: Units of the numeric run attributes a run may have (run attribute ``attribute_units``, JSON).
+RUN_ATTR_UNITS = {"scale_factor": "1", "angle_deg": "deg", "rate": "Hz", "corner_frequency": "Hz",
+                  "record_start": "s", "plan_index": "1", "attempt": "1", "repetition": "1"}
 
 
 def fixed_text(text: str, size: int) -> bytes:

@@ -1,0 +1,212 @@
+"""The ``[sensors]`` table of the rig configuration: each accelerometer's calibration sheet (``docs/sensors.md``).
+
+```toml
+[sensors]
+overdue = "warn"               # a sensor past its due date: "warn" at start (default) or "refuse" to run
+
+[sensors.0]                    # the accelerometer with id 0 (the session file's accel/0)
+model = "PCB 356A16"
+serial = "LW231455"
+sensitivity = 100.0            # 0.001 … 1e5 in sensitivity_unit
+sensitivity_unit = "mV/g"      # mV/g, V/g, mV/(m/s^2), V/(m/s^2), pC/g or pC/(m/s^2)
+range = 5.0                    # full scale, read as ±: 0.01 … 1000 g (0.0981 … 9807 m/s²)
+range_unit = "g"               # g or m/s^2
+calibrated = 2026-01-15        # a TOML date (or "2026-01-15")
+due = 2027-01-15               # after calibrated
+place_m = [0.30, -0.20, 0.05]  # where it sits, plate frame [m]: x downhill, z up from the plate; each within ±20 m
+axes = ["+x", "+y", "+z"]      # the plate axis each of its own axes (1, 2, 3) points along: each of x, y, z once
+```
+
+A sensor is named by its accelerometer id (a whole number, 0 … 255). Every key of a sensor is required but
+``overdue``. Errors are ``FILE:LINE: sensors.ID.KEY: problem``. The date is not checked against today when the
+file is read (a session's stored configuration must stay readable a year on): :func:`overdue` does it at start.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from datetime import date
+from typing import Any
+
+import numpy as np
+
+from analysis.body import G
+from analysis.table.toml_check import TomlChecker, shown
+
+OVERDUE_POLICIES = ("warn", "refuse")
+"""What a sensor past its due date does at start."""
+
+SENSITIVITY_UNITS = {"mV/g": 1e-3 / G, "V/g": 1.0 / G, "mV/(m/s^2)": 1e-3, "V/(m/s^2)": 1.0,
+                     "pC/g": 1e-12 / G, "pC/(m/s^2)": 1e-12}
+"""Sensitivity units an accelerometer may be given in, with their factor to SI (V or C per m/s²)."""
+
+RANGE_UNITS = {"g": G, "m/s^2": 1.0}
+"""Acceleration units of a range, with their factor to m/s²."""
+
+SENSITIVITY_RANGE = (1e-3, 1e5)
+"""A sensitivity as written, in its own unit (0.001 mV/g is a dead sensor, 1e5 mV/g beyond any seismic one)."""
+
+RANGE_M_S2 = (0.01 * G, 1000.0 * G)
+"""A full scale [m/s²]: 0.01 g to 1000 g."""
+
+MAX_PLACE_M = 20.0
+"""Largest |coordinate| of a sensor's place [m]."""
+
+MAX_SENSOR_ID = 255
+"""Largest accelerometer id."""
+
+_SENSOR_KEYS = ("model", "serial", "sensitivity", "sensitivity_unit", "range", "range_unit", "calibrated", "due",
+                "place_m", "axes")
+_AXES = ("x", "y", "z")
+_TEXT_LEN = 64
+
+
+@dataclass(frozen=True)
+class SensorSheet:
+    """One accelerometer's calibration sheet. ``sensitivity`` is as written, in ``sensitivity_unit``; ``range_m_s2``
+    the full scale [m/s², read as ±]; ``place_m`` (x, y, z) in the plate frame [m] (x downhill, z up);
+    ``axes`` the plate axis each of the sensor's three axes points along, signed (``"+x"``, ``"-y"``, …);
+    ``source`` and ``due_line`` say where it was written (the file, the line of its ``due`` key) for messages."""
+
+    sensor: str
+    model: str
+    serial: str
+    sensitivity: float
+    sensitivity_unit: str
+    range_m_s2: float
+    calibrated: date
+    due: date
+    place_m: tuple[float, float, float]
+    axes: tuple[str, str, str]
+    source: str = field(default="", compare=False)
+    due_line: int | None = field(default=None, compare=False)
+
+    @property
+    def due_key(self) -> str:
+        """The dotted key of its due date."""
+        return f"sensors.{self.sensor}.due"
+
+    def overdue_problem(self) -> str:
+        """What an overdue sheet is, in words (no place)."""
+        return (f"accelerometer {self.sensor} ({self.model}, serial {self.serial}) was due for calibration on "
+                f"{self.due.isoformat()}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The sheet in the TOML layout, SI range, dates as ISO text (JSON has no dates)."""
+        return {"model": self.model, "serial": self.serial, "sensitivity": self.sensitivity,
+                "sensitivity_unit": self.sensitivity_unit, "range": self.range_m_s2, "range_unit": "m/s^2",
+                "calibrated": self.calibrated.isoformat(), "due": self.due.isoformat(),
+                "place_m": list(self.place_m), "axes": list(self.axes)}
+
+
+@dataclass(frozen=True)
+class SensorSheets:
+    """The ``[sensors]`` table: the sheets by sensor name (the accelerometer id as text) and the overdue policy."""
+
+    sheets: Mapping[str, SensorSheet] = field(default_factory=dict)
+    overdue: str = "warn"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The table in the TOML layout (`SensorSheet.to_dict` per sensor)."""
+        return {"overdue": self.overdue, **{name: sheet.to_dict() for name, sheet in self.sheets.items()}}
+
+    def __eq__(self, other: object) -> bool:
+        return (isinstance(other, SensorSheets) and self.overdue == other.overdue
+                and dict(self.sheets) == dict(other.sheets))
+
+    def __hash__(self) -> int:
+        return hash((self.overdue, tuple(sorted(self.sheets.items()))))
+
+
+def overdue(sheets: SensorSheets, today: date) -> list[SensorSheet]:
+    """The sheets whose calibration is due on or before ``today``."""
+    return [sheet for sheet in sheets.sheets.values() if sheet.due <= today]
+
+
+def read_sensors(checker: TomlChecker, value: Any) -> SensorSheets:
+    """The ``[sensors]`` table read by ``checker``; errors (the checker's) name the line and key."""
+    if value is None:
+        return SensorSheets()
+    path = ("sensors",)
+    names = [key for key in value if key != "overdue"] if isinstance(value, Mapping) else []
+    top = checker.table(value, path, ("overdue", *names))
+    policy = top.get("overdue", "warn")
+    if policy not in OVERDUE_POLICIES:
+        raise checker.error((*path, "overdue"), f"expected one of {', '.join(OVERDUE_POLICIES)}, got {shown(policy)}")
+    sheets = {}
+    for name in names:
+        if not name.isdigit() or int(name) > MAX_SENSOR_ID or str(int(name)) != name:
+            raise checker.error((*path, name), f"expected an accelerometer id from 0 to {MAX_SENSOR_ID} as the "
+                                               f"sensor's name, got {shown(name)}")
+        sheets[name] = _sheet(checker, (*path, name), top[name])
+    return SensorSheets(sheets, policy)
+
+
+def _sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> SensorSheet:
+    table = checker.table(value, path, _SENSOR_KEYS)
+    missing = [key for key in _SENSOR_KEYS if key not in table]
+    if missing:
+        raise checker.error(path, f"missing {', '.join(missing)}")
+    text = {key: _text(checker, table[key], (*path, key)) for key in ("model", "serial")}
+    unit = table["sensitivity_unit"]
+    if unit not in SENSITIVITY_UNITS:
+        raise checker.error((*path, "sensitivity_unit"), f"expected an accelerometer's sensitivity unit, one of "
+                                                         f"{', '.join(SENSITIVITY_UNITS)}, got {shown(unit)}")
+    sensitivity = checker.ranged(table["sensitivity"], (*path, "sensitivity"), *SENSITIVITY_RANGE,
+                                 f"a sensitivity from {SENSITIVITY_RANGE[0]:g} to {SENSITIVITY_RANGE[1]:g} {unit}")
+    range_unit = table["range_unit"]
+    if range_unit not in RANGE_UNITS:
+        raise checker.error((*path, "range_unit"), f"expected an acceleration unit, one of {', '.join(RANGE_UNITS)}, "
+                                                   f"got {shown(range_unit)}")
+    factor = RANGE_UNITS[range_unit]
+    low, high = RANGE_M_S2
+    full_scale = checker.ranged(table["range"], (*path, "range"), low / factor * (1 - 1e-12),
+                                high / factor * (1 + 1e-12),
+                                f"a full scale from {low / factor:.4g} to {high / factor:.4g} {range_unit}") * factor
+    calibrated = _date(checker, table["calibrated"], (*path, "calibrated"))
+    due = _date(checker, table["due"], (*path, "due"))
+    if due <= calibrated:
+        raise checker.error((*path, "due"), f"due date {due.isoformat()} is not after the calibration date "
+                                            f"{calibrated.isoformat()}")
+    place = table["place_m"]
+    if not isinstance(place, list) or len(place) != 3:
+        raise checker.error((*path, "place_m"), f"expected [x, y, z] in metres (plate frame), got {shown(place)}")
+    xyz = tuple(checker.ranged(c, (*path, "place_m"), -MAX_PLACE_M, MAX_PLACE_M,
+                               f"coordinates in metres within ±{MAX_PLACE_M:g} m") for c in place)
+    axes = table["axes"]
+    wanted = "the plate axis of each of the sensor's axes, e.g. [\"+x\", \"+y\", \"+z\"] (each of x, y, z once)"
+    if (not isinstance(axes, list) or len(axes) != 3 or not all(isinstance(a, str) and len(a) == 2
+                                                                and a[0] in "+-" and a[1] in _AXES for a in axes)
+            or sorted(a[1] for a in axes) != list(_AXES)):
+        raise checker.error((*path, "axes"), f"expected {wanted}, got {shown(axes)}")
+    return SensorSheet(path[-1], text["model"], text["serial"], sensitivity, unit, full_scale, calibrated, due,
+                       (xyz[0], xyz[1], xyz[2]), (axes[0], axes[1], axes[2]), checker.source,
+                       checker.line((*path, "due")))
+
+
+def _text(checker: TomlChecker, value: Any, path: tuple[str, ...]) -> str:
+    if not isinstance(value, str) or not value.strip() or len(value) > _TEXT_LEN:
+        raise checker.error(path, f"expected text of 1 to {_TEXT_LEN} characters, got {shown(value)}")
+    return value
+
+
+def _date(checker: TomlChecker, value: Any, path: tuple[str, ...]) -> date:
+    """A TOML date (``2027-01-15``, not a date-time) or its ISO text."""
+    if isinstance(value, date) and type(value) is date:
+        return value
+    if isinstance(value, str):
+        try:
+            parsed = date.fromisoformat(value)
+        except ValueError:
+            parsed = None
+        if parsed is not None and len(value) == 10:
+            return parsed
+    raise checker.error(path, f"expected a date such as 2027-01-15, got {shown(value)}")
+
+
+
+def clipped_rows(xyz: np.ndarray, full_scale: float) -> np.ndarray:
+    """Indices of the rows of ``xyz`` (k, 3) [m/s²] with some axis at or beyond ``full_scale`` [m/s², ±]: the
+    readings a sensor of that range cannot have measured truly."""
+    return np.flatnonzero((np.abs(np.asarray(xyz, dtype=float)) >= full_scale).any(axis=1))

@@ -1,0 +1,90 @@
+"""The ``[sensors]`` table of the rig configuration (analysis/table/sensors.py): sheets read with their units,
+bad input refused with FILE:LINE and the key, overdue sensors found, the sheet kept through the JSON layout."""
+
+from __future__ import annotations
+
+from datetime import date
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from analysis.body import G
+from analysis.table.configuration import configuration_dict, configuration_from_dict, read_configuration
+from analysis.table.limits import TableModelError
+from analysis.table.sensors import clipped_rows, overdue
+
+SHEET = """\
+[sensors]
+overdue = "refuse"
+
+[sensors.0]
+model = "PCB 356A16"
+serial = "LW231455"
+sensitivity = 100.0
+sensitivity_unit = "mV/g"
+range = 5.0
+range_unit = "g"
+calibrated = 2026-01-15
+due = 2027-01-15
+place_m = [0.30, -0.20, 0.05]
+axes = ["+x", "-y", "+z"]
+"""
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "rig.toml"
+    path.write_text(text)
+    return path
+
+
+def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) -> None:
+    configuration = read_configuration(_write(tmp_path, SHEET))
+    sheets = configuration.sensors
+    assert sheets.overdue == "refuse"
+    sheet = sheets.sheets["0"]
+    assert sheet.range_m_s2 == pytest.approx(5.0 * G)
+    assert (sheet.calibrated, sheet.due) == (date(2026, 1, 15), date(2027, 1, 15))
+    assert sheet.place_m == (0.30, -0.20, 0.05) and sheet.axes == ("+x", "-y", "+z")
+    assert (sheet.source, sheet.due_line) == (str(tmp_path / "rig.toml"), 12)
+    stored = configuration_dict(configuration)
+    assert stored["sensors"]["0"]["due"] == "2027-01-15"
+    assert configuration_from_dict(stored) == configuration
+
+
+@pytest.mark.parametrize(("old", "new", "line", "key", "words"), [
+    ("due = 2027-01-15", 'due = "next spring"', 12, "sensors.0.due", "expected a date"),
+    ("due = 2027-01-15", "due = 2027-01-15T10:00:00", 12, "sensors.0.due", "expected a date"),
+    ("due = 2027-01-15", "due = 2025-01-15", 12, "sensors.0.due", "not after the calibration date"),
+    ('range_unit = "g"', 'range_unit = "mm"', 10, "sensors.0.range_unit", "expected an acceleration unit"),
+    ('sensitivity_unit = "mV/g"', 'sensitivity_unit = "mV/rad"', 8, "sensors.0.sensitivity_unit",
+     "sensitivity unit"),
+    ("range = 5.0", "range = 5000.0", 9, "sensors.0.range", "full scale from"),
+    ('axes = ["+x", "-y", "+z"]', 'axes = ["+x", "+x", "+z"]', 14, "sensors.0.axes", "each of x, y, z once"),
+    ("place_m = [0.30, -0.20, 0.05]", "place_m = [30, 0, 0]", 13, "sensors.0.place_m", "within ±20 m"),
+    ('overdue = "refuse"', 'overdue = "ignore"', 2, "sensors.overdue", "expected one of warn, refuse"),
+    ("[sensors.0]", "[sensors.front]", 4, "sensors.front", "accelerometer id"),
+    ('serial = "LW231455"\n', "", 4, "sensors.0", "missing serial"),
+])
+def test_bad_input_is_refused_with_file_line_and_key(tmp_path: Path, old: str, new: str, line: int, key: str,
+                                                     words: str) -> None:
+    assert old in SHEET
+    path = _write(tmp_path, SHEET.replace(old, new))
+    with pytest.raises(TableModelError) as caught:
+        read_configuration(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}:{line}: {key}: "), message
+    assert words in message and "\n" not in message
+
+
+def test_overdue_finds_the_sheets_due_on_or_before_a_day(tmp_path: Path) -> None:
+    sheets = read_configuration(_write(tmp_path, SHEET)).sensors
+    assert overdue(sheets, date(2027, 1, 14)) == []
+    assert overdue(sheets, date(2027, 1, 15)) == [sheets.sheets["0"]]
+    assert sheets.sheets["0"].overdue_problem() == ("accelerometer 0 (PCB 356A16, serial LW231455) was due for "
+                                                    "calibration on 2027-01-15")
+
+
+def test_a_reading_at_its_full_scale_is_clipped() -> None:
+    xyz = np.array([[0.0, 0.0, 9.81], [49.0, 0.0, 0.0], [0.0, -49.0, 0.0], [0.0, 0.0, 48.99]])
+    assert clipped_rows(xyz, 49.0).tolist() == [1, 2]
