@@ -439,9 +439,11 @@ class Emulator:
         profile.lap("servo")
         if isinstance(endpoint, LegFeedback):
             endpoint.add_legs(int(times[0]), self.tick_ns, step.lengths, step.commanded)
-        for i, snap in statuses:
-            pose = self.actuators.measure(step.lengths[i], step.poses[i])
-            endpoint.send_status(replace(snap, pose=pose))
+        if statuses:  # the batch's measured poses in one forward-kinematics call
+            rows = [i for i, _ in statuses]
+            measured = self.actuators.measure(step.lengths[rows], step.poses[rows])
+            for (_, snap), pose in zip(statuses, measured, strict=True):
+                endpoint.send_status(replace(snap, pose=pose))
         self._last_legs = step.lengths[-1], step.poses[-1]
         if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
             pose = self.actuators.measure(step.lengths[-1], step.poses[-1])

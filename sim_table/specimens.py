@@ -322,18 +322,17 @@ class SpecimenScene:
     def _detect_steps(self, step_times: np.ndarray, angles: np.ndarray, dt: float) -> list[Overturn]:
         """Overturns in the steps just taken, which ended at ``step_times`` (steps,) [s] with the bodies at ``angles``
         (steps, n) [rad], timed by linear interpolation of |θ| within the step that crossed the threshold."""
+        threshold = np.where(angles >= 0.0, self.thresholds[:, 0], self.thresholds[:, 1])  # (steps, n)
+        over = (np.abs(angles) >= threshold) & self._standing  # all steps at once; each body's first one counts
         events = []
-        previous = np.vstack([self._theta[None, :], angles[:-1]])
-        for step in range(len(angles)):
-            theta = angles[step]
-            threshold = np.where(theta >= 0.0, self.thresholds[:, 0], self.thresholds[:, 1])
-            for i in np.flatnonzero(self._standing & (np.abs(theta) >= threshold)):
-                a0, a1 = abs(previous[step, i]), abs(theta[i])
-                fraction = min(1.0, max(0.0, (threshold[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
-                events.append(Overturn(step_times[step] - (1.0 - fraction) * dt, int(i), 1 if theta[i] > 0 else -1))
-                self._standing[i] = False
-            if not self._standing.any():
-                break
+        for i in np.flatnonzero(over.any(axis=0)):
+            step = int(np.argmax(over[:, i]))
+            theta = angles[step, i]
+            a0 = abs(self._theta[i] if step == 0 else angles[step - 1, i])
+            a1 = abs(theta)
+            fraction = min(1.0, max(0.0, (threshold[step, i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
+            events.append(Overturn(step_times[step] - (1.0 - fraction) * dt, int(i), 1 if theta > 0 else -1))
+            self._standing[i] = False
         return sorted(events)
 
     def specimen_angles(self) -> np.ndarray:
