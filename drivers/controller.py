@@ -127,7 +127,9 @@ class TableStatus:
     ``refused_commands`` commands and chunks refused for their signature since power-up; ``pose`` (6,) the
     achieved (measured) pose; ``host_ns`` host monotonic time [ns] the report arrived; ``buffer_capacity`` the
     setpoint samples the controller's buffer holds (0: not reported); ``samples_late`` setpoint samples that
-    arrived after they were due and were skipped, since power-up.
+    arrived after they were due and were skipped, since power-up; ``virtual_watchdog_s`` 0 when the controller
+    keeps real time, else it runs in virtual time (an emulator at ``--speed max``) and this is its own link
+    watchdog [s, host time], the silence :meth:`TableController.check_link` allows it.
     """
 
     t_ns: int
@@ -141,6 +143,7 @@ class TableStatus:
     host_ns: int
     buffer_capacity: int = 0
     samples_late: int = 0
+    virtual_watchdog_s: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -507,11 +510,17 @@ class TableController(ABC):
         return latest
 
     def check_link(self) -> None:
-        """Raise :class:`TableLinkLostError` when no status has arrived for :attr:`link_timeout` s and none comes
+        """Raise :class:`TableLinkLostError` when no status has arrived for :attr:`link_timeout` s — or, from a
+        table whose latest status says it runs in virtual time, for its own link watchdog
+        (:attr:`TableStatus.virtual_watchdog_s`) when that is longer: such a table sends its statuses at the end of
+        each batch of ticks it computes, and a busy host's scheduler may hold it between them — and none comes
         within :data:`LINK_GRACE` s more (a host that was stalled itself catches up within it). Cheap while statuses
         flow."""
         latest = self.feedback.latest
-        if latest is None or time.monotonic_ns() - latest.host_ns <= self.link_timeout * 1e9:
+        if latest is None:
+            return
+        allowed = max(self.link_timeout, latest.virtual_watchdog_s)
+        if time.monotonic_ns() - latest.host_ns <= allowed * 1e9:
             return
         seen = latest.host_ns
         if self.feedback.wait_for(lambda: self.feedback.latest is not None and self.feedback.latest.host_ns > seen,
@@ -519,7 +528,7 @@ class TableController(ABC):
             return
         silent = (time.monotonic_ns() - seen) * 1e-9
         raise TableLinkLostError(f"{self.url}: table link lost: no status for {silent:.1f} s "
-                                 f"(link timeout {self.link_timeout:g} s; last: {latest.state})")
+                                 f"(link timeout {allowed:g} s; last: {latest.state})")
 
     def wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
         """Wait until ``predicate()`` (evaluated under the feedback lock at every publication) holds, at most

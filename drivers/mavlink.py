@@ -295,7 +295,7 @@ class MavlinkTable(ChunkedStreamController):
         faults = tuple(name for bit, name in self._fault_bits if msg.faults & bit)
         return TableStatus(msg.t_ns, state, msg.buffer_depth, msg.last_chunk_seq, msg.underruns, faults,
                            msg.refused_commands, np.array(msg.pose, dtype=np.float64), now, msg.buffer_capacity,
-                           msg.samples_late)
+                           msg.samples_late, msg.virtual_watchdog_ms * 1e-3)
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)

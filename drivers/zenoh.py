@@ -315,7 +315,7 @@ class ZenohTable(ChunkedStreamController):
         self.feedback.publish_status(TableStatus(report.t_ns, report.state, report.buffer_depth,
                                                  report.last_chunk_seq, report.underruns, fault_names(report.faults),
                                                  report.refused_commands, report.pose, now, report.buffer_capacity,
-                                                 report.samples_late))
+                                                 report.samples_late, report.virtual_watchdog_ms * 1e-3))
 
     def _on_answer(self, payload: bytes, now: int) -> None:
         answer = decode_answer(payload)

@@ -14,4 +14,5 @@ with ``mavlink://HOST:PORT``, ``zenoh://HOST:PORT/TABLE`` or ``canopen://CHANNEL
 - ``endpoint``: the transport endpoints' interface, chosen by the listen URL's scheme.
 - ``mavlink_endpoint``, ``zenoh_endpoint``, ``canopen_endpoint``: the controller's side of each transport.
 - ``process``: the emulator process (the tick loop, its options, fault injection, exit counters).
+- ``tick_profile``: the tick thread's CPU time split by stage (physics, servo, transport…), in the exit counters.
 """

@@ -176,8 +176,10 @@ class Refused:
 @dataclass(frozen=True, eq=False)
 class Snapshot:
     """What one status carries: controller time [ns], state, setpoint samples buffered, the newest chunk accepted,
-    underruns, latched faults, refused commands, the measured pose (6,), the samples the buffer can hold and the
-    samples that came late (skipped) since power-up."""
+    underruns, latched faults, refused commands, the measured pose (6,), the samples the buffer can hold, the
+    samples that came late (skipped) since power-up, and ``virtual_watchdog_ns``: in virtual time (a core with a
+    ``link_clock``) its link watchdogs' allowance [ns, host time], 0 at real time (the host allows a virtual-time
+    table this much silence instead of its link timeout: ``drivers/controller.py`` ``check_link``)."""
 
     t_ns: int
     state: State
@@ -189,6 +191,7 @@ class Snapshot:
     pose: np.ndarray
     buffer_capacity: int = DEFAULT_BUFFER_CAPACITY
     samples_late: int = 0
+    virtual_watchdog_ns: int = 0
 
 
 @dataclass
@@ -449,7 +452,7 @@ class ControllerCore:
         """The status at ``t_ns`` with the measured ``pose`` (6,)."""
         return Snapshot(t_ns, self.state, len(self._buffer), self.last_chunk_seq, self.counters.underruns,
                         self.faults, self.counters.refused_commands, pose, self.buffer_capacity,
-                        self.counters.samples_late)
+                        self.counters.samples_late, 0 if self._link_clock is None else self.watchdog_ns)
 
     # ----- commands -------------------------------------------------------------------------------------
 

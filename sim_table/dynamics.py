@@ -438,8 +438,11 @@ class ServoActuators:
         return out, bool(saturated)
 
     def measure(self, lengths: np.ndarray, pose: np.ndarray) -> np.ndarray:
-        """The measured pose (6,): forward kinematics of the leg ``lengths`` (6,) read with noise, from ``pose``."""
-        readings = lengths + self._rng.normal(0.0, self.settings.noise, 6) if self.settings.noise else lengths
+        """The measured poses (..., 6): forward kinematics of the leg ``lengths`` (..., 6) read with noise, from
+        ``pose`` (..., 6); several at once read the noise as one after the other would."""
+        lengths = np.asarray(lengths, dtype=float)
+        readings = (lengths + self._rng.normal(0.0, self.settings.noise, lengths.shape) if self.settings.noise
+                    else lengths)
         return self.table.pose_from_leg_lengths(readings, guess=pose)
 
 

@@ -78,6 +78,7 @@ from sim_table.options import argument_parser
 from sim_table.replay_store import default_path
 from sim_table.scene import Specimen, parse_body
 from sim_table.specimens import SpecimenScene
+from sim_table.tick_profile import TickProfile
 
 WAKE_PERIOD_NS = 20_000_000
 """The loop's wake-up period [ns, real time] on MAVLink and zenoh: twenty ticks a wake at speed 1, one batch (the
@@ -231,7 +232,9 @@ class Emulator:
         self.track = PlateTrack(dt)
         self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
                                              seed=config.seed + 1)
-        self.scene = SpecimenScene(config.specimens) if config.specimens else None
+        self.profile = TickProfile()
+        """The tick thread's CPU time per stage (``sim_table.tick_profile``), in the counters' ``timing``."""
+        self.scene = SpecimenScene(config.specimens, profile=self.profile) if config.specimens else None
         self.tilt_spacing_ns = max(1, round(table.controller_rate / TILT_RATE)) * self.tick_ns
         """Time between two samples of a tilt sensor [ns, controller time] (:data:`TILT_RATE`)."""
         self._start = time.monotonic_ns()
@@ -296,7 +299,9 @@ class Emulator:
     def step(self, now: int) -> None:
         """Run every tick due at host time ``now`` [ns] (at most :data:`MAX_BATCH`), then send."""
         cpu = time.thread_time_ns()
+        self.profile.start()
         self._pending.extend(self.endpoint.take(now))
+        self.profile.lap("transport")
         due = (self.controller_time(now) - self._next_tick) // self.tick_ns + 1
         count = int(min(max(due, 0), MAX_BATCH))
         if count:
@@ -312,6 +317,9 @@ class Emulator:
             oldest = (self.controller_time(now) - int(times[0])) / self.config.speed  # how late its first tick ran
             self._lag_max_ns = max(self._lag_max_ns, round(oldest))
         self.endpoint.service(time.monotonic_ns(), self.core.state)
+        if count:
+            self.profile.lap("transport")
+            self.profile.commit()
 
     def _run_virtual(self, stop: threading.Event) -> None:
         """Virtual time (module docstring): tick while there is something to do, hold for setpoints, rest at real
@@ -333,8 +341,11 @@ class Emulator:
         """One iteration of virtual time at host time ``now`` [ns]: the ticks it may run (module docstring), or
         the watchdogs, answers and a status while it holds; then send. How many ticks ran."""
         cpu = time.thread_time_ns()
+        profile = self.profile
+        profile.start()
         core = self.core
         taken = self.endpoint.take(now)
+        profile.lap("transport")
         for _, action in taken:  # stamped with the clock: due before the next tick
             action(core)
         moving = core.state not in _AT_REST
@@ -366,6 +377,9 @@ class Emulator:
         else:
             self._hold(now)
         self.endpoint.service(time.monotonic_ns(), core.state)
+        if count:
+            profile.lap("transport")
+            profile.commit()
         return int(count)
 
     def _hold(self, now: int) -> None:
@@ -392,7 +406,7 @@ class Emulator:
             endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
 
     def _batch(self, times: np.ndarray) -> None:
-        core, endpoint = self.core, self.endpoint
+        core, endpoint, profile = self.core, self.endpoint, self.profile
         n = len(times)
         reference = np.empty((n, 6))
         braked = np.empty(n, dtype=bool)
@@ -415,26 +429,33 @@ class Emulator:
                         placements.append(i)
             if changed or t % STATUS_PERIOD_NS == 0:
                 statuses.append((i, core.snapshot(t, np.zeros(6))))
+        profile.lap("controller")
         step = self.actuators.step(reference, braked)
         if step.setpoint_limited:
             core.raise_fault(Fault.SETPOINT_LIMIT, int(times[-1]))
         if step.stroke_limited:
             core.raise_fault(Fault.STROKE, int(times[-1]))
         core.observe(step.poses[-1])
+        profile.lap("servo")
         if isinstance(endpoint, LegFeedback):
             endpoint.add_legs(int(times[0]), self.tick_ns, step.lengths, step.commanded)
-        for i, snap in statuses:
-            pose = self.actuators.measure(step.lengths[i], step.poses[i])
-            endpoint.send_status(replace(snap, pose=pose))
+        if statuses:  # the batch's measured poses in one forward-kinematics call
+            rows = [i for i, _ in statuses]
+            measured = self.actuators.measure(step.lengths[rows], step.poses[rows])
+            for (_, snap), pose in zip(statuses, measured, strict=True):
+                endpoint.send_status(replace(snap, pose=pose))
         self._last_legs = step.lengths[-1], step.poses[-1]
         if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
             pose = self.actuators.measure(step.lengths[-1], step.poses[-1])
             endpoint.send_status(core.snapshot(int(times[-1]), pose))
+        profile.lap("transport")
         centre, rates, window = self.track.advance(step.poses)
         self._last_centre = centre[-1]
         force = self.accelerometers.measure(window)
+        profile.lap("plate")
         for sensor in range(force.shape[1]):
             endpoint.add_accel(sensor, int(times[0]) - self.tick_ns, self.tick_ns, force[:, sensor])
+        profile.lap("transport")
         if self.scene is not None:
             self._specimens(times - self.tick_ns, centre, rates, placements)
 
@@ -456,6 +477,7 @@ class Emulator:
             if on_grid.any():
                 first_sample = int(times[part][on_grid][0]) if first_sample is None else first_sample
                 sampled.append(self.scene.sample_angles[on_grid])
+            self.profile.lap("specimens")
             for overturn in overturns:
                 i = part[min(int(np.searchsorted(seconds[part], overturn.t)), len(part) - 1)]  # its tick
                 self._events += 1
@@ -464,6 +486,7 @@ class Emulator:
                 self.endpoint.send_overturn(self._events, overturn.body_id, overturn.direction, tilt, t_ns)
                 self._overturns.append({"event_id": self._events, "body_id": overturn.body_id,
                                         "direction": overturn.direction, "t": t_ns * 1e-9, "tilt": tilt})
+            self.profile.lap("transport")
         if first_sample is not None:
             angles = np.concatenate(sampled)
             for body in range(angles.shape[1]):
@@ -505,6 +528,7 @@ class Emulator:
             "real_time_factor": simulated / self._busy_ns if self._busy_ns else None,
             "lag_max_ms": self._lag_max_ns * 1e-6,
             "controller_time_s": self.controller_time(time.monotonic_ns()) * 1e-9,
+            "profile_cpu_us_per_tick": self.profile.per_tick_us(self._ticks),
         }
         return {"url": self.url, "speed": "max" if self.virtual else self.config.speed, "state": self.core.state.value,
                 "faults": [f.name for f in Fault if self.core.faults & f], **self.core.counters.as_dict(),

@@ -53,6 +53,7 @@ from mujoco import rollout
 
 from analysis.table.model import rotation_matrices
 from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, Specimen, SpecimenError, build_model
+from sim_table.tick_profile import TickProfile
 
 OVERTURN_MARGIN = 0.8
 """Default rotation past the slenderness angle α at which a body counts as overturned [rad]."""
@@ -80,14 +81,17 @@ class SpecimenScene:
     ``plate_pose`` (6,) (default home); the scene's clock starts at 0 s. ``contact`` sets the physics step
     and contact model, ``overturn_margin`` [rad] the detection threshold (module docstring). ``model`` and
     ``data`` are the MuJoCo model and state, for viewers and diagnostics: step the scene only through
-    :meth:`advance`.
+    :meth:`advance`. ``profile``: where :meth:`advance_many` laps its stages (``physics``, ``impacts``,
+    ``specimens``: ``sim_table.tick_profile``), if given.
     """
 
     def __init__(self, specimens: Sequence[Specimen], *, plate_pose: Sequence[float] | None = None,
-                 contact: ContactSettings | None = None, overturn_margin: float = OVERTURN_MARGIN) -> None:
+                 contact: ContactSettings | None = None, overturn_margin: float = OVERTURN_MARGIN,
+                 profile: TickProfile | None = None) -> None:
         if not (math.isfinite(overturn_margin) and overturn_margin > 0):
             raise SpecimenError(f"overturn_margin must be > 0 rad, got {overturn_margin!r}")
         self.specimens = tuple(specimens)
+        self._profile = profile
         self.contact = contact or ContactSettings()
         self.model = build_model(self.specimens, self.contact)
         self.data = mujoco.MjData(self.model)
@@ -244,11 +248,13 @@ class SpecimenScene:
             force[:, :6] = (PLATE_ARMATURE / dt) * (step_rates - previous_rates)
             d.qpos[:6] = here_array[0]
             d.qvel[:6] = self._plate_rate
+            self._lap("specimens")
             states, step_angles = self._rollout(force)
             self._plate_rate = step_rates[-1]
             if self._standing.any():
                 found = self._detect_steps(states[:, 0], step_angles, dt)
             self._theta = self.specimen_angles()
+            self._lap("impacts")
             angles = np.vstack([angles, step_angles])
         # each sample time's angles: those after the last step of its interval (row 0: before the batch)
         self.sample_angles = angles[np.searchsorted(interval, np.arange(k), side="right")]
@@ -271,10 +277,13 @@ class SpecimenScene:
             states = rollout.rollout(m, d, state[None], force[None, start:],
                                      control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED,
                                      initial_warmstart=d.qacc_warmstart.copy()[None])[0][0]
+            self._lap("physics")
             angles = _specimen_angles(states[:, 1:1 + m.nq], len(self.specimens))
             hit = self._impacts.first(angles, self._standing) if self._impacts.active else None
             if hit is None:
+                self._lap("impacts")
                 mujoco.mj_kinematics(m, d)
+                self._lap("physics")
                 parts.append(states)
                 angle_parts.append(angles)
                 break
@@ -282,10 +291,16 @@ class SpecimenScene:
             mujoco.mj_setState(m, d, states[step], spec)
             self._restitute(bodies, sides)
             mujoco.mj_getState(m, d, states[step], spec)
+            self._lap("impacts")
             parts.append(states[:step + 1])
             angle_parts.append(angles[:step + 1])
             start += step + 1
         return np.vstack(parts), np.vstack(angle_parts)
+
+    def _lap(self, stage: str) -> None:
+        """The CPU time since the profile's last lap was spent in ``stage`` (when profiled)."""
+        if self._profile is not None:
+            self._profile.lap(stage)
 
     def _restitute(self, bodies: np.ndarray, sides: np.ndarray) -> None:
         """Scale the velocity relative to the plate of each of ``bodies`` (indices) by its impact factor
@@ -307,18 +322,17 @@ class SpecimenScene:
     def _detect_steps(self, step_times: np.ndarray, angles: np.ndarray, dt: float) -> list[Overturn]:
         """Overturns in the steps just taken, which ended at ``step_times`` (steps,) [s] with the bodies at ``angles``
         (steps, n) [rad], timed by linear interpolation of |θ| within the step that crossed the threshold."""
+        threshold = np.where(angles >= 0.0, self.thresholds[:, 0], self.thresholds[:, 1])  # (steps, n)
+        over = (np.abs(angles) >= threshold) & self._standing  # all steps at once; each body's first one counts
         events = []
-        previous = np.vstack([self._theta[None, :], angles[:-1]])
-        for step in range(len(angles)):
-            theta = angles[step]
-            threshold = np.where(theta >= 0.0, self.thresholds[:, 0], self.thresholds[:, 1])
-            for i in np.flatnonzero(self._standing & (np.abs(theta) >= threshold)):
-                a0, a1 = abs(previous[step, i]), abs(theta[i])
-                fraction = min(1.0, max(0.0, (threshold[i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
-                events.append(Overturn(step_times[step] - (1.0 - fraction) * dt, int(i), 1 if theta[i] > 0 else -1))
-                self._standing[i] = False
-            if not self._standing.any():
-                break
+        for i in np.flatnonzero(over.any(axis=0)):
+            step = int(np.argmax(over[:, i]))
+            theta = angles[step, i]
+            a0 = abs(self._theta[i] if step == 0 else angles[step - 1, i])
+            a1 = abs(theta)
+            fraction = min(1.0, max(0.0, (threshold[step, i] - a0) / (a1 - a0))) if a1 > a0 else 1.0
+            events.append(Overturn(step_times[step] - (1.0 - fraction) * dt, int(i), 1 if theta > 0 else -1))
+            self._standing[i] = False
         return sorted(events)
 
     def specimen_angles(self) -> np.ndarray:

@@ -32,7 +32,8 @@ SETPOINTS       seq u32, flags u8 (bit 0 END_OF_STREAM), t_start i64, spacing i6
                 :data:`MAX_SAMPLES`), n × 6 f64 (the controller refuses what it must not play: REFUSAL);
                 [signature]
 STATUS          t_ns i64, state u8 (:data:`STATES`), buffer_depth, last_chunk_seq, underruns, faults (bit i =
-                :data:`FAULTS` [i]), refused_commands u32, pose 6 × f64 (achieved)
+                :data:`FAULTS` [i]), refused_commands u32, pose 6 × f64 (achieved), buffer_capacity u32,
+                samples_late u32, virtual_watchdog_ms u32 (0: real time; may be absent, read as 0)
 ACCEL           sensor u16, seq u32 (the sensor's batch count), t_start i64, spacing i64, n u32, n × 3 f64
 OVERTURN        event_id u64, body_id u32, direction i8 (+1 low side, −1 high side), tilt f64 [rad], t_ns i64
 HEARTBEAT       t_ns i64 (the sender's clock: host monotonic, or controller time)
@@ -107,7 +108,9 @@ _ANSWER = struct.Struct("<QBq")
 _CLOCK_REQUEST = struct.Struct("<q")
 _CLOCK_REPLY = struct.Struct("<qq")
 _SETPOINTS = struct.Struct("<IBqqH")
-_STATUS = struct.Struct("<qBIIIII6dII")
+_STATUS = struct.Struct("<qBIIIII6dIII")
+_STATUS_REAL_TIME = struct.Struct("<qBIIIII6dII")
+"""A status without its last field (``virtual_watchdog_ms``), as a controller that keeps real time may send it."""
 _ACCEL = struct.Struct("<HIqqI")
 _OVERTURN = struct.Struct("<QIbdq")
 _HEARTBEAT = struct.Struct("<q")
@@ -206,6 +209,9 @@ class StatusReport(NamedTuple):
     """Setpoint samples the controller's buffer holds (0: not reported)."""
     samples_late: int = 0
     """Setpoint samples that arrived after they were due (skipped), since power-up."""
+    virtual_watchdog_ms: int = 0
+    """0: the controller keeps real time; nonzero: it runs in virtual time and this is its own link watchdog [ms,
+    host time], the silence the host allows it instead of its link timeout (as SHAKETABLE_STATUS's field)."""
 
 
 class AccelSamples(NamedTuple):
@@ -420,14 +426,17 @@ def encode_status(status: StatusReport) -> bytes:
     return _header(TableKind.STATUS) + _STATUS.pack(
         status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
         status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64),
-        status.buffer_capacity, status.samples_late)
+        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms)
 
 
 def decode_status(payload: bytes) -> StatusReport:
-    t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = _fixed(payload, TableKind.STATUS,
-                                                                                         _STATUS)
+    """A STATUS; one without ``virtual_watchdog_ms`` (a real-time controller's shorter body) reads as 0 there."""
+    short = len(_body(payload, TableKind.STATUS)) == _STATUS_REAL_TIME.size
+    fields = _fixed(payload, TableKind.STATUS, _STATUS_REAL_TIME if short else _STATUS)
+    t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = fields[:15]
+    watchdog_ms = 0 if short else fields[15]
     return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
-                        np.array(pose, dtype=np.float64), capacity, late)
+                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms)
 
 
 def encode_accel(batch: AccelSamples) -> bytes:

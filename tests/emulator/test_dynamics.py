@@ -351,3 +351,21 @@ def test_the_lag_legs_filter_is_scipy_s_first_order_filter() -> None:
     got = actuators._filter(commanded, start)
     np.testing.assert_allclose(got, expected, rtol=0, atol=1e-14)
     assert _first_order_lag(np.zeros((0, 6)), np.zeros(6), a).shape == (0, 6)
+
+
+@pytest.mark.parametrize("kind", ["lag", "servo"])
+def test_measuring_several_poses_at_once_reads_the_noise_as_one_after_the_other(kind: str) -> None:
+    """The emulator measures a batch's statuses in one forward-kinematics call: the poses (k, 6) are those k calls
+    one after the other give from the same seed, each with its own leg-length noise."""
+    table = TableModel()
+    rng = np.random.default_rng(11)
+    poses = np.zeros((4, 6))
+    poses[:, :3] = rng.uniform(-0.02, 0.02, (4, 3))
+    poses[:, 3:] = rng.uniform(-0.02, 0.02, (4, 3))
+    lengths = table.leg_lengths(poses)
+    settings = ActuatorSettings(noise=1e-5)
+    together = make_actuators(kind, table, 1e-3, settings, seed=7).measure(lengths, poses)
+    single = make_actuators(kind, table, 1e-3, settings, seed=7)
+    one_by_one = np.array([single.measure(lengths[i], poses[i]) for i in range(4)])
+    np.testing.assert_allclose(together, one_by_one, atol=1e-10)
+    assert not np.allclose(together - poses, (together - poses)[0], atol=1e-9)  # each its own noise

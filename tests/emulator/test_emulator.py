@@ -610,3 +610,29 @@ def test_an_underrun_mid_drive_measures_no_spike_on_the_plate(monkeypatch: pytes
     drive_peak = float(np.abs(np.gradient(np.gradient(samples[:, 0], 1e-3), 1e-3)).max())
     bound = max(drive_peak, SURGE_DECELERATION) * 1.05 + 5 * emulator.config.accel_noise
     assert np.abs(fx).max() <= bound, (np.abs(fx).max(), bound)
+
+
+def test_the_counters_say_where_each_tick_s_cpu_time_went() -> None:
+    """Two bodies, virtual time, a 0.4 s stream: ``timing.profile_cpu_us_per_tick`` splits the tick thread's CPU
+    time by stage (``sim_table/tick_profile.py``): every stage that ran is there, MuJoCo's steps among them, and
+    together they account for the tick thread's CPU time per tick, the network's service after a batch with it."""
+    specimens = (parse_body("0.05x0.50@0.4,0"), parse_body("0.15x0.45@-0.4,0"))
+    emulator = Emulator(EmulatorConfig(listen="mavlink://127.0.0.1:0", key=bytes(32), speed=math.inf,
+                                       specimens=specimens))
+    try:
+        core = emulator.core
+        assert core.command(Command.ARM, (), True, 0) is Result.ACCEPTED
+        assert core.command(Command.START_STREAM, (0.0,), True, 0) is Result.ACCEPTED
+        core.heartbeat(0)
+        core.chunk(0, 10_000_000, 1_000_000, np.zeros((400, 6)), True, True, 0)
+        while core.state is State.STREAMING:
+            core.heartbeat(0)
+            emulator.step_virtual(0)
+        timing = emulator.counters()["timing"]
+    finally:
+        emulator.close()
+    profile = timing["profile_cpu_us_per_tick"]
+    assert set(profile) == {"controller", "servo", "plate", "physics", "impacts", "specimens", "transport", "total"}
+    assert all(profile[stage] > 0 for stage in profile), profile
+    assert profile["total"] == pytest.approx(sum(v for k, v in profile.items() if k != "total"))
+    assert timing["tick_cpu_mean_us"] <= profile["total"] <= 1.25 * timing["tick_cpu_mean_us"], timing

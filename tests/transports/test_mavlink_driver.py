@@ -22,7 +22,14 @@ from typing import Any
 import numpy as np
 import pytest
 
-from drivers.controller import StreamAbortedError, TableError, TableStatus, open_table, register_scheme
+from drivers.controller import (
+    StreamAbortedError,
+    TableError,
+    TableLinkLostError,
+    TableStatus,
+    open_table,
+    register_scheme,
+)
 from drivers.mavlink import MavlinkTable
 from protocols.mavlink import (
     ACCEL_PER_BATCH,
@@ -521,3 +528,60 @@ def test_an_emulator_stopped_for_300_ms_mid_stream_plays_on(key_file: Path) -> N
     # the stall happened: the emulator caught up on it (its first late tick was due up to a wake period, 20 ms,
     # after the process stopped)
     assert counters["timing"]["lag_max_ms"] > 250, counters["timing"]
+
+
+STALL_S = 0.6
+"""How long the emulator's process is stopped in the link tests below [s]: beyond the host's link timeout there
+(:data:`SHORT_LINK_TIMEOUT_S` plus the grace and a wait slice, 0.4 s at most) and well inside a virtual-time
+table's own watchdog (1 s, ``sim_table/process.py`` ``VIRTUAL_WATCHDOG_SECONDS``)."""
+
+SHORT_LINK_TIMEOUT_S = 0.1
+"""The host's link timeout in those tests [s] (the rig TOML's ``link_timeout_s``; 0.5 s by default)."""
+
+
+def _stalled_link(key_file: Path, *flags: str) -> tuple[TableStatus, bool]:
+    """Arm an emulator started with ``flags``, stop its process for :data:`STALL_S` and let it go on, waiting for
+    a status meanwhile with the host's link checks; (the status before the stall, whether the link was declared
+    lost)."""
+    emulator = start_emulator(*flags, key_file=key_file)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            table.link_timeout = SHORT_LINK_TIMEOUT_S
+            before = table.status()
+            resumed: list[int] = []
+
+            def resume() -> None:
+                time.sleep(STALL_S)
+                resumed.append(time.monotonic_ns())
+                emulator.proc.send_signal(signal.SIGCONT)
+
+            emulator.proc.send_signal(signal.SIGSTOP)
+            waker = threading.Thread(target=resume)
+            waker.start()
+            try:
+                table.wait(lambda: bool(resumed) and table.feedback.latest is not None
+                           and table.feedback.latest.host_ns > resumed[0], 10.0)
+                lost = False
+            except TableLinkLostError:
+                lost = True
+            finally:
+                waker.join()
+            if not lost:
+                table.disarm()
+    finally:
+        emulator.proc.send_signal(signal.SIGCONT)
+        emulator.stop()
+    return before, lost
+
+
+def test_a_virtual_time_table_stalled_beyond_the_link_timeout_is_not_taken_for_lost(key_file: Path) -> None:
+    """An emulator in virtual time (``--speed max``) says so in its statuses, with its own link watchdog; its
+    process stopped longer than the host's link timeout (as a loaded host's run queue holds its tick thread) is
+    allowed that watchdog and not declared lost; a table at 1x, stopped as long, still is."""
+    before, lost = _stalled_link(key_file, "--speed", "max")
+    assert before.virtual_watchdog_s == pytest.approx(1.0)
+    assert not lost
+    before, lost = _stalled_link(key_file)
+    assert before.virtual_watchdog_s == 0.0
+    assert lost
