@@ -15,7 +15,7 @@ PYTEST := $(BIN)/pytest -q
 # starts compile the project once, not each time (some shells set PYTHONDONTWRITEBYTECODE)
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: demo test test-integration test-slow test-all browser bench lint clean
+.PHONY: demo test test-integration test-slow test-all test-tools bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -37,26 +37,30 @@ test: $(STAMP) lint
 	$(PYTEST) -n auto -m "not integration and not slow" --timeout=300 --junitxml=$(REPORTS)/fast.xml
 
 # the tests that start processes, open sockets or drive a browser: one at a time
-test-integration: $(STAMP) browser
+test-integration: $(STAMP) test-tools
 	$(PYTEST) -m "integration and not slow" --timeout=900 --durations=15 --junitxml=$(REPORTS)/integration.xml
 
 # the long proofs: the in-process ones in parallel, then those with processes one at a time
-test-slow: $(STAMP) browser
+test-slow: $(STAMP) test-tools
 	$(PYTEST) -n auto -m "slow and not integration" --timeout=1800 --durations=10 --junitxml=$(REPORTS)/slow.xml
 	$(PYTEST) -m "slow and integration" --timeout=1800 --durations=10 --junitxml=$(REPORTS)/slow-integration.xml
 
 test-all: test test-integration test-slow
 
-# Debian's Chromium for the console's browser tests: installed where this user may (root with apt-get), else said
-browser:
-	@command -v chromium >/dev/null 2>&1 || { \
+# Debian's programs that tests use as the other end: Chromium (the console's browser tests) and hdf5-tools (h5dump
+# reads a session file); installed where this user may (root with apt-get), else said: those tests are then skipped
+DEBIAN_TOOLS := chromium:chromium h5dump:hdf5-tools
+test-tools:
+	@missing=""; for pair in $(DEBIAN_TOOLS); do command -v "$${pair%%:*}" >/dev/null 2>&1 || missing="$$missing $${pair#*:}"; done; \
+	if [ -n "$$missing" ]; then \
 	  if [ "$$(id -u)" -eq 0 ] && command -v apt-get >/dev/null 2>&1; then \
-	    echo "installing Debian's chromium for the console's browser tests"; \
-	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null; } \
-	      || echo "warning: chromium could not be installed: the console's browser tests will be SKIPPED" >&2; \
+	    echo "installing Debian's$$missing for the tests that use them"; \
+	    { apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq $$missing >/dev/null; } \
+	      || echo "warning: could not install$$missing: the tests that use them will be SKIPPED" >&2; \
 	  else \
-	    echo "warning: chromium is not installed (apt-get install chromium, as root): the console's browser tests will be SKIPPED" >&2; \
-	  fi; }
+	    echo "warning:$$missing not installed (apt-get install$$missing, as root): the tests that use them will be SKIPPED" >&2; \
+	  fi; \
+	fi
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py
