@@ -24,6 +24,7 @@ from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, handle_sigint, print_error
 from rig.cli.network import Insecure, TlsCa, TlsCert, TlsKey, link_security
+from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
     from protocols.zenoh import LinkSecurity
@@ -322,11 +323,12 @@ def register(app: typer.Typer) -> None:
                                                       "e.g. 127.0.0.1:8080")] = None,
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
-        https_key: HttpsKey = None, https_dir: HttpsDir = None,
+        https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
         from rig.console import WebAccess
 
+        use_key_passphrase(key_passphrase, key_file)
         serve(listen, sessions_dir, key_file, no_auth, fail, http,
               link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp),
               WebAccess(tuple(http_name or ()), tokens, https_cert, https_key, https_dir))
@@ -337,11 +339,12 @@ def register(app: typer.Typer) -> None:
         connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
-        https_key: HttpsKey = None, https_dir: HttpsDir = None,
+        https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Serve the operator's console (live web page and controls) for a running `rig serve`."""
         from rig.console import ConsoleError, WebAccess, serve_console
 
+        use_key_passphrase(key_passphrase, key_file)
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
         access = WebAccess(tuple(http_name or ()), tokens, https_cert, https_key, https_dir)
         try:
@@ -357,9 +360,10 @@ def register(app: typer.Typer) -> None:
         def run_command(connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
                         as_json: Annotated[bool, typer.Option("--json", help="print the reply as JSON")] = False,
                         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
-                        insecure_plain_tcp: Insecure = False) -> None:
+                        insecure_plain_tcp: Insecure = False, key_passphrase: KeyPassphrase = None) -> None:
             from rig.service import ServiceClient, ServiceError
 
+            use_key_passphrase(key_passphrase, key_file)
             security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
             try:
                 with ServiceClient(connect, key_file, security=security) as client:
@@ -393,10 +397,12 @@ def register(app: typer.Typer) -> None:
         speed: Annotated[float, typer.Option(parser=_parse_speed, metavar="FACTOR|max",
                                              help="with --emulate: controller time per real time, or max (virtual "
                                                   "time)")] = 1.0,
+        key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Queue a session on the service (signed): the operator starts it from the console."""
         from rig.service import ServiceClient, ServiceError
 
+        use_key_passphrase(key_passphrase, key_file)
         try:
             with ServiceClient(connect, key_file) as client:
                 number = client.queue(sequence, table=table, emulate=emulate, output=output, attended=attended,
@@ -406,11 +412,12 @@ def register(app: typer.Typer) -> None:
         console.print(f"queued as session {number}: start it from the console", highlight=False)
 
     @service_app.command("token")
-    def token_cmd(key_file: KeyOption = None) -> None:
+    def token_cmd(key_file: KeyOption = None, key_passphrase: KeyPassphrase = None) -> None:
         """Print the operator token the console's controls ask for: HMAC-SHA256(rig key, "operator-console")."""
         from protocols.signing_key import SigningKeyError
         from rig.console import token_from_key_file
 
+        use_key_passphrase(key_passphrase, key_file)
         try:
             sys.stdout.write(token_from_key_file(key_file) + "\n")
         except SigningKeyError as exc:
