@@ -18,10 +18,17 @@ Refused, each with a one-line :class:`SigningKeyError` naming the source:
   key fails this with probability below 1e-15;
 - 32 raw bytes that are all printable ASCII: a typed password or 32 hexadecimal digits (half a key), not a random
   key (a random raw key is all printable with probability 2e-14).
+
+**A passphrase** (``--key-passphrase``, :func:`key_from_passphrase`): the key is the SHA-256 of the passphrase's
+ASCII bytes, as ArduPilot's tools derive it (MAVProxy's ``signing setup PASSPHRASE``, Mission Planner's passkeys), so
+that a ground station given the same passphrase signs with the same key. Hashing adds no entropy, so the passphrase
+itself must be hard to guess: at least :data:`MIN_PASSPHRASE` printable ASCII characters (what ArduPilot's tools can
+type) with at least :data:`MIN_PASSPHRASE_DISTINCT` distinct ones; a shorter or repetitive one is refused saying so.
 """
 
 from __future__ import annotations
 
+import hashlib
 import itertools
 import os
 import shlex
@@ -38,6 +45,12 @@ KEY_BYTES = 32
 MIN_DISTINCT = 16
 """Fewest distinct byte values a key must have among its 32 bytes, and among the 31 differences of successive
 bytes (module docstring)."""
+
+MIN_PASSPHRASE = 20
+"""Fewest characters of a passphrase (e.g. five random words, or 20 random characters)."""
+
+MIN_PASSPHRASE_DISTINCT = 10
+"""Fewest distinct characters of a passphrase."""
 
 _MAX_KEY_FILE = 4096  # a key file is 32 or 64-odd bytes: a larger one is not a key file
 
@@ -86,6 +99,20 @@ def check_key_strength(key: bytes, source: str) -> bytes:
                               f"of {KEY_BYTES}, a pattern); make one with python -c \"import secrets; "
                               f"print(secrets.token_hex(32))\"")
     return key
+
+
+def key_from_passphrase(passphrase: str, source: str = "--key-passphrase") -> bytes:
+    """The 32-byte key of ``passphrase``: SHA-256 of its ASCII bytes (ArduPilot's convention, module docstring);
+    :class:`SigningKeyError` naming ``source`` when the passphrase is too short, repetitive or not printable
+    ASCII."""
+    if not all(" " <= c <= "~" for c in passphrase):
+        raise SigningKeyError(f"{source}: a passphrase is printable ASCII (what ArduPilot's tools hash); it has "
+                              f"another character")
+    if len(passphrase) < MIN_PASSPHRASE or len(set(passphrase)) < MIN_PASSPHRASE_DISTINCT:
+        raise SigningKeyError(f"{source}: too weak ({len(passphrase)} characters, {len(set(passphrase))} distinct): a "
+                              f"passphrase has at least {MIN_PASSPHRASE} characters with at least "
+                              f"{MIN_PASSPHRASE_DISTINCT} distinct, e.g. five random words")
+    return hashlib.sha256(passphrase.encode("ascii")).digest()
 
 
 def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping[str, str] = os.environ) -> bytes:

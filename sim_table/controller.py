@@ -277,9 +277,9 @@ class ControllerCore:
 
     def heartbeat(self, t_ns: int) -> None:
         """The host's heartbeat arrived at ``t_ns``."""
-        self._last_heartbeat = self._link_time(t_ns)
+        self._last_heartbeat = self.link_time(t_ns)
 
-    def _link_time(self, t_ns: int) -> int:
+    def link_time(self, t_ns: int) -> int:
         """The watchdogs' time of a message that arrived at controller time ``t_ns`` (module docstring)."""
         return t_ns if self._link_clock is None else self._link_clock()
 
@@ -360,7 +360,7 @@ class ControllerCore:
             self.last_chunk_seq = seq
         self._remember(seq)
         self.counters.chunks_accepted += 1
-        self._last_chunk = self._link_time(t_ns)
+        self._last_chunk = self.link_time(t_ns)
         self._received_any = True
         margin = t_start_ns - t_ns
         self.counters.chunk_margin_total_ns += margin
@@ -463,7 +463,7 @@ class ControllerCore:
             self._p = self._achieved.copy()
             self._v[:] = 0.0
         self.faults = Fault(0)
-        self._last_heartbeat = self._link_time(t_ns)
+        self._last_heartbeat = self.link_time(t_ns)
         self._set_state(State.ARMED, t_ns)
         return Result.ACCEPTED
 
@@ -494,7 +494,7 @@ class ControllerCore:
             return Result.REJECTED
         self._reset_stream()
         self._expected = int(first)
-        self._last_chunk = self._link_time(t_ns)
+        self._last_chunk = self.link_time(t_ns)
         self._anchor = (t_ns, self._p.copy())
         self.counters.streams_started += 1
         if self.first_stream_ns is None:
@@ -650,7 +650,7 @@ class ControllerCore:
 
     def _watchdogs(self, t_ns: int) -> None:
         state = self.state
-        now = self._link_time(t_ns)
+        now = self.link_time(t_ns)
         if state in _HEARTBEAT_GUARDED and (self._last_heartbeat is None
                                             or now - self._last_heartbeat > self.watchdog_ns):
             self.raise_fault(Fault.HEARTBEAT_LOST, t_ns)

@@ -38,7 +38,10 @@ Protocol decisions (the host side is ``drivers.mavlink``):
   key (the host drops what is not), its stamps following the current stamp.
 - **Heartbeats.** Only a signed HEARTBEAT makes its sender a peer (telemetry goes to it), and only a signed one
   from the host that armed the table (address, system, component of the accepted ARM) feeds the watchdog; the
-  others are counted (``heartbeats_refused`` unsigned or badly signed, ``heartbeats_other_host``).
+  others are counted (``heartbeats_refused`` unsigned or badly signed, ``heartbeats_other_host``). A signed ARM
+  from a sender whose signed heartbeats do not come at least twice per watchdog (``sim_table.arming``) is refused
+  at once: a STATUSTEXT (severity ERROR) saying why, then COMMAND_ACK TEMPORARILY_REJECTED (``arms_refused_heartbeat``),
+  where it would otherwise arm and fault with HEARTBEAT_LOST mid-motion.
 - **Bounded reading.** A datagram that is not a whole number of MAVLink 2 frames is dropped unparsed
   (``junk_datagrams``); one drain reads at most :data:`DRAIN_LIMIT` datagrams, so that a flood cannot hold the
   tick thread (the receive thread drains the rest).
@@ -91,6 +94,7 @@ from protocols.mavlink import (
     whole_frames,
 )
 from protocols.replay import Freshness
+from sim_table.arming import STATUS_TEXT_BYTES, heartbeat_problem
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Refused, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
 from sim_table.replay_store import ReplayStore
@@ -149,6 +153,7 @@ class LinkCounters:
     replay_state_unsaved: int = 0  # motion commands refused: the replay state could not be written first
     heartbeats_refused: int = 0  # unsigned or badly signed host heartbeats
     heartbeats_other_host: int = 0  # signed, from another host than the one that armed the table
+    arms_refused_heartbeat: int = 0  # signed ARMs refused: the sender's heartbeat not kept up (sim_table.arming)
     timesync_answered: int = 0
     duplicate_commands: int = 0
     unsupported_commands: int = 0
@@ -215,6 +220,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._sent = 0
         self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last signed heartbeat
         self._armer: tuple[tuple[str, int], int, int] | None = None  # (address, system, component) of the ARM
+        # (address, system, component) -> watchdog times [ns] of its previous and last signed heartbeat
+        self._beats: dict[tuple[tuple[str, int], int, int], tuple[int | None, int | None]] = {}
         self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
         self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
         self._answers: list[tuple[Any, tuple[str, int]]] = []  # COMMAND_ACKs held until the batch's statuses are out
@@ -360,10 +367,16 @@ class MavlinkEndpoint(BatchedTelemetry):
         if not signed:
             self.counters.heartbeats_refused += 1
             return None
-        if self._armer != (source, msg.get_srcSystem(), msg.get_srcComponent()):
-            self.counters.heartbeats_other_host += 1
-            return None
-        return lambda core: core.heartbeat(arrival)
+        sender = (source, msg.get_srcSystem(), msg.get_srcComponent())
+
+        def beat(core: ControllerCore) -> None:
+            self._beats[sender] = (self._beats.get(sender, (None, None))[1], core.link_time(arrival))
+            if self._armer != sender:
+                self.counters.heartbeats_other_host += 1
+                return
+            core.heartbeat(arrival)
+
+        return beat
 
     def _chunk_action(self, msg: Any, signed: bool, arrival: int) -> Action | None:
         if self.stall_chunks:
@@ -402,6 +415,15 @@ class MavlinkEndpoint(BatchedTelemetry):
         if signed and command in SIGNED_COMMANDS and not self._saved_replay_state():
             self._ack(msg.command, self._results[core.refuse()], 0, source, sender)
             return
+        if command is Command.ARM and signed:
+            problem = heartbeat_problem(self._beats.get((source, *sender), (None, None)), core.link_time(arrival),
+                                        core.watchdog_ns)
+            if problem is not None:
+                self.counters.arms_refused_heartbeat += 1
+                text = problem.encode("ascii")[:STATUS_TEXT_BYTES]
+                self._answers.append((self.d.MAVLink_statustext_message(self.d.MAV_SEVERITY_ERROR, text), source))
+                self._ack(msg.command, self.d.MAV_RESULT_TEMPORARILY_REJECTED, 0, source, sender)
+                return
         result = core.command(command, params, signed, arrival)
         if command is Command.ARM and result is Result.ACCEPTED:
             self._armer = (source, *sender)

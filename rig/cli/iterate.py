@@ -17,6 +17,7 @@ import typer
 
 from protocols.signing_key import write_signing_key
 from rig.cli._common import EXIT_REFUSED, EXIT_STOPPED, console, emit_json, err_console, fail, print_error
+from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 
 
 def register(app: typer.Typer) -> None:
@@ -55,9 +56,11 @@ def register(app: typer.Typer) -> None:
         key_file: Annotated[Path | None, typer.Option(help="signing key file (default: "
                                                       "$SHAKETABLE_MAVLINK_KEY)")] = None,
         as_json: Annotated[bool, typer.Option("--json", help="print one JSON object")] = False,
+        key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Identify the table's frequency response, then play, measure and correct the record's drive until the
         plate's fall-line acceleration matches it (each play a run of the session), and save the best drive."""
+        use_key_passphrase(key_passphrase, key_file)
         from analysis.table.model import TableModel, TableModelError
         from drivers.controller import TableError
         from rig import __version__

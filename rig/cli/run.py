@@ -32,6 +32,7 @@ from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail, fail_with, require_file
 from rig.cli.network import INSECURE_NOTE, Insecure, TlsCa, TlsCert, TlsKey, link_security, table_options
+from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -311,7 +312,7 @@ def register(app: typer.Typer) -> None:
             as_json: Annotated[bool, typer.Option("--json", help="print one JSON object (the session's outcome) "
                                                   "on stdout, the progress on stderr; needs --yes")] = False,
             tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
-            insecure_plain_tcp: Insecure = False,
+            insecure_plain_tcp: Insecure = False, key_passphrase: KeyPassphrase = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file. With --resume the session
         continues on the table it ran on (its URL, or the emulated table at its speed) unless --table or --emulate
@@ -319,6 +320,7 @@ def register(app: typer.Typer) -> None:
         for given in (sequence_file, resume, key_file):
             if given is not None:
                 require_file(given)
+        use_key_passphrase(key_passphrase, key_file)
         if as_json and (not yes or console_at is not None or service is not None):
             fail("--json needs --yes (no operator prompts) and is not taken with --service or --console")
         speed_given = speed

@@ -24,6 +24,7 @@ from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, handle_sigint, print_error
 from rig.cli.network import Insecure, TlsCa, TlsCert, TlsKey, link_security
+from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
     from protocols.zenoh import LinkSecurity
@@ -34,6 +35,18 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 ConnectOption = Annotated[str, typer.Option("--connect", help="the rig service's zenoh endpoint")]
 KeyOption = Annotated[Path | None, typer.Option(help="the rig's key file (default: $SHAKETABLE_MAVLINK_KEY)")]
+HttpName = Annotated[list[str] | None, typer.Option("--http-name", metavar="NAME",
+                                                    help="console: a DNS name or address browsers reach it at "
+                                                         "(repeatable; the Host/Origin checks accept it)")]
+TokensOption = Annotated[Path | None, typer.Option("--tokens", metavar="FILE",
+                                                   help="console: the tokens file of operators and viewers "
+                                                        "(docs/console.md), re-read when it changes")]
+HttpsCert = Annotated[Path | None, typer.Option("--https-cert", metavar="FILE",
+                                                help="console: its HTTPS certificate (PEM, e.g. rig certs make)")]
+HttpsKey = Annotated[Path | None, typer.Option("--https-key", metavar="FILE", help="console: the key of --https-cert")]
+HttpsDir = Annotated[Path | None, typer.Option("--https-dir", metavar="DIR",
+                                               help="console: serve HTTPS with DIR/console.pem, made on first use "
+                                                    "(its fingerprint printed)")]
 
 
 # ----- rig run --service -------------------------------------------------------------------------------------
@@ -234,10 +247,10 @@ def status_line(status: dict[str, Any]) -> Text:
 
 
 def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool, fail: Callable[[str], Any],
-          http: str | None = None, security: LinkSecurity | None = None) -> None:
+          http: str | None = None, security: LinkSecurity | None = None, access: Any = None) -> None:
     """Run the service until SIGINT/SIGTERM (module docstring); with ``http`` (``HOST:PORT``) the operator's
     console (``rig.console``) too, as a child process subscribed to the service's telemetry; ``security`` the zenoh
-    session's TLS identity (the console uses it too)."""
+    session's TLS identity (the console uses it too); ``access`` the console's ``rig.console.WebAccess``."""
     from rig.service import OrchestratorService, ServiceError
 
     def say(message: str) -> None:
@@ -265,8 +278,10 @@ def serve(listen: str, sessions_dir: Path, key_file: Path | None, no_auth: bool,
             from rig.console import ConsoleError, ConsoleProcess
 
             try:
+                web = {} if access is None else {"access": access}
                 console = ConsoleProcess(listen, http, key_file=key_file, say=lambda line: print(line, file=sys.stderr,
-                                                                                                 flush=True), **link)
+                                                                                                 flush=True), **link,
+                                         **web)
             except ConsoleError as exc:
                 service.close()
                 fail(str(exc))
@@ -307,23 +322,33 @@ def register(app: typer.Typer) -> None:
         http: Annotated[str | None, typer.Option(help="also serve the operator's console (a web page) at HOST:PORT, "
                                                       "e.g. 127.0.0.1:8080")] = None,
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
+        http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
+        https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
+        from rig.console import WebAccess
+
+        use_key_passphrase(key_passphrase, key_file)
         serve(listen, sessions_dir, key_file, no_auth, fail, http,
-              link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp))
+              link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp),
+              WebAccess(tuple(http_name or ()), tokens, https_cert, https_key, https_dir))
 
     @app.command("console")
     def console_cmd(
         http: Annotated[str, typer.Option(help="HOST:PORT to serve the page on")] = "127.0.0.1:8080",
         connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
+        http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
+        https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Serve the operator's console (live web page and controls) for a running `rig serve`."""
-        from rig.console import ConsoleError, serve_console
+        from rig.console import ConsoleError, WebAccess, serve_console
 
+        use_key_passphrase(key_passphrase, key_file)
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
+        access = WebAccess(tuple(http_name or ()), tokens, https_cert, https_key, https_dir)
         try:
-            serve_console(connect, http, key_file=key_file, security=security,
+            serve_console(connect, http, key_file=key_file, security=security, access=access,
                           say=lambda message: print(f"rig console: {message}", file=sys.stderr, flush=True))
         except ConsoleError as exc:
             fail(str(exc))
@@ -335,9 +360,10 @@ def register(app: typer.Typer) -> None:
         def run_command(connect: ConnectOption = DEFAULT_ENDPOINT, key_file: KeyOption = None,
                         as_json: Annotated[bool, typer.Option("--json", help="print the reply as JSON")] = False,
                         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
-                        insecure_plain_tcp: Insecure = False) -> None:
+                        insecure_plain_tcp: Insecure = False, key_passphrase: KeyPassphrase = None) -> None:
             from rig.service import ServiceClient, ServiceError
 
+            use_key_passphrase(key_passphrase, key_file)
             security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
             try:
                 with ServiceClient(connect, key_file, security=security) as client:
@@ -371,10 +397,12 @@ def register(app: typer.Typer) -> None:
         speed: Annotated[float, typer.Option(parser=_parse_speed, metavar="FACTOR|max",
                                              help="with --emulate: controller time per real time, or max (virtual "
                                                   "time)")] = 1.0,
+        key_passphrase: KeyPassphrase = None,
     ) -> None:
         """Queue a session on the service (signed): the operator starts it from the console."""
         from rig.service import ServiceClient, ServiceError
 
+        use_key_passphrase(key_passphrase, key_file)
         try:
             with ServiceClient(connect, key_file) as client:
                 number = client.queue(sequence, table=table, emulate=emulate, output=output, attended=attended,
@@ -384,11 +412,12 @@ def register(app: typer.Typer) -> None:
         console.print(f"queued as session {number}: start it from the console", highlight=False)
 
     @service_app.command("token")
-    def token_cmd(key_file: KeyOption = None) -> None:
+    def token_cmd(key_file: KeyOption = None, key_passphrase: KeyPassphrase = None) -> None:
         """Print the operator token the console's controls ask for: HMAC-SHA256(rig key, "operator-console")."""
         from protocols.signing_key import SigningKeyError
         from rig.console import token_from_key_file
 
+        use_key_passphrase(key_passphrase, key_file)
         try:
             sys.stdout.write(token_from_key_file(key_file) + "\n")
         except SigningKeyError as exc:

@@ -16,6 +16,7 @@ import typer
 
 from rig.cli import table_list
 from rig.cli._common import EXIT_REFUSED, console, emit_json, err_console, fail, print_error
+from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 
 
 def register(app: typer.Typer) -> None:
@@ -30,8 +31,10 @@ def register(app: typer.Typer) -> None:
 def check_cmd(url: Annotated[str, typer.Argument(help="the table's URL (canopen://, mavlink://, zenoh://)")],
               rig_config: Annotated[Path | None, typer.Option("--rig-config", help="the rig TOML ([drives])")] = None,
               key_file: Annotated[Path | None, typer.Option("--key-file", help="signing key (MAVLink, zenoh)")] = None,
-              as_json: Annotated[bool, typer.Option("--json", help="one JSON object on stdout")] = False) -> None:
+              as_json: Annotated[bool, typer.Option("--json", help="one JSON object on stdout")] = False,
+              key_passphrase: KeyPassphrase = None) -> None:
     """Say what the table is and whether it can be driven, without enabling anything."""
+    use_key_passphrase(key_passphrase, key_file)
     from analysis.table.model import TableModel, TableModelError
     from drivers.controller import TableError, open_table
 

@@ -1,4 +1,5 @@
-"""``python -m rig.console --connect ENDPOINT --http HOST:PORT [--key-file FILE] [--rig NAME] [--exit-with-parent]``:
+"""``python -m rig.console --connect ENDPOINT --http HOST:PORT [--key-file FILE] [--rig NAME] [--exit-with-parent]
+[--http-name NAME]… [--tokens FILE] [--https-cert FILE --https-key FILE | --https-dir DIR]``:
 the console as its own process (what ``rig console``, ``rig serve --http`` and ``rig run --console`` run)."""
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from pathlib import Path
 
 from protocols.zenoh import LinkSecurity
 from protocols.zenoh.tls import TlsError, load_tls
-from rig.console.server import ConsoleError, serve_console
+from rig.console.server import ConsoleError, WebAccess, serve_console
 
 PARENT_POLL_S = 0.2
 """How often ``--exit-with-parent`` looks whether the process that started the console is still there [s]."""
@@ -40,7 +41,12 @@ def end_with_parent(say: Callable[[str], None]) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m rig.console", description=__doc__)
     parser.add_argument("--connect", required=True, help="the rig service's zenoh endpoint")
-    parser.add_argument("--http", required=True, help="HOST:PORT to serve the page on (loopback)")
+    parser.add_argument("--http", required=True, help="HOST:PORT to serve the page on (off loopback: HTTPS)")
+    parser.add_argument("--http-name", action="append", default=[], help="a name browsers reach the console at")
+    parser.add_argument("--tokens", type=Path, help="the tokens file of operators and viewers (re-read on change)")
+    parser.add_argument("--https-cert", type=Path, help="the console's HTTPS certificate (PEM)")
+    parser.add_argument("--https-key", type=Path, help="the private key of --https-cert (PEM)")
+    parser.add_argument("--https-dir", type=Path, help="serve HTTPS with DIR/console.pem, made on first use")
     parser.add_argument("--key-file", type=Path, default=None, help="the rig's key (default $SHAKETABLE_MAVLINK_KEY)")
     parser.add_argument("--rig", default="rig", help="the rig's name in the key space")
     parser.add_argument("--tls-ca", type=Path, help="the lab's CA certificate (zenoh link to the service over TLS)")
@@ -62,7 +68,9 @@ def main(argv: list[str] | None = None) -> int:
         say(f"error: {exc}")
         return 2
     try:
-        serve_console(args.connect, args.http, key_file=args.key_file, rig=args.rig, say=say, security=security)
+        access = WebAccess(tuple(args.http_name), args.tokens, args.https_cert, args.https_key, args.https_dir)
+        serve_console(args.connect, args.http, key_file=args.key_file, rig=args.rig, say=say, security=security,
+                      access=access)
     except ConsoleError as exc:
         say(f"error: {exc}")
         return 2

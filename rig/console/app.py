@@ -49,7 +49,8 @@ from starlette.routing import Mount, Route, WebSocketRoute
 from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
-from rig.console.browsers import COOKIE, CSRF_HEADER, BrowserSessions
+from rig.console.access import RIG_KEY_GRANT, Grant, TokensFile
+from rig.console.browsers import COOKIE, CSRF_HEADER, BrowserSession, BrowserSessions
 from rig.console.hub import QUEUE_FRAMES, Hub
 from rig.console.state import ConsoleState
 from rig.console.token import token_matches
@@ -90,9 +91,12 @@ class Console:
     """The console's state shared by the routes: what is known of the test, the browsers, the controls."""
 
     def __init__(self, controls: Controls | None, token: str | None, *, allowed_hosts: set[str] | None = None,
-                 capacity: int = QUEUE_FRAMES, report_dir: Path | None = None) -> None:
+                 capacity: int = QUEUE_FRAMES, report_dir: Path | None = None, tokens: TokensFile | None = None,
+                 say: Callable[[str], None] = lambda message: None) -> None:
         self.controls = controls
         self.token = token
+        self.tokens = tokens
+        self.say = say
         self.allowed_hosts = allowed_hosts
         self.state = ConsoleState()
         self.hub = Hub(capacity)
@@ -103,7 +107,34 @@ class Console:
 
     @property
     def has_controls(self) -> bool:
-        return self.controls is not None and bool(self.token)
+        return self.controls is not None and (bool(self.token) or self.tokens is not None)
+
+    def grant_of(self, token: str | None) -> Grant | None:
+        """What ``token`` gives: the rig key's operator token, else the tokens file's entry as it is now."""
+        if token_matches(self.token, token):
+            return RIG_KEY_GRANT
+        return self.tokens.grant(token) if self.tokens is not None else None
+
+    def session_of(self, conn: HTTPConnection, *, csrf: bool) -> BrowserSession | None:
+        """The browser session of the request's cookie (with ``csrf``: only when its CSRF header matches) whose
+        token still gives what it gave when the session opened (a revoked token ends its sessions)."""
+        cookie = conn.cookies.get(COOKIE)
+        session = (self.browsers.check(cookie, conn.headers.get(CSRF_HEADER)) if csrf
+                   else self.browsers.find(cookie))
+        if session is not None and self.grant_of(session.token) != session.grant:
+            self.browsers.close(cookie)
+            self.say(f"browser session {session.number} of {session.grant.name!r} ended: its token was revoked")
+            return None
+        return session
+
+    def watch_refused(self, conn: HTTPConnection) -> str | None:
+        """Why this request may not watch (None: it may). Without a tokens file anyone who reaches the console
+        watches; with one, a browser session or a token (``X-Operator-Token``) of either role is needed."""
+        if self.tokens is None:
+            return None
+        if self.session_of(conn, csrf=False) is not None or self.grant_of(conn.headers.get("x-operator-token")):
+            return None
+        return "this console shows the test to token holders only: give a viewer's or an operator's token"
 
     def deliver(self, kind: str, body: dict[str, Any]) -> None:
         """A telemetry publication (in the event loop's thread): folded into the state and offered to every
@@ -125,7 +156,7 @@ class Console:
         if self.allowed_hosts is not None and host not in self.allowed_hosts:
             return f"host {host!r} is not this console's"
         origin = conn.headers.get("origin")
-        if origin is not None and origin not in (f"http://{host}", f"https://{host}"):
+        if origin is not None and origin != f"{'https' if conn.url.scheme in ('https', 'wss') else 'http'}://{host}":
             return f"cross-origin request from {origin!r}"
         site = conn.headers.get("sec-fetch-site")
         if site is not None and site not in ("same-origin", "none"):
@@ -164,6 +195,9 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         return HTMLResponse((STATIC / "index.html").read_text(encoding="utf-8"))
 
     async def state(request: Request) -> Response:
+        reason = console.watch_refused(request)
+        if reason is not None:
+            return refused(403, f"refused: {reason}")
         return JSONResponse({**console.state.hello(console.has_controls), "stats": console.hub.stats(),
                              "connections": console.connection_stats()})
 
@@ -181,24 +215,31 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
             return refused(403, "refused: this console is read-only (no rig key: no operator token)")
         return None
 
-    def caller(request: Request) -> str | None:
-        """Who may send this control: the browser session (cookie and CSRF token) or the token's user."""
-        session = console.browsers.check(request.cookies.get(COOKIE), request.headers.get(CSRF_HEADER))
+    def caller(request: Request) -> tuple[str, Grant] | None:
+        """Who sends this control, as the transport vouches for it (the browser session of the cookie and CSRF
+        token, or the token's holder, and the peer address), never as the request body says."""
+        session = console.session_of(request, csrf=True)
         if session is not None:
-            return session.source()
-        if token_matches(console.token, request.headers.get("x-operator-token")):
-            return f"operator token from {client_of(request)} ({browser_of(request)})"
+            return session.source(), session.grant
+        grant = console.grant_of(request.headers.get("x-operator-token"))
+        if grant is not None:
+            return (f"{grant.role} token from {client_of(request)} ({browser_of(request)}), held by {grant.name!r}",
+                    grant)
         return None
 
     async def token(request: Request) -> Response:
         problem = check_request(request)
         if problem is not None:
             return problem
-        if not token_matches(console.token, request.headers.get("x-operator-token")):
+        given = request.headers.get("x-operator-token", "").strip()
+        grant = console.grant_of(given)
+        if grant is None:
             return refused(403, "refused: the operator token is missing or wrong (rig service token prints it)")
-        session = console.browsers.open(client_of(request), browser_of(request))
-        reply = JSONResponse({"ok": True, "message": "operator token accepted: controls unlocked for this browser",
-                              "csrf": session.csrf, "session": session.number})
+        session = console.browsers.open(client_of(request), browser_of(request), grant, given)
+        message = ("operator token accepted: controls unlocked for this browser" if grant.may_command else
+                   f"viewer token of {grant.name!r} accepted: this browser may watch, not command")
+        reply = JSONResponse({"ok": True, "message": message, "csrf": session.csrf, "session": session.number,
+                              "role": grant.role})
         reply.set_cookie(COOKIE, session.cookie, max_age=int(console.browsers.lifetime), path="/", httponly=True,
                          samesite="strict", secure=request.url.scheme == "https")
         return reply
@@ -207,10 +248,11 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         reason = console.foreign(request)
         if reason is not None:
             return refused(403, f"refused: {reason}")
-        session = console.browsers.find(request.cookies.get(COOKIE))
+        session = console.session_of(request, csrf=False)
         if session is None or not console.has_controls:
             return JSONResponse({"unlocked": False})
-        return JSONResponse({"unlocked": True, "csrf": session.csrf, "session": session.number})
+        return JSONResponse({"unlocked": True, "csrf": session.csrf, "session": session.number,
+                             "role": session.grant.role})
 
     async def lock(request: Request) -> Response:
         problem = check_request(request)
@@ -230,10 +272,14 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         problem = check_request(request)
         if problem is not None:
             return problem
-        source = caller(request)
-        if source is None:
+        who = caller(request)
+        if who is None:
             return refused(403, "refused: unlock the controls with the operator token first (rig service token "
                                 "prints it); the browser session is missing, expired or its CSRF token wrong")
+        source, grant = who
+        if not grant.may_command:
+            console.say(f"control {command} from {source}: refused (a viewer may watch only)")
+            return refused(403, f"refused: {grant.name!r} is a viewer: a viewer may watch, not command")
         args = await _json_args(request)
         if isinstance(args, str):
             return refused(400, f"refused: {args}")
@@ -247,6 +293,9 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         return JSONResponse({"ok": True, "message": reply.get("message", ""), "state": reply.get("state")})
 
     async def report(request: Request) -> Response:
+        reason = console.watch_refused(request)
+        if reason is not None:
+            return refused(403, f"refused: {reason}")
         status = console.state.status
         if status is None or not status.get("session") or status.get("state") not in FINAL_STATES \
                 or status.get("active"):
@@ -259,7 +308,7 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         return FileResponse(html, media_type="text/html", headers={"content-security-policy": REPORT_POLICY})
 
     async def feed(websocket: WebSocket) -> None:
-        reason = console.foreign(websocket)
+        reason = console.foreign(websocket) or console.watch_refused(websocket)
         if reason is not None:
             await websocket.close(code=1008, reason=reason[:120])
             return

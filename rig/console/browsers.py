@@ -9,7 +9,8 @@ page can read). A control from the page carries both: the cookie (sent by the br
 ``X-Console-CSRF`` header. The token itself is not kept anywhere in the browser.
 
 Each session has a number, the address and browser that unlocked it and when; the service's log names the session
-(``console browser session 3, unlocked 09:12:04Z from 127.0.0.1 (HeadlessChrome/150.0)``). At most
+(``console browser session 3, unlocked 09:12:04Z from 127.0.0.1 (HeadlessChrome/150.0) with the operator token of
+'rig key'``: the token's holder, :mod:`rig.console.access`). At most
 :data:`MAX_SESSIONS` are kept (the oldest forgotten); ``POST /api/lock`` ends one.
 """
 
@@ -21,6 +22,8 @@ import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass
+
+from rig.console.access import Grant
 
 COOKIE = "rig_console"
 """The session cookie's name."""
@@ -38,7 +41,8 @@ MAX_SESSIONS = 64
 @dataclass(frozen=True)
 class BrowserSession:
     """One unlocked browser: its number, cookie and CSRF token, who unlocked it (``client``: address, ``browser``:
-    name and version from its user agent) and when (``opened``: monotonic [s], ``opened_utc``: ``HH:MM:SSZ``)."""
+    name and version from its user agent; ``grant``: the token's holder and role, ``token`` the token given, kept
+    here to check it is still valid) and when (``opened``: monotonic [s], ``opened_utc``: ``HH:MM:SSZ``)."""
 
     number: int
     cookie: str
@@ -47,10 +51,13 @@ class BrowserSession:
     browser: str
     opened: float
     opened_utc: str
+    grant: Grant
+    token: str
 
     def source(self) -> str:
         """How the service's log names a control from this session."""
-        return f"console browser session {self.number}, unlocked {self.opened_utc} from {self.client} ({self.browser})"
+        return (f"console browser session {self.number}, unlocked {self.opened_utc} from {self.client} "
+                f"({self.browser}) with the {self.grant.role} token of {self.grant.name!r}")
 
 
 class BrowserSessions:
@@ -62,12 +69,13 @@ class BrowserSessions:
         self._count = 0
         self._lock = threading.Lock()
 
-    def open(self, client: str, browser: str) -> BrowserSession:
-        """A new session for the browser at ``client`` that gave the operator token."""
+    def open(self, client: str, browser: str, grant: Grant, token: str) -> BrowserSession:
+        """A new session for the browser at ``client`` that gave ``token``, whose grant is ``grant``."""
         with self._lock:
             self._count += 1
             session = BrowserSession(self._count, secrets.token_urlsafe(32), secrets.token_urlsafe(32), client,
-                                     browser, time.monotonic(), time.strftime("%H:%M:%SZ", time.gmtime()))
+                                     browser, time.monotonic(), time.strftime("%H:%M:%SZ", time.gmtime()), grant,
+                                     token)
             self._sessions[session.cookie] = session
             while len(self._sessions) > MAX_SESSIONS:
                 self._sessions.popitem(last=False)

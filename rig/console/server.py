@@ -17,14 +17,16 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 from protocols.signing_key import SigningKeyError
 from protocols.zenoh import LinkSecurity
 from protocols.zenoh.config import PLAIN
+from rig.console.access import AccessError, TokensFile
 from rig.console.app import Console, create_app
 from rig.console.feed import TelemetrySubscription
 from rig.console.guard import ConnectionGuard, guarded_protocol
+from rig.console.https import HttpsError, HttpsFiles, https_files
 from rig.console.token import token_from_key_file
 from rig.service import DEFAULT_RIG, ServiceClient
 
@@ -48,16 +50,44 @@ def parse_http(address: str) -> tuple[str, int]:
     return host, int(port)
 
 
-def allowed_hosts(host: str, port: int) -> set[str]:
-    """The ``Host`` headers the console answers controls from: its address, and localhost's names when it
-    listens on loopback (a page reached through any other name — DNS rebinding — is refused)."""
-    names = {host, f"[{host}]" if ":" in host else host}
+class WebAccess(NamedTuple):
+    """How the console is reached and who may use it: ``names`` the DNS names (or further addresses) browsers
+    reach it at (``--http-name``: the Host/Origin checks accept them), ``tokens`` the tokens file of operators and
+    viewers (:mod:`rig.console.access`), the HTTPS certificate given (``https_cert``, ``https_key``) or made on first
+    use in ``https_dir`` (:mod:`rig.console.https`)."""
+
+    names: tuple[str, ...] = ()
+    tokens: Path | None = None
+    https_cert: Path | None = None
+    https_key: Path | None = None
+    https_dir: Path | None = None
+
+    def arguments(self) -> list[str]:
+        """The same as ``python -m rig.console`` options."""
+        words = [word for name in self.names for word in ("--http-name", name)]
+        for option, value in (("--tokens", self.tokens), ("--https-cert", self.https_cert),
+                              ("--https-key", self.https_key), ("--https-dir", self.https_dir)):
+            if value is not None:
+                words += [option, str(value)]
+        return words
+
+
+LOOPBACK_ONLY = WebAccess()
+"""No other names, no tokens file, plain HTTP (on loopback only)."""
+
+
+def allowed_hosts(host: str, port: int, names: tuple[str, ...] = ()) -> set[str]:
+    """The ``Host`` headers the console answers controls from: its address, the ``names`` it was told it is reached
+    at, and localhost's names when it listens on loopback (a page reached through any other name — DNS
+    rebinding — is refused); on port 80 or 443 also without the port."""
+    hosts = {host, f"[{host}]" if ":" in host else host, *(f"[{n}]" if ":" in n else n for n in names)}
     try:
         if ipaddress.ip_address(host).is_loopback:
-            names |= {"localhost", "127.0.0.1", "[::1]"}
+            hosts |= {"localhost", "127.0.0.1", "[::1]"}
     except ValueError:
         pass
-    return {f"{name}:{port}" for name in names}
+    # a browser leaves the scheme's default port out of Host
+    return {f"{name}:{port}" for name in hosts} | (hosts if port in (80, 443) else set())
 
 
 class ServiceControls:
@@ -83,24 +113,34 @@ class ServiceControls:
 
 def console_server(console: Console, host: str, port: int, *, say: Callable[[str], None] = lambda message: None,
                    on_startup: Callable[[Any], None] | None = None, on_shutdown: Callable[[], None] | None = None,
-                   guard: ConnectionGuard | None = None) -> Any:
+                   guard: ConnectionGuard | None = None, https: HttpsFiles | None = None) -> Any:
     """The uvicorn server of ``console`` at ``host``:``port`` (not yet running: ``.run()``), its connections bounded
-    by ``guard`` (:mod:`rig.console.guard`; default: its defaults, logging to ``say``)."""
+    by ``guard`` (:mod:`rig.console.guard`; default: its defaults, logging to ``say``), over TLS with ``https``."""
     import uvicorn
 
     guard = guard or ConnectionGuard(say)
     console.connection_stats = guard.stats
     app = create_app(console, on_startup=on_startup, on_shutdown=on_shutdown)
     return uvicorn.Server(uvicorn.Config(app, host=host, port=port, log_level="warning", lifespan="on",
-                                         loop="asyncio", http=guarded_protocol(guard), timeout_keep_alive=5))
+                                         loop="asyncio", http=guarded_protocol(guard), timeout_keep_alive=5,
+                                         ssl_certfile=None if https is None else str(https.certificate),
+                                         ssl_keyfile=None if https is None else str(https.key)))
 
 
 def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
-                  say: Callable[[str], None] = lambda message: None, security: LinkSecurity = PLAIN) -> None:
+                  say: Callable[[str], None] = lambda message: None, security: LinkSecurity = PLAIN,
+                  access: WebAccess = LOOPBACK_ONLY) -> None:
     """Serve the console at ``http`` (``HOST:PORT``) for the rig service at ``connect`` until SIGINT/SIGTERM.
-    Without the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) the page is read-only. ``security``: the
-    zenoh link to the service (its TLS identity)."""
+    Without the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) the page is read-only (unless the tokens
+    file names operators). ``security``: the zenoh link to the service (its TLS identity); ``access``: the names,
+    tokens and HTTPS certificate (:class:`WebAccess`)."""
     host, port = parse_http(http)
+    try:
+        https = https_files(host, access.names, certificate=access.https_cert, key=access.https_key,
+                            directory=access.https_dir, say=say)
+        tokens = TokensFile(access.tokens, say) if access.tokens is not None else None
+    except (HttpsError, AccessError) as exc:
+        raise ConsoleError(str(exc)) from None
     try:
         token: str | None = token_from_key_file(key_file)
     except SigningKeyError as exc:
@@ -112,7 +152,8 @@ def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig:
         client = ServiceClient(connect, key_file if token else None, security=security)
     except ServiceError as exc:
         raise ConsoleError(str(exc)) from None
-    console = Console(ServiceControls(client), token, allowed_hosts=allowed_hosts(host, port))
+    console = Console(ServiceControls(client), token, allowed_hosts=allowed_hosts(host, port, access.names),
+                      tokens=tokens, say=say)
     subscription: list[TelemetrySubscription] = []
 
     def startup(loop: Any) -> None:
@@ -122,8 +163,8 @@ def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig:
         for sub in subscription:
             sub.close()
 
-    server = console_server(console, host, port, say=say, on_startup=startup, on_shutdown=shutdown)
-    announce = threading.Thread(target=_announce, args=(server, say), daemon=True)
+    server = console_server(console, host, port, say=say, on_startup=startup, on_shutdown=shutdown, https=https)
+    announce = threading.Thread(target=_announce, args=(server, say, "https" if https else "http"), daemon=True)
     announce.start()
     try:
         server.run()
@@ -133,13 +174,13 @@ def serve_console(connect: str, http: str, *, key_file: Path | None = None, rig:
         raise ConsoleError(f"the console could not listen on {http} (port in use?)")
 
 
-def _announce(server: Any, say: Callable[[str], None]) -> None:
+def _announce(server: Any, say: Callable[[str], None], scheme: str) -> None:
     while not server.started and not server.should_exit:
         time.sleep(0.05)
     if server.started:
         for sock in (s for srv in server.servers for s in srv.sockets):
             host, port = sock.getsockname()[:2]
-            say(f"{READY}http://{f'[{host}]' if ':' in host else host}:{port}/")
+            say(f"{READY}{scheme}://{f'[{host}]' if ':' in host else host}:{port}/")
             return
 
 
@@ -150,10 +191,11 @@ class ConsoleProcess:
     ends it (SIGTERM)."""
 
     def __init__(self, connect: str, http: str, *, key_file: Path | None = None, rig: str = DEFAULT_RIG,
-                 say: Callable[[str], None] = lambda message: None, security: LinkSecurity = PLAIN) -> None:
+                 say: Callable[[str], None] = lambda message: None, security: LinkSecurity = PLAIN,
+                 access: WebAccess = LOOPBACK_ONLY) -> None:
         parse_http(http)
         command = [sys.executable, "-m", "rig.console", "--connect", connect, "--http", http, "--rig", rig,
-                   "--exit-with-parent"]
+                   "--exit-with-parent", *access.arguments()]
         if key_file is not None:
             command += ["--key-file", str(key_file)]
         if security.tls is not None:

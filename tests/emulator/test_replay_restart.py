@@ -43,6 +43,12 @@ def heartbeat(link: UdpLink) -> None:
     link.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
 
 
+def beats(link: UdpLink) -> None:
+    """The two heartbeats a host sends before it may arm (``sim_table.arming``)."""
+    heartbeat(link)
+    heartbeat(link)
+
+
 def applied(endpoint: MavlinkEndpoint, core: ControllerCore, count: int) -> None:
     """Apply the next ``count`` host messages the endpoint takes to ``core``."""
     deadline = time.monotonic() + 10.0
@@ -70,8 +76,9 @@ def test_restarted_with_its_clock_60_s_behind_it_refuses_an_arm_captured_20_s_be
     host = signed_sender(endpoint.address, key, now - 20.0, link_id=9)
     core = ControllerCore(TableModel())
     try:
+        beats(host)
         captured = arm(host)
-        applied(endpoint, core, 1)
+        applied(endpoint, core, 3)
         assert core.state is State.ARMED
         clock_error[0] = 0.0  # the host's later messages, up to now
         host.mav.signing.timestamp = signing_timestamp(now)
@@ -94,8 +101,9 @@ def test_restarted_with_its_clock_60_s_behind_it_refuses_an_arm_captured_20_s_be
         assert restarted.counters.stale_signatures == 2
         on_time = signed_sender(restarted.address, key, true_time(), link_id=5, system=252)
         try:
+            beats(on_time)
             arm(on_time)  # a host on time still arms
-            applied(restarted, core, 1)
+            applied(restarted, core, 3)
         finally:
             on_time.close()
         assert core.state is State.ARMED
@@ -116,6 +124,7 @@ def test_a_signed_arm_stamped_from_the_future_is_denied_and_the_table_stays_idle
         on_time = signed_sender((host, int(port)), key, time.time(), link_id=4, system=252)
         try:
             assert answer(ahead, lambda: arm(ahead)) == "denied"
+            beats(on_time)
             assert answer(on_time, lambda: arm(on_time)) == "accepted"
         finally:
             ahead.close()

@@ -288,4 +288,5 @@ def test_http_addresses_and_the_hosts_they_accept() -> None:
     with pytest.raises(Exception, match="HOST:PORT"):
         parse_http("8080")
     assert allowed_hosts("127.0.0.1", 8080) == {"127.0.0.1:8080", "localhost:8080", "[::1]:8080"}
-    assert allowed_hosts("192.0.2.7", 80) == {"192.0.2.7:80"}
+    assert allowed_hosts("192.0.2.7", 80) == {"192.0.2.7:80", "192.0.2.7"}  # a browser omits the default port
+    assert allowed_hosts("10.0.0.5", 8443, ("rig.lab",)) == {"10.0.0.5:8443", "rig.lab:8443"}

@@ -84,8 +84,9 @@ def test_the_token_opens_an_httponly_samesite_strict_session_used_with_a_csrf_he
         sent = client.post("/api/control/pause", headers={**SAME, "X-Console-CSRF": csrf})
         assert sent.status_code == 200, sent.text
         assert controls.calls[-1][1].startswith("console browser session 1, unlocked ")
-        assert controls.calls[-1][1].endswith("from testclient (testclient)")
-        assert client.get("/api/session").json() == {"unlocked": True, "csrf": csrf, "session": 1}
+        assert controls.calls[-1][1].endswith("from testclient (testclient) with the operator token of 'rig key'")
+        assert client.get("/api/session").json() == {"unlocked": True, "csrf": csrf, "session": 1,
+                                                     "role": "operator"}
         # a queued session started, a prompt answered: the body's arguments go to the service
         client.post("/api/control/start", headers={**SAME, "X-Console-CSRF": csrf}, content=b'{"queued": 3}')
         client.post("/api/control/answer", headers={**SAME, "X-Console-CSRF": csrf},

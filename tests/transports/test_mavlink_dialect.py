@@ -255,7 +255,7 @@ def test_the_cache_follows_xdg_cache_home_and_pymavlinks_version(d, tmp_path, mo
 @pytest.mark.parametrize(("old", "new", "why"), [
     ('<message id="42503"', '<message id="0"', "Duplicate message id"),  # clashes with HEARTBEAT
     ('units="m/s/s"', 'units="m/s^2"', "m/s^2"),  # not a MAVLink unit: schema validation fails
-    ("<include>common.xml</include>", "<include>nowhere.xml</include>", "nowhere.xml"),
+    ("<include>ardupilotmega.xml</include>", "<include>nowhere.xml</include>", "nowhere.xml"),
 ])
 def test_a_rejected_dialect_raises_and_leaves_nothing(d, cache, tmp_path, old, new, why):
     xml = _copy_xml(tmp_path, old, new)

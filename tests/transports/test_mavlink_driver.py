@@ -98,6 +98,7 @@ class RawHost(table_checks.Host):
         if key is not None:
             enable_signing(self.link.mav, key, link_id=0, timestamp=timestamp)
         self.beating = True
+        self.beats = 0  # heartbeats sent
         self.statuses: list[Any] = []
         self.acks: list[Any] = []
         self.arrivals: list[Any] = []  # statuses and COMMAND_ACKs in the order they arrived
@@ -126,10 +127,17 @@ class RawHost(table_checks.Host):
         while self._running:
             if self.beating:
                 self.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+                self.beats += 1
             time.sleep(self.heartbeat_period)
 
     def command(self, name: str, *params: float) -> str:
-        """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …)."""
+        """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …).
+        An ARM waits until this host has sent two heartbeats: the controller arms only a host that keeps its
+        heartbeat up (``sim_table.arming``)."""
+        deadline = time.monotonic() + 5.0
+        while name == "arm" and self.beating and self.beats < 2:
+            assert time.monotonic() < deadline, "the host sent no heartbeats"
+            time.sleep(self.heartbeat_period / 4)
         command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
         values = [*params] + [0.0] * (7 - len(params))
         return self.answer(command, lambda: self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values)))

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from protocols.signing_key import KEY_ENV, SigningKeyError, load_signing_key, write_signing_key
+from protocols.signing_key import KEY_ENV, SigningKeyError, key_from_passphrase, load_signing_key, write_signing_key
 
 KEY = bytes.fromhex("d31206b30393bd1c639b2d588f463d4518c16a9a1d39a506bfefb510bc70d4e3")  # secrets.token_hex(32)
 
@@ -86,3 +86,40 @@ def test_a_written_key_is_random_owner_only_and_never_overwrites(tmp_path: Path)
     with pytest.raises(FileExistsError):
         write_signing_key(path)
     assert load_signing_key(path, env={}) == key
+
+
+def test_a_passphrase_gives_the_sha256_key_of_ardupilot_s_tools() -> None:
+    # the SHA-256 of "correct horse battery staple", a widely published test vector (not computed by the code tested)
+    assert key_from_passphrase("correct horse battery staple").hex() == \
+        "c4bbcb1fbec99d65bf59d85c8cb62ee2db963f0fe106f483d9afa73bd4e39a8a"
+
+
+@pytest.mark.parametrize(("passphrase", "expected"), [
+    ("tablekey", r"too weak \(8 characters, 7 distinct\): a passphrase has at least 20 characters"),
+    ("aaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaaa", r"34 characters, 1 distinct"),
+    ("überlange Passphrase für den Tisch", "printable ASCII"),
+])
+def test_a_weak_passphrase_is_refused_saying_what_it_must_be(passphrase: str, expected: str) -> None:
+    with pytest.raises(SigningKeyError, match=expected) as raised:
+        key_from_passphrase(passphrase)
+    assert str(raised.value).startswith("--key-passphrase: ")
+
+
+def test_key_passphrase_on_the_command_line(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    from typer.testing import CliRunner
+
+    from rig.cli import app
+    from rig.console import operator_token
+
+    monkeypatch.delenv(KEY_ENV, raising=False)  # the command sets it in this process: restored after the test
+    passphrase = "correct horse battery staple"
+    given = CliRunner().invoke(app, ["service", "token", "--key-passphrase", passphrase])
+    assert given.exit_code == 0, given.output
+    assert given.stdout.strip() == operator_token(key_from_passphrase(passphrase))
+    monkeypatch.setenv("SHAKETABLE_KEY_PASSPHRASE", passphrase)
+    assert CliRunner().invoke(app, ["service", "token"]).stdout.strip() == given.stdout.strip()
+    both = CliRunner().invoke(app, ["service", "token", "--key-passphrase", passphrase, "--key-file",
+                                    str(key_file(tmp_path / "k", KEY.hex().encode()))])
+    assert both.exit_code == 2 and "give the rig's key one way" in both.output
+    weak = CliRunner().invoke(app, ["service", "token", "--key-passphrase", "tablekey"])
+    assert weak.exit_code == 2 and "too weak" in weak.output

@@ -206,6 +206,8 @@ def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             before = table.wait_for_state("idle", 5)
+            for _ in range(2):  # a host keeps its heartbeat up before it arms (sim_table.arming)
+                signer.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
             arm = D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_ARM, 0, 0, 0, 0, 0, 0, 0, 0)
             signer.send(arm)
             recorded = bytes(arm.get_msgbuf())  # the signed datagram as it went out

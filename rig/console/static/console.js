@@ -235,7 +235,8 @@
   }
 
   // ----- controls ------------------------------------------------------------------------------------
-  const unlocked = () => controls && !!csrf;
+  let role = "";                          // the browser session's: "operator" commands, "viewer" watches only
+  const unlocked = () => controls && !!csrf && role === "operator";
 
   // What each button does in each state: a button that would do nothing is disabled. Pause: while a session
   // plays (not yet paused); resume: while paused; abort: while a session is prepared or played; the emergency stop
@@ -253,9 +254,10 @@
     for (const id of ["pause", "resume", "abort"]) $(id).disabled = !(on && can[id]);
     for (const id of ["answer-done", "answer-decline"]) $(id).disabled = !(on && can.answer);
     $("estop").classList.toggle("locked", !on);
-    $("lock").hidden = !on; $("token").hidden = on; $("unlock").hidden = on;
+    $("lock").hidden = !csrf; $("token").hidden = !!csrf; $("unlock").hidden = !!csrf;
     const mode = $("control-mode");
-    mode.textContent = !controls ? "read-only: this console has no rig key" : on ? "controls unlocked (this browser session)" : "read-only: enter the operator token";
+    mode.textContent = !controls ? "read-only: this console has no rig key" : on ? "controls unlocked (this browser session)"
+      : csrf ? "watching as a viewer: a viewer may not command" : "read-only: enter the operator token";
     mode.className = "mode" + (on ? " unlocked" : "");
   }
 
@@ -271,7 +273,7 @@
   async function send(command, body) {
     if (!csrf) { reply("enter the operator token first (rig service token prints it)", false); $("token").focus(); return; }
     const r = await post(`/api/control/${command}`, body, { "X-Console-CSRF": csrf });
-    if (r.status === 403 && !r.ok) { csrf = ""; showControls(); }   // the session expired or was ended elsewhere
+    if (r.status === 403 && !r.ok && role === "operator") { csrf = ""; showControls(); }   // the session expired or was ended elsewhere
     reply(r.message, r.ok);
   }
 
@@ -279,8 +281,8 @@
     try {
       const response = await fetch("/api/session", { credentials: "same-origin" });
       const body = await response.json();
-      csrf = body.unlocked ? body.csrf : "";
-    } catch (e) { csrf = ""; }
+      csrf = body.unlocked ? body.csrf : ""; role = body.unlocked ? body.role : "";
+    } catch (e) { csrf = ""; role = ""; }
     showControls(); showQueue();
   }
 
@@ -289,7 +291,7 @@
     const given = $("token").value.trim();
     $("token").value = "";
     const r = await post("/api/token", {}, { "X-Operator-Token": given });
-    csrf = r.ok ? r.body.csrf : "";
+    csrf = r.ok ? r.body.csrf : ""; role = r.ok ? r.body.role : "";
     reply(r.message, r.ok); showControls(); showQueue();
   });
   $("lock").addEventListener("click", async () => {
