@@ -8,7 +8,6 @@ from __future__ import annotations
 import hashlib
 import json
 import secrets
-import socket
 import time
 from pathlib import Path
 from typing import Any
@@ -26,19 +25,12 @@ from rig.console.hub import Hub
 from rig.console.server import allowed_hosts, parse_http
 from rig.console.state import WINDOW_S, ConsoleState
 from rig.orchestrator.live import LiveTap, block_means
-from rig.service import ServiceError, ServiceKeys
+from rig.service import ServiceKeys
 from rig.service.telemetry import LivePublisher, live_key
+from tests.helpers.console import HOST, SAME, RecordingControls
+from tests.helpers.processes import free_port
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
-HOST = "127.0.0.1:8080"
-SAME = {"Host": HOST, "Origin": f"http://{HOST}", "Content-Type": "application/json"}
-
-
-def free_port() -> int:
-    with socket.socket() as probe:
-        probe.bind(("127.0.0.1", 0))
-        return probe.getsockname()[1]
 
 
 def hmac_by_hand(key: bytes, message: bytes) -> str:
@@ -47,21 +39,6 @@ def hmac_by_hand(key: bytes, message: bytes) -> str:
     inner = hashlib.sha256(bytes(b ^ 0x36 for b in block) + message).digest()
     return hashlib.sha256(bytes(b ^ 0x5C for b in block) + inner).hexdigest()
 
-
-class RecordingControls:
-    """Stands for the rig service: records what it was asked; refuses ``refuse`` commands as the service does."""
-
-    def __init__(self, refuse: tuple[str, ...] = ()) -> None:
-        self.calls: list[tuple[str, str]] = []
-        self.args: list[dict[str, Any]] = []
-        self.refuse = refuse
-
-    def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]:
-        self.calls.append((command, source))
-        self.args.append(args)
-        if command in self.refuse:
-            raise ServiceError(f"cannot {command}: no session is running")
-        return {"ok": True, "state": "running", "message": f"{command} requested"}
 
 
 @pytest.fixture

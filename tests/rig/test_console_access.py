@@ -24,20 +24,11 @@ from rig.console import Console, create_app, operator_token
 from rig.console.access import AccessError, TokensFile, read_tokens
 from rig.console.https import HttpsError, https_files
 from rig.console.server import console_server
+from tests.helpers.console import RecordingControls
 
 HOST = "10.231.0.1:8443"
 SAME = {"Host": HOST, "Origin": f"https://{HOST}", "Content-Type": "application/json"}
 
-
-class RecordingControls:
-    """Stands for the rig service: records each command and the source the console gave it."""
-
-    def __init__(self) -> None:
-        self.calls: list[tuple[str, str]] = []
-
-    def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]:
-        self.calls.append((command, source))
-        return {"ok": True, "state": "running", "message": f"{command} requested"}
 
 
 def write_tokens(path: Path, entries: list[tuple[str, str, str]]) -> None:

@@ -22,12 +22,9 @@ import pytest
 from protocols.signing_key import write_signing_key
 from rig.console import operator_token
 from rig.service import ServiceClient
+from tests.helpers.console import CHROMIUM, CHROMIUM_ARGS
 from tests.helpers.processes import free_port, serve_command
 from tests.helpers.sequences import TINY
-
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync"]
 
 pytestmark = [pytest.mark.integration, pytest.mark.skipif(not CHROMIUM.exists(),
                                 reason="Debian's chromium is not installed (apt-get install chromium)")]

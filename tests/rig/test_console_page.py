@@ -15,11 +15,11 @@ from collections.abc import Iterator
 from typing import Any
 
 import pytest
-from test_console import RecordingControls, free_port
-from test_console_browser import CHROMIUM, CHROMIUM_ARGS
 
 from rig.console import Console, operator_token
 from rig.console.server import allowed_hosts, console_server
+from tests.helpers.console import CHROMIUM, CHROMIUM_ARGS, RecordingControls
+from tests.helpers.processes import free_port
 
 pytestmark = [pytest.mark.integration, pytest.mark.skipif(not CHROMIUM.exists(),
                                 reason="Debian's chromium is not installed (apt-get install chromium)")]

@@ -19,7 +19,6 @@ from typing import Any
 import pytest
 import zenoh
 from starlette.testclient import TestClient
-from test_console import HOST, SAME, RecordingControls, free_port
 
 from protocols.signing_key import write_signing_key
 from protocols.zenoh import session_config
@@ -32,6 +31,8 @@ from rig.service import OrchestratorService, ServiceClient, ServiceKeys
 from rig.service.audit import escaped
 from rig.service.operator import AnswerRefusedError, RemoteOperator
 from rig.service.wire import decode_reply, encode_request
+from tests.helpers.console import HOST, SAME, RecordingControls
+from tests.helpers.processes import free_port
 
 pytestmark = pytest.mark.integration  # opens sockets, starts servers (tests/conftest.py)
 

@@ -46,9 +46,9 @@ from rig.sequence import load_sequence
 from rig.session import SessionLog
 from rig.study_file import write_study
 from rig.study_summary import study_summary
+from tests.helpers.console import CHROMIUM
 
 ROOT = Path(__file__).resolve().parents[2]
-CHROMIUM = Path("/usr/bin/chromium")
 A4_WIDTH_PX = 794  # 210 mm at 96 dpi
 A4_HEIGHT_PX = 1123
 
