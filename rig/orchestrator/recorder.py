@@ -47,7 +47,7 @@ _STOPPING = {"controlled_stop": ("stopping", "faulted", "emergency_stopped", "id
 """The states of a status that show a trip's action taken."""
 
 POLL_SECONDS = 0.02
-"""How often the recorder drains the subscriptions [s]."""
+"""How often the recorder drains the subscriptions at least [s]; an accelerometer batch wakes it at once."""
 
 FEEDBACK_WAIT = 5.0
 """How long :meth:`RunRecorder.finish` waits at most [s], after its linger, for every declared accelerometer's samples
@@ -133,8 +133,15 @@ class RunRecorder:
 
     def _loop(self) -> None:
         try:
-            while not self._stop.wait(POLL_SECONDS):
-                self._drain()
+            while not self._stop.is_set():
+                try:  # woken by an accelerometer batch at once: the limit detectors see it without a poll's delay
+                    first = [self._accel.get(timeout=POLL_SECONDS)]
+                except TimeoutError:
+                    first = []
+                except TableError:  # closed: the table's connection ended
+                    first = []
+                    self._stop.wait(POLL_SECONDS)
+                self._drain(first)
             self._drain()
         except (OSError, SessionError) as exc:
             self.write_error = exc
@@ -145,8 +152,9 @@ class RunRecorder:
         assert self._t0_ns is not None
         return (np.asarray(t_ns) - self._t0_ns) * 1e-9
 
-    def _drain(self) -> None:
-        for batch in self._accel.drain():
+    def _drain(self, first: list[AccelBatch] | None = None) -> None:
+        """Write (and check) everything received, after ``first`` (batches already taken from the queue)."""
+        for batch in [*(first or []), *self._accel.drain()]:
             self._write_accel(batch)
         for tilt in self._tilts.drain():
             self._write_tilt(tilt)
