@@ -49,7 +49,7 @@ BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "b_cg", "h_
 DIMENSIONS = ("b", "h", "depth", "mass")
 RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive", "polarity")
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz", "polarity")
-RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller")
+RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller", "limit_detectors")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
 TABLE_SCHEMES = ("mavlink", "zenoh", "canopen")
 """The table controllers' URL schemes (``drivers.open_table``)."""

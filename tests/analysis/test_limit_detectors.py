@@ -10,7 +10,7 @@ import pytest
 
 from analysis.table.limit_detectors import Detector, G, LimitDetectors
 from analysis.table.model import TableModel, TableModelError
-from rig.sequence import SequenceError, load_sequence
+from rig.sequence import Sequence, SequenceError, load_sequence
 
 RIG = """\
 [table]
@@ -99,9 +99,11 @@ def test_a_sequence_overrides_the_rig_s_detectors_channel_by_channel(tmp_path: P
     write(tmp_path, RIG)
     path = write(tmp_path, SEQUENCE.format(overrides="[limit_detectors.accel.x]\nwarn_high_g = 0.2\n"),
                  "sequence.toml")
-    detectors = load_sequence(path).table.detectors
-    assert detectors == LimitDetectors((Detector("accel.x", warn_high=0.2 * G),
-                                        Detector("tilt.angle", warn_high=math.radians(20))))
+    sequence = load_sequence(path)
+    assert sequence.table.detectors == LimitDetectors((Detector("accel.x", warn_high=0.2 * G),
+                                                       Detector("tilt.angle", warn_high=math.radians(20))))
+    again = Sequence.from_dict(sequence.to_dict())  # as a session file stores it
+    assert again.table.detectors == sequence.table.detectors
 
 
 def test_a_bad_override_is_refused_with_the_sequence_s_line(tmp_path: Path) -> None:
