@@ -126,8 +126,9 @@ class TableStatus:
     spells of the setpoint buffer since power-up; ``faults`` names of the latched fault bits (e.g. ``"STREAM_SILENT"``);
     ``refused_commands`` commands and chunks refused for their signature since power-up; ``pose`` (6,) the
     achieved (measured) pose; ``host_ns`` host monotonic time [ns] the report arrived; ``buffer_capacity`` the
-    setpoint samples the controller's buffer holds (0: not reported); ``samples_late`` setpoint samples that
-    arrived after they were due and were skipped, since power-up.
+    setpoint samples the controller's buffer holds (0: not reported); ``inputs`` the interlock inputs set now
+    (``"door_open"``: the enclosure door; empty where the controller reports none); ``samples_late`` setpoint
+    samples that arrived after they were due and were skipped, since power-up.
     """
 
     t_ns: int
@@ -141,6 +142,7 @@ class TableStatus:
     host_ns: int
     buffer_capacity: int = 0
     samples_late: int = 0
+    inputs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

@@ -448,7 +448,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._send(self.d.MAVLink_shaketable_status_message(
             snap.t_ns, getattr(self.d, f"SHAKETABLE_STATE_{snap.state.name}"), min(snap.buffer_depth, 65535),
             snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
-            [float(v) for v in snap.pose], snap.buffer_capacity, min(snap.samples_late, 2**32 - 1)))
+            [float(v) for v in snap.pose], snap.buffer_capacity, min(snap.samples_late, 2**32 - 1),
+            snap.inputs))
         pending, self._refusals = self._refusals, []
         for message, left in pending:
             self._send(message)

@@ -107,7 +107,7 @@ _ANSWER = struct.Struct("<QBq")
 _CLOCK_REQUEST = struct.Struct("<q")
 _CLOCK_REPLY = struct.Struct("<qq")
 _SETPOINTS = struct.Struct("<IBqqH")
-_STATUS = struct.Struct("<qBIIIII6dII")
+_STATUS = struct.Struct("<qBIIIII6dIII")
 _ACCEL = struct.Struct("<HIqqI")
 _OVERTURN = struct.Struct("<QIbdq")
 _HEARTBEAT = struct.Struct("<q")
@@ -206,6 +206,8 @@ class StatusReport(NamedTuple):
     """Setpoint samples the controller's buffer holds (0: not reported)."""
     samples_late: int = 0
     """Setpoint samples that arrived after they were due (skipped), since power-up."""
+    inputs: int = 0
+    """The interlock inputs set now (bit 0: the enclosure door open; :data:`INPUTS`)."""
 
 
 class AccelSamples(NamedTuple):
@@ -323,6 +325,15 @@ def _name(names: tuple[str, ...], code: int, what: str) -> str:
     return names[code]
 
 
+INPUTS = ("door_open",)
+"""The interlock inputs of a status's ``inputs`` mask, bit k named by entry k."""
+
+
+def input_names(mask: int) -> tuple[str, ...]:
+    """The interlock inputs set in ``mask`` (:data:`INPUTS`)."""
+    return tuple(name for bit, name in enumerate(INPUTS) if mask >> bit & 1)
+
+
 def fault_names(mask: int) -> tuple[str, ...]:
     """Names of the fault bits set in ``mask``, in bit order."""
     return tuple(name for bit, name in enumerate(FAULTS) if mask >> bit & 1)
@@ -420,14 +431,14 @@ def encode_status(status: StatusReport) -> bytes:
     return _header(TableKind.STATUS) + _STATUS.pack(
         status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
         status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64),
-        status.buffer_capacity, status.samples_late)
+        status.buffer_capacity, status.samples_late, status.inputs)
 
 
 def decode_status(payload: bytes) -> StatusReport:
-    t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = _fixed(payload, TableKind.STATUS,
-                                                                                         _STATUS)
+    t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late, inputs = _fixed(
+        payload, TableKind.STATUS, _STATUS)
     return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
-                        np.array(pose, dtype=np.float64), capacity, late)
+                        np.array(pose, dtype=np.float64), capacity, late, inputs)
 
 
 def encode_accel(batch: AccelSamples) -> bytes:

@@ -35,6 +35,7 @@ import contextlib
 import itertools
 import math
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, NoReturn
 
@@ -63,6 +64,8 @@ from rig.orchestrator.states import (
     Unattended,
     check_transition,
 )
+from rig.orchestrator.suspenders import POLL_SECONDS as SUSPEND_POLL
+from rig.orchestrator.suspenders import suspensions
 from rig.sequence import PlannedRun, Sequence, SequenceError
 from rig.session import SessionError, check_room, is_disk_full, run_needs
 
@@ -252,6 +255,7 @@ class Orchestrator:
             self._ask(lambda p=prompt: self.operator.place_bodies(p))
             for run in runs:
                 self._wait_while_paused()
+                self._wait_while_suspended(table)
                 self._play_run(table, run)
         self._set(State.STOPPING, "all runs played: home")
         self._motion(lambda: table.home(timeout=COMMAND_TIMEOUT))
@@ -444,6 +448,33 @@ class Orchestrator:
                 self._table.check_link()  # a table lost while paused ends the session at once
         self._check_stop()
         self._check_table("while paused")
+
+    def _wait_while_suspended(self, table: TableController) -> None:
+        """Hold the sequence while a suspender's condition holds (``rig.orchestrator.suspenders``); each hold and
+        its end are lines in the next run's events, and the status says why it waits."""
+        timeout = self.sequence.table.link.link_timeout_s
+        reasons = suspensions(table.status(), time.monotonic_ns(), timeout)
+        if not reasons:
+            return
+        why = "; ".join(reasons)
+        self.log_event(f"suspended: {why}")
+        held = f"suspended: {why}; the sequence goes on when it clears"
+        self._note(held) if self.state is State.PAUSED else self._set(State.PAUSED, held)
+        while reasons:
+            with self._lock:
+                if self._stop_requested is not None:
+                    break
+                self._lock.wait(SUSPEND_POLL)
+            table.check_link()  # a link lost while suspended ends the session at once
+            now = suspensions(table.status(), time.monotonic_ns(), timeout)
+            if now and now != reasons:
+                self.log_event(f"suspended: {'; '.join(now)}")
+                self._note(f"suspended: {'; '.join(now)}; the sequence goes on when it clears")
+            reasons = now
+        self._check_stop()
+        self.log_event(f"resumed: cleared ({why})")
+        self._note(f"resumed: cleared ({why})")
+        self._check_table("while suspended")
 
     def _check_stop(self) -> None:
         if self._stop_requested is not None:

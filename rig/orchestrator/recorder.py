@@ -99,6 +99,7 @@ class RunRecorder:
         self._baseline: dict[int, list[float]] = {}
         self._undeclared: set[int] = set()
         self._undeclared_tilts: set[int] = set()
+        self._inputs: tuple[str, ...] = ()
         self._accel_end: dict[int, tuple[float, float]] = {}  # sensor id → (last sample's time, spacing) [s]
 
     def start(self, t0_ns: int) -> None:
@@ -210,6 +211,10 @@ class RunRecorder:
             self._tripped(self.limits.poses(t, poses))
         self.run_log.append_pose(t, poses)
         self._stopped_after_trip(t, statuses)
+        for when, status in zip(t.tolist(), statuses, strict=True):
+            if status.inputs != self._inputs:  # a suspender's input changed during the run: a line of its own
+                self._inputs = status.inputs
+                self.run_log.add_event(when, f"interlock inputs: {', '.join(status.inputs) or 'none set'}")
         if self.live is not None:
             self.live.put("pose", t.tolist(), [list(s.pose) for s in statuses])
         self.progress.table_state = statuses[-1].state
