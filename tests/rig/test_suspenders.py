@@ -60,10 +60,11 @@ def test_an_open_door_holds_the_sequence_until_it_closes(tmp_path: Path) -> None
     sequence = load_sequence(path)
     log = SessionLog.create(tmp_path / "s.h5", rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
                             software_version="test")
-    # the door opens 1 s after the first stream starts (the lead: at the drive's start) and closes 8 s later, some
-    # 3 s after the first run ends
+    # the door opens 1 s after the first stream starts (the lead: at the drive's start) and closes 15 s later in
+    # controller time, some 11 s after the first run's drive ends (at rest the emulator's clock is the wall clock's):
+    # the host's steps between the runs (the recorder's linger and its wait for the last batches) take far less
     emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
-                                     "--door-open", "1:8", key_file=key_file)
+                                     "--door-open", "1:15", key_file=key_file)
     messages: list[str] = []
     try:
         def seen(progress: Progress) -> None:
@@ -83,7 +84,11 @@ def test_an_open_door_holds_the_sequence_until_it_closes(tmp_path: Path) -> None
     assert result == [OrchestratorState.DONE]
     first, second = read_session(tmp_path / "s.h5")["runs"]
     assert [first["status"], second["status"]] == ["completed", "completed"]
-    assert next(e["text"] for e in first["events"] if e["text"].startswith("interlock")) == "interlock inputs: door_open"
-    texts = [e["text"] for e in second["events"]]
-    assert texts[:2] == ["suspended: the enclosure door is open", "resumed: cleared (the enclosure door is open)"]
-    assert "suspended: the enclosure door is open; the sequence goes on when it clears" in messages
+    interlock = [e["text"] for e in first["events"] if e["text"].startswith("interlock")]
+    assert interlock[0] == "interlock inputs: door_open"  # during the first run: a line of its own
+    # the door's lines (a busy host may add a poor link's reason to them, or lines of its own)
+    door = [e["text"] for e in second["events"] if "door" in e["text"]]
+    assert door[0].startswith("suspended: the enclosure door is open")
+    assert door[-1].startswith("resumed: cleared (the enclosure door is open")
+    assert any(m.startswith("suspended: the enclosure door is open") and m.endswith("the sequence goes on when it "
+                                                                                    "clears") for m in messages)
