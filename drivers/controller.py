@@ -129,7 +129,8 @@ class TableStatus:
     setpoint samples the controller's buffer holds (0: not reported); ``samples_late`` setpoint samples that
     arrived after they were due and were skipped, since power-up; ``virtual_watchdog_s`` 0 when the controller
     keeps real time, else it runs in virtual time (an emulator at ``--speed max``) and this is its own link
-    watchdog [s, host time], the silence :meth:`TableController.check_link` allows it.
+    watchdog [s, host time], the silence :meth:`TableController.check_link` allows it; ``inputs`` the interlock
+    inputs set now (``"door_open"``: the enclosure door; empty where the controller reports none).
     """
 
     t_ns: int
@@ -144,6 +145,7 @@ class TableStatus:
     buffer_capacity: int = 0
     samples_late: int = 0
     virtual_watchdog_s: float = 0.0
+    inputs: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True, eq=False)

@@ -169,6 +169,8 @@ class MavlinkTable(ChunkedStreamController):
         self._timesync_sent: deque[int] = deque(maxlen=64)
         self._fault_bits = [(bit, entry.name.removeprefix("SHAKETABLE_FAULT_"))  # single bits (not ENUM_END)
                             for bit, entry in self.d.enums["SHAKETABLE_FAULT"].items() if bit & (bit - 1) == 0]
+        self._input_bits = [(bit, entry.name.removeprefix("SHAKETABLE_INPUT_").lower())
+                            for bit, entry in self.d.enums["SHAKETABLE_INPUT"].items() if bit & (bit - 1) == 0]
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
@@ -295,7 +297,8 @@ class MavlinkTable(ChunkedStreamController):
         faults = tuple(name for bit, name in self._fault_bits if msg.faults & bit)
         return TableStatus(msg.t_ns, state, msg.buffer_depth, msg.last_chunk_seq, msg.underruns, faults,
                            msg.refused_commands, np.array(msg.pose, dtype=np.float64), now, msg.buffer_capacity,
-                           msg.samples_late, msg.virtual_watchdog_ms * 1e-3)
+                           msg.samples_late, msg.virtual_watchdog_ms * 1e-3,
+                           tuple(name for bit, name in self._input_bits if msg.inputs & bit))
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)

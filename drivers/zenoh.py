@@ -92,6 +92,7 @@ from protocols.zenoh.table import (
     encode_heartbeat,
     encode_setpoints,
     fault_names,
+    input_names,
     parse_table_url,
 )
 from protocols.zenoh.tls import TlsFiles, why_no_link
@@ -315,7 +316,8 @@ class ZenohTable(ChunkedStreamController):
         self.feedback.publish_status(TableStatus(report.t_ns, report.state, report.buffer_depth,
                                                  report.last_chunk_seq, report.underruns, fault_names(report.faults),
                                                  report.refused_commands, report.pose, now, report.buffer_capacity,
-                                                 report.samples_late, report.virtual_watchdog_ms * 1e-3))
+                                                 report.samples_late, report.virtual_watchdog_ms * 1e-3,
+                                                 input_names(report.inputs)))
 
     def _on_answer(self, payload: bytes, now: int) -> None:
         answer = decode_answer(payload)

@@ -192,6 +192,8 @@ class Snapshot:
     buffer_capacity: int = DEFAULT_BUFFER_CAPACITY
     samples_late: int = 0
     virtual_watchdog_ns: int = 0
+    inputs: int = 0
+    """The interlock inputs set now (bit 0: the enclosure door open)."""
 
 
 @dataclass
@@ -258,6 +260,8 @@ class ControllerCore:
         self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
         self.state = State.IDLE
         self.faults = Fault(0)
+        self.inputs = 0
+        """The interlock inputs set now, as every status reports them (bit 0: the enclosure door open)."""
         self.counters = Counters()
         self.last_chunk_seq = 0
         self.first_stream_ns: int | None = None
@@ -452,7 +456,8 @@ class ControllerCore:
         """The status at ``t_ns`` with the measured ``pose`` (6,)."""
         return Snapshot(t_ns, self.state, len(self._buffer), self.last_chunk_seq, self.counters.underruns,
                         self.faults, self.counters.refused_commands, pose, self.buffer_capacity,
-                        self.counters.samples_late, 0 if self._link_clock is None else self.watchdog_ns)
+                        self.counters.samples_late, 0 if self._link_clock is None else self.watchdog_ns,
+                        self.inputs)
 
     # ----- commands -------------------------------------------------------------------------------------
 

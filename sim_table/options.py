@@ -46,6 +46,17 @@ def _leg_stall(text: str) -> tuple[int, float]:
     return stall
 
 
+def _door(text: str) -> tuple[float, float]:
+    opens, _, lasts = text.partition(":")
+    try:
+        door = float(opens), float(lasts)
+    except ValueError:
+        door = (math.nan, math.nan)
+    if not (math.isfinite(door[0]) and door[0] >= 0 and math.isfinite(door[1]) and door[1] > 0):
+        raise argparse.ArgumentTypeError(f"expected S:D, seconds >= 0 and a duration > 0 s, got {text!r}")
+    return door
+
+
 def argument_parser() -> argparse.ArgumentParser:
     """The emulator's command line (``python -m sim_table --help``)."""
     p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
@@ -67,6 +78,9 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay every datagram, both ways")
     p.add_argument("--drive-fault-at", type=float, metavar="S", help="drive fault S s after the first stream start")
     p.add_argument("--stall-at", type=float, metavar="S", help="drop all chunks from S s after the first stream start")
+    p.add_argument("--door-open", type=_door, metavar="S:D",
+                   help="the enclosure door (an interlock input in every status) opens S s after the first stream "
+                        "start and closes D s later")
     p.add_argument("--leg-stall", type=_leg_stall, metavar="LEG@S",
                    help="leg LEG's actuator (1..6) seizes S s after the first stream start: it brakes to rest and "
                         "stops following its command (CANopen: its drive's following-error supervision trips)")

@@ -173,6 +173,8 @@ class EmulatorConfig:
     drive_fault_at: float | None = None
     stall_at: float | None = None
     leg_stall: tuple[int, float] | None = None
+    door_open: tuple[float, float] | None = None
+    """The enclosure door open from S s after the first stream start for D s (controller time): (S, D)."""
     seed: int = 0
     watchdog: float | None = None
     buffer: float | None = None
@@ -502,6 +504,9 @@ class Emulator:
             self.core.raise_fault(Fault.DRIVE, t)
         if cfg.stall_at is not None and t >= start + cfg.stall_at * 1e9:
             self.endpoint.stall_chunks = True
+        if cfg.door_open is not None:
+            opens = start + cfg.door_open[0] * 1e9
+            self.core.inputs = int(opens <= t < opens + cfg.door_open[1] * 1e9)
         if cfg.leg_stall is not None and not self._leg_stalled and t >= start + cfg.leg_stall[1] * 1e9:
             self._leg_stalled = True
             self.actuators.stalled[cfg.leg_stall[0] - 1] = True
@@ -563,7 +568,8 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
-            stall_at=args.stall_at, leg_stall=args.leg_stall, seed=args.seed, watchdog=args.watchdog,
+            stall_at=args.stall_at, leg_stall=args.leg_stall, door_open=args.door_open, seed=args.seed,
+            watchdog=args.watchdog,
             buffer=args.buffer, security=LinkSecurity(load_tls(args.tls_ca, args.tls_cert, args.tls_key),
                                                       args.insecure_plain_tcp),
             replay_state=replay_state if signs else None)

@@ -51,6 +51,8 @@ its key; a value outside it is refused with the range (``FILE:LINE: key: must be
     link_timeout_s = 0.5               # no status this long: the host declares the link lost
 
     [sensors.0]                        # each accelerometer's calibration sheet (analysis/table/sensors.py)
+    [limit_detectors.accel.x]          # levels on measured channels (analysis/table/limit_detectors.py)
+    abort_high_g = 0.6
 
 Only a regular file of at most 1 MiB is read (a FIFO, a device or a symlink to one is refused unread).
 Errors in a file raise `analysis.table.limits.TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
@@ -71,6 +73,7 @@ from analysis.body import G
 from analysis.table.drives import DriveSettings, read_drives
 from analysis.table.dynamics import TableDynamics
 from analysis.table.kinematics import HexapodGeometry, geometry_problem, symmetric_joints
+from analysis.table.limit_detectors import LimitDetectors, read_limit_detectors
 from analysis.table.limits import (
     AXES,
     DEG,
@@ -100,6 +103,7 @@ class TableConfiguration(NamedTuple):
     link: LinkSettings
     drives: DriveSettings
     sensors: SensorSheets
+    detectors: LimitDetectors
 
 
 def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
@@ -125,6 +129,8 @@ def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
         out["drives"] = configuration.drives.to_dict()
     if configuration.sensors != SensorSheets():
         out["sensors"] = configuration.sensors.to_dict()
+    if configuration.detectors != LimitDetectors():
+        out["limit_detectors"] = configuration.detectors.to_dict()
     return out
 
 
@@ -230,7 +236,8 @@ class _Reader(TomlChecker):
         return TableModelError(f"{where}: {'.'.join(map(str, path))}: {problem}" if path else f"{where}: {problem}")
 
     def configuration(self, data: Mapping[str, Any]) -> TableConfiguration:
-        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives", "sensors"))
+        top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives", "sensors",
+                                       "limit_detectors"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -248,7 +255,8 @@ class _Reader(TomlChecker):
                                   dynamics=self.dynamics(top.get("dynamics", {})),
                                   link=self.link(top.get("controller", {})),
                                   drives=read_drives(self, top.get("drives")),
-                                  sensors=read_sensors(self, top.get("sensors")))
+                                  sensors=read_sensors(self, top.get("sensors")),
+                                  detectors=read_limit_detectors(self, top.get("limit_detectors")))
 
     def link(self, value: Any) -> LinkSettings:
         """The ``[controller]`` section (``analysis.table.link``); errors name its line and key."""

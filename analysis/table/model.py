@@ -37,6 +37,7 @@ from analysis.table.configuration import (
 from analysis.table.drives import DriveSettings
 from analysis.table.dynamics import TableDynamics
 from analysis.table.kinematics import HexapodGeometry, Legs, legs_at, pose_array, rotation_matrices
+from analysis.table.limit_detectors import LimitDetectors
 from analysis.table.limits import (
     AXES,
     TABLE_IV,
@@ -84,6 +85,8 @@ class TableModel:
     """The leg drives' units, node ids, EDS files and options (``[drives]``, ``analysis.table.drives``)."""
     sensors: SensorSheets = field(default_factory=SensorSheets)
     """The accelerometers' calibration sheets (``[sensors]``, ``analysis.table.sensors``)."""
+    detectors: LimitDetectors = field(default_factory=LimitDetectors)
+    """Warning and abort levels on measured channels (``[limit_detectors]``, ``analysis.table.limit_detectors``)."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):
@@ -180,7 +183,8 @@ class TableModel:
     def to_dict(self) -> dict[str, Any]:
         """The configuration as plain JSON types in the TOML file's layout, SI keys, explicit joints."""
         return configuration_dict(TableConfiguration(self.limits, self.geometry, self.controller_rate,
-                                                     self.dynamics, self.link, self.drives, self.sensors))
+                                                     self.dynamics, self.link, self.drives, self.sensors,
+                                                     self.detectors))
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], source: str = "<dict>") -> TableModel:

@@ -108,9 +108,12 @@ _ANSWER = struct.Struct("<QBq")
 _CLOCK_REQUEST = struct.Struct("<q")
 _CLOCK_REPLY = struct.Struct("<qq")
 _SETPOINTS = struct.Struct("<IBqqH")
-_STATUS = struct.Struct("<qBIIIII6dIII")
+_STATUS = struct.Struct("<qBIIIII6dIIII")
 _STATUS_REAL_TIME = struct.Struct("<qBIIIII6dII")
-"""A status without its last field (``virtual_watchdog_ms``), as a controller that keeps real time may send it."""
+"""A status without its last two fields (``virtual_watchdog_ms``, ``inputs``), as a controller that keeps real time
+and has no interlock inputs may send it."""
+_STATUS_NO_INPUTS = struct.Struct("<qBIIIII6dIII")
+"""A status without its last field (``inputs``), as a controller without interlock inputs may send it."""
 _ACCEL = struct.Struct("<HIqqI")
 _OVERTURN = struct.Struct("<QIbdq")
 _HEARTBEAT = struct.Struct("<q")
@@ -212,6 +215,8 @@ class StatusReport(NamedTuple):
     virtual_watchdog_ms: int = 0
     """0: the controller keeps real time; nonzero: it runs in virtual time and this is its own link watchdog [ms,
     host time], the silence the host allows it instead of its link timeout (as SHAKETABLE_STATUS's field)."""
+    inputs: int = 0
+    """The interlock inputs set now (bit 0: the enclosure door open; :data:`INPUTS`)."""
 
 
 class AccelSamples(NamedTuple):
@@ -329,6 +334,15 @@ def _name(names: tuple[str, ...], code: int, what: str) -> str:
     return names[code]
 
 
+INPUTS = ("door_open",)
+"""The interlock inputs of a status's ``inputs`` mask, bit k named by entry k."""
+
+
+def input_names(mask: int) -> tuple[str, ...]:
+    """The interlock inputs set in ``mask`` (:data:`INPUTS`)."""
+    return tuple(name for bit, name in enumerate(INPUTS) if mask >> bit & 1)
+
+
 def fault_names(mask: int) -> tuple[str, ...]:
     """Names of the fault bits set in ``mask``, in bit order."""
     return tuple(name for bit, name in enumerate(FAULTS) if mask >> bit & 1)
@@ -426,17 +440,19 @@ def encode_status(status: StatusReport) -> bytes:
     return _header(TableKind.STATUS) + _STATUS.pack(
         status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
         status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64),
-        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms)
+        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms, status.inputs)
 
 
 def decode_status(payload: bytes) -> StatusReport:
-    """A STATUS; one without ``virtual_watchdog_ms`` (a real-time controller's shorter body) reads as 0 there."""
-    short = len(_body(payload, TableKind.STATUS)) == _STATUS_REAL_TIME.size
-    fields = _fixed(payload, TableKind.STATUS, _STATUS_REAL_TIME if short else _STATUS)
+    """A STATUS; a shorter body without ``inputs`` (or also without ``virtual_watchdog_ms``: a real-time controller's
+    without inputs) reads as 0 there."""
+    size = len(_body(payload, TableKind.STATUS))
+    layout = next((s for s in (_STATUS_REAL_TIME, _STATUS_NO_INPUTS) if size == s.size), _STATUS)
+    fields = _fixed(payload, TableKind.STATUS, layout)
     t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = fields[:15]
-    watchdog_ms = 0 if short else fields[15]
+    watchdog_ms, inputs = (*fields[15:], 0, 0)[:2]
     return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
-                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms)
+                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms, inputs)
 
 
 def encode_accel(batch: AccelSamples) -> bytes:

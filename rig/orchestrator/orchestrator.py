@@ -22,7 +22,10 @@ From any other thread: :meth:`pause` takes effect at the end of the current reco
 mid-way; the table holds its tilt while **paused**), :meth:`resume` continues, :meth:`abort` stops the table at
 once (a controlled stop: decelerate, home) and :meth:`emergency_stop` brakes it; either marks the current run
 ``aborted`` and ends the session's invocation (``done`` after an abort, ``faulted`` after an emergency stop or a
-table fault). A session file left by any of these, or by a crash, is continued with ``rig run --resume``: the
+table fault). The rig's and the sequence's **limit detectors** (``docs/limits.md``) watch the feedback while a
+run records: a warning is a run event; an abort level records, pauses at the end of the run, or stops the table
+(a controlled stop, or an emergency stop) and ends the run ``aborted`` with the reason ``limit CHANNEL: …``. A
+session file left by any of these, or by a crash, is continued with ``rig run --resume``: the
 plan entries with a completed (or refused) run are skipped, the rest run in order.
 """
 
@@ -32,6 +35,7 @@ import contextlib
 import itertools
 import math
 import threading
+import time
 from collections.abc import Callable
 from typing import Any, NoReturn
 
@@ -48,6 +52,7 @@ from drivers.controller import (
     TableStatus,
     open_table,
 )
+from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap, commanded_fall_line
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.sinks import RunSink, SessionSink
@@ -59,6 +64,8 @@ from rig.orchestrator.states import (
     Unattended,
     check_transition,
 )
+from rig.orchestrator.suspenders import POLL_SECONDS as SUSPEND_POLL
+from rig.orchestrator.suspenders import suspensions
 from rig.sequence import PlannedRun, Sequence, SequenceError
 from rig.session import SessionError, check_room, is_disk_full, run_needs
 
@@ -111,6 +118,7 @@ class Orchestrator:
         self._lock = threading.Condition()
         self._pause_requested = False
         self._stop_requested: str | None = None  # "abort" | "emergency stop"
+        self._stop_reason: str | None = None  # what asked for it: the kind, or "limit CHANNEL"
         self._table: TableController | None = None
         self._run_log: Any = None
         self.live = LiveTap()
@@ -163,14 +171,30 @@ class Orchestrator:
         for text in pending:
             run_log.add_event(float("nan"), text)
 
-    def _request_stop(self, kind: str) -> None:
+    def _limit_trip(self, trip: Trip) -> None:
+        """A limit detector tripped (from the run recorder's thread): its action, at once (``docs/limits.md``)."""
+        if trip.action == "record":
+            self._note(trip.text())
+        elif trip.action == "pause":
+            with self._lock:
+                self._pause_requested = True
+                self._lock.notify_all()
+            self._note(f"{trip.text()}: the session pauses at the end of the run")
+        else:
+            self._request_stop("emergency stop" if trip.action == "emergency_stop" else "abort",
+                               reason=f"limit {trip.channel}")
+
+    def _request_stop(self, kind: str, reason: str | None = None) -> None:
+        """Stop the table now: ``kind`` ``abort`` (a controlled stop) or ``emergency stop``; ``reason`` what asked
+        (default: the kind), the run's and the session's end say it."""
         with self._lock:
             if self._stop_requested == "emergency stop":
                 return
             self._stop_requested = kind
+            self._stop_reason = reason or kind
             self._lock.notify_all()
             table = self._table
-        self._note(f"{kind} requested")
+        self._note(f"{reason or kind}: {kind} requested" if reason else f"{kind} requested")
         if table is not None:
             try:
                 table.emergency_stop() if kind == "emergency stop" else table.stop()
@@ -231,6 +255,7 @@ class Orchestrator:
             self._ask(lambda p=prompt: self.operator.place_bodies(p))
             for run in runs:
                 self._wait_while_paused()
+                self._wait_while_suspended(table)
                 self._play_run(table, run)
         self._set(State.STOPPING, "all runs played: home")
         self._motion(lambda: table.home(timeout=COMMAND_TIMEOUT))
@@ -282,7 +307,8 @@ class Orchestrator:
         self._write_pending_events(run_log)
         self.live.begin_run(self._live_header(run, entry.label(), drive))
         recorder = RunRecorder(table, run_log, self.sensors, [b.body_id for b in self.sequence.bodies],
-                               self.progress, live=self.live)
+                               self.progress, live=self.live, limits=LimitWatch(self.sequence.table.detectors),
+                               on_trip=self._limit_trip)
         self.progress.samples_sent, self.progress.samples_total = 0, len(drive.t)
         self.progress.peak_accel, self.progress.detections = 0.0, 0
         self._set(State.RUNNING, f"run {run.plan_index + 1}: {entry.label()} at {run.angle_deg:g}°")
@@ -349,13 +375,14 @@ class Orchestrator:
                      reason: str) -> NoReturn:
         """The stream ended early: log the run ``aborted`` and stop the session (SessionStoppedError)."""
         recorder.finish(LINGER)
-        why = self._stop_requested or "fault"
+        why = self._stop_reason or "fault"
         run_log.add_event(float("nan"), f"{why}: {reason}")
         run_log.end("aborted", reason=f"{why}: {reason}")
         self._finish(run, "aborted", f"run {run.plan_index + 1} aborted ({why})")
         if self._stop_requested != "emergency stop":
             self._settle_after_stop(table)
-        raise SessionStoppedError(f"run {run.plan_index + 1} aborted ({why}): {reason}", faulted=why != "abort")
+        raise SessionStoppedError(f"run {run.plan_index + 1} aborted ({why}): {reason}",
+                                  faulted=self._stop_requested != "abort")
 
     def _settle_after_stop(self, table: TableController) -> None:
         """After an abort or a table fault: wait until the table is at rest (armed home, or faulted); a lost link
@@ -422,9 +449,38 @@ class Orchestrator:
         self._check_stop()
         self._check_table("while paused")
 
+    def _wait_while_suspended(self, table: TableController) -> None:
+        """Hold the sequence while a suspender's condition holds (``rig.orchestrator.suspenders``); each hold and
+        its end are lines in the next run's events, and the status says why it waits."""
+        timeout = self.sequence.table.link.link_timeout_s
+        reasons = suspensions(table.status(), time.monotonic_ns(), timeout)
+        if not reasons:
+            return
+        why = "; ".join(reasons)
+        self.log_event(f"suspended: {why}")
+        held = f"suspended: {why}; the sequence goes on when it clears"
+        self._note(held) if self.state is State.PAUSED else self._set(State.PAUSED, held)
+        while reasons:
+            with self._lock:
+                if self._stop_requested is not None:
+                    break
+                self._lock.wait(SUSPEND_POLL)
+            table.check_link()  # a link lost while suspended ends the session at once
+            now = suspensions(table.status(), time.monotonic_ns(), timeout)
+            if now and now != reasons:
+                self.log_event(f"suspended: {'; '.join(now)}")
+                self._note(f"suspended: {'; '.join(now)}; the sequence goes on when it clears")
+            reasons = now
+        self._check_stop()
+        self.log_event(f"resumed: cleared ({why})")
+        self._note(f"resumed: cleared ({why})")
+        self._check_table("while suspended")
+
     def _check_stop(self) -> None:
         if self._stop_requested is not None:
-            raise SessionStoppedError(f"{self._stop_requested} requested", faulted=self._stop_requested != "abort")
+            raise SessionStoppedError(f"{self._stop_reason}: {self._stop_requested} requested"
+                                      if self._stop_reason != self._stop_requested
+                                      else f"{self._stop_requested} requested", faulted=self._stop_requested != "abort")
 
     def _streamed(self, sent: int, total: int) -> None:
         self.progress.samples_sent, self.progress.samples_total = sent, total

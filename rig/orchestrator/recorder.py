@@ -7,6 +7,11 @@ seconds from that instant (the commanded trajectory's t = 0), negative for what 
 Accelerometer ids map to the run's sensor names; detection and tilt body ids are the bodies' order on the table
 (the emulator's ``--body`` order, a real detector's channel order), mapped to the sequence's body ids.
 
+With a :class:`~rig.orchestrator.limits.LimitWatch` the feedback is checked against the limit detectors before
+it is written: each trip is called back at once (``on_trip``: the orchestrator acts), then written as the run's
+event (its line :meth:`Trip.text`, at the crossing's time) and put into the live tap as a fault item
+(``limit CHANNEL``) that the console shows.
+
 A write that fails (the session's disk full, a session error) ends the recording at once: the recorder keeps the
 error in :attr:`RunRecorder.write_error` and stops the table (a controlled stop, home), and the orchestrator ends
 the run and the session saying so; the rows the session file already committed stay.
@@ -17,6 +22,7 @@ from __future__ import annotations
 import contextlib
 import threading
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -30,13 +36,18 @@ from drivers.controller import (
     TableStatus,
     TiltBatch,
 )
+from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.sinks import RunSink
 from rig.orchestrator.states import Progress
 from rig.session import SessionError
 
+_STOPPING = {"controlled_stop": ("stopping", "faulted", "emergency_stopped", "idle"),
+             "emergency_stop": ("emergency_stopped",)}
+"""The states of a status that show a trip's action taken."""
+
 POLL_SECONDS = 0.02
-"""How often the recorder drains the subscriptions [s]."""
+"""How often the recorder drains the subscriptions at least [s]; an accelerometer batch wakes it at once."""
 
 FEEDBACK_WAIT = 5.0
 """How long :meth:`RunRecorder.finish` waits at most [s], after its linger, for every declared accelerometer's samples
@@ -53,12 +64,21 @@ class RunRecorder:
     ``table``'s feedback (module docstring).
 
     ``sensors`` maps accelerometer ids to the log's sensor names; ``body_ids`` maps the table's body index to
-    the sequence's body id; ``progress`` gets the peak horizontal acceleration and the detection count.
+    the sequence's body id; ``progress`` gets the peak horizontal acceleration and the detection count;
+    ``limits`` checks the feedback and ``on_trip(trip)`` is called for each trip (module docstring).
     """
 
     def __init__(self, table: TableController, run_log: RunSink, sensors: dict[int, str], body_ids: list[int],
-                 progress: Progress, live: LiveTap | None = None) -> None:
+                 progress: Progress, live: LiveTap | None = None, limits: LimitWatch | None = None,
+                 on_trip: Callable[[Trip], None] | None = None) -> None:
         self.run_log = run_log
+        self.limits = limits
+        self.on_trip = on_trip
+        self.trips: list[Trip] = []
+        """The limit trips of the run, in the order they were found."""
+        self.stop_latency: float | None = None
+        """Table time from the crossing of the first trip that stops the table to the first status showing it
+        stopped [s] (None: no such trip, or no such status yet)."""
         self.table = table
         self.live = live
         self.write_error: Exception | None = None
@@ -79,6 +99,7 @@ class RunRecorder:
         self._baseline: dict[int, list[float]] = {}
         self._undeclared: set[int] = set()
         self._undeclared_tilts: set[int] = set()
+        self._inputs: tuple[str, ...] = ()
         self._accel_end: dict[int, tuple[float, float]] = {}  # sensor id → (last sample's time, spacing) [s]
 
     def start(self, t0_ns: int) -> None:
@@ -113,8 +134,15 @@ class RunRecorder:
 
     def _loop(self) -> None:
         try:
-            while not self._stop.wait(POLL_SECONDS):
-                self._drain()
+            while not self._stop.is_set():
+                try:  # woken by an accelerometer batch at once: the limit detectors see it without a poll's delay
+                    first = [self._accel.get(timeout=POLL_SECONDS)]
+                except TimeoutError:
+                    first = []
+                except TableError:  # closed: the table's connection ended
+                    first = []
+                    self._stop.wait(POLL_SECONDS)
+                self._drain(first)
             self._drain()
         except (OSError, SessionError) as exc:
             self.write_error = exc
@@ -125,8 +153,9 @@ class RunRecorder:
         assert self._t0_ns is not None
         return (np.asarray(t_ns) - self._t0_ns) * 1e-9
 
-    def _drain(self) -> None:
-        for batch in self._accel.drain():
+    def _drain(self, first: list[AccelBatch] | None = None) -> None:
+        """Write (and check) everything received, after ``first`` (batches already taken from the queue)."""
+        for batch in [*(first or []), *self._accel.drain()]:
             self._write_accel(batch)
         for tilt in self._tilts.drain():
             self._write_tilt(tilt)
@@ -147,6 +176,8 @@ class RunRecorder:
                                        f"accelerometer {batch.sensor_id} is not declared in the run: not logged")
             return
         times = self._seconds(batch.times_ns())
+        if self.limits is not None:
+            self._tripped(self.limits.accel(name, times, batch.samples))
         self.run_log.append_accel(name, times, batch.samples)
         if len(times):  # a late copy of an earlier batch never moves the end back
             last = max(float(times[-1]), self._accel_end.get(batch.sensor_id, (-np.inf, 0.0))[0])
@@ -168,15 +199,50 @@ class RunRecorder:
                                        f"tilt reported for body index {batch.body_id}, which is not on the plate "
                                        f"(bodies 0–{len(self.body_ids) - 1}): not logged")
             return
-        self.run_log.append_tilt(self.body_ids[batch.body_id], self._seconds(batch.times_ns()), batch.angles)
+        body_id, times = self.body_ids[batch.body_id], self._seconds(batch.times_ns())
+        if self.limits is not None:
+            self._tripped(self.limits.tilt(body_id, times, batch.angles))
+        self.run_log.append_tilt(body_id, times, batch.angles)
 
     def _write_poses(self, statuses: list[TableStatus]) -> None:
         t = self._seconds(np.array([s.t_ns for s in statuses], dtype=np.int64))
-        self.run_log.append_pose(t, np.array([s.pose for s in statuses]))
+        poses = np.array([s.pose for s in statuses])
+        if self.limits is not None:
+            self._tripped(self.limits.poses(t, poses))
+        self.run_log.append_pose(t, poses)
+        self._stopped_after_trip(t, statuses)
+        for when, status in zip(t.tolist(), statuses, strict=True):
+            if status.inputs != self._inputs:  # a suspender's input changed during the run: a line of its own
+                self._inputs = status.inputs
+                self.run_log.add_event(when, f"interlock inputs: {', '.join(status.inputs) or 'none set'}")
         if self.live is not None:
             self.live.put("pose", t.tolist(), [list(s.pose) for s in statuses])
         self.progress.table_state = statuses[-1].state
         self.progress.buffer_depth = statuses[-1].buffer_depth
+
+    def _tripped(self, trips: list[Trip]) -> None:
+        """Act on each trip first (``on_trip``), then write it (module docstring)."""
+        for trip in trips:
+            self.trips.append(trip)
+            if self.on_trip is not None:
+                self.on_trip(trip)
+        for trip in trips:
+            self.run_log.add_event(trip.t, trip.text())
+            if self.live is not None:
+                self.live.put("fault", trip.t, f"limit {trip.channel}", trip.text())
+
+    def _stopped_after_trip(self, t: np.ndarray, statuses: list[TableStatus]) -> None:
+        """After a trip that stops the table: the first status that shows it stopped gives the latency in table
+        time (:attr:`stop_latency`), written as an event."""
+        trip = next((trip for trip in self.trips if trip.action in _STOPPING), None)
+        if trip is None or self.stop_latency is not None:
+            return
+        shown = next((k for k, status in enumerate(statuses) if status.state in _STOPPING[trip.action]), None)
+        if shown is None:
+            return
+        self.stop_latency = float(t[shown]) - trip.t
+        self.run_log.add_event(float(t[shown]), f"limit {trip.channel}: the table was {statuses[shown].state} "
+                                                f"{self.stop_latency * 1e3:.1f} ms after the crossing (table time)")
 
     def _write_detection(self, detection: Detection) -> None:
         t = float(self._seconds(detection.t_ns))

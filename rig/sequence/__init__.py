@@ -41,6 +41,9 @@ seconds, ``_hz`` Hz. Top-level keys come first: in TOML every key after a ``[sec
     confirm_before_run = true                 # wait for the operator before each run moves
     ask_detections = false                    # ask which bodies overturned and which way
 
+    [limit_detectors.accel.x]                 # optional: replaces the rig's detector of this channel
+    abort_high_g = 0.5                        # (analysis/table/limit_detectors.py, docs/limits.md)
+
     [[bodies]]                                # one table per body; body_id 1, 2, … in file order
     table5 = 4                                # the paper's Table V body 4 (b, h, depth, mass, b_cg, h_cg) …
     x = 0.0                                   # centre of the base on the plate, +x downhill [m]

@@ -17,6 +17,7 @@ from typing import Any
 from urllib.parse import urlsplit
 
 from analysis.body import TABLE_V, Body
+from analysis.table.limit_detectors import read_limit_detectors
 from analysis.table.model import TableModel, TableModelError
 from analysis.table.toml_check import TomlChecker, TomlFileError, read_toml, shown
 from analysis.table.toml_lines import KeyPath, dotted_path, suggest
@@ -42,13 +43,13 @@ SCHEMA = "shaketable-rig/sequence/1"
 """The ``schema`` written by ``Sequence.to_dict`` (a file may give it; it must then be this)."""
 
 TOP_KEYS = ("name", "description", "table_url", "repetitions", "angles_deg", "polarity", "records", "records_from",
-            "bodies", "rig", "plate", "drive", "operator", "schema", "source")
+            "bodies", "rig", "plate", "drive", "operator", "schema", "source", "limit_detectors")
 BODY_KEYS = ("body_id", "name", "table5", "b", "h", "depth", "mass", "b_cg", "h_cg", "x", "y", "friction",
              "restitution")
 DIMENSIONS = ("b", "h", "depth", "mass")
 RECORD_KEYS = ("record", "scale", "window_s", "corner_hz", "dt_s", "units", "drive", "polarity")
 RECORDS_FROM_KEYS = ("suite", "strongest", "scale", "corner_hz", "polarity")
-RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller")
+RIG_KEYS = ("config", "table", "limits", "hexapod", "dynamics", "controller", "limit_detectors")
 _RIG_INLINE = "\x00rig"  # the source name given to TableModel.from_dict, to find its key in the message
 TABLE_SCHEMES = ("mavlink", "zenoh", "canopen")
 """The table controllers' URL schemes (``drivers.open_table``)."""
@@ -446,6 +447,9 @@ def read_mapping(data: Mapping[str, Any], source: str, lines: Mapping[KeyPath, i
     if "source" in top:
         reader.string(top["source"], ("source",), empty=True)
     table = reader.rig(top["rig"]) if "rig" in top else TableModel()
+    if "limit_detectors" in top:  # the sequence's detectors replace the rig's of the same channel
+        overrides = read_limit_detectors(reader, top["limit_detectors"])
+        table = replace(table, detectors=table.detectors.overridden(overrides))
     plate = reader.plate(top["plate"]) if "plate" in top else DEFAULT_PLATE
     fields: dict[str, Any] = {
         "name": reader.string(top["name"], ("name",)) if "name" in top else default_name,

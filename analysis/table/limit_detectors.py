@@ -1,0 +1,196 @@
+"""The ``[limit_detectors]`` table of the rig configuration (and of a sequence, which overrides it channel by
+channel): warning and abort levels on what the table and the specimens *measure* (``docs/limits.md``).
+
+```toml
+[limit_detectors.accel.x]        # every plate accelerometer's x reading (specific force, plate frame)
+warn_high_g = 0.4                # a level's key ends in its unit; any of the four levels may be left out
+abort_high_g = 0.6
+warn_low_g = -0.4
+abort_low_g = -0.6
+persistence = 3                  # samples past a level before it trips (1 … 10000; default 1)
+action = "controlled_stop"       # what an abort level does: record, pause, controlled_stop, emergency_stop
+
+[limit_detectors.tilt.angle]     # every body's tilt sensor
+warn_high_deg = 20
+```
+
+Channels (:data:`CHANNELS`) and the units their levels may be given in:
+
+- ``accel.x``, ``accel.y``, ``accel.z``: each plate accelerometer's axis, the specific force it reads (z reads
+  +1 g at rest, x reads −g sin β on a plate tilted by β) — ``g`` or ``m_s2``;
+- ``pose.surge``, ``pose.sway``, ``pose.heave`` (``m``, ``mm``) and ``pose.roll``, ``pose.pitch``, ``pose.yaw``
+  (``deg``, ``rad``): the plate's pose as the controller's feedback reports it;
+- ``velocity.surge`` … ``velocity.yaw``: its rate between consecutive statuses (``m_s``, ``mm_s``; ``deg_s``,
+  ``rad_s``);
+- ``tilt.angle``: each body's tilt sensor, relative to the plate, > 0 towards the low side (``deg``, ``rad``).
+
+A **high** level is passed by a value above it, a **low** level by one below it; present levels must be ordered
+``abort_low < warn_low < warn_high < abort_high``. A level trips when ``persistence`` consecutive samples are past
+it, once per run. A warning only records; an abort level does the detector's ``action``. Every level has the
+channel's physical range (:data:`CHANNELS`). Errors are ``FILE:LINE: limit_detectors.CHANNEL.KEY: problem``.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
+
+from analysis.table.toml_check import TomlChecker, shown
+
+G = 9.81
+"""Standard gravity [m/s²] for levels given in g (as ``analysis.body.G``)."""
+
+DEG = math.pi / 180.0
+
+ACTIONS = ("record", "pause", "controlled_stop", "emergency_stop")
+"""What an abort level may do: only record it; pause the sequence at the end of the run; stop the table at once
+with its stop ramp (decelerate, home) and end the session; brake it (emergency stop)."""
+
+LEVELS = ("abort_low", "warn_low", "warn_high", "abort_high")
+"""The four levels in the order their values must rise."""
+
+PERSISTENCE_MAX = 10_000
+"""Largest persistence [samples]."""
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """What a channel measures: its ``units`` (key suffix → factor to SI), the SI unit's name, and the largest
+    |level| [SI] a configuration may give."""
+
+    name: str
+    units: Mapping[str, float]
+    si: str
+    bound: float
+    bound_text: str
+
+
+_ACCELERATION = Quantity("an acceleration", {"g": G, "m_s2": 1.0}, "m/s²", 20 * G, "±20 g (±196.2 m/s²)")
+_LENGTH = Quantity("a length", {"m": 1.0, "mm": 1e-3}, "m", 2.0, "±2 m")
+_ANGLE = Quantity("an angle", {"deg": DEG, "rad": 1.0}, "rad", math.pi / 2, "±90° (±1.571 rad)")
+_SPEED = Quantity("a speed", {"m_s": 1.0, "mm_s": 1e-3}, "m/s", 5.0, "±5 m/s")
+_RATE = Quantity("an angular rate", {"deg_s": DEG, "rad_s": 1.0}, "rad/s", 2 * math.pi, "±360°/s (±6.283 rad/s)")
+
+POSE_AXES = ("surge", "sway", "heave", "roll", "pitch", "yaw")
+"""The pose's coordinates in the feedback's order."""
+
+CHANNELS: dict[str, Quantity] = {
+    **{f"accel.{axis}": _ACCELERATION for axis in "xyz"},
+    **{f"pose.{axis}": _LENGTH if k < 3 else _ANGLE for k, axis in enumerate(POSE_AXES)},
+    **{f"velocity.{axis}": _SPEED if k < 3 else _RATE for k, axis in enumerate(POSE_AXES)},
+    "tilt.angle": _ANGLE,
+}
+"""Every channel a detector may watch, with what it measures (module docstring)."""
+
+
+@dataclass(frozen=True)
+class Detector:
+    """One channel's levels [SI: m/s², m, rad, m/s, rad/s; None: not set], ``persistence`` [samples] and the
+    ``action`` of its abort levels; ``where`` (``FILE:LINE``) says where it was written."""
+
+    channel: str
+    abort_low: float | None = None
+    warn_low: float | None = None
+    warn_high: float | None = None
+    abort_high: float | None = None
+    persistence: int = 1
+    action: str = "controlled_stop"
+    where: str = field(default="", compare=False)
+
+    def levels(self) -> list[tuple[str, float]]:
+        """The set levels as (name, value [SI]) in :data:`LEVELS` order."""
+        return [(name, value) for name in LEVELS if (value := getattr(self, name)) is not None]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The detector's keys in SI units (the TOML layout)."""
+        suffix = next(unit for unit, factor in CHANNELS[self.channel].units.items() if factor == 1.0)
+        out: dict[str, Any] = {f"{name}_{suffix}": value for name, value in self.levels()}
+        out["persistence"] = self.persistence
+        out["action"] = self.action
+        return out
+
+
+@dataclass(frozen=True)
+class LimitDetectors:
+    """The ``[limit_detectors]`` table: one :class:`Detector` per channel watched (none by default)."""
+
+    detectors: tuple[Detector, ...] = ()
+
+    def overridden(self, others: LimitDetectors) -> LimitDetectors:
+        """These detectors with ``others``' replacing those of the same channel (a sequence's overrides)."""
+        mine = {d.channel: d for d in self.detectors}
+        mine.update({d.channel: d for d in others.detectors})
+        return LimitDetectors(tuple(mine.values()))
+
+    def to_dict(self) -> dict[str, Any]:
+        """The table in the TOML layout (``{"accel": {"x": {...}}}``)."""
+        out: dict[str, Any] = {}
+        for detector in self.detectors:
+            group, member = detector.channel.split(".")
+            out.setdefault(group, {})[member] = detector.to_dict()
+        return out
+
+
+def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_detectors") -> LimitDetectors:
+    """The ``[limit_detectors]`` table read by ``checker`` (the rig configuration's or a sequence's reader, under
+    the key ``root``); errors (the checker's) name the line, the channel and the key."""
+    if value is None:
+        return LimitDetectors()
+    groups = sorted({channel.split(".")[0] for channel in CHANNELS})
+    top = checker.table(value, (root,), groups)
+    detectors = []
+    for group, members in top.items():
+        allowed = [channel.split(".")[1] for channel in CHANNELS if channel.startswith(f"{group}.")]
+        for member, keys in checker.table(members, (root, group), allowed).items():
+            detectors.append(_detector(checker, (root, group, member), f"{group}.{member}", keys))
+    return LimitDetectors(tuple(detectors))
+
+
+def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: Any) -> Detector:
+    quantity = CHANNELS[channel]
+    if not isinstance(value, Mapping):
+        raise checker.error(path, f"expected a table of levels, got {shown(value)}")
+    levels: dict[str, float] = {}
+    for key, raw in value.items():
+        if key in ("persistence", "action"):
+            continue
+        level = next((name for name in LEVELS if key.startswith(f"{name}_")), None)
+        if level is None:
+            raise checker.error((*path, key), f"unknown key; expected a level ({', '.join(LEVELS)}) with its unit "
+                                              f"(e.g. {LEVELS[-1]}_{next(iter(quantity.units))}), persistence or "
+                                              "action")
+        unit = key.removeprefix(f"{level}_")
+        if unit not in quantity.units:
+            raise checker.error((*path, key), f"unit {unit!r} does not fit {channel}, {quantity.name}: expected "
+                                              f"{' or '.join(f'{level}_{u}' for u in quantity.units)}")
+        if level in levels:
+            raise checker.error((*path, key), f"{level} is given twice (in two units)")
+        factor = quantity.units[unit]
+        si = checker.real(raw, (*path, key), f"a number in {unit}") * factor
+        if not (math.isfinite(si) and abs(si) <= quantity.bound):
+            raise checker.error((*path, key), f"expected {quantity.name} within {quantity.bound_text}, got "
+                                              f"{shown(raw)}")
+        levels[level] = si
+    if not levels:
+        raise checker.error(path, f"no level: give at least one of {', '.join(LEVELS)} with its unit")
+    given = [(name, levels[name]) for name in LEVELS if name in levels]
+    for (low_name, low), (high_name, high) in itertools.pairwise(given):
+        if not low < high:
+            key = next(k for k in value if k.startswith(f"{high_name}_"))
+            raise checker.error((*path, key), f"levels in the wrong order: {high_name} ({high:g} {quantity.si}) must "
+                                              f"be above {low_name} ({low:g} {quantity.si}); expected abort_low < "
+                                              "warn_low < warn_high < abort_high")
+    persistence = value.get("persistence", 1)
+    if isinstance(persistence, bool) or not isinstance(persistence, int) or not 1 <= persistence <= PERSISTENCE_MAX:
+        raise checker.error((*path, "persistence"), f"expected a whole number of samples from 1 to "
+                                                    f"{PERSISTENCE_MAX}, got {shown(persistence)}")
+    action = value.get("action", "controlled_stop")
+    if action not in ACTIONS:
+        raise checker.error((*path, "action"), f"expected one of {', '.join(ACTIONS)}, got {shown(action)}")
+    line = checker.line(path)
+    where = f"{checker.source}:{line}" if line else checker.source
+    return Detector(channel, levels.get("abort_low"), levels.get("warn_low"), levels.get("warn_high"),
+                    levels.get("abort_high"), persistence, action, where)

@@ -1,0 +1,130 @@
+"""The limit detectors (``analysis.table.limit_detectors``, ``docs/limits.md``) evaluated on the host as the
+table's feedback arrives: one numpy pass per batch, a few comparisons per sample.
+
+:class:`LimitWatch` takes what the run recorder receives — accelerometer batches, body tilt batches, the
+controller's statuses (pose; the velocity between consecutive statuses) — and returns the :class:`Trip` of every
+level passed for its detector's persistence. Each level of each channel instance (``accel.0.x``: accelerometer 0's
+x; ``tilt.2.angle``: body 2's tilt sensor; ``pose.heave``; ``velocity.roll``) trips at most once per run.
+Times are the run's [s]; values and levels SI (m/s², m, rad, m/s, rad/s).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors
+
+
+@dataclass(frozen=True)
+class Trip:
+    """A level passed: ``channel`` (the instance, e.g. ``accel.0.x``), ``level`` (``warn_high`` …), the sample's
+    ``value`` and the level's ``threshold`` [``unit``, SI], its time ``t`` [s, run time] (the sample that completed
+    the persistence) and the ``action`` taken (``record`` for a warning; the detector's for an abort level)."""
+
+    channel: str
+    level: str
+    value: float
+    threshold: float
+    unit: str
+    t: float
+    action: str
+
+    def text(self) -> str:
+        """The session event's line: ``limit accel.0.x: 6.02 m/s² past abort high 5.886 m/s²: controlled_stop``."""
+        return (f"limit {self.channel}: {self.value:.4g} {self.unit} past {self.level.replace('_', ' ')} "
+                f"{self.threshold:.4g} {self.unit}: {self.action}")
+
+
+def first_trip(past: np.ndarray, carry: int, persistence: int) -> tuple[int | None, int]:
+    """Where ``persistence`` consecutive samples past a level are first complete in a batch.
+
+    ``past`` (n,) bool: each sample beyond the level; ``carry``: consecutive samples past it at the end of the
+    batches before. Returns (the index of the sample that completes the persistence, or None; the consecutive
+    count at the batch's end, the next batch's ``carry``)."""
+    n = len(past)
+    if n == 0:
+        return None, carry
+    index = np.arange(n)
+    last_clear = np.maximum.accumulate(np.where(past, -1, index))
+    run = index - last_clear + np.where(last_clear < 0, carry, 0)
+    hits = np.flatnonzero(run >= persistence)
+    return (int(hits[0]) if len(hits) else None), int(run[-1])
+
+
+class ChannelWatch:
+    """One detector on one instance of its channel (``name``), its levels' consecutive counts across batches."""
+
+    def __init__(self, detector: Detector, name: str) -> None:
+        self.detector = detector
+        self.name = name
+        self._carry = {level: 0 for level, _ in detector.levels()}
+        self._tripped: set[str] = set()
+
+    def feed(self, t: np.ndarray, values: np.ndarray) -> list[Trip]:
+        """The trips in samples ``values`` [SI] at times ``t`` [s], earliest first."""
+        trips = []
+        for level, threshold in self.detector.levels():
+            if level in self._tripped:
+                continue
+            past = values > threshold if level.endswith("high") else values < threshold
+            index, self._carry[level] = first_trip(past, self._carry[level], self.detector.persistence)
+            if index is not None:
+                self._tripped.add(level)
+                action = self.detector.action if level.startswith("abort") else "record"
+                trips.append(Trip(self.name, level, float(values[index]), threshold,
+                                  CHANNELS[self.detector.channel].si, float(t[index]), action))
+        return sorted(trips, key=lambda trip: trip.t)
+
+
+class LimitWatch:
+    """The run's detectors (module docstring): fed by the run recorder, one instance per run."""
+
+    def __init__(self, detectors: LimitDetectors) -> None:
+        self._detectors = {d.channel: d for d in detectors.detectors}
+        self._watches: dict[str, ChannelWatch] = {}
+        self._last_pose: tuple[float, np.ndarray] | None = None
+
+    def _watch(self, channel: str, name: str) -> ChannelWatch | None:
+        detector = self._detectors.get(channel)
+        if detector is None:
+            return None
+        if name not in self._watches:
+            self._watches[name] = ChannelWatch(detector, name)
+        return self._watches[name]
+
+    def _feed(self, channel: str, name: str, t: np.ndarray, values: np.ndarray) -> list[Trip]:
+        watch = self._watch(channel, name)
+        return [] if watch is None else watch.feed(t, values)
+
+    def accel(self, sensor: str, t: np.ndarray, xyz: np.ndarray) -> list[Trip]:
+        """Accelerometer ``sensor``'s samples: ``t`` (k,) [s], ``xyz`` (k, 3) [m/s², plate frame]."""
+        trips = []
+        for k, axis in enumerate("xyz"):
+            trips += self._feed(f"accel.{axis}", f"accel.{sensor}.{axis}", t, xyz[:, k])
+        return sorted(trips, key=lambda trip: trip.t)
+
+    def tilt(self, body_id: int, t: np.ndarray, angle: np.ndarray) -> list[Trip]:
+        """Body ``body_id``'s tilt sensor: ``t`` (k,) [s], ``angle`` (k,) [rad]."""
+        return self._feed("tilt.angle", f"tilt.{body_id}.angle", t, angle)
+
+    def poses(self, t: np.ndarray, pose: np.ndarray) -> list[Trip]:
+        """The statuses' measured poses: ``t`` (k,) [s], ``pose`` (k, 6) (m, rad); the velocity is the difference
+        of consecutive statuses over their time step (the first status of a run has none)."""
+        trips = []
+        if self._last_pose is not None:
+            all_t = np.concatenate([[self._last_pose[0]], t])
+            all_pose = np.vstack([self._last_pose[1], pose])
+        else:
+            all_t, all_pose = t, pose
+        if len(t):
+            self._last_pose = (float(t[-1]), pose[-1])
+        dt = np.diff(all_t)
+        steps = dt > 0
+        velocity = np.diff(all_pose, axis=0)[steps] / dt[steps, None]
+        t_velocity = all_t[1:][steps]
+        for k, axis in enumerate(POSE_AXES):
+            trips += self._feed(f"pose.{axis}", f"pose.{axis}", t, pose[:, k])
+            trips += self._feed(f"velocity.{axis}", f"velocity.{axis}", t_velocity, velocity[:, k])
+        return sorted(trips, key=lambda trip: trip.t)

@@ -1,0 +1,115 @@
+"""The rig configuration's ``[limit_detectors]`` and a sequence's overrides: read in SI, written back, and bad
+input refused with FILE:LINE, the channel and the key (analysis/table/limit_detectors.py)."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from analysis.table.limit_detectors import Detector, G, LimitDetectors
+from analysis.table.model import TableModel, TableModelError
+from rig.sequence import Sequence, SequenceError, load_sequence
+
+RIG = """\
+[table]
+controller_rate_hz = 1000
+
+[limit_detectors.accel.x]
+warn_high_g = 0.4
+abort_high_g = 0.6
+abort_low_m_s2 = -5.0
+persistence = 3
+action = "emergency_stop"
+
+[limit_detectors.tilt.angle]
+warn_high_deg = 20
+"""
+
+
+def write(tmp_path: Path, text: str, name: str = "rig.toml") -> Path:
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+def test_levels_are_read_in_si_and_written_back(tmp_path: Path) -> None:
+    model = TableModel.from_toml(write(tmp_path, RIG))
+    accel, tilt = model.detectors.detectors
+    assert accel == Detector("accel.x", abort_low=-5.0, warn_high=0.4 * G, abort_high=0.6 * G, persistence=3,
+                             action="emergency_stop")
+    assert accel.where == f"{tmp_path / 'rig.toml'}:4"
+    assert tilt == Detector("tilt.angle", warn_high=math.radians(20))  # default: persistence 1, controlled stop
+    assert TableModel.from_dict(model.to_dict()).detectors == model.detectors
+    assert "limit_detectors" not in TableModel().to_dict()
+
+
+@pytest.mark.parametrize(("text", "message"), [
+    ("[limit_detectors.accel.x]\nwarn_high_g = 0.6\nabort_high_g = 0.4\n",
+     r":3: limit_detectors\.accel\.x\.abort_high_g: levels in the wrong order: abort_high \(3\.924 m/s²\) must be "
+     r"above warn_high \(5\.886 m/s²\)"),
+    ("[limit_detectors.accel.x]\nabort_low_g = 0.5\nabort_high_g = 0.4\n",
+     r":3: limit_detectors\.accel\.x\.abort_high_g: levels in the wrong order"),
+    ("[limit_detectors.accel.w]\nabort_high_g = 0.4\n",
+     r":1: limit_detectors\.accel\.w: unknown key; expected one of x, y, z"),
+    ("[limit_detectors.legs.x]\nabort_high_g = 0.4\n",
+     r":1: limit_detectors\.legs: unknown key; expected one of accel, pose, tilt, velocity"),
+    ("[limit_detectors.accel.x]\nabort_high_m = 0.4\n",
+     r":2: limit_detectors\.accel\.x\.abort_high_m: unit 'm' does not fit accel\.x, an acceleration: expected "
+     r"abort_high_g or abort_high_m_s2"),
+    ("[limit_detectors.pose.heave]\nabort_high_deg = 3\n",
+     r":2: limit_detectors\.pose\.heave\.abort_high_deg: unit 'deg' does not fit pose\.heave, a length"),
+    ("[limit_detectors.accel.z]\nabort_high_g = 30\n",
+     r":2: limit_detectors\.accel\.z\.abort_high_g: expected an acceleration within ±20 g"),
+    ("[limit_detectors.accel.z]\nabort_high_g = '1'\n",
+     r":2: limit_detectors\.accel\.z\.abort_high_g: expected a number in g, got '1'"),
+    ("[limit_detectors.accel.z]\nabort_high_g = 1\npersistence = 0\n",
+     r":3: limit_detectors\.accel\.z\.persistence: expected a whole number of samples from 1 to 10000, got 0"),
+    ("[limit_detectors.accel.z]\nabort_high_g = 1\naction = 'halt'\n",
+     r":3: limit_detectors\.accel\.z\.action: expected one of record, pause, controlled_stop, emergency_stop"),
+    ("[limit_detectors.accel.z]\npersistence = 2\n",
+     r":1: limit_detectors\.accel\.z: no level"),
+    ("[limit_detectors.accel.z]\nabort_high_g = 1\nabort_high_m_s2 = 9\n",
+     r":3: limit_detectors\.accel\.z\.abort_high_m_s2: abort_high is given twice"),
+])
+def test_bad_detectors_are_refused_with_the_line_and_the_key(tmp_path: Path, text: str, message: str) -> None:
+    path = write(tmp_path, text)
+    with pytest.raises(TableModelError, match=rf"^{path}{message}"):
+        TableModel.from_toml(path)
+
+
+SEQUENCE = """\
+angles_deg = [0]
+records = [{{ record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] }}]
+
+[rig]
+config = "rig.toml"
+
+[[bodies]]
+table5 = 5
+x = 0.0
+y = 0.0
+
+{overrides}
+"""
+
+
+def test_a_sequence_overrides_the_rig_s_detectors_channel_by_channel(tmp_path: Path) -> None:
+    write(tmp_path, RIG)
+    path = write(tmp_path, SEQUENCE.format(overrides="[limit_detectors.accel.x]\nwarn_high_g = 0.2\n"),
+                 "sequence.toml")
+    sequence = load_sequence(path)
+    assert sequence.table.detectors == LimitDetectors((Detector("accel.x", warn_high=0.2 * G),
+                                                       Detector("tilt.angle", warn_high=math.radians(20))))
+    again = Sequence.from_dict(sequence.to_dict())  # as a session file stores it
+    assert again.table.detectors == sequence.table.detectors
+
+
+def test_a_bad_override_is_refused_with_the_sequence_s_line(tmp_path: Path) -> None:
+    write(tmp_path, RIG)
+    path = write(tmp_path, SEQUENCE.format(overrides="[limit_detectors.pose.roll]\nwarn_high_m = 0.2\n"),
+                 "sequence.toml")
+    with pytest.raises(SequenceError, match=rf"^{path}:13: limit_detectors\.pose\.roll\.warn_high_m: unit 'm' does "
+                                            "not fit pose.roll, an angle"):
+        load_sequence(path)

@@ -1,0 +1,69 @@
+"""The limit detectors' evaluation on the host (rig/orchestrator/limits.py): persistence across batches, warning
+and abort levels, one trip per level and run, the channels' instances, the velocity between statuses."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from analysis.table.limit_detectors import Detector, LimitDetectors
+from rig.orchestrator.limits import ChannelWatch, LimitWatch, Trip, first_trip
+
+
+@pytest.mark.parametrize(("past", "carry", "persistence", "expected"), [
+    ([False, True, True, False], 0, 2, (2, 0)),
+    ([False, True, False, True], 0, 2, (None, 1)),
+    ([True, False], 1, 2, (0, 0)),          # the count goes on from the batch before
+    ([True, True, True], 5, 10, (None, 8)),
+    ([], 3, 4, (None, 3)),
+    ([True], 0, 1, (0, 1)),
+])
+def test_first_trip_counts_consecutive_samples_across_batches(past: list[bool], carry: int, persistence: int,
+                                                               expected: tuple[int | None, int]) -> None:
+    assert first_trip(np.array(past, dtype=bool), carry, persistence) == expected
+
+
+def test_a_persistence_of_n_ignores_a_single_spike_and_trips_on_n_in_a_row() -> None:
+    watch = ChannelWatch(Detector("accel.x", abort_high=5.0, persistence=3), "accel.0.x")
+    t = np.arange(8) * 0.001
+    spike = np.array([0, 9, 0, 0, 9, 9, 0, 0], dtype=float)
+    assert watch.feed(t, spike) == []
+    assert watch.feed(t + 0.008, np.array([9.0])) == []  # 1 in a row (the batch before ended clear)
+    trips = watch.feed(t + 0.009, np.array([6.0, 7.0, 0.0]))
+    assert trips == [Trip("accel.0.x", "abort_high", 7.0, 5.0, "m/s²", pytest.approx(0.010), "controlled_stop")]
+
+
+def test_warnings_only_record_and_each_level_trips_once_per_run() -> None:
+    watch = ChannelWatch(Detector("accel.x", abort_low=-8.0, warn_low=-4.0, warn_high=4.0, abort_high=8.0,
+                                  action="pause"), "accel.1.x")
+    t = np.arange(5) * 0.01
+    trips = watch.feed(t, np.array([0.0, 5.0, 9.0, -5.0, 9.0]))
+    assert [(trip.level, trip.t, trip.action) for trip in trips] == [
+        ("warn_high", 0.01, "record"), ("abort_high", 0.02, "pause"), ("warn_low", 0.03, "record")]
+    assert watch.feed(t + 1, np.array([9.0, -9.0])) == [Trip("accel.1.x", "abort_low", -9.0, -8.0, "m/s²", 1.01,
+                                                             "pause")]
+    assert trips[1].text() == "limit accel.1.x: 9 m/s² past abort high 8 m/s²: pause"
+
+
+def test_each_accelerometer_and_body_is_its_own_instance() -> None:
+    watch = LimitWatch(LimitDetectors((Detector("accel.z", abort_high=12.0), Detector("tilt.angle", warn_high=0.3))))
+    t = np.array([0.0, 0.001])
+    assert watch.accel("0", t, np.array([[0, 0, 9.8], [0, 0, 9.8]])) == []
+    [trip] = watch.accel("1", t, np.array([[20.0, 0, 9.8], [0, 0, 13.0]]))  # x has no detector
+    assert (trip.channel, trip.value, trip.t) == ("accel.1.z", 13.0, 0.001)
+    assert [trip.channel for trip in watch.tilt(2, t, np.array([0.1, 0.4]))] == ["tilt.2.angle"]
+    assert watch.tilt(2, t + 1, np.array([0.5])) == []  # tripped already this run
+
+
+def test_the_velocity_is_the_difference_of_consecutive_statuses() -> None:
+    watch = LimitWatch(LimitDetectors((Detector("velocity.heave", abort_high=0.5),
+                                       Detector("pose.heave", warn_low=-0.1))))
+    pose = np.zeros((2, 6))
+    pose[:, 2] = [0.0, 0.008]                       # 0.4 m/s over 20 ms
+    assert watch.poses(np.array([0.0, 0.02]), pose) == []
+    later = np.zeros((1, 6))
+    later[0, 2] = 0.02                              # 0.6 m/s from the last status of the batch before
+    [trip] = watch.poses(np.array([0.04]), later)
+    assert (trip.channel, trip.value, trip.t) == ("velocity.heave", pytest.approx(0.6), 0.04)
+    later[0, 2] = -0.2
+    assert [trip.level for trip in watch.poses(np.array([0.06]), later)] == ["warn_low"]

@@ -1,0 +1,98 @@
+"""The run recorder and the limit detectors: a trip is acted on (the orchestrator's callback) before it is written,
+then written as the run's event at the crossing's time and put into the live tap for the console; the first status
+showing the table stopped gives the latency in table time. The table is a real feedback hub fed by the test; the
+run log a real session file."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from analysis.table.limit_detectors import Detector, LimitDetectors
+from drivers.controller import AccelBatch, Feedback, Subscription, TableStatus
+from rig.orchestrator.limits import LimitWatch, Trip
+from rig.orchestrator.live import LiveTap
+from rig.orchestrator.recorder import RunRecorder
+from rig.orchestrator.states import Progress
+from rig.session import SessionLog, read_session
+
+SPACING_NS = 1_000_000
+"""1 kHz accelerometer samples."""
+
+
+class FeedbackTable:
+    """What a :class:`RunRecorder` reads from a table: the subscriptions of a real feedback hub."""
+
+    def __init__(self) -> None:
+        self.feedback = Feedback()
+
+    def accelerations(self) -> Subscription[AccelBatch]:
+        return self.feedback.subscribe("accel")
+
+    def tilts(self) -> Subscription[object]:
+        return self.feedback.subscribe("tilt")
+
+    def statuses(self) -> Subscription[object]:
+        return self.feedback.subscribe("status")
+
+    def detections(self) -> Subscription[object]:
+        return self.feedback.subscribe("detection")
+
+    def faults(self) -> Subscription[object]:
+        return self.feedback.subscribe("fault")
+
+
+class CountingLog:
+    """A run log that counts the events written through it (and writes them)."""
+
+    def __init__(self, run_log: Any) -> None:
+        self.run_log = run_log
+        self.events = 0
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.run_log, name)
+
+    def add_event(self, t: float, text: str) -> None:
+        self.events += 1
+        self.run_log.add_event(t, text)
+
+
+def status(t_ns: int, state: str) -> TableStatus:
+    return TableStatus(t_ns, state, 0, 0, 0, (), 0, np.zeros(6), 0)
+
+
+def test_a_trip_is_acted_on_written_shown_and_its_stop_timed(tmp_path: Path) -> None:
+    table = FeedbackTable()
+    log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
+                            software_version="test")
+    run_log = CountingLog(log.begin_run(0, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)),
+                                        bodies=[], sensors=["0"]))
+    acted: list[tuple[Trip, int]] = []
+    live = LiveTap()
+    limits = LimitWatch(LimitDetectors((Detector("accel.x", warn_high=2.0, abort_high=4.0, persistence=2),)))
+    recorder = RunRecorder(table, run_log, {0: "0"}, [], Progress(runs_total=1), live=live,  # type: ignore[arg-type]
+                           limits=limits, on_trip=lambda trip: acted.append((trip, run_log.events)))
+    recorder.start(0)
+    x = np.array([0.0, 3.0, 5.0, 0.0, 5.0, 6.0, 7.0, 0.0])  # a single sample past abort: no trip; two in a row: trip
+    samples = np.column_stack([x, np.zeros_like(x), np.full_like(x, 9.81)])
+    table.feedback.publish_accel(AccelBatch(0, 0, 0, SPACING_NS, samples))
+    table.feedback.publish_status(status(8_000_000, "streaming"))
+    table.feedback.publish_status(status(17_000_000, "stopping"))
+    recorder.finish(0.2)
+    run_log.end("aborted", reason="limit accel.0.x")
+    log.close()
+    assert [(trip.level, trip.t, trip.value, trip.action) for trip, _ in acted] == [
+        ("warn_high", 0.002, 5.0, "record"), ("abort_high", 0.005, 6.0, "controlled_stop")]
+    assert [written for _, written in acted] == [0, 0]  # acted on before anything was written
+    assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.012) < 1e-9
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    assert [(event["t"], event["text"]) for event in run["events"]] == [
+        (0.002, "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record"),
+        (0.005, "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop"),
+        (0.017, "limit accel.0.x: the table was stopping 12.0 ms after the crossing (table time)")]
+    assert [item for item in live.drain() if item[0] == "fault"] == [
+        ("fault", 0.002, "limit accel.0.x", "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record"),
+        ("fault", 0.005, "limit accel.0.x", "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop")]
+
