@@ -148,10 +148,12 @@ def test_payloads_round_trip() -> None:
     assert status[:7] == (1, "emergency_stopped", 2, 3, 4, 0b10001000, 6)
     np.testing.assert_array_equal(status.pose, samples[0])
     assert status.virtual_watchdog_ms == 0
-    virtual = StatusReport(1, "streaming", 2, 3, 4, 0, 6, samples[0], 7, 8, 1000)
-    assert decode_status(encode_status(virtual))[8:] == (7, 8, 1000)
-    # a real-time controller's status without the last field (4 bytes shorter) reads as real time
-    assert decode_status(encode_status(virtual)[:-4])[8:] == (7, 8, 0)
+    virtual = StatusReport(1, "streaming", 2, 3, 4, 0, 6, samples[0], 7, 8, 1000, 1)
+    assert decode_status(encode_status(virtual))[8:] == (7, 8, 1000, 1)
+    # a controller's status without the interlock inputs (4 bytes shorter) reads as none set; a real-time
+    # controller's without the virtual-time watchdog either (8 bytes shorter) as real time
+    assert decode_status(encode_status(virtual)[:-4])[8:] == (7, 8, 1000, 0)
+    assert decode_status(encode_status(virtual)[:-8])[8:] == (7, 8, 0, 0)
     batch = decode_accel(encode_accel(AccelSamples(3, 9, -1, 250_000, samples[:7, :3])))
     assert batch[:4] == (3, 9, -1, 250_000)
     np.testing.assert_array_equal(batch.samples, samples[:7, :3])
