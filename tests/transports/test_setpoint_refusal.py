@@ -21,7 +21,7 @@ import pytest
 
 from analysis.table.model import TABLE_IV, AxisLimits, TableLimits, TableModel
 from drivers.canopen import CanopenTable
-from drivers.controller import FaultSource, SetpointError, TableController, open_table
+from drivers.controller import FaultSource, SetpointError, TableController, TableError, open_table
 from protocols.canopen import od as drive_od
 from protocols.mavlink import dialect
 from protocols.zenoh.table import SetpointChunk, encode_setpoints
@@ -135,11 +135,14 @@ def canopen_pair() -> Iterator[tuple[Emulator, CanopenTable, threading.Thread]]:
 
 
 def targets_of(table: CanopenTable, pose: np.ndarray) -> list[int]:
-    return list(table.scaling.positions(table.table.leg_lengths(pose).tolist()))
+    """Each leg's target [its drive's units] for ``pose``, unclipped."""
+    lengths = table.table.leg_lengths(pose).tolist()
+    return [link.scaling.position(length, leg)
+            for leg, (link, length) in enumerate(zip(table._drives, lengths, strict=True), start=1)]
 
 
 CANOPEN_CASES: dict[str, tuple[Callable[[CanopenTable], list[int]], str]] = {
-    "stroke": (lambda table: [table.scaling.stroke + 10**6, *targets_of(table, np.zeros(6))[1:]],
+    "stroke": (lambda table: [table._drives[0].scaling.stroke + 10**6, *targets_of(table, np.zeros(6))[1:]],
                "leg 1 target 3.850000 m outside its stroke [1.6000, 2.8500] m"),
     "envelope": (lambda table: targets_of(table, np.array([0.3, 0, 0, 0, 0, 0])), "surge 0.3 m outside"),
     "rate": (lambda table: targets_of(table, np.array([0, 0, 0.03, 0, 0, 0])), "from the sample before, beyond"),
@@ -153,6 +156,8 @@ def test_canopen_drives_refuse_targets_the_table_must_not_play(case: str, monkey
         table.arm()
         faults = table.faults()
         monkeypatch.setattr(table, "_targets", lambda pose: make(table))  # past the master's clipping
+        with contextlib.suppress(TableError):  # a move: the master sends targets of its reference, here hostile
+            table.set_tilt(math.radians(0.5))
         stopped = table.wait_for_status(lambda s: s.state == "faulted", WAIT)
         monkeypatch.undo()
         assert "SETPOINT_REFUSED" in stopped.faults
