@@ -36,8 +36,6 @@ from sim_table.process import (
     parse_body,
 )
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 MS = 1_000_000
 TABLE = TableModel()
 SURGE_DECELERATION = TABLE.limits.surge.acceleration  # m/s², Table IV
@@ -414,6 +412,7 @@ def test_bodies_on_the_command_line() -> None:
         parse_body("0.1x0.4;mass=heavy")
 
 
+@pytest.mark.integration
 def test_the_emulator_asks_for_a_signing_key_only_on_transports_that_sign(tmp_path: Path) -> None:
     """``rig emulate`` (registered on an app of its own here: it becomes ``python -m sim_table``) with no key in the
     environment: canopen:// listens (CAN has no authentication); mavlink:// and zenoh:// are refused, naming the key
@@ -444,6 +443,7 @@ def test_the_emulator_asks_for_a_signing_key_only_on_transports_that_sign(tmp_pa
 # ----- virtual time ------------------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_virtual_time_never_plays_a_tick_whose_setpoint_has_not_come() -> None:
     """``--speed max``: the clock runs ahead only as far as the buffered setpoints reach, holds there without an
     underrun (and reports where it holds), runs to the stream's end once END_OF_STREAM came, and plays the same
@@ -479,6 +479,7 @@ def test_virtual_time_never_plays_a_tick_whose_setpoint_has_not_come() -> None:
         emulator.close()
 
 
+@pytest.mark.integration
 def test_virtual_time_cuts_its_batches_when_a_batch_takes_long_in_wall_time(monkeypatch: pytest.MonkeyPatch) -> None:
     """A host too busy for 80 ticks a batch: with every tick made to take at least 2 ms of wall time (a sleep,
     which never ends early), the batch after a full one of ``VIRTUAL_BATCH`` ticks runs at most
@@ -528,6 +529,7 @@ def test_batcher_numbers_each_sources_batches_and_continues_its_time() -> None:
     assert [(b.source, b.seq, b.t_start_ns) for b in after] == [(0, 3, 60)]
 
 
+@pytest.mark.integration
 def test_the_bodies_tilt_sensors_sample_every_fifth_tick_on_a_contiguous_grid(monkeypatch: pytest.MonkeyPatch) -> None:
     """Two bodies, virtual time, a 0.7 s stream of a gentle surge: each body's angles reach the endpoint at
     ``TILT_RATE`` (every 5th 1 kHz tick), on the 5 ms grid of controller time (dated as the accelerometer samples:
@@ -580,6 +582,7 @@ def test_speed_max_parses_and_canopen_refuses_it(tmp_path: Path) -> None:
         EmulatorConfig(listen="canopen://x?interface=virtual", speed=math.inf)
 
 
+@pytest.mark.integration
 def test_an_underrun_mid_drive_measures_no_spike_on_the_plate(monkeypatch: pytest.MonkeyPatch) -> None:
     """The 15–33 g one-sample spikes of runs that underran: the buffer ran dry mid-drive, the reference held, and
     the samples that came late resumed the drive where it had got to — a jump the legs followed at their speed
@@ -612,6 +615,7 @@ def test_an_underrun_mid_drive_measures_no_spike_on_the_plate(monkeypatch: pytes
     assert np.abs(fx).max() <= bound, (np.abs(fx).max(), bound)
 
 
+@pytest.mark.integration
 def test_the_counters_say_where_each_tick_s_cpu_time_went() -> None:
     """Two bodies, virtual time, a 0.4 s stream: ``timing.profile_cpu_us_per_tick`` splits the tick thread's CPU
     time by stage (``sim_table/tick_profile.py``): every stage that ran is there, MuJoCo's steps among them, and

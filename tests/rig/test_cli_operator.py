@@ -32,8 +32,6 @@ from rig.session import read_session
 from tests.helpers.processes import HEAVY, start_tiny
 from tests.helpers.sequences import TINY
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 ROOT = Path(__file__).resolve().parents[2]
 RIG = [sys.executable, "-m", "rig.cli"]
 QUICK = ROOT / "examples" / "quick.toml"
@@ -63,6 +61,7 @@ def options_of(*command: str) -> set[str]:
 # ----- item 1: resume hints that work as printed -----------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_the_printed_resume_hint_continues_on_the_same_emulated_table(tmp_path: Path) -> None:
     """The operator declines to place the bodies: the session stops early and names the command that continues
     it; that command, as printed (no --emulate, no --speed), plays the rest on the emulator with the sequence's
@@ -81,6 +80,7 @@ def test_the_printed_resume_hint_continues_on_the_same_emulated_table(tmp_path: 
     assert counters["speed"] == "max" and counters["streams_completed"] == 2  # the session's emulator, again
 
 
+@pytest.mark.integration
 @pytest.mark.slow  # the crashed session resumes at the speed it ran at: 1x, about 20 s
 def test_after_a_crash_the_recover_hint_and_then_the_resume_hint_work_as_printed(tmp_path: Path) -> None:
     """``kill -9`` of ``rig run --emulate`` mid-record; ``rig sessions recover`` names the command that continues
@@ -102,6 +102,7 @@ def test_after_a_crash_the_recover_hint_and_then_the_resume_hint_work_as_printed
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"), (1, "completed")]
 
 
+@pytest.mark.integration
 def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, key_file: Path) -> None:
     """A session on a table URL stores it; when it stops early the hint (with its key file) reaches that table."""
     (tmp_path / "tiny.toml").write_text(TINY)
@@ -138,6 +139,7 @@ def test_the_services_no_table_message_names_flags_that_exist(tmp_path: Path) ->
 # ----- item 2: the bodies on the table checked against the sequence -------------------------------------------
 
 
+@pytest.mark.integration
 def test_a_table_holding_other_bodies_is_refused_before_any_motion(tmp_path: Path, key_file: Path) -> None:
     """An emulator holding one 0.10 x 0.50 body, the quick sequence's two: refused with both lists, exit 2, no
     session file, the table never armed; the MAVLink report carries the specimens' sizes and places."""
@@ -158,6 +160,7 @@ def test_a_table_holding_other_bodies_is_refused_before_any_motion(tmp_path: Pat
     assert counters["commands_accepted"] == 0 and counters["streams_started"] == 0
 
 
+@pytest.mark.integration
 def test_zenoh_reports_the_emulators_bodies(key_file: Path) -> None:
     emulator = EmulatorProcess.start("zenoh://127.0.0.1:0/table", "--body", "0.1x0.5@0.05,0.3;depth=0.3", "--body",
                                      "0.2x0.6@0,-0.3", "--speed", "max", key_file=key_file)
@@ -197,6 +200,7 @@ print(json.dumps({"exit": result.exit_code, "output": result.output,
 """
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("args", [["report", "nope.h5"], ["sessions", "show", "nope.h5"],
                                   ["analyze", "nope.h5"], ["run", "--resume", "nope.h5", "--yes"],
                                   ["run", "nope.toml", "--emulate"]])
@@ -208,6 +212,7 @@ def test_a_missing_file_is_said_before_anything_heavy_is_imported(tmp_path: Path
     assert seen["loaded"] == [], seen["loaded"]
 
 
+@pytest.mark.integration
 def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key_file: Path) -> None:
     (tmp_path / "tiny.toml").write_text(TINY)
     done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--key-file", str(key_file), "--yes",
@@ -220,6 +225,7 @@ def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key
 # ----- item 6: CLI manners ----------------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_version_and_shell_completion() -> None:
     from rig import __version__
 
@@ -230,6 +236,7 @@ def test_version_and_shell_completion() -> None:
     assert script.returncode == 0 and "complete" in script.stdout and "rig" in script.stdout
 
 
+@pytest.mark.integration
 def test_json_options_print_one_object(tmp_path: Path) -> None:
     (tmp_path / "tiny.toml").write_text(TINY)
     for command in (("run",), ("demo",), ("sessions", "list"), ("sessions", "show")):
@@ -248,6 +255,7 @@ def test_json_options_print_one_object(tmp_path: Path) -> None:
     assert [Path(s["path"]).name for s in listed["sessions"]] == ["s.h5"]
 
 
+@pytest.mark.integration
 def test_iterate_takes_speed_max() -> None:
     from rig.cli.iterate import _Table
 
@@ -256,6 +264,7 @@ def test_iterate_takes_speed_max() -> None:
     assert refused.returncode == 2 and "expected a factor > 0 or max" in refused.stderr
 
 
+@pytest.mark.integration
 def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_path: Path) -> None:
     done = rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5", cwd=tmp_path)
     assert done.returncode == 0, done.stderr
@@ -275,6 +284,7 @@ def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_pa
     assert again.returncode == 2 and "never overwritten" in again.stderr
 
 
+@pytest.mark.integration
 def test_emulate_help_and_counters_table(tmp_path: Path, key_file: Path) -> None:
     help_text = rig("emulate", "--help", cwd=ROOT).stdout
     assert help_text.startswith("Usage: rig emulate [OPTIONS]")

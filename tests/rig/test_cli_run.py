@@ -19,13 +19,13 @@ from typing import Any
 import h5py
 import numpy as np
 import pytest
+from typer.testing import CliRunner
 
+from rig.cli import app
 from rig.sequence import load_sequence
 from rig.session import read_session
 from tests.helpers.processes import RIG, ROOT, child_of, running, start_tiny
 from tests.helpers.sequences import TINY
-
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 
 def rig(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
@@ -33,6 +33,7 @@ def rig(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProc
                           env={**os.environ, "COLUMNS": "160"})
 
 
+@pytest.mark.integration
 def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -> None:
     session = tmp_path / "quick.h5"
     done = rig("run", str(ROOT / "examples" / "quick.toml"), "--emulate", "--speed", "max", "--yes", "-o", str(session),
@@ -74,6 +75,7 @@ def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -
     assert sum(len(r["detections"]) for r in runs) == len(emulator["overturns"]) > 0
 
 
+@pytest.mark.integration
 @pytest.mark.slow  # 22 s; kill -9 of a writer is in the quick suite by test_session_recover and test_session_log
 def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp_path: Path) -> None:
     proc, session, seen = start_tiny(tmp_path)
@@ -125,6 +127,7 @@ class Output:
         return self.text
 
 
+@pytest.mark.integration
 def test_ctrl_c_pauses_at_the_end_of_the_record_and_enter_resumes_also_unattended(tmp_path: Path) -> None:
     """``--yes`` too: the first Ctrl-C — sent to the whole process group, as a terminal does — pauses after the
     record being played (it completes, the next is not begun) and the emulator lives on in its own group; Enter
@@ -144,6 +147,7 @@ def test_ctrl_c_pauses_at_the_end_of_the_record_and_enter_resumes_also_unattende
     assert [r["status"] for r in read_session(session)["runs"]] == ["completed", "completed"]
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("pause_first", [True, False])
 def test_a_second_ctrl_c_ends_the_session_resumably(tmp_path: Path, pause_first: bool) -> None:
     """Paused (after the first Ctrl-C), the second ends the session there; before the pause took effect, it
@@ -162,6 +166,7 @@ def test_a_second_ctrl_c_ends_the_session_resumably(tmp_path: Path, pause_first:
     assert b"rig run --resume" in out.join()
 
 
+@pytest.mark.integration
 def test_the_emulator_rig_started_ends_when_rig_is_killed(tmp_path: Path) -> None:
     """``kill -9`` of rig mid-record: the emulator it started sees its parent gone and stops (within its parent
     poll and its shutdown), leaving no process holding the port."""
@@ -180,10 +185,13 @@ def test_the_emulator_rig_started_ends_when_rig_is_killed(tmp_path: Path) -> Non
     (lambda text: text.replace('KOBE/NIS000', 'KOBE/NOPE'), "tiny.toml:5: records[2]"),
     (lambda text: text.replace('table5 = 5', 'table5 = "five"'), "tiny.toml:16: bodies[1].table5"),
 ])
-def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path, edit: object, where: str) -> None:
+def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path, edit: object, where: str,
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """In-process (typer's CliRunner): the conftest's guard fails the test if anything opens a socket."""
     (tmp_path / "tiny.toml").write_text(edit(TINY))  # type: ignore[operator]
-    done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--yes", "-o", "s.h5", cwd=tmp_path)
-    assert done.returncode == 2
+    monkeypatch.chdir(tmp_path)
+    done = CliRunner().invoke(app, ["run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--yes", "-o", "s.h5"])
+    assert done.exit_code == 2, done.output
     assert where in done.stderr, done.stderr
     assert not (tmp_path / "s.h5").exists()  # nothing written, nothing contacted
 
@@ -212,6 +220,7 @@ def rig_on_a_full_disk(tmp_path: Path, limit: int) -> tuple[subprocess.Completed
     return done, session
 
 
+@pytest.mark.integration
 def test_a_full_disk_ends_the_session_saying_so_and_changes_nothing(tmp_path: Path) -> None:
     """``rig run`` whose session file cannot grow beyond 150 kB (issue 25: on a small tmpfs every run ended in a
     segmentation fault blaming the table): exit 1 with ``disk full: …``, no crash, the file as it was before the
@@ -226,6 +235,7 @@ def test_a_full_disk_ends_the_session_saying_so_and_changes_nothing(tmp_path: Pa
     assert read_session(session)["runs"] == []
 
 
+@pytest.mark.integration
 def test_a_disk_full_mid_run_stops_the_table_and_keeps_the_rows_written(tmp_path: Path) -> None:
     """The writer finds no room mid-record: exit 1 with ``disk full: …`` (not a crash, not the table), the rows
     written before are in the file, and ``rig sessions recover`` marks the run interrupted keeping them all."""

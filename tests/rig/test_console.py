@@ -30,8 +30,6 @@ from rig.service.telemetry import LivePublisher, live_key
 from tests.helpers.console import HOST, SAME, RecordingControls
 from tests.helpers.processes import free_port
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 
 def hmac_by_hand(key: bytes, message: bytes) -> str:
     """HMAC-SHA256 from its definition (RFC 2104), not from the hmac module."""
@@ -234,6 +232,7 @@ def published_frames(keys: ServiceKeys, tap: LiveTap, enough: int) -> list[dict[
     return frames
 
 
+@pytest.mark.integration
 def test_the_service_publishes_the_live_tap_on_zenoh() -> None:
     tap = LiveTap()
     tap.begin_run({"plan_index": 0, "record": "r", "commanded": {"t": [0.0], "a": [0.5]}})
@@ -245,6 +244,7 @@ def test_the_service_publishes_the_live_tap_on_zenoh() -> None:
     assert first["detections"] == [{"t": None, "body_id": 2, "direction": -1}]
 
 
+@pytest.mark.integration
 def test_a_run_s_tail_and_the_next_run_never_share_a_live_frame() -> None:
     """The tap drained at once holds run 1's last poses, run 2's header and its first poses: they go out as two
     frames, so that a page clearing its plots at run 2's header does not show run 1's tail as run 2's (the console

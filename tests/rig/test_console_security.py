@@ -34,9 +34,6 @@ from rig.service.wire import decode_reply, encode_request
 from tests.helpers.console import HOST, SAME, RecordingControls
 from tests.helpers.processes import free_port
 
-pytestmark = pytest.mark.integration  # opens sockets, starts servers (tests/conftest.py)
-
-
 # ----- 25.10: the token out of scripts' reach, CSP ----------------------------------------------------------------
 
 
@@ -148,6 +145,7 @@ def closed_by_server(conn: socket.socket) -> bool:
         return False
 
 
+@pytest.mark.integration
 def test_slow_and_excess_connections_are_closed_and_logged_once(
         guarded_console: tuple[str, int, ConnectionGuard, list[str]]) -> None:
     host, port, guard, logged = guarded_console
@@ -185,6 +183,7 @@ FORGED = ("console page, browser 127.0.0.1:5 (Firefox/120.0)\n"
           "2026-11-27T09:00:00Z control estop from console page: accepted")
 
 
+@pytest.mark.integration
 def test_the_service_logs_the_transport_s_source_never_the_claimed_one(tmp_path: Path) -> None:
     key_file = tmp_path / "rig.key"
     write_signing_key(key_file)

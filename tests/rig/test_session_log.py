@@ -53,8 +53,6 @@ from tests.helpers.session_writer import (
     writer_config,
 )
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 REPO = Path(__file__).resolve().parents[2]
 MAX_LOSS = 1.0  # [s] the issue's bound on lost samples
 
@@ -247,6 +245,7 @@ def test_refuses_an_existing_file_and_leaves_it_untouched(tmp_path: Path) -> Non
     assert sorted(p.name for p in tmp_path.iterdir()) == ["other.h5", "session.h5"]  # no temporaries left
 
 
+@pytest.mark.integration
 def test_one_writer_at_a_time_and_resume_of_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "s.h5"
     log = SessionLog.create(path, {}, {}, "1")
@@ -343,6 +342,7 @@ def test_done_plan_indices_and_attempts(tmp_path: Path) -> None:
     log.close()
 
 
+@pytest.mark.integration
 def test_a_second_process_reads_the_growing_run(tmp_path: Path) -> None:
     path = tmp_path / "live.h5"
     log = SessionLog.create(path, RIG_CONFIG, SEQUENCE, "1")
@@ -490,6 +490,7 @@ def _kill_campaign(tmp_path: Path, points: int, seed: int, *, speed: int = 1,
     return seen
 
 
+@pytest.mark.integration
 def test_kill_minus_9_at_random_moments(tmp_path: Path) -> None:
     seen = _kill_campaign(tmp_path, points=22, seed=20260509)
     print(f"\nkills inside operations: {seen.inside}; data lost per kill [s]: "
@@ -499,6 +500,7 @@ def test_kill_minus_9_at_random_moments(tmp_path: Path) -> None:
     final_resume_and_run(tmp_path / "killed.h5", 8)
 
 
+@pytest.mark.integration
 @pytest.mark.slow
 def test_kill_minus_9_at_random_moments_exhaustive(tmp_path: Path) -> None:
     seen = _kill_campaign(tmp_path, points=120, seed=7)
@@ -507,6 +509,7 @@ def test_kill_minus_9_at_random_moments_exhaustive(tmp_path: Path) -> None:
     final_resume_and_run(tmp_path / "killed.h5", 8)
 
 
+@pytest.mark.integration
 @pytest.mark.slow
 def test_kill_minus_9_during_large_flushes(tmp_path: Path) -> None:
     """Samples appended 50× faster than real time (450,000 rows/s, ~3.6 MB per flush)."""
@@ -536,6 +539,7 @@ FAILPOINTS = [
 ]
 
 
+@pytest.mark.integration
 def test_kill_at_every_step_of_a_commit(tmp_path: Path) -> None:
     path = tmp_path / "steps.h5"
     seen = _Seen()

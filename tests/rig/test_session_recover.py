@@ -32,8 +32,6 @@ from rig.session import (
 )
 from tests.helpers.session_writer import WriterChild, final_resume_and_run, writer_config
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 REPO = Path(__file__).resolve().parents[2]
 
 
@@ -96,17 +94,20 @@ def _recover_after_kills(tmp_path: Path, kills: int, seed: int) -> int:
     return crashed
 
 
+@pytest.mark.integration
 def test_recover_after_kill_minus_9_at_random_moments(tmp_path: Path) -> None:
     crashed = _recover_after_kills(tmp_path, kills=6, seed=16)
     assert crashed >= 3  # most kills land inside a run (the writers run back to back)
 
 
+@pytest.mark.integration
 @pytest.mark.slow
 def test_recover_after_kill_minus_9_at_random_moments_many(tmp_path: Path) -> None:
     crashed = _recover_after_kills(tmp_path, kills=40, seed=1616)
     assert crashed >= 20
 
 
+@pytest.mark.integration
 def test_a_live_writer_is_told_apart_and_the_cli_names_the_recover_command(tmp_path: Path) -> None:
     path = tmp_path / "live.h5"
     child = WriterChild(writer_config(path, tmp_path / "progress.txt", 7, sensors=2, run_seconds=(30.0, 30.0)))

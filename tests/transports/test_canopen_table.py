@@ -99,8 +99,6 @@ from tests.helpers.streams import (
 )
 from tests.helpers.table_checks import emergency_stop_while_streaming
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 POSE_NOISE = 2e-5  # 1 µm positions through the kinematics, interpolation of the RATE targets [m, rad]
 RATE = 100
 """SYNC rate of the master against the emulator in this interpreter: at the default 500 Hz the two share one
@@ -195,6 +193,7 @@ def in_background(call: Any) -> tuple[threading.Thread, dict[str, Any]]:
 # ----- streaming a prepared drive on the SYNC grid ---------------------------------------------------------------
 
 
+@pytest.mark.integration
 @pytest.mark.slow  # 17 s of table time at 1x (CANopen has no virtual time: the host is the SYNC master)
 def test_stream_a_prepared_fema_drive_excerpt_on_the_sync_grid() -> None:
     drive = drive_excerpt()
@@ -241,6 +240,7 @@ def test_stream_a_prepared_fema_drive_excerpt_on_the_sync_grid() -> None:
 # ----- bus load ---------------------------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_counters_can_be_read_while_the_loop_runs() -> None:
     """``counters()`` is read from the caller's thread while the loop appends its batch timings (CI once saw
     "deque mutated during iteration" here); a short switch interval makes the threads interleave often."""
@@ -261,6 +261,7 @@ def test_counters_can_be_read_while_the_loop_runs() -> None:
     assert len(seen) > 100  # read many times while it ran
 
 
+@pytest.mark.integration
 def test_a_rate_beyond_the_bus_is_refused_with_the_bus_load() -> None:
     with pytest.raises(BusLoadError) as refused:
         open_table("canopen://nowhere?interface=virtual", rate=1000)
@@ -291,6 +292,7 @@ def test_bus_load_counts_each_accelerometer_tpdo() -> None:
 # ----- commands, stops, faults ------------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_arm_tilt_home_disarm_and_the_refusals() -> None:
     with emulated() as emulator, master(emulator) as table:
         status = table.status()
@@ -320,6 +322,7 @@ def test_arm_tilt_home_disarm_and_the_refusals() -> None:
     assert counters["link"]["sync_series"] == 1 and counters["link"]["emcy_sent"] == 0
 
 
+@pytest.mark.integration
 def test_the_overturn_detector_reports_the_bodies_on_the_plate() -> None:
     """The emulator's specimens (size and place) from the detector's object dictionary by SDO (0x2201, 0x2210 …),
     in body-id order, as REAL32 (1e-7 relative); a plate without bodies reports none; a master told there is no
@@ -338,6 +341,7 @@ def test_the_overturn_detector_reports_the_bodies_on_the_plate() -> None:
             assert table.bodies() is None
 
 
+@pytest.mark.integration
 def test_a_stop_while_the_stream_holds_still_aborts_it() -> None:
     """STOP during the drive's leading hold: the plate is at rest, so the stop and its return home pass within a
     status period — the stream still ends as aborted, not as played."""
@@ -352,6 +356,7 @@ def test_a_stop_while_the_stream_holds_still_aborts_it() -> None:
         assert isinstance(outcome.get("error"), StreamAbortedError), outcome
 
 
+@pytest.mark.integration
 def test_stop_decelerates_and_goes_home_emergency_stop_holds() -> None:
     t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))
     with emulated() as emulator, master(emulator) as table:
@@ -369,6 +374,7 @@ def test_stop_decelerates_and_goes_home_emergency_stop_holds() -> None:
     assert counters["emergency_stops"] == 1 and counters["underruns"] == 0
 
 
+@pytest.mark.integration
 def test_emcy_from_an_injected_drive_fault_surfaces_as_a_fault() -> None:
     """A drive fault mid-motion, 0.5 s into the drive (the core's stream starts when the drives are enabled, the
     drive the stream's lead later): leg 1 sends EMCY 0x5000; the master quick-stops every drive,
@@ -411,6 +417,7 @@ def miss_start_commands(emulator: Emulator, leg: int, times: int) -> list[int]:
     return starts
 
 
+@pytest.mark.integration
 def test_a_drive_that_missed_the_start_command_is_started_again() -> None:
     """The master watches each node's NMT state in its heartbeat: a drive still pre-operational after the start
     command (it missed it, or rebooted) is sent the command again; connecting and arming then work."""
@@ -423,6 +430,7 @@ def test_a_drive_that_missed_the_start_command_is_started_again() -> None:
             assert table.status().state == "armed"
 
 
+@pytest.mark.integration
 def test_arm_is_refused_while_a_drive_is_not_operational() -> None:
     with emulated() as emulator, master(emulator) as table:
         emulator.endpoint.drives[2].node.nmt.state = "PRE-OPERATIONAL"  # leg 3, as after a reboot
@@ -433,6 +441,7 @@ def test_arm_is_refused_while_a_drive_is_not_operational() -> None:
         assert table.status().state == "idle"
 
 
+@pytest.mark.integration
 def test_a_drive_that_never_gets_operational_fails_the_connection_naming_it() -> None:
     with emulated() as emulator:
         starts = miss_start_commands(emulator, leg=3, times=10**6)
@@ -459,6 +468,7 @@ def hold_the_receive_thread(table: TableController, cob_id: int) -> tuple[thread
     return holding, release
 
 
+@pytest.mark.integration
 def test_heartbeats_left_unread_by_a_master_that_fell_behind_are_judged_by_their_time_stamps() -> None:
     """A master whose receive thread was held up for twice the consumer time (the nodes' heartbeats meanwhile sent,
     but unread) finds them in its queue and does not fault: a busy host is not a silent drive (this master judged
@@ -480,6 +490,7 @@ def test_heartbeats_left_unread_by_a_master_that_fell_behind_are_judged_by_their
         assert table.link_stats()["silent_drives"] == [] and faults.drain() == []
 
 
+@pytest.mark.integration
 def test_a_bus_left_unheard_for_the_link_timeout_stops_the_table() -> None:
     """Nothing at all handled from the bus for :attr:`link_timeout` — every node silent, or this host unable to read
     them — is a DRIVE fault naming all six legs: the table stops."""
@@ -497,6 +508,7 @@ def test_a_bus_left_unheard_for_the_link_timeout_stops_the_table() -> None:
         assert "DRIVE" in final.faults
 
 
+@pytest.mark.integration
 def test_a_drive_whose_heartbeat_stops_is_a_fault() -> None:
     with emulated() as emulator, master(emulator) as table:
         table.arm()
@@ -514,6 +526,7 @@ def test_a_drive_whose_heartbeat_stops_is_a_fault() -> None:
         assert table.status().state == "armed" and table.status().faults == ()
 
 
+@pytest.mark.integration
 def test_setpoints_that_stop_coming_fault_the_drives_and_the_table_goes_home() -> None:
     """The emulator drops every setpoint mid-motion, 0.5 s into the drive (which starts the stream's lead after the
     drives were enabled): its watchdog stops the table (home), the drives send EMCY 0x8700 and are in fault reaction
@@ -537,6 +550,7 @@ def test_setpoints_that_stop_coming_fault_the_drives_and_the_table_goes_home() -
     assert counters["watchdog_stops"] == 1 and counters["link"]["chunks_stalled"] > 0
 
 
+@pytest.mark.integration
 def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -> None:
     """Leg 3's actuator seizes 1.5 s into a surge ramp (it brakes and stops following): its drive's following error
     passes the window the master set (0x6065, 9 mm), it sets statusword bit 13, sends EMCY 0x8611 and enters fault
@@ -569,6 +583,7 @@ def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -
     assert link["emcy_sent"] == 2  # 0x8611 from leg 3 and its error reset: no other drive faulted
 
 
+@pytest.mark.integration
 def test_a_move_whose_leg_never_arrives_is_a_drive_fault_of_the_master() -> None:
     """Leg 3 seized from the start and the drives' own following-error window off (0x6065 = 0xFFFFFFFF): only the
     master's settle check can see that the plate never reaches the tilt — the answers to SYNCs 0.5 s after the
@@ -589,6 +604,7 @@ def test_a_move_whose_leg_never_arrives_is_a_drive_fault_of_the_master() -> None
     assert emulator.counters()["link"]["following_errors"] == 0
 
 
+@pytest.mark.integration
 def test_injected_loss_and_delay_are_survived() -> None:
     """10 % of the data frames lost (an RPDO a drive latches, a TPDO or EMCY it sends), 5 ms added each way: the
     drives keep their previous targets, the master waits for the states it asks for, accelerometer gaps show."""
@@ -603,6 +619,7 @@ def test_injected_loss_and_delay_are_survived() -> None:
     assert link["rpdos_lost"] > 0 and link["frames_not_sent"] > 0 and lost > 0 and link["emcy_sent"] == 0
 
 
+@pytest.mark.integration
 def test_the_sync_counter_is_opt_in_and_must_fit_the_bus() -> None:
     """Counted SYNCs are asked for (URL, keyword or ``[drives] sync_counter``), never turned on by themselves (no
     real drive echoes the counter): off at 400 Hz unless asked; asked for at 400 Hz it fits (1630 bits, 65.2 %); at
@@ -618,6 +635,7 @@ def test_the_sync_counter_is_opt_in_and_must_fit_the_bus() -> None:
         CanopenTable("canopen://x?interface=virtual&sync_counter=1")
 
 
+@pytest.mark.integration
 def test_answers_that_come_late_are_dated_by_the_sync_they_name() -> None:
     """Every SYNC answered 120 ms late (12 cycles at 100 Hz, as an emulator process left unscheduled that long
     answers), its TPDOs stamped then: dated by the last SYNC sent before them, statuses would be 120 ms late (the
@@ -690,6 +708,7 @@ def _can_unshare() -> bool:
     return probe.returncode == 0
 
 
+@pytest.mark.integration
 def test_udp_multicast_between_processes_in_a_network_namespace(tmp_path: Path) -> None:
     """The emulator (``python -m sim_table``) and a host script in two processes on python-can's udp_multicast, in
     a network namespace of their own: loopback only, gone with them (outside one the group would leave the host)."""
@@ -868,6 +887,7 @@ def test_sync_grid_keeps_the_masters_cycle_through_late_syncs() -> None:
     assert abs(slots[-1] - 999 * 1_000_050) < 1_000_000 // 2
 
 
+@pytest.mark.integration
 def test_with_the_sync_counter_a_paused_master_keeps_its_series_and_lost_syncs_are_counted() -> None:
     period, creep = 10_000_000, 5 * 1_000  # the phase creeps later by DRIFT · period = 1 µs a SYNC at most
     grid = SyncGrid(period, 100_000_000, overflow=240)

@@ -49,8 +49,6 @@ from rig.records import load_record
 from tests.helpers import table_checks
 from tests.helpers.streams import drive_excerpt, stream_and_check, surge
 
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
 D = dialect()
 LISTEN = "mavlink://127.0.0.1:0"
 
@@ -182,11 +180,13 @@ class RawHost(table_checks.Host):
 # ----- streaming a prepared drive -------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_stream_a_prepared_fema_drive_excerpt(key_file: Path) -> None:
     """16.4 s of drive in virtual time (--speed max)."""
     stream_and_check(drive_excerpt(), LISTEN, key_file, SETPOINTS_PER_CHUNK, MavlinkTable)
 
 
+@pytest.mark.integration
 @pytest.mark.slow
 def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
     """NORTHR/MUL009 at β = 5°: 42.4 s of drive in real time."""
@@ -197,6 +197,7 @@ def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
 # ----- signatures ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorProcess, key_file: Path) -> None:
     with open_table(plain.url, key_file=str(key_file)) as table:
         before = at_rest(table)
@@ -217,6 +218,7 @@ def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorPro
             forged.close()
 
 
+@pytest.mark.integration
 def test_a_wrong_key_is_refused_with_a_clear_error(plain: EmulatorProcess, tmp_path: Path) -> None:
     table_checks.wrong_key_is_refused(plain.url, tmp_path)
 
@@ -228,6 +230,7 @@ FORGED_OVERTURNS = 58
 """Fake overturns sent by a local process (issue 25: 58 fake against 2 real went into the record)."""
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("forger_key", ["none", "wrong"])
 def test_telemetry_forged_by_a_local_process_is_dropped_and_counted(plain: EmulatorProcess, key_file: Path,
                                                                      forger_key: str) -> None:
@@ -262,6 +265,7 @@ def test_telemetry_forged_by_a_local_process_is_dropped_and_counted(plain: Emula
     assert stats[counter] == forged
 
 
+@pytest.mark.integration
 def test_heartbeats_of_other_processes_do_not_keep_an_armed_table_armed(plain: EmulatorProcess,
                                                                         key_file: Path) -> None:
     """The host that armed the table dies; an unsigned process and a signed host that did not arm keep sending
@@ -294,6 +298,7 @@ def captured_commands(key: bytes, unix_time: float, *commands: tuple[str, float]
                                            *[0.0] * 6).pack(mav) for name, param in commands]
 
 
+@pytest.mark.integration
 def test_a_signed_arm_and_tilt_captured_before_a_restart_are_refused(key_file: Path) -> None:
     """Captured signed ARM and SET_TILT (a stream stamped 36 s ago, as in issue 25) replayed to a controller that
     has just started: refused as unsigned; a host stamping from the wall clock arms."""
@@ -322,6 +327,7 @@ JUNK_BYTES = 30 << 20
 """The junk flood of issue 25 [bytes]: at least this much is sent before the host starts connecting."""
 
 
+@pytest.mark.integration
 def test_a_junk_flood_does_not_keep_the_host_from_connecting(key_file: Path) -> None:
     """A local process floods the controller's port with junk datagrams (1 KiB of random bytes each), 30 MB before
     the host starts connecting and on until it is done: it connects, arms and disarms, and the junk is counted."""
@@ -359,27 +365,32 @@ def test_a_junk_flood_does_not_keep_the_host_from_connecting(key_file: Path) -> 
 # ----- watchdogs, stops, faults -------------------------------------------------------------------------------
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("silent", ["heartbeat", "stream"])
 def test_a_silent_host_gets_the_table_stopped_and_home(plain: EmulatorProcess, key_file: Path, silent: str) -> None:
     host = RawHost(mavlink_address(plain), bytes.fromhex(key_file.read_text()))
     table_checks.silent_host_gets_the_table_stopped(host, silent)
 
 
+@pytest.mark.integration
 def test_emergency_stop_mid_stream_stops_at_once_and_stays(key_file: Path) -> None:
     table_checks.emergency_stop_mid_stream(LISTEN, key_file)
 
 
+@pytest.mark.integration
 def test_commands_survive_packet_loss_and_run_once(key_file: Path) -> None:
     """20 % of the datagrams lost both ways: retries get every command through, de-duplication runs each once."""
     table_checks.commands_survive_loss(LISTEN, key_file, MavlinkTable, 0.05, "packets")
 
 
+@pytest.mark.integration
 def test_injected_drive_fault_under_delay_stops_the_stream(monkeypatch: pytest.MonkeyPatch, key_file: Path) -> None:
     """The key from the environment on both ends; 10 ms added each way; a drive fault 1 s into the stream; the
     controller's clock at twice real time."""
     table_checks.injected_drive_fault_under_delay(LISTEN, key_file, monkeypatch)
 
 
+@pytest.mark.integration
 def test_a_motions_final_answer_comes_after_the_status_that_shows_it(key_file: Path) -> None:
     """The final COMMAND_ACK of SET_TILT and HOME arrives after a status that shows the move over (armed, at its
     target) and before one taken after it. (Sent as they were made, an ACK went before the statuses of its batch of
@@ -415,11 +426,13 @@ def test_a_motions_final_answer_comes_after_the_status_that_shows_it(key_file: P
         emulator.stop()
 
 
+@pytest.mark.integration
 def test_moves_are_shown_by_the_status_when_they_return(key_file: Path) -> None:
     table_checks.moves_are_shown_by_the_status(start_emulator("--speed", "2", "--delay", "30",
                                                               key_file=key_file), key_file)
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize(("lead", "stopped_by"), [(0.2, "UNDERRUN"), (3.0, "STREAM_SILENT")])
 def test_a_stalled_stream_stops_the_table_home(key_file: Path, lead: float, stopped_by: str) -> None:
     """The emulator drops every chunk from 0.5 s after the stream started (its clock at 2x: its 1 s watchdog is 2 s
@@ -476,10 +489,12 @@ def test_urls_pick_the_backend_and_options_reach_it(key_file: Path) -> None:
         table.status()
 
 
+@pytest.mark.integration
 def test_connect_without_a_controller_times_out(key_file: Path) -> None:
     table_checks.connect_without_a_controller_times_out("mavlink://127.0.0.1:9", key_file)
 
 
+@pytest.mark.integration
 def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_file: Path) -> None:
     """``rig emulate`` (registered on an app of its own here) becomes the emulator; SIGINT stops it cleanly."""
     code = ("import typer\nfrom rig.cli import emulate as cli_emulate\napp = typer.Typer()\ncli_emulate.register(app)\n"
@@ -503,6 +518,7 @@ def test_rig_emulate_runs_the_emulator_in_the_foreground(tmp_path: Path, key_fil
 # ----- an emulator process that is not scheduled for a while ------------------------------------------------------
 
 
+@pytest.mark.integration
 def test_an_emulator_stopped_for_300_ms_mid_stream_plays_on(key_file: Path) -> None:
     """The emulator's process stopped (SIGSTOP) for 300 ms in the middle of a 1x stream, as a loaded machine may
     leave it unscheduled: the host's heartbeats and chunks of those 300 ms wait in its socket, and the endpoint
@@ -583,6 +599,7 @@ def _stalled_link(key_file: Path, *flags: str) -> tuple[TableStatus, bool]:
     return before, lost
 
 
+@pytest.mark.integration
 def test_a_virtual_time_table_stalled_beyond_the_link_timeout_is_not_taken_for_lost(key_file: Path) -> None:
     """An emulator in virtual time (``--speed max``) says so in its statuses, with its own link watchdog; its
     process stopped longer than the host's link timeout (as a loaded host's run queue holds its tick thread) is
