@@ -30,6 +30,10 @@ Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
   ``tc − (t_send + t_recv)/2`` there, and the slope follows a controller clock that runs at another rate (an
   emulator's ``--speed``, a drifting oscillator). :meth:`MavlinkTable.connect` exchanges round trips 20 ms apart
   until they span :data:`drivers.clock.FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
+- **One host at a time**: :meth:`MavlinkTable.connect` ends with a signed MAV_CMD_SHAKETABLE_CLAIM; refused
+  (TEMPORARILY_REJECTED), the SHAKETABLE_OWNER sent before the ACK names the owner (address, system, component,
+  since when) in the :class:`~drivers.controller.TableInUseError`. :meth:`MavlinkTable.close` first sends
+  MAV_CMD_SHAKETABLE_RELEASE (``drivers.chunked``).
 - **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then
   SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
   each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
@@ -43,6 +47,7 @@ import secrets
 import threading
 import time
 from collections import deque
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -172,6 +177,7 @@ class MavlinkTable(ChunkedStreamController):
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
+        self._owner_report: tuple[Any, int] | None = None  # the last SHAKETABLE_OWNER, host ns received
         self.refused = {"junk_datagrams": 0, "refused_unsigned": 0, "refused_bad_signature": 0, "refused_stale": 0,
                         "refused_future": 0}
         """What the receive thread dropped: datagrams that are not whole MAVLink 2 frames, messages without a
@@ -209,6 +215,7 @@ class MavlinkTable(ChunkedStreamController):
                     self._no_answer()
                 self._request_timesync()  # round trips 20 ms apart until the clock's rate is fitted
                 time.sleep(0.02)
+            self._claim()
         except BaseException:
             self.close()
             raise
@@ -216,6 +223,7 @@ class MavlinkTable(ChunkedStreamController):
     def close(self) -> None:
         if self._link is None:
             return
+        self._release()
         self._closing.set()
         for thread in self._threads:
             thread.join(timeout=1.0)
@@ -284,6 +292,21 @@ class MavlinkTable(ChunkedStreamController):
             self.feedback.notify()
         elif kind == "HEARTBEAT":
             self.last_controller_heartbeat_ns = now
+        elif kind == "SHAKETABLE_OWNER":
+            self._owner_report = (msg, now)
+
+    def _owner_refusal(self) -> str:
+        """The owner as the SHAKETABLE_OWNER sent before the refusing ACK names it (the ACK and its SHAKETABLE_OWNER
+        leave the controller together; a lost one leaves the owner unnamed)."""
+        report = self._owner_report
+        if report is None:
+            return ("another host (the controller's SHAKETABLE_OWNER did not arrive) since an unknown time; it is "
+                    "released when that host disconnects or falls silent")
+        msg, _ = report
+        since = datetime.fromtimestamp(msg.since_ms / 1000, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+        return (f"{msg.owner_address} (system {msg.owner_system}, component {msg.owner_component}) since {since}, "
+                f"last heard {msg.silent_ms / 1000:.2f} s ago (its claim lapses after {msg.timeout_ms / 1000:g} s "
+                "of silence, or when it disconnects)")
 
     def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
         """The bodies in the controller's SHAKETABLE_BODY messages (sent at once to a new host, then every second);

@@ -28,6 +28,10 @@ Protocol decisions:
   :class:`~drivers.controller.TableTimeoutError`; the controller executes an id once and answers its retries with
   its result. HOME and SET_TILT answer ``in_progress``, then a final ANSWER is published on ``answer``; waiting for
   it also accepts a status taken after the command that shows the motion over (a lost final answer).
+- **One host at a time**: :meth:`ZenohTable.connect` ends with a signed ``claim``; refused, the controller replies
+  with an OWNER (who owns the table, since when) instead of an ANSWER, and ``connect`` fails with
+  :class:`~drivers.controller.TableInUseError`. :meth:`ZenohTable.close` first sends ``release``
+  (``drivers.chunked``).
 - **Clock**: queries on ``clock``; the controller answers with its time. The estimate is
   :class:`drivers.clock.ClockSync` (shortest round trips, rate fitted): :meth:`ZenohTable.connect` queries
   20 ms apart until it is fitted, then every :data:`CLOCK_EVERY` heartbeats refine it.
@@ -47,6 +51,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from datetime import UTC, datetime
 from typing import NoReturn, TypeVar
 
 import numpy as np
@@ -77,6 +82,7 @@ from protocols.zenoh.table import (
     SETPOINTS_PER_CHUNK,
     Answer,
     CommandRequest,
+    OwnerReport,
     SetpointChunk,
     decode_accel,
     decode_answer,
@@ -84,6 +90,7 @@ from protocols.zenoh.table import (
     decode_clock_reply,
     decode_heartbeat,
     decode_overturn,
+    decode_owner,
     decode_refusal,
     decode_status,
     decode_tilt,
@@ -190,6 +197,7 @@ class ZenohTable(ChunkedStreamController):
         """Payloads of the controller dropped: without a signature (too short to hold one), with one that did not
         verify (another key or key expression, altered; an unsigned payload long enough to hold one), stale
         (replayed, reordered, too old) or stamped too far ahead (:mod:`protocols.replay`)."""
+        self._owner_report: OwnerReport | None = None  # the last OWNER reply
         self._verifier: Verifier | None = None
         self._verify_lock = threading.Lock()  # zenoh calls back on several threads
 
@@ -229,6 +237,7 @@ class ZenohTable(ChunkedStreamController):
                     self._no_answer()
                 self._request_clock()  # round trips 20 ms apart until the clock's rate is fitted
                 time.sleep(0.02)
+            self._claim()
         except BaseException:
             self.close()
             raise
@@ -273,6 +282,7 @@ class ZenohTable(ChunkedStreamController):
     def close(self) -> None:
         if self._session is None:
             return
+        self._release()
         self._closing.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
@@ -427,13 +437,36 @@ class ZenohTable(ChunkedStreamController):
                 errors.append("an answer without a valid signature")
                 continue
             try:
-                answer = decode_answer(received.message)
+                answer = self._decode_reply(received.message)
             except PayloadError as exc:
                 errors.append(str(exc))
                 continue
             if answer.cmd_id == cmd_id:
                 return answer
         return None
+
+    def _decode_reply(self, message: bytes) -> Answer:
+        """A command's reply: its ANSWER, or an OWNER (kept for :meth:`_owner_refusal`) as a ``rejected`` answer."""
+        try:
+            return decode_answer(message)
+        except PayloadError:
+            try:
+                report = decode_owner(message)
+            except PayloadError:
+                pass
+            else:
+                self._owner_report = report
+                return Answer(report.cmd_id, "rejected", 0)
+            raise
+
+    def _owner_refusal(self) -> str:
+        """The owner as the controller's OWNER reply names it."""
+        report = self._owner_report
+        if report is None:
+            return "another host since an unknown time"
+        since = datetime.fromtimestamp(report.since_ms / 1000, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+        return (f"{report.owner} since {since}, last heard {report.silent_ms / 1000:.2f} s ago (its claim lapses "
+                f"after {report.timeout_ms / 1000:g} s of silence, or when it disconnects)")
 
     def _new_cmd_id(self) -> int:
         with self._command_lock:
