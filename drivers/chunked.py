@@ -195,11 +195,15 @@ class ChunkedStreamController(TableController):
         self._claimed = True
 
     def _release(self) -> None:
-        """Give the table up (the start of ``close``) if this host claimed it; a RELEASE that is refused or gets no
-        answer changes nothing here (the controller drops a silent owner's claim after its peer timeout)."""
+        """Give the table up (the start of ``close``) if this host claimed it; not tried when no status came for
+        the link timeout, and a RELEASE that is refused or gets no answer changes nothing here (the controller drops a
+        silent owner's claim after its peer timeout)."""
         if not self._claimed:
             return
         self._claimed = False
+        latest = self.feedback.latest
+        if latest is None or time.monotonic_ns() - latest.host_ns > self.link_timeout * 1e9:
+            return  # the controller is not answering (its link is lost): it drops a silent owner's claim itself
         with contextlib.suppress(CommandRefusedError, TableTimeoutError):
             self._request("release", (0.0, 0.0)).close()
 

@@ -369,6 +369,7 @@ class MavlinkTable(ChunkedStreamController):
         lock = self._command_locks.setdefault(cmd_id, threading.Lock())
         with lock:
             slot = self._acks[cmd_id] = _AckSlot()
+            sent_ns = time.monotonic_ns()
             try:
                 for attempt in range(self.retries + 1):
                     self._send(self.d.MAVLink_command_long_message(*self.target, cmd_id, attempt, *values))
@@ -378,7 +379,7 @@ class MavlinkTable(ChunkedStreamController):
                     raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts "
                                             f"of {self.command_timeout} s")
                 result, _, when = slot.acks.pop(0)
-                self._check(name, result)
+                self._check(name, result, sent_ns)
                 if result != self.d.MAV_RESULT_IN_PROGRESS:
                     del self._acks[cmd_id]
                 return _AckAnswer(self, cmd_id, slot, result, when)
@@ -386,7 +387,8 @@ class MavlinkTable(ChunkedStreamController):
                 self._acks.pop(cmd_id, None)
                 raise
 
-    def _check(self, name: str, result: int) -> None:
+    def _check(self, name: str, result: int, sent_ns: int) -> None:
+        """Raise the refusal ``result`` of command ``name`` sent at host time ``sent_ns`` [ns] means, if any."""
         d = self.d
         if result in (d.MAV_RESULT_ACCEPTED, d.MAV_RESULT_IN_PROGRESS):
             return
@@ -396,6 +398,9 @@ class MavlinkTable(ChunkedStreamController):
             raise CommandDeniedError(name, result_name, state, "missing or bad signature (are host and controller "
                                      "using the same signing key?)")
         if result == d.MAV_RESULT_TEMPORARILY_REJECTED:
+            owner = self._owner_report
+            if owner is not None and owner[1] >= sent_ns:  # a SHAKETABLE_OWNER came with the refusal
+                raise CommandRejectedError(name, result_name, state, f"table in use by {self._owner_refusal()}")
             raise CommandRejectedError(name, result_name, state, "not accepted in this state")
         why = {d.MAV_RESULT_FAILED: "invalid parameters", d.MAV_RESULT_UNSUPPORTED: "unsupported"}.get(
             result, f"result {result_name}")

@@ -423,7 +423,7 @@ class ZenohTable(ChunkedStreamController):
             last = f" (last error: {errors[-1]})" if errors else ""
             raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts of "
                                     f"{self.command_timeout} s{last}")
-        self._check(name, answer.result)
+        self._check(name, answer)
         return answer
 
     def _first_answer(self, replies: zenoh.Handler[zenoh.Reply], cmd_id: int, errors: list[str]) -> Answer | None:
@@ -473,7 +473,9 @@ class ZenohTable(ChunkedStreamController):
             self._next_cmd = (self._next_cmd + 1) % 2**64
             return self._next_cmd
 
-    def _check(self, name: str, result: str) -> None:
+    def _check(self, name: str, answer: Answer) -> None:
+        """Raise the refusal ``answer`` to command ``name`` means, if any."""
+        result = answer.result
         if result in ("accepted", "in_progress"):
             return
         state = self.feedback.latest.state if self.feedback.latest is not None else None
@@ -482,6 +484,9 @@ class ZenohTable(ChunkedStreamController):
             raise CommandDeniedError(upper, result, state, "missing or bad signature (are host and controller "
                                      "using the same signing key?)")
         if result == "rejected":
+            owner = self._owner_report
+            if owner is not None and owner.cmd_id == answer.cmd_id:  # refused with an OWNER reply
+                raise CommandRejectedError(upper, result, state, f"table in use by {self._owner_refusal()}")
             raise CommandRejectedError(upper, result, state, "not accepted in this state")
         why = {"failed": "invalid parameters", "cancelled": "the motion was stopped before its target"}[result]
         raise CommandFailedError(upper, result, state, why)

@@ -5,6 +5,7 @@ never about wall-clock times (those are in ``benchmarks/stream.py``)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import re
@@ -162,6 +163,10 @@ class RawHost(table_checks.Host):
         return getattr(D, f"SHAKETABLE_FAULT_{name}")
 
     def close(self) -> None:
+        """Give the table up as a driver does (a signed RELEASE, when it signs), then stop."""
+        if self.link.mav.signing.sign_outgoing:
+            with contextlib.suppress(AssertionError):  # no answer: the controller is gone
+                self.command("release")
         self._running = False
         for thread in self._threads:
             thread.join()

@@ -8,6 +8,8 @@ Real emulator processes and sockets; no mocks.
 
 from __future__ import annotations
 
+import re
+import signal
 import subprocess
 import sys
 import textwrap
@@ -132,3 +134,48 @@ def test_a_silent_owner_loses_its_claim(transport: str, key_file: Path) -> None:
             host.wait(10)
         counters = emulator.stop()
     assert counters["link"]["claim_takeovers"] == 1
+
+
+FROZEN_SCRIPT = textwrap.dedent("""
+    import sys
+    from drivers.controller import TableError, open_table
+
+    with open_table(sys.argv[1], key_file=sys.argv[2]) as table:
+        print("claimed", flush=True)
+        sys.stdin.readline()  # frozen (SIGSTOP) meanwhile, then woken
+        try:
+            table.arm()
+            print("armed", flush=True)
+        except TableError as exc:
+            print(exc, flush=True)
+""")
+
+
+@pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
+def test_a_host_frozen_past_the_timeout_finds_the_table_taken_and_is_told_by_whom(
+        transport: str, key_file: Path) -> None:
+    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+    host = subprocess.Popen([sys.executable, "-c", FROZEN_SCRIPT, emulator.url, str(key_file)],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert host.stdin is not None and host.stdout is not None
+        assert host.stdout.readline().strip() == "claimed"
+        host.send_signal(signal.SIGSTOP)  # alive, but silent
+        time.sleep(OWNER_TIMEOUT + 0.3)
+        with open_table(emulator.url, key_file=str(key_file)) as second:
+            second.arm()
+            host.send_signal(signal.SIGCONT)
+            host.stdin.write("go\n")
+            host.stdin.flush()
+            answer = host.stdout.readline().strip()
+            assert second.status().state == "armed"  # the woken host changed nothing
+            second.disarm()
+        host.wait(20)
+    finally:
+        if host.poll() is None:
+            host.send_signal(signal.SIGCONT)
+            host.kill()
+            host.wait(10)
+        counters = emulator.stop()
+    assert re.fullmatch(r"ARM refused: " + IN_USE + r".*", answer), answer
+    assert counters["link"]["claim_takeovers"] == 1 and counters["link"]["commands_other_host"] == 1

@@ -5,6 +5,7 @@ Assertions are about what was delivered and how the table behaved, never about w
 
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import hmac
 import math
@@ -324,6 +325,10 @@ class RawHost(table_checks.Host):
         return int(Fault[name])
 
     def close(self) -> None:
+        """Give the table up as a driver does (a signed release, when it signs), then stop."""
+        if self.signer is not None:
+            with contextlib.suppress(AssertionError):  # no answer: the controller is gone
+                self.command("release")
         self._running = False
         self._thread.join()
         self.session.close()
