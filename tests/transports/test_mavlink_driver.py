@@ -99,6 +99,7 @@ class RawHost(table_checks.Host):
         if key is not None:
             enable_signing(self.link.mav, key, link_id=0, timestamp=timestamp)
         self.beating = True
+        self.armed = False  # an ARM of this host was accepted: it owns the table (releases it on close)
         self.statuses: list[Any] = []
         self.acks: list[Any] = []
         self.arrivals: list[Any] = []  # statuses and COMMAND_ACKs in the order they arrived
@@ -133,7 +134,9 @@ class RawHost(table_checks.Host):
         """Send COMMAND_LONG MAV_CMD_SHAKETABLE_<NAME> once; the result of its ACK (``"accepted"``, ``"denied"``, …)."""
         command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
         values = [*params] + [0.0] * (7 - len(params))
-        return self.answer(command, lambda: self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values)))
+        result = self.answer(command, lambda: self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values)))
+        self.armed |= name == "arm" and result == "accepted"
+        return result
 
     def replay(self, frame: bytes) -> str:
         """Send a captured COMMAND_LONG frame as it is, from this host's socket; the result of its ACK."""
@@ -163,8 +166,8 @@ class RawHost(table_checks.Host):
         return getattr(D, f"SHAKETABLE_FAULT_{name}")
 
     def close(self) -> None:
-        """Give the table up as a driver does (a signed RELEASE, when it signs), then stop."""
-        if self.link.mav.signing.sign_outgoing:
+        """Give the table up as a driver does (a signed RELEASE, when it armed it), then stop."""
+        if self.armed:
             with contextlib.suppress(AssertionError):  # no answer: the controller is gone
                 self.command("release")
         self._running = False
