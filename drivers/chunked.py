@@ -16,7 +16,8 @@ backend's ``connect``, sends a signed CLAIM; a controller that another live host
 (:meth:`ChunkedStreamController._owner_refusal`), and ``connect`` fails with :class:`TableInUseError` "table in use
 by … since …" having changed nothing. :meth:`ChunkedStreamController._release`, at the start of ``close``, gives
 the table up (RELEASE) so that another host may claim it at once; a host that cannot say so loses its claim when
-the controller has not heard it for its peer timeout.
+the controller has not heard it for its peer timeout. A host opened with ``observe=True`` claims nothing: a monitor
+that receives the telemetry and may stop the table.
 
 **Streams.** These transports (``docs/table-controller.md``) stream the same way: START_STREAM with the next
 chunk number (numbers run on across streams, below :data:`FIRST_SEQ_LIMIT`), then chunks of ``samples_per_chunk``
@@ -157,8 +158,12 @@ class ChunkedStreamController(TableController):
     motion_stopped_result: str
     """The result named by the :class:`CommandFailedError` of a motion stopped before its target."""
 
-    def __init__(self, url: str, table: TableModel | None = None) -> None:
+    def __init__(self, url: str, table: TableModel | None = None, observe: bool = False) -> None:
         super().__init__(url)
+        self.observe = observe
+        """Connect without claiming the table (a monitor): its telemetry, STOP and EMERGENCY_STOP, no motion (the
+        controller refuses a motion command while another host owns the table, and one from a monitor claims a
+        table nobody owns)."""
         self.table = table or TableModel()
         """The table model a trajectory is checked against before it is streamed (``analysis.table.setpoints``):
         the controller's, the rig configuration's (default: Table IV and the default hexapod)."""
@@ -187,7 +192,9 @@ class ChunkedStreamController(TableController):
 
     def _claim(self) -> None:
         """Claim the table for this host (the end of ``connect``): :class:`TableInUseError` naming the owner when
-        another host owns it."""
+        another host owns it; nothing for a monitor (:attr:`observe`)."""
+        if self.observe:
+            return
         try:
             self._request("claim", (0.0, 0.0)).close()
         except CommandRejectedError:

@@ -146,7 +146,8 @@ class MavlinkTable(ChunkedStreamController):
     per connection, so that two hosts with the same ids are two signing streams, not one whose timestamps
     interleave and get refused as replays);
     ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s]; ``table`` the table model streamed
-    trajectories are checked against (default: Table IV and the default hexapod).
+    trajectories are checked against (default: Table IV and the default hexapod); ``observe`` connect without
+    claiming the table (a monitor: ``drivers.chunked``).
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
@@ -154,8 +155,8 @@ class MavlinkTable(ChunkedStreamController):
     def __init__(self, url: str, *, key_file: str | None = None, system: int = 255, component: int = 190,
                  target_system: int = 1, target_component: int = 1, link_id: int | None = None,
                  command_timeout: float = 0.15, retries: int = 4, connect_timeout: float = 3.0,
-                 table: TableModel | None = None) -> None:
-        super().__init__(url, table)
+                 table: TableModel | None = None, observe: bool = False) -> None:
+        super().__init__(url, table, observe)
         self.address = host_port(url)
         self.key_file = key_file
         self.system, self.component = system, component

@@ -153,16 +153,16 @@ class ZenohTable(ChunkedStreamController):
     Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``tls`` this host's TLS identity (the link is then
     ``tls/``) and ``insecure_plain_tcp`` (a plain ``tcp/`` link off loopback: nothing encrypted); ``command_timeout``
     [s] per attempt and ``retries``; ``connect_timeout`` [s]; ``table`` the table model streamed trajectories are
-    checked against (default: Table IV and the default hexapod). A bad address for the link raises
-    :class:`ValueError` here.
+    checked against (default: Table IV and the default hexapod); ``observe`` connect without claiming the table (a
+    monitor: ``drivers.chunked``). A bad address for the link raises :class:`ValueError` here.
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, command_timeout: float = 0.15, retries: int = 4,
                  connect_timeout: float = 3.0, tls: TlsFiles | None = None, insecure_plain_tcp: bool = False,
-                 table: TableModel | None = None) -> None:
-        super().__init__(url, table)
+                 table: TableModel | None = None, observe: bool = False) -> None:
+        super().__init__(url, table, observe)
         self.address = parse_table_url(url)
         self.security = LinkSecurity(tls, insecure_plain_tcp)
         try:

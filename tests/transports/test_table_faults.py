@@ -76,10 +76,11 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
     emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
     host: subprocess.Popen[str] | None = None
     try:
-        # a second host that only listens: allowed by both transports (telemetry goes to every live peer); its
-        # heartbeats do not feed the watchdog (only the arming host's do), so HEARTBEAT_LOST, the stream watchdog
-        # (STREAM_SILENT) or the buffer running dry (UNDERRUN) stops the table, whichever comes first
-        options = {"system": 254} if transport == "mavlink" else {}  # its own signing stream
+        # a second host that only listens (observe: it claims nothing, so the other host may own the table):
+        # allowed by both transports (telemetry goes to every live peer); its heartbeats do not feed the watchdog
+        # (only the owner's do), so HEARTBEAT_LOST, the stream watchdog (STREAM_SILENT) or the buffer running dry
+        # (UNDERRUN) stops the table, whichever comes first
+        options: dict[str, Any] = {"observe": True, **({"system": 254} if transport == "mavlink" else {})}
         with open_table(emulator.url, key_file=str(key_file), **options) as listener:
             statuses = listener.statuses()
             host = subprocess.Popen([sys.executable, "-c", HOST_SCRIPT, emulator.url, str(key_file)],
