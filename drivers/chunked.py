@@ -11,6 +11,14 @@ motion ends at its final answer, or at a status taken after its answer that show
 :data:`MOTION_STATES` (the final answer may be lost); it then fails with :class:`CommandFailedError` unless the
 motion reached its target (its final answer says so, or without one the table is ``armed``).
 
+**One host at a time** (``docs/table-controller.md``): :meth:`ChunkedStreamController._claim`, at the end of a
+backend's ``connect``, sends a signed CLAIM; a controller that another live host owns refuses it and says who
+(:meth:`ChunkedStreamController._owner_refusal`), and ``connect`` fails with :class:`TableInUseError` "table in use
+by … since …" having changed nothing. :meth:`ChunkedStreamController._release`, at the start of ``close``, gives
+the table up (RELEASE) so that another host may claim it at once; a host that cannot say so loses its claim when
+the controller has not heard it for its peer timeout. A host opened with ``observe=True`` claims nothing: a monitor
+that receives the telemetry and may stop the table.
+
 **Streams.** These transports (``docs/table-controller.md``) stream the same way: START_STREAM with the next
 chunk number (numbers run on across streams, below :data:`FIRST_SEQ_LIMIT`), then chunks of ``samples_per_chunk``
 poses, each made just before it is due and sent when the controller time of its first sample is ``lead`` s away
@@ -46,6 +54,7 @@ lost END_OF_STREAM (both copies) left the controller waiting for the end likewis
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from abc import ABC, abstractmethod
@@ -63,11 +72,14 @@ from drivers.controller import (
     TILT_AXES,
     AccelBatch,
     CommandFailedError,
+    CommandRefusedError,
+    CommandRejectedError,
     SetpointRefusal,
     StreamAbortedError,
     StreamReport,
     TableController,
     TableError,
+    TableInUseError,
     TableStatus,
     TableTimeoutError,
     TiltBatch,
@@ -146,8 +158,12 @@ class ChunkedStreamController(TableController):
     motion_stopped_result: str
     """The result named by the :class:`CommandFailedError` of a motion stopped before its target."""
 
-    def __init__(self, url: str, table: TableModel | None = None) -> None:
+    def __init__(self, url: str, table: TableModel | None = None, observe: bool = False) -> None:
         super().__init__(url)
+        self.observe = observe
+        """Connect without claiming the table (a monitor): its telemetry, STOP and EMERGENCY_STOP, no motion (the
+        controller refuses a motion command while another host owns the table, and one from a monitor claims a
+        table nobody owns)."""
         self.table = table or TableModel()
         """The table model a trajectory is checked against before it is streamed (``analysis.table.setpoints``):
         the controller's, the rig configuration's (default: Table IV and the default hexapod)."""
@@ -155,6 +171,7 @@ class ChunkedStreamController(TableController):
         """The setpoint chunks the controller refused for their values, each once, in the order they came."""
         self.clock = ClockSync()
         self._next_seq = 0
+        self._claimed = False
         self._accel_lost = LostBatches()
         self._tilt_lost = LostBatches()
 
@@ -173,7 +190,36 @@ class ChunkedStreamController(TableController):
                              "using the same signing key?")
         raise TableTimeoutError(f"{self.url}: no answer from the table controller within {self.connect_timeout} s")
 
+    def _claim(self) -> None:
+        """Claim the table for this host (the end of ``connect``): :class:`TableInUseError` naming the owner when
+        another host owns it; nothing for a monitor (:attr:`observe`)."""
+        if self.observe:
+            return
+        try:
+            self._request("claim", (0.0, 0.0)).close()
+        except CommandRejectedError:
+            raise TableInUseError(f"{self.url}: table in use by {self._owner_refusal()}") from None
+        self._claimed = True
+
+    def _release(self) -> None:
+        """Give the table up (the start of ``close``) if this host claimed it; not tried when no status came for
+        the link timeout, and a RELEASE that is refused or gets no answer changes nothing here (the controller drops a
+        silent owner's claim after its peer timeout)."""
+        if not self._claimed:
+            return
+        self._claimed = False
+        latest = self.feedback.latest
+        if latest is None or time.monotonic_ns() - latest.host_ns > self.link_timeout * 1e9:
+            return  # the controller is not answering (its link is lost): it drops a silent owner's claim itself
+        with contextlib.suppress(CommandRefusedError, TableTimeoutError):
+            self._request("release", (0.0, 0.0)).close()
+
     # ----- the backend's hooks
+
+    @abstractmethod
+    def _owner_refusal(self) -> str:
+        """After a refused CLAIM: who owns the table and since when, as the controller said (``127.0.0.1:41234
+        (system 255, component 190) since 2026-12-06 02:41:07 UTC, last heard 0.02 s ago``)."""
 
     @abstractmethod
     def _request(self, name: str, params: tuple[float, float]) -> CommandAnswer:

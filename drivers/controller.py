@@ -95,6 +95,11 @@ class CommandFailedError(CommandRefusedError):
     """Refused for invalid parameters, unsupported, or a motion that was cancelled before its end."""
 
 
+class TableInUseError(TableError):
+    """Another host owns the table (``docs/table-controller.md``, One host at a time): :meth:`TableController.connect`
+    refused, the message naming the owner and since when."""
+
+
 class TableLinkLostError(TableError):
     """No status from the controller for longer than the link timeout: the link, or the controller, is gone."""
 

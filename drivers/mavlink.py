@@ -30,6 +30,10 @@ Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
   ``tc − (t_send + t_recv)/2`` there, and the slope follows a controller clock that runs at another rate (an
   emulator's ``--speed``, a drifting oscillator). :meth:`MavlinkTable.connect` exchanges round trips 20 ms apart
   until they span :data:`drivers.clock.FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
+- **One host at a time**: :meth:`MavlinkTable.connect` ends with a signed MAV_CMD_SHAKETABLE_CLAIM; refused
+  (TEMPORARILY_REJECTED), the SHAKETABLE_OWNER sent before the ACK names the owner (address, system, component,
+  since when) in the :class:`~drivers.controller.TableInUseError`. :meth:`MavlinkTable.close` first sends
+  MAV_CMD_SHAKETABLE_RELEASE (``drivers.chunked``).
 - **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then
   SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
   each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
@@ -43,6 +47,7 @@ import secrets
 import threading
 import time
 from collections import deque
+from datetime import UTC, datetime
 from typing import Any
 
 import numpy as np
@@ -141,7 +146,8 @@ class MavlinkTable(ChunkedStreamController):
     per connection, so that two hosts with the same ids are two signing streams, not one whose timestamps
     interleave and get refused as replays);
     ``command_timeout`` [s] per attempt and ``retries``; ``connect_timeout`` [s]; ``table`` the table model streamed
-    trajectories are checked against (default: Table IV and the default hexapod).
+    trajectories are checked against (default: Table IV and the default hexapod); ``observe`` connect without
+    claiming the table (a monitor: ``drivers.chunked``).
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
@@ -149,8 +155,8 @@ class MavlinkTable(ChunkedStreamController):
     def __init__(self, url: str, *, key_file: str | None = None, system: int = 255, component: int = 190,
                  target_system: int = 1, target_component: int = 1, link_id: int | None = None,
                  command_timeout: float = 0.15, retries: int = 4, connect_timeout: float = 3.0,
-                 table: TableModel | None = None) -> None:
-        super().__init__(url, table)
+                 table: TableModel | None = None, observe: bool = False) -> None:
+        super().__init__(url, table, observe)
         self.address = host_port(url)
         self.key_file = key_file
         self.system, self.component = system, component
@@ -174,6 +180,7 @@ class MavlinkTable(ChunkedStreamController):
         self.last_controller_heartbeat_ns: int | None = None
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
+        self._owner_report: tuple[Any, int] | None = None  # the last SHAKETABLE_OWNER, host ns received
         self.refused = {"junk_datagrams": 0, "refused_unsigned": 0, "refused_bad_signature": 0, "refused_stale": 0,
                         "refused_future": 0}
         """What the receive thread dropped: datagrams that are not whole MAVLink 2 frames, messages without a
@@ -211,6 +218,7 @@ class MavlinkTable(ChunkedStreamController):
                     self._no_answer()
                 self._request_timesync()  # round trips 20 ms apart until the clock's rate is fitted
                 time.sleep(0.02)
+            self._claim()
         except BaseException:
             self.close()
             raise
@@ -218,6 +226,7 @@ class MavlinkTable(ChunkedStreamController):
     def close(self) -> None:
         if self._link is None:
             return
+        self._release()
         self._closing.set()
         for thread in self._threads:
             thread.join(timeout=1.0)
@@ -286,6 +295,21 @@ class MavlinkTable(ChunkedStreamController):
             self.feedback.notify()
         elif kind == "HEARTBEAT":
             self.last_controller_heartbeat_ns = now
+        elif kind == "SHAKETABLE_OWNER":
+            self._owner_report = (msg, now)
+
+    def _owner_refusal(self) -> str:
+        """The owner as the SHAKETABLE_OWNER sent before the refusing ACK names it (the ACK and its SHAKETABLE_OWNER
+        leave the controller together; a lost one leaves the owner unnamed)."""
+        report = self._owner_report
+        if report is None:
+            return ("another host (the controller's SHAKETABLE_OWNER did not arrive) since an unknown time; it is "
+                    "released when that host disconnects or falls silent")
+        msg, _ = report
+        since = datetime.fromtimestamp(msg.since_ms / 1000, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+        return (f"{msg.owner_address} (system {msg.owner_system}, component {msg.owner_component}) since {since}, "
+                f"last heard {msg.silent_ms / 1000:.2f} s ago (its claim lapses after {msg.timeout_ms / 1000:g} s "
+                "of silence, or when it disconnects)")
 
     def bodies(self, timeout: float = 3.0) -> tuple[TableBody, ...] | None:
         """The bodies in the controller's SHAKETABLE_BODY messages (sent at once to a new host, then every second);
@@ -349,6 +373,7 @@ class MavlinkTable(ChunkedStreamController):
         lock = self._command_locks.setdefault(cmd_id, threading.Lock())
         with lock:
             slot = self._acks[cmd_id] = _AckSlot()
+            sent_ns = time.monotonic_ns()
             try:
                 for attempt in range(self.retries + 1):
                     self._send(self.d.MAVLink_command_long_message(*self.target, cmd_id, attempt, *values))
@@ -358,7 +383,7 @@ class MavlinkTable(ChunkedStreamController):
                     raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts "
                                             f"of {self.command_timeout} s")
                 result, _, when = slot.acks.pop(0)
-                self._check(name, result)
+                self._check(name, result, sent_ns)
                 if result != self.d.MAV_RESULT_IN_PROGRESS:
                     del self._acks[cmd_id]
                 return _AckAnswer(self, cmd_id, slot, result, when)
@@ -366,7 +391,8 @@ class MavlinkTable(ChunkedStreamController):
                 self._acks.pop(cmd_id, None)
                 raise
 
-    def _check(self, name: str, result: int) -> None:
+    def _check(self, name: str, result: int, sent_ns: int) -> None:
+        """Raise the refusal ``result`` of command ``name`` sent at host time ``sent_ns`` [ns] means, if any."""
         d = self.d
         if result in (d.MAV_RESULT_ACCEPTED, d.MAV_RESULT_IN_PROGRESS):
             return
@@ -376,6 +402,9 @@ class MavlinkTable(ChunkedStreamController):
             raise CommandDeniedError(name, result_name, state, "missing or bad signature (are host and controller "
                                      "using the same signing key?)")
         if result == d.MAV_RESULT_TEMPORARILY_REJECTED:
+            owner = self._owner_report
+            if owner is not None and owner[1] >= sent_ns:  # a SHAKETABLE_OWNER came with the refusal
+                raise CommandRejectedError(name, result_name, state, f"table in use by {self._owner_refusal()}")
             raise CommandRejectedError(name, result_name, state, "not accepted in this state")
         why = {d.MAV_RESULT_FAILED: "invalid parameters", d.MAV_RESULT_UNSUPPORTED: "unsupported"}.get(
             result, f"result {result_name}")

@@ -28,6 +28,10 @@ Protocol decisions:
   :class:`~drivers.controller.TableTimeoutError`; the controller executes an id once and answers its retries with
   its result. HOME and SET_TILT answer ``in_progress``, then a final ANSWER is published on ``answer``; waiting for
   it also accepts a status taken after the command that shows the motion over (a lost final answer).
+- **One host at a time**: :meth:`ZenohTable.connect` ends with a signed ``claim``; refused, the controller replies
+  with an OWNER (who owns the table, since when) instead of an ANSWER, and ``connect`` fails with
+  :class:`~drivers.controller.TableInUseError`. :meth:`ZenohTable.close` first sends ``release``
+  (``drivers.chunked``).
 - **Clock**: queries on ``clock``; the controller answers with its time. The estimate is
   :class:`drivers.clock.ClockSync` (shortest round trips, rate fitted): :meth:`ZenohTable.connect` queries
   20 ms apart until it is fitted, then every :data:`CLOCK_EVERY` heartbeats refine it.
@@ -47,6 +51,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from datetime import UTC, datetime
 from typing import NoReturn, TypeVar
 
 import numpy as np
@@ -77,6 +82,7 @@ from protocols.zenoh.table import (
     SETPOINTS_PER_CHUNK,
     Answer,
     CommandRequest,
+    OwnerReport,
     SetpointChunk,
     decode_accel,
     decode_answer,
@@ -84,6 +90,7 @@ from protocols.zenoh.table import (
     decode_clock_reply,
     decode_heartbeat,
     decode_overturn,
+    decode_owner,
     decode_refusal,
     decode_status,
     decode_tilt,
@@ -147,16 +154,16 @@ class ZenohTable(ChunkedStreamController):
     Options: ``key_file`` (default ``$SHAKETABLE_MAVLINK_KEY``); ``tls`` this host's TLS identity (the link is then
     ``tls/``) and ``insecure_plain_tcp`` (a plain ``tcp/`` link off loopback: nothing encrypted); ``command_timeout``
     [s] per attempt and ``retries``; ``connect_timeout`` [s]; ``table`` the table model streamed trajectories are
-    checked against (default: Table IV and the default hexapod). A bad address for the link raises
-    :class:`ValueError` here.
+    checked against (default: Table IV and the default hexapod); ``observe`` connect without claiming the table (a
+    monitor: ``drivers.chunked``). A bad address for the link raises :class:`ValueError` here.
     """
 
     samples_per_chunk = SETPOINTS_PER_CHUNK
 
     def __init__(self, url: str, *, key_file: str | None = None, command_timeout: float = 0.15, retries: int = 4,
                  connect_timeout: float = 3.0, tls: TlsFiles | None = None, insecure_plain_tcp: bool = False,
-                 table: TableModel | None = None) -> None:
-        super().__init__(url, table)
+                 table: TableModel | None = None, observe: bool = False) -> None:
+        super().__init__(url, table, observe)
         self.address = parse_table_url(url)
         self.security = LinkSecurity(tls, insecure_plain_tcp)
         try:
@@ -191,6 +198,7 @@ class ZenohTable(ChunkedStreamController):
         """Payloads of the controller dropped: without a signature (too short to hold one), with one that did not
         verify (another key or key expression, altered; an unsigned payload long enough to hold one), stale
         (replayed, reordered, too old) or stamped too far ahead (:mod:`protocols.replay`)."""
+        self._owner_report: OwnerReport | None = None  # the last OWNER reply
         self._verifier: Verifier | None = None
         self._verify_lock = threading.Lock()  # zenoh calls back on several threads
 
@@ -230,6 +238,7 @@ class ZenohTable(ChunkedStreamController):
                     self._no_answer()
                 self._request_clock()  # round trips 20 ms apart until the clock's rate is fitted
                 time.sleep(0.02)
+            self._claim()
         except BaseException:
             self.close()
             raise
@@ -274,6 +283,7 @@ class ZenohTable(ChunkedStreamController):
     def close(self) -> None:
         if self._session is None:
             return
+        self._release()
         self._closing.set()
         if self._thread is not None:
             self._thread.join(timeout=1.0)
@@ -415,7 +425,7 @@ class ZenohTable(ChunkedStreamController):
             last = f" (last error: {errors[-1]})" if errors else ""
             raise TableTimeoutError(f"{name}: no answer from {self.url} after {self.retries + 1} attempts of "
                                     f"{self.command_timeout} s{last}")
-        self._check(name, answer.result)
+        self._check(name, answer)
         return answer
 
     def _first_answer(self, replies: zenoh.Handler[zenoh.Reply], cmd_id: int, errors: list[str]) -> Answer | None:
@@ -429,7 +439,7 @@ class ZenohTable(ChunkedStreamController):
                 errors.append("an answer without a valid signature")
                 continue
             try:
-                answer = decode_answer(received.message)
+                answer = self._decode_reply(received.message)
             except PayloadError as exc:
                 errors.append(str(exc))
                 continue
@@ -437,12 +447,37 @@ class ZenohTable(ChunkedStreamController):
                 return answer
         return None
 
+    def _decode_reply(self, message: bytes) -> Answer:
+        """A command's reply: its ANSWER, or an OWNER (kept for :meth:`_owner_refusal`) as a ``rejected`` answer."""
+        try:
+            return decode_answer(message)
+        except PayloadError:
+            try:
+                report = decode_owner(message)
+            except PayloadError:
+                pass
+            else:
+                self._owner_report = report
+                return Answer(report.cmd_id, "rejected", 0)
+            raise
+
+    def _owner_refusal(self) -> str:
+        """The owner as the controller's OWNER reply names it."""
+        report = self._owner_report
+        if report is None:
+            return "another host since an unknown time"
+        since = datetime.fromtimestamp(report.since_ms / 1000, UTC).strftime("%Y-%m-%d %H:%M:%S UTC")
+        return (f"{report.owner} since {since}, last heard {report.silent_ms / 1000:.2f} s ago (its claim lapses "
+                f"after {report.timeout_ms / 1000:g} s of silence, or when it disconnects)")
+
     def _new_cmd_id(self) -> int:
         with self._command_lock:
             self._next_cmd = (self._next_cmd + 1) % 2**64
             return self._next_cmd
 
-    def _check(self, name: str, result: str) -> None:
+    def _check(self, name: str, answer: Answer) -> None:
+        """Raise the refusal ``answer`` to command ``name`` means, if any."""
+        result = answer.result
         if result in ("accepted", "in_progress"):
             return
         state = self.feedback.latest.state if self.feedback.latest is not None else None
@@ -451,6 +486,9 @@ class ZenohTable(ChunkedStreamController):
             raise CommandDeniedError(upper, result, state, "missing or bad signature (are host and controller "
                                      "using the same signing key?)")
         if result == "rejected":
+            owner = self._owner_report
+            if owner is not None and owner.cmd_id == answer.cmd_id:  # refused with an OWNER reply
+                raise CommandRejectedError(upper, result, state, f"table in use by {self._owner_refusal()}")
             raise CommandRejectedError(upper, result, state, "not accepted in this state")
         why = {"failed": "invalid parameters", "cancelled": "the motion was stopped before its target"}[result]
         raise CommandFailedError(upper, result, state, why)

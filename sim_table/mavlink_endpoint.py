@@ -22,7 +22,7 @@ Protocol decisions (the host side is ``drivers.mavlink``):
   state that does not take the command; FAILED for invalid parameters; UNSUPPORTED for other signed commands.
 - **Retries and de-duplication.** The host sends a command with ``confirmation`` 0 and resends it with 1, 2, …
   until it gets an ACK. A command with ``confirmation`` > 0 that repeats (same command and parameters) the
-  **last** command executed from its source (system, component) within :data:`DEDUP_WINDOW` s is a
+  **last** command executed from its host (address, system, component) within :data:`DEDUP_WINDOW` s is a
   retransmission: it is answered with that command's latest result and not executed again (a SET_TILT ramp does
   not restart, a START_STREAM does not reset the buffer). ``confirmation`` 0 always executes. The one case this
   gets wrong: the same command sent again on purpose within the window, nothing else in between, its first
@@ -36,12 +36,19 @@ Protocol decisions (the host side is ``drivers.mavlink``):
   ``replay_state`` file (``sim_table.replay_store``) the streams' stamps survive a restart, so a capture replayed
   after one is denied whatever the controller's clock says. Everything the controller sends is signed with the same
   key (the host drops what is not), its stamps following the current stamp.
+- **One host at a time** (``sim_table.ownership``): a host is its address, system and component. A signed
+  MAV_CMD_SHAKETABLE_CLAIM makes it the owner unless another host owns the table and was heard (a signed HEARTBEAT
+  or command) within :data:`PEER_TIMEOUT` s: then a SHAKETABLE_OWNER (the owner's address, ids, since when, how
+  long silent) and a TEMPORARILY_REJECTED ACK answer it. While a host owns the table, another host's signed ARM,
+  HOME, SET_TILT and START_STREAM are answered the same way (``commands_other_host``) and its setpoint chunks
+  dropped (``chunks_other_host``); STOP, DISARM and EMERGENCY_STOP are taken from anyone. A signed motion command
+  while nobody owns the table claims it. The owner's signed MAV_CMD_SHAKETABLE_RELEASE ends its claim.
 - **Heartbeats.** Only a signed HEARTBEAT makes its sender a peer (telemetry goes to it), and only a signed one
-  from the host that armed the table (address, system, component of the accepted ARM) feeds the watchdog; the
-  others are counted (``heartbeats_refused`` unsigned or badly signed, ``heartbeats_other_host``). A signed ARM
-  from a sender whose signed heartbeats do not come at least twice per watchdog (``sim_table.arming``) is refused
-  at once: a STATUSTEXT (severity ERROR) saying why, then COMMAND_ACK TEMPORARILY_REJECTED (``arms_refused_heartbeat``),
-  where it would otherwise arm and fault with HEARTBEAT_LOST mid-motion.
+  from the table's owner keeps its claim and feeds the watchdog; the others are counted (``heartbeats_refused``
+  unsigned or badly signed, ``heartbeats_other_host``). A signed ARM from a sender whose signed heartbeats do not
+  come at least twice per watchdog (``sim_table.arming``) is refused at once: a STATUSTEXT (severity ERROR) saying
+  why, then COMMAND_ACK TEMPORARILY_REJECTED (``arms_refused_heartbeat``), where it would otherwise arm and fault
+  with HEARTBEAT_LOST mid-motion.
 - **Bounded reading.** A datagram that is not a whole number of MAVLink 2 frames is dropped unparsed
   (``junk_datagrams``); one drain reads at most :data:`DRAIN_LIMIT` datagrams, so that a flood cannot hold the
   tick thread (the receive thread drains the rest).
@@ -71,7 +78,7 @@ from collections import deque
 from collections.abc import Callable
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, cast
 from urllib.parse import urlsplit
 
 import numpy as np
@@ -97,13 +104,15 @@ from protocols.replay import Freshness
 from sim_table.arming import STATUS_TEXT_BYTES, heartbeat_problem
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Refused, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
+from sim_table.ownership import Owner, Ownership
 from sim_table.replay_store import ReplayStore
 
 DEDUP_WINDOW = 1.0
 """How long a command is remembered for recognising its retransmissions [s, real time]."""
 
 PEER_TIMEOUT = 3.0
-"""A host that sent no HEARTBEAT for this long no longer gets telemetry [s, real time]."""
+"""A host that sent no HEARTBEAT for this long no longer gets telemetry, and an owner silent this long (no signed
+HEARTBEAT or command) loses its claim on the table [s, real time]."""
 
 HEARTBEAT_PERIOD = 0.05
 """The controller's heartbeat period [s, real time] (20 Hz)."""
@@ -135,6 +144,9 @@ DRAIN_LIMIT = 256
 _SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35) if sys.platform == "linux" else None
 """Linux's socket option (and control-message type) for a nanosecond kernel receive stamp (struct timespec)."""
 
+Host = tuple[tuple[str, int], int, int]
+"""A host on the link: its address (IP, port) and MAVLink system and component ids."""
+
 _STAMP_SPACE = socket.CMSG_SPACE(struct.calcsize("ll")) if _SO_TIMESTAMPNS is not None else 0
 
 
@@ -152,8 +164,10 @@ class LinkCounters:
     future_signatures: int = 0  # stamped too far ahead of the current stamp
     replay_state_unsaved: int = 0  # motion commands refused: the replay state could not be written first
     heartbeats_refused: int = 0  # unsigned or badly signed host heartbeats
-    heartbeats_other_host: int = 0  # signed, from another host than the one that armed the table
+    heartbeats_other_host: int = 0  # signed, from another host than the table's owner
     arms_refused_heartbeat: int = 0  # signed ARMs refused: the sender's heartbeat not kept up (sim_table.arming)
+    commands_other_host: int = 0  # signed motion commands refused: another host owns the table
+    chunks_other_host: int = 0  # signed setpoint chunks dropped: another host owns the table
     timesync_answered: int = 0
     duplicate_commands: int = 0
     unsupported_commands: int = 0
@@ -219,10 +233,11 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._outbox: list[tuple[int, int, bytes, tuple[str, int]]] = []  # delayed datagrams (due, n, data, addr)
         self._sent = 0
         self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last signed heartbeat
-        self._armer: tuple[tuple[str, int], int, int] | None = None  # (address, system, component) of the ARM
         # (address, system, component) -> watchdog times [ns] of its previous and last signed heartbeat
         self._beats: dict[tuple[tuple[str, int], int, int], tuple[int | None, int | None]] = {}
-        self._last: dict[tuple[int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per source
+        self._ownership = Ownership(round(PEER_TIMEOUT * 1e9))  # owners are (address, system, component)
+        self._last: dict[tuple[tuple[str, int], int, int], tuple[int, tuple[float, ...], Result, int]] = {}  # per
+        # host (address, system, component)
         self._requesters: dict[Command, tuple[tuple[str, int], int, int]] = {}
         self._answers: list[tuple[Any, tuple[str, int]]] = []  # COMMAND_ACKs held until the batch's statuses are out
         self._accel = Batcher(ACCEL_PER_BATCH)
@@ -344,37 +359,43 @@ class MavlinkEndpoint(BatchedTelemetry):
             while self._inbox and self._inbox[0][0] <= now:
                 taken.append(self._inbox.popleft())
         actions = []
-        for _, arrival, source, msg, signed in taken:
-            action = self._action(msg, source, signed, arrival)
+        for heard, arrival, source, msg, signed in taken:
+            action = self._action(msg, source, signed, arrival, heard)
             if action is not None:
                 actions.append((arrival, action))
         return actions
 
-    def _action(self, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> Action | None:
+    def _action(self, msg: Any, source: tuple[str, int], signed: bool, arrival: int, heard: int) -> Action | None:
+        """The effect of ``msg`` from ``source`` that arrived at controller time ``arrival`` (host time ``heard``)
+        [ns]; None when it has none."""
         kind = msg.get_type()
+        who = (source, msg.get_srcSystem(), msg.get_srcComponent())
         if kind == "HEARTBEAT":
-            return self._heartbeat_action(msg, source, signed, arrival)
+            return self._heartbeat_action(who, signed, arrival, heard)
         if kind == "TIMESYNC" and msg.tc1 == 0:
             return lambda core: self._answer_timesync(msg, source, time.monotonic_ns())
         if kind == "COMMAND_LONG":
-            return lambda core: self._command(core, msg, source, signed, arrival)
+            return lambda core: self._command(core, msg, who, signed, arrival, heard)
         if kind == "SHAKETABLE_SETPOINT_CHUNK":
+            if signed and not self._ownership.allows(who, heard):
+                self.counters.chunks_other_host += 1
+                return None
             return self._chunk_action(msg, signed, arrival)
         return None
 
-    def _heartbeat_action(self, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> Action | None:
-        """A host heartbeat feeds the watchdog only when signed and from the host that armed the table."""
+    def _heartbeat_action(self, who: Host, signed: bool, arrival: int, heard: int) -> Action | None:
+        """A host heartbeat keeps its claim and feeds the watchdog only when signed and from the table's owner."""
         if not signed:
             self.counters.heartbeats_refused += 1
             return None
-        sender = (source, msg.get_srcSystem(), msg.get_srcComponent())
+        owns = self._ownership.heard(who, heard)
+        if not owns:
+            self.counters.heartbeats_other_host += 1
 
         def beat(core: ControllerCore) -> None:
-            self._beats[sender] = (self._beats.get(sender, (None, None))[1], core.link_time(arrival))
-            if self._armer != sender:
-                self.counters.heartbeats_other_host += 1
-                return
-            core.heartbeat(arrival)
+            self._beats[who] = (self._beats.get(who, (None, None))[1], core.link_time(arrival))  # sim_table.arming
+            if owns:
+                core.heartbeat(arrival)
 
         return beat
 
@@ -394,9 +415,13 @@ class MavlinkEndpoint(BatchedTelemetry):
 
         return play
 
-    def _command(self, core: ControllerCore, msg: Any, source: tuple[str, int], signed: bool, arrival: int) -> None:
+    def _command(self, core: ControllerCore, msg: Any, who: Host, signed: bool, arrival: int, heard: int) -> None:
+        source, *ids = who
+        sender = (ids[0], ids[1])
+        if msg.command in (self.d.MAV_CMD_SHAKETABLE_CLAIM, self.d.MAV_CMD_SHAKETABLE_RELEASE):
+            self._ownership_command(core, msg, who, signed, heard)
+            return
         command = self._commands.get(msg.command)
-        sender = (msg.get_srcSystem(), msg.get_srcComponent())
         if command is None:
             if signed:
                 self.counters.unsupported_commands += 1
@@ -406,7 +431,7 @@ class MavlinkEndpoint(BatchedTelemetry):
             return
         params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
         now = time.monotonic_ns()
-        last = self._last.get(sender)
+        last = self._last.get(who)
         if (msg.confirmation > 0 and last is not None and last[:2] == (msg.command, params)
                 and now - last[3] <= DEDUP_WINDOW * 1e9 and (signed or command not in SIGNED_COMMANDS)):
             self.counters.duplicate_commands += 1
@@ -415,9 +440,16 @@ class MavlinkEndpoint(BatchedTelemetry):
         if signed and command in SIGNED_COMMANDS and not self._saved_replay_state():
             self._ack(msg.command, self._results[core.refuse()], 0, source, sender)
             return
+        if signed and command in SIGNED_COMMANDS:
+            held = self._ownership.claim(who, _describe(who), heard, time.time())
+            if held is not None:
+                self.counters.commands_other_host += 1
+                self._refuse_for_owner(msg.command, held, who, heard)
+                return
+        elif signed:
+            self._ownership.heard(who, heard)
         if command is Command.ARM and signed:
-            problem = heartbeat_problem(self._beats.get((source, *sender), (None, None)), core.link_time(arrival),
-                                        core.watchdog_ns)
+            problem = heartbeat_problem(self._beats.get(who, (None, None)), core.link_time(arrival), core.watchdog_ns)
             if problem is not None:
                 self.counters.arms_refused_heartbeat += 1
                 text = problem.encode("ascii")[:STATUS_TEXT_BYTES]
@@ -425,13 +457,40 @@ class MavlinkEndpoint(BatchedTelemetry):
                 self._ack(msg.command, self.d.MAV_RESULT_TEMPORARILY_REJECTED, 0, source, sender)
                 return
         result = core.command(command, params, signed, arrival)
-        if command is Command.ARM and result is Result.ACCEPTED:
-            self._armer = (source, *sender)
         if result is not Result.DENIED:
-            self._last[sender] = (msg.command, params, result, now)
+            self._last[who] = (msg.command, params, result, now)
         if result is Result.IN_PROGRESS:
             self._requesters[command] = (source, *sender)
         self._ack(msg.command, self._results[result], 0, source, sender)
+
+    def _ownership_command(self, core: ControllerCore, msg: Any, who: Host, signed: bool, heard: int) -> None:
+        """CLAIM or RELEASE (``sim_table.ownership``): refused unsigned; a refused CLAIM is told who owns the table
+        (SHAKETABLE_OWNER, then the COMMAND_ACK); a RELEASE from another host than the owner leaves the claim."""
+        source, system, component = who
+        if not signed or not self._saved_replay_state():
+            self._ack(msg.command, self._results[core.refuse()], 0, source, (system, component))
+            return
+        if msg.command == self.d.MAV_CMD_SHAKETABLE_RELEASE:
+            released = self._ownership.release(who, heard)
+            result = Result.ACCEPTED if released else Result.REJECTED
+            self._ack(msg.command, self._results[result], 0, source, (system, component))
+            return
+        held = self._ownership.claim(who, _describe(who), heard, time.time())
+        if held is not None:
+            self._refuse_for_owner(msg.command, held, who, heard)
+            return
+        self._ack(msg.command, self.d.MAV_RESULT_ACCEPTED, 0, source, (system, component))
+
+    def _refuse_for_owner(self, command: int, owner: Owner, who: Host, heard: int) -> None:
+        """Refuse ``command`` of ``who`` because ``owner`` owns the table: a SHAKETABLE_OWNER, then the
+        COMMAND_ACK (TEMPORARILY_REJECTED), both held with the batch's answers."""
+        (address, port), system, component = cast(Host, owner.who)
+        silent_ms = max(0, heard - owner.last_heard_ns) // 1_000_000
+        source, *sender = who
+        self._answers.append((self.d.MAVLink_shaketable_owner_message(
+            round(owner.since_unix_s * 1000), min(silent_ms, 2**32 - 1), round(PEER_TIMEOUT * 1000), system,
+            component, f"{address}:{port}".encode("ascii", "replace")[:64]), source))
+        self._ack(command, self.d.MAV_RESULT_TEMPORARILY_REJECTED, 0, source, (sender[0], sender[1]))
 
     def _saved_replay_state(self) -> bool:
         """Write the replay state before a signed motion command takes effect (its stamp must survive a crash);
@@ -448,9 +507,9 @@ class MavlinkEndpoint(BatchedTelemetry):
             return
         source, system, component = requester
         cmd_id = self._command_ids[done.command]
-        last = self._last.get((system, component))
+        last = self._last.get(requester)
         if last is not None and last[0] == cmd_id:
-            self._last[(system, component)] = (cmd_id, last[1], done.result, last[3])
+            self._last[requester] = (cmd_id, last[1], done.result, last[3])
         self._ack(cmd_id, self._results[done.result], 100, source, (system, component))
 
     def _ack(self, command: int, result: int, progress: int, source: tuple[str, int], sender: tuple[int, int]) -> None:
@@ -572,7 +631,15 @@ class MavlinkEndpoint(BatchedTelemetry):
             self._store.close()
 
     def counters_dict(self) -> dict[str, int]:
-        return asdict(self.counters)
+        ownership = self._ownership
+        return {**asdict(self.counters), "claims_granted": ownership.claims_granted,
+                "claims_refused": ownership.claims_refused, "claim_takeovers": ownership.takeovers}
+
+
+def _describe(who: Host) -> str:
+    """A host as a refused claimant is told of it: ``127.0.0.1:41234 (system 255, component 190)``."""
+    (address, port), system, component = who
+    return f"{address}:{port} (system {system}, component {component})"
 
 
 def open_endpoint(url: str, options: EndpointOptions) -> MavlinkEndpoint:

@@ -28,7 +28,14 @@ Protocol decisions:
   senders' stamps survive a restart, written before every signed motion command takes effect. Everything the
   controller sends — replies, statuses, answers, batches, overturn events (each copy signed afresh), heartbeats —
   is signed as one sender (random per start), its stamps following the current stamp; the host drops the rest.
-- **Heartbeats** of the host are signed; only those of the sender whose ARM was accepted feed the watchdog
+- **One host at a time** (``sim_table.ownership``): a host is its signing sender id. A signed ``claim`` makes it
+  the owner unless another sender owns the table and was heard (a signed heartbeat or command) within
+  :data:`~sim_table.ownership.OWNER_TIMEOUT` s: then the reply is an OWNER (who, since when, how long silent) in
+  place of the ANSWER. While a sender owns the table, another's signed ARM, HOME, SET_TILT and START_STREAM get the
+  same reply (``commands_other_host``) and its setpoint chunks are dropped (``chunks_other_host``); STOP, DISARM
+  and EMERGENCY_STOP are taken from anyone. A signed motion command while nobody owns the table claims it. The
+  owner's signed ``release`` ends its claim.
+- **Heartbeats** of the host are signed; only those of the table's owner keep its claim and feed the watchdog
   (``heartbeats_refused``: without a valid, fresh signature; ``heartbeats_other_host``: another sender's).
 - **Clock**: a query on ``clock`` is answered with the controller time when it is answered.
 - **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
@@ -74,6 +81,7 @@ from protocols.zenoh.table import (
     Answer,
     ClockReply,
     Overturn,
+    OwnerReport,
     Refusal,
     StatusReport,
     TableUrl,
@@ -88,6 +96,7 @@ from protocols.zenoh.table import (
     encode_clock_reply,
     encode_heartbeat,
     encode_overturn,
+    encode_owner,
     encode_refusal,
     encode_status,
     encode_tilt,
@@ -95,6 +104,7 @@ from protocols.zenoh.table import (
 )
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Refused, Result, Snapshot, State
 from sim_table.endpoint import Action, Batch, BatchedTelemetry, Batcher, BodyOnPlate, EndpointOptions
+from sim_table.ownership import OWNER_TIMEOUT, Owner, Ownership
 from sim_table.replay_store import ReplayStore
 
 REMEMBERED_COMMANDS = 256
@@ -131,7 +141,9 @@ class LinkCounters:
     future_signatures: int = 0  # stamped too far ahead of the current stamp
     replay_state_unsaved: int = 0  # motion commands refused: the replay state could not be written first
     heartbeats_refused: int = 0  # host heartbeats without a valid, fresh signature
-    heartbeats_other_host: int = 0  # signed by another sender than the one whose ARM was accepted
+    heartbeats_other_host: int = 0  # signed by another sender than the table's owner
+    commands_other_host: int = 0  # signed motion commands refused: another sender owns the table
+    chunks_other_host: int = 0  # signed setpoint chunks dropped: another sender owns the table
     clock_answered: int = 0
     duplicate_commands: int = 0
     chunks_stalled: int = 0
@@ -170,7 +182,7 @@ class ZenohEndpoint(BatchedTelemetry):
         self._store = ReplayStore(replay_state, "zenoh") if replay_state is not None else None
         self._verifier = Verifier(key, replay_guard(self._store.load() if self._store is not None else None))
         self._signer = Signer(key, secrets.randbits(64), self._verifier.guard.current)
-        self._armer: int | None = None  # sender id of the host whose ARM was accepted
+        self._ownership = Ownership(round(OWNER_TIMEOUT * 1e9))  # owners are signing sender ids
         self._rng = np.random.default_rng(seed)
         self._lock = threading.Lock()  # the random numbers, the inbox, the counters of several threads
         self._session, self.address = _listen(address, security)
@@ -270,22 +282,25 @@ class ZenohEndpoint(BatchedTelemetry):
         actions = []
         for due, kind, query, payload in taken:
             arrival = self.clock(due)
-            action = self._action(kind, query, payload, arrival)
+            action = self._action(kind, query, payload, arrival, due)
             if action is not None:
                 actions.append((arrival, action))
         return actions
 
-    def _action(self, kind: str, query: zenoh.Query | None, payload: bytes, arrival: int) -> Action | None:
+    def _action(self, kind: str, query: zenoh.Query | None, payload: bytes, arrival: int,
+                heard: int) -> Action | None:
+        """The effect of a message that arrived at controller time ``arrival`` (host time ``heard``) [ns]; None when
+        it has none."""
         if query is not None:
             if kind == "clock":
                 return lambda core: self._answer_clock(query, payload)
-            return lambda core: self._command(core, query, payload, arrival)
+            return lambda core: self._command(core, query, payload, arrival, heard)
         if kind == "heartbeat":
-            return self._heartbeat_action(payload, arrival)
-        return self._chunk_action(payload, arrival)
+            return self._heartbeat_action(payload, arrival, heard)
+        return self._chunk_action(payload, arrival, heard)
 
-    def _heartbeat_action(self, payload: bytes, arrival: int) -> Action | None:
-        """A host heartbeat feeds the watchdog only when signed and from the host whose ARM was accepted."""
+    def _heartbeat_action(self, payload: bytes, arrival: int, heard: int) -> Action | None:
+        """A host heartbeat keeps its claim and feeds the watchdog only when signed and from the table's owner."""
         received = split_signed(payload)
         try:
             decode_heartbeat(received.message)
@@ -295,12 +310,12 @@ class ZenohEndpoint(BatchedTelemetry):
         if self._verifier.verify(self._keys["host-heartbeat"], received) is not Verdict.SIGNED:
             self._count("heartbeats_refused")
             return None
-        if sender_of(received) != self._armer:
+        if not self._ownership.heard(sender_of(received), heard):
             self._count("heartbeats_other_host")
             return None
         return lambda core: core.heartbeat(arrival)
 
-    def _chunk_action(self, payload: bytes, arrival: int) -> Action | None:
+    def _chunk_action(self, payload: bytes, arrival: int, heard: int) -> Action | None:
         if self.stall_chunks:
             self._count("chunks_stalled")
             return None
@@ -310,6 +325,9 @@ class ZenohEndpoint(BatchedTelemetry):
             self._count("bad_payloads")
             return None
         signed = self._verify(self._keys["setpoints"], received)
+        if signed and not self._ownership.allows(sender_of(received), heard):
+            self._count("chunks_other_host")
+            return None
 
         def play(core: ControllerCore) -> None:
             core.chunk(chunk.seq, chunk.t_start_ns, chunk.spacing_ns, chunk.samples, chunk.end_of_stream, signed,
@@ -323,15 +341,19 @@ class ZenohEndpoint(BatchedTelemetry):
             self._count(_VERDICT_COUNTERS[verdict])
         return verdict is Verdict.SIGNED
 
-    def _command(self, core: ControllerCore, query: zenoh.Query, payload: bytes, arrival: int) -> None:
+    def _command(self, core: ControllerCore, query: zenoh.Query, payload: bytes, arrival: int, heard: int) -> None:
         try:
             request, received = decode_command(payload)
         except PayloadError as exc:
             self._count("bad_payloads")
             self._reply_error(query, exc)
             return
-        command = Command(request.command)
         signed = self._verify(self._keys["command"], received)
+        who = sender_of(received)
+        if request.command in ("claim", "release"):
+            self._ownership_command(core, query, request.cmd_id, request.command, who, signed, arrival, heard)
+            return
+        command = Command(request.command)
         known = self._answers.get(request.cmd_id)
         if known is not None and known[0] == received.message and (signed or command not in SIGNED_COMMANDS):
             self._count("duplicate_commands")
@@ -340,9 +362,15 @@ class ZenohEndpoint(BatchedTelemetry):
         if signed and command in SIGNED_COMMANDS and not self._saved_replay_state():
             self._reply_answer(query, Answer(request.cmd_id, core.refuse().value, arrival))
             return
+        if signed and command in SIGNED_COMMANDS:
+            held = self._ownership.claim(who, _describe(who), heard, time.time())
+            if held is not None:
+                self._count("commands_other_host")
+                self._reply_owner(query, request.cmd_id, held, heard)
+                return
+        elif signed:
+            self._ownership.heard(who, heard)
         result = core.command(command, request.params, signed, arrival)
-        if command is Command.ARM and result is Result.ACCEPTED:
-            self._armer = sender_of(received)
         if result is not Result.DENIED:
             self._answers[request.cmd_id] = (received.message, result)
             self._answers.move_to_end(request.cmd_id)
@@ -351,6 +379,31 @@ class ZenohEndpoint(BatchedTelemetry):
         if result is Result.IN_PROGRESS:
             self._requesters[command] = request.cmd_id
         self._reply_answer(query, Answer(request.cmd_id, result.value, arrival))
+
+    def _ownership_command(self, core: ControllerCore, query: zenoh.Query, cmd_id: int, name: str, who: int,
+                           signed: bool, arrival: int, heard: int) -> None:
+        """``claim`` or ``release`` (``sim_table.ownership``): refused unsigned (``denied``); a refused claim is
+        answered with an OWNER; a release from another sender than the owner leaves the claim (``rejected``)."""
+        if not signed or not self._saved_replay_state():
+            self._reply_answer(query, Answer(cmd_id, core.refuse().value, arrival))
+            return
+        if name == "release":
+            released = self._ownership.release(who, heard)
+            self._reply_answer(query, Answer(cmd_id, (Result.ACCEPTED if released else Result.REJECTED).value,
+                                             arrival))
+            return
+        held = self._ownership.claim(who, _describe(who), heard, time.time())
+        if held is not None:
+            self._reply_owner(query, cmd_id, held, heard)
+            return
+        self._reply_answer(query, Answer(cmd_id, Result.ACCEPTED.value, arrival))
+
+    def _reply_owner(self, query: zenoh.Query, cmd_id: int, owner: Owner, heard: int) -> None:
+        """Refuse command ``cmd_id`` because ``owner`` owns the table: an OWNER reply."""
+        silent_ms = max(0, heard - owner.last_heard_ns) // 1_000_000
+        self._reply(query, self._keys["command"], encode_owner(OwnerReport(
+            cmd_id, round(owner.since_unix_s * 1000), min(silent_ms, 2**32 - 1), round(OWNER_TIMEOUT * 1000),
+            owner.description)))
 
     def _saved_replay_state(self) -> bool:
         """Write the replay state before a signed motion command takes effect (its stamp must survive a crash);
@@ -495,7 +548,9 @@ class ZenohEndpoint(BatchedTelemetry):
             self._store.close()
 
     def counters_dict(self) -> dict[str, int]:
-        return asdict(self.counters)
+        ownership = self._ownership
+        return {**asdict(self.counters), "claims_granted": ownership.claims_granted,
+                "claims_refused": ownership.claims_refused, "claim_takeovers": ownership.takeovers}
 
 
 def _payload(query: zenoh.Query) -> bytes:
@@ -525,6 +580,11 @@ def _free_port(host: str) -> int:
     with socket.socket(socket.AF_INET6 if ":" in host else socket.AF_INET) as probe:
         probe.bind((host, 0))
         return probe.getsockname()[1]
+
+
+def _describe(sender: int) -> str:
+    """A host as a refused claimant is told of it: its signing sender id (random per connection)."""
+    return f"the zenoh host signing as sender {sender:016x}"
 
 
 def open_endpoint(url: str, options: EndpointOptions) -> ZenohEndpoint:

@@ -10,9 +10,10 @@
   with it (:func:`mavlink_connection`).
 
 Messages (ids 42500–42509 reserved): SHAKETABLE_SETPOINT_CHUNK (42500), SHAKETABLE_ACCEL_BATCH (42501),
-SHAKETABLE_OVERTURN_EVENT (42502), SHAKETABLE_STATUS (42503), SHAKETABLE_TILT_BATCH (42504); commands in
-COMMAND_LONG (MAV_CMD 42550–42559 reserved): MAV_CMD_SHAKETABLE_ARM, _DISARM, _HOME, _SET_TILT, _START_STREAM,
-_STOP, _EMERGENCY_STOP. Units and field meanings are in the XML. Importing this package generates nothing; the first
+SHAKETABLE_OVERTURN_EVENT (42502), SHAKETABLE_STATUS (42503), SHAKETABLE_TILT_BATCH (42504), SHAKETABLE_BODY
+(42505), SHAKETABLE_CHUNK_REFUSED (42506), SHAKETABLE_OWNER (42507); commands in COMMAND_LONG (MAV_CMD
+42550–42559 reserved): MAV_CMD_SHAKETABLE_ARM, _DISARM, _HOME, _SET_TILT, _START_STREAM, _STOP, _EMERGENCY_STOP,
+_CLAIM, _RELEASE. Units and field meanings are in the XML. Importing this package generates nothing; the first
 :func:`dialect` call does.
 """
 

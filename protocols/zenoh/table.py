@@ -43,6 +43,9 @@ BODIES          n u16, n × (b, h, depth, x, y) f64 [m]: the bodies on the plate
                 query on ``bodies``; ``docs/table-controller.md``, Bodies on the plate)
 REFUSAL         t_ns i64 (when the chunk arrived), seq u32 (the chunk refused), n u16, n bytes of UTF-8 (the reason,
                 at most :data:`MAX_REASON` bytes): a signed SETPOINTS chunk refused for its values; the table stops
+OWNER           cmd_id u64, since_ms i64 (controller wall clock, ms since the Unix epoch), silent_ms u32, timeout_ms
+                u32, n u16, n bytes of UTF-8 (the owner, at most :data:`MAX_REASON` bytes): the reply, in place of an
+                ANSWER, to a signed ``claim`` or motion command refused because another host owns the table
 ==============  ============================================================================================
 
 A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
@@ -70,7 +73,7 @@ VERSION = 1
 DEFAULT_TABLE = "table"
 """Table name of a URL without one."""
 
-COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop")
+COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop", "claim", "release")
 """Command codes (index)."""
 
 RESULTS = ("accepted", "in_progress", "denied", "rejected", "failed", "cancelled")
@@ -121,6 +124,7 @@ _TILT = struct.Struct("<IIqqI")
 _BODY = struct.Struct("<5d")
 _COUNT = struct.Struct("<H")
 _REFUSAL = struct.Struct("<qIH")
+_OWNER = struct.Struct("<QqIIH")
 
 
 class TableKind(IntEnum):
@@ -138,6 +142,7 @@ class TableKind(IntEnum):
     TILT = 10
     BODIES = 11
     REFUSAL = 12
+    OWNER = 13
 
 
 class TableUrl(NamedTuple):
@@ -246,6 +251,18 @@ class Refusal(NamedTuple):
     t_ns: int
     seq: int
     reason: str
+
+
+class OwnerReport(NamedTuple):
+    """Command ``cmd_id`` refused: ``owner`` (described) owns the table since ``since_ms`` [ms since the Unix epoch,
+    the controller's wall clock], last heard ``silent_ms`` [ms] ago; its claim lapses after ``timeout_ms`` [ms] of
+    silence."""
+
+    cmd_id: int
+    since_ms: int
+    silent_ms: int
+    timeout_ms: int
+    owner: str
 
 
 class Overturn(NamedTuple):
@@ -528,6 +545,28 @@ def decode_refusal(payload: bytes) -> Refusal:
     except UnicodeDecodeError:
         raise PayloadError("REFUSAL reason is not UTF-8") from None
     return Refusal(t_ns, seq, reason)
+
+
+def encode_owner(report: OwnerReport) -> bytes:
+    """The OWNER payload (the owner's description cut to :data:`MAX_REASON` bytes at a character's end)."""
+    text = report.owner.encode("utf-8")[:MAX_REASON].decode("utf-8", "ignore").encode("utf-8")
+    return _header(TableKind.OWNER) + _OWNER.pack(report.cmd_id, report.since_ms, report.silent_ms,
+                                                  report.timeout_ms, len(text)) + text
+
+
+def decode_owner(payload: bytes) -> OwnerReport:
+    body = _body(payload, TableKind.OWNER)
+    if len(body) < _OWNER.size:
+        raise PayloadError(f"OWNER body has {len(body)} bytes, its fixed part alone {_OWNER.size}")
+    cmd_id, since_ms, silent_ms, timeout_ms, n = _OWNER.unpack_from(body)
+    if n > MAX_REASON or len(body) != _OWNER.size + n:
+        raise PayloadError(f"OWNER body has {len(body)} bytes, an owner of {n} bytes (at most {MAX_REASON}) needs "
+                           f"{_OWNER.size + n}")
+    try:
+        owner = body[_OWNER.size:].decode("utf-8")
+    except UnicodeDecodeError:
+        raise PayloadError("OWNER description is not UTF-8") from None
+    return OwnerReport(cmd_id, since_ms, silent_ms, timeout_ms, owner)
 
 
 def encode_heartbeat(t_ns: int) -> bytes:

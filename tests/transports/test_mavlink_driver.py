@@ -5,6 +5,7 @@ never about wall-clock times (those are in ``benchmarks/stream.py``)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
 import math
 import re
@@ -97,6 +98,7 @@ class RawHost(table_checks.Host):
             enable_signing(self.link.mav, key, link_id=0, timestamp=timestamp)
         self.beating = True
         self.beats = 0  # heartbeats sent
+        self.armed = False  # an ARM of this host was accepted: it owns the table (releases it on close)
         self.statuses: list[Any] = []
         self.acks: list[Any] = []
         self.arrivals: list[Any] = []  # statuses and COMMAND_ACKs in the order they arrived
@@ -138,7 +140,9 @@ class RawHost(table_checks.Host):
             time.sleep(self.heartbeat_period / 4)
         command = getattr(D, f"MAV_CMD_SHAKETABLE_{name.upper()}")
         values = [*params] + [0.0] * (7 - len(params))
-        return self.answer(command, lambda: self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values)))
+        result = self.answer(command, lambda: self.send(D.MAVLink_command_long_message(1, 1, command, 0, *values)))
+        self.armed |= name == "arm" and result == "accepted"
+        return result
 
     def replay(self, frame: bytes) -> str:
         """Send a captured COMMAND_LONG frame as it is, from this host's socket; the result of its ACK."""
@@ -168,6 +172,10 @@ class RawHost(table_checks.Host):
         return getattr(D, f"SHAKETABLE_FAULT_{name}")
 
     def close(self) -> None:
+        """Give the table up as a driver does (a signed RELEASE, when it armed it), then stop."""
+        if self.armed:
+            with contextlib.suppress(AssertionError):  # no answer: the controller is gone
+                self.command("release")
         self._running = False
         for thread in self._threads:
             thread.join()

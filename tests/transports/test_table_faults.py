@@ -19,7 +19,7 @@ import pytest
 
 from analysis.table.link import LinkSettings
 from drivers.controller import StreamAbortedError, TableStatus, open_table
-from protocols.mavlink import UdpLink, dialect, enable_signing
+from protocols.mavlink import UdpLink, dialect, enable_signing, setpoint_chunks
 from rig.emulator import EmulatorProcess
 from tests.helpers.streams import drive_excerpt
 
@@ -69,10 +69,11 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
     emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
     host: subprocess.Popen[str] | None = None
     try:
-        # a second host that only listens: allowed by both transports (telemetry goes to every live peer); its
-        # heartbeats do not feed the watchdog (only the arming host's do), so HEARTBEAT_LOST, the stream watchdog
-        # (STREAM_SILENT) or the buffer running dry (UNDERRUN) stops the table, whichever comes first
-        options = {"system": 254} if transport == "mavlink" else {}  # its own signing stream
+        # a second host that only listens (observe: it claims nothing, so the other host may own the table):
+        # allowed by both transports (telemetry goes to every live peer); its heartbeats do not feed the watchdog
+        # (only the owner's do), so HEARTBEAT_LOST, the stream watchdog (STREAM_SILENT) or the buffer running dry
+        # (UNDERRUN) stops the table, whichever comes first
+        options: dict[str, Any] = {"observe": True, **({"system": 254} if transport == "mavlink" else {})}
         with open_table(emulator.url, key_file=str(key_file), **options) as listener:
             statuses = listener.statuses()
             host = subprocess.Popen([sys.executable, "-c", HOST_SCRIPT, emulator.url, str(key_file)],
@@ -196,6 +197,16 @@ def test_five_percent_loss_during_a_drive_still_plays_it(transport: str, key_fil
 # ----- a replayed signed MAVLink message ------------------------------------------------------------------------
 
 
+def first_ack(link: UdpLink, command: int, timeout: float = 5.0) -> str:
+    """The result of the first COMMAND_ACK for ``command`` that ``link`` receives within ``timeout`` [s]."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for msg in link.receive(0.05):
+            if msg.get_type() == "COMMAND_ACK" and msg.command == command:
+                return str(D.enums["MAV_RESULT"][msg.result].name.removeprefix("MAV_RESULT_")).lower()
+    raise AssertionError(f"no COMMAND_ACK for {command} within {timeout} s")
+
+
 def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(key_file: Path) -> None:
     emulator = EmulatorProcess.start(LISTEN["mavlink"], key_file=key_file)
     address = emulator.url.removeprefix("mavlink://").rsplit(":", 1)
@@ -204,19 +215,21 @@ def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(key_file
     enable_signing(signer.mav, bytes.fromhex(key_file.read_text()), link_id=0)
     replayer = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     try:
-        with open_table(emulator.url, key_file=str(key_file)) as table:
+        # a host with the key arms the table (claiming it: nobody owns it), disarms and gives it up (RELEASE), its
+        # signed ARM recorded as it went out
+        for _ in range(2):  # a host keeps its heartbeat up before it arms (sim_table.arming)
+            signer.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
+        arm = D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_ARM, 0, 0, 0, 0, 0, 0, 0, 0)
+        signer.send(arm)
+        recorded = bytes(arm.get_msgbuf())  # the signed datagram as it went out
+        assert recorded[0] == 0xFD and recorded[2] & 0x01  # MAVLink 2, signed
+        assert first_ack(signer, D.MAV_CMD_SHAKETABLE_ARM) == "accepted"
+        signer.send(D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_DISARM, 0, 0, 0, 0, 0, 0, 0, 0))
+        assert first_ack(signer, D.MAV_CMD_SHAKETABLE_DISARM) == "accepted"
+        signer.send(D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_RELEASE, 0, 0, 0, 0, 0, 0, 0, 0))
+        assert first_ack(signer, D.MAV_CMD_SHAKETABLE_RELEASE) == "accepted"
+        with open_table(emulator.url, key_file=str(key_file)) as table:  # the table is free: this host claims it
             before = table.wait_for_state("idle", 5)
-            for _ in range(2):  # a host keeps its heartbeat up before it arms (sim_table.arming)
-                signer.send(D.MAVLink_heartbeat_message(D.MAV_TYPE_GCS, D.MAV_AUTOPILOT_INVALID, 0, 0, 0, 3))
-            arm = D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_ARM, 0, 0, 0, 0, 0, 0, 0, 0)
-            signer.send(arm)
-            recorded = bytes(arm.get_msgbuf())  # the signed datagram as it went out
-            assert recorded[0] == 0xFD and recorded[2] & 0x01  # MAVLink 2, signed
-            table.wait_for_state("armed", 5)
-            table.disarm()
-            idle = table.wait_for_state("idle", 5)
-            assert idle.refused_commands == before.refused_commands
-
             replayer.sendto(recorded, target)  # the same bytes again, later, from another socket
             refused = table.wait_for_status(lambda s: s.refused_commands > before.refused_commands, 5)
             time.sleep(0.3)  # a replay that were run would have armed by now
@@ -227,3 +240,33 @@ def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(key_file
         signer.close()
         counters = emulator.stop()
     assert counters["commands_accepted"] >= 2 and counters["refused_commands"] == 1
+    assert counters["link"]["commands_other_host"] == 0  # refused for its stamp, before ownership is looked at
+
+
+def test_a_signed_motion_command_or_chunk_of_another_host_is_refused_with_the_owner(key_file: Path) -> None:
+    emulator = EmulatorProcess.start(LISTEN["mavlink"], key_file=key_file)
+    address = emulator.url.removeprefix("mavlink://").rsplit(":", 1)
+    other = UdpLink.open(("127.0.0.1", 0), (address[0], int(address[1])), source_system=250, source_component=190)
+    enable_signing(other.mav, bytes.fromhex(key_file.read_text()), link_id=0)
+    try:
+        with open_table(emulator.url, key_file=str(key_file)) as table:
+            table.arm()
+            other.send(D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_HOME, 0, 0, 0, 0, 0, 0, 0, 0))
+            owner = None
+            deadline = time.monotonic() + 5
+            while owner is None and time.monotonic() < deadline:
+                owner = next((m for m in other.receive(0.05) if m.get_type() == "SHAKETABLE_OWNER"), None)
+            assert owner is not None and owner.owner_system == 255 and owner.owner_component == 190
+            assert first_ack(other, D.MAV_CMD_SHAKETABLE_HOME) == "temporarily_rejected"
+            (chunk,) = setpoint_chunks(np.zeros((8, 6)), table.status().t_ns + 50_000_000, 1_000_000, 0)
+            other.send(chunk)
+            other.send(D.MAVLink_command_long_message(1, 1, D.MAV_CMD_SHAKETABLE_STOP, 0, 0, 0, 0, 0, 0, 0, 0))
+            assert first_ack(other, D.MAV_CMD_SHAKETABLE_STOP) == "accepted"  # stopping stays open to anyone
+            assert table.wait_for_state("armed", 5).state == "armed"
+            assert not table.status().faults
+            table.disarm()
+    finally:
+        other.close()
+        counters = emulator.stop()
+    assert counters["link"]["commands_other_host"] == 1 and counters["link"]["chunks_other_host"] == 1
+    assert counters["stops"] == 1 and counters["chunks_not_streaming"] == 0
