@@ -275,7 +275,9 @@ def test_a_rate_beyond_the_bus_is_refused_with_the_bus_load() -> None:
         open_table("canopen://nowhere?interface=virtual", accelerometers=2)
     with pytest.raises(BusLoadError, match=r"155\.0% of 500000 bit/s"):
         open_table("canopen://nowhere?interface=virtual&bitrate=500000")
-    counted = open_table("canopen://nowhere?interface=virtual&rate=400", accelerometers=2)
+    plain = open_table("canopen://nowhere?interface=virtual&rate=400", accelerometers=2)
+    assert plain.bus_load == pytest.approx(0.666)  # the SYNC counter is opt-in
+    counted = open_table("canopen://nowhere?interface=virtual&rate=400&sync_counter=1", accelerometers=2)
     assert counted.bus_load == pytest.approx(0.702)  # 66.6 % plain: room for the SYNC counter, 1755 bits a cycle
     assert open_table("canopen://nowhere?interface=virtual").bus_load == pytest.approx(0.775)
 

@@ -164,7 +164,7 @@ def test_a_plain_table_url_off_loopback_is_refused_before_any_link(tmp_path: Pat
                           capture_output=True, text=True, timeout=120, cwd=ROOT)
     assert done.returncode == 2
     assert done.stderr.strip().splitlines()[-1].startswith(
-        f"error: the table at zenoh://{TABLE_ADDRESS}:7447/lab did not answer: table URL "
+        f"error: the table at zenoh://{TABLE_ADDRESS}:7447/lab cannot be used: table URL "
         f"'zenoh://{TABLE_ADDRESS}:7447/lab': endpoint 'tcp/{TABLE_ADDRESS}:7447' is off loopback and not encrypted")
     assert "Traceback" not in done.stderr
 

@@ -24,6 +24,7 @@ from drivers.canopen import CanopenTable
 from drivers.controller import FaultSource, SetpointError, TableController, TableError, open_table
 from protocols.canopen import od as drive_od
 from protocols.mavlink import dialect
+from protocols.signing_key import write_signing_key
 from protocols.zenoh.table import SetpointChunk, encode_setpoints
 from rig.emulator import EmulatorProcess
 from sim_table.process import Emulator, EmulatorConfig
@@ -72,7 +73,7 @@ def send_raw(table: Any, transport: str, seq: int, t_start_ns: int, samples: np.
 def test_a_signed_hostile_chunk_is_refused_with_a_reason_the_table_stops_and_the_emulator_answers(
         transport: str, tmp_path: Path) -> None:
     key_file = tmp_path / "rig.key"
-    key_file.write_text(secrets.token_hex(32) + "\n")
+    write_signing_key(key_file)
     emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
