@@ -6,6 +6,7 @@
 - `processes`: free ports, `rig` and its children as processes, waiting for a condition.
 - `console`: the console's test controls and headers, and Chromium's flags for the browser tests.
 - `session_writer`: the session-file writer and reader processes the ``kill -9`` campaigns start.
+- `feedback`: a table as the run recorder sees it (a real feedback hub the test feeds).
 
 Fixtures live in the ``conftest.py`` of the folder that uses them (``tests/conftest.py`` for all).
 """

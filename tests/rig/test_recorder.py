@@ -11,11 +11,12 @@ from pathlib import Path
 
 import numpy as np
 
-from drivers.controller import AccelBatch, Feedback, StreamReport, Subscription, TableStatus
+from drivers.controller import AccelBatch, StreamReport, TableStatus
 from rig.orchestrator.orchestrator import degradations, missing_tail
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.states import Progress
 from rig.session import SessionLog, read_session
+from tests.helpers.feedback import FeedbackTable as FeedbackHub
 
 SPACING_NS = 1_000_000
 """1 kHz accelerometer samples."""
@@ -24,29 +25,12 @@ PER_BATCH = 19
 """Samples per batch, as MAVLink sends them."""
 
 
-class FeedbackTable:
-    """What a :class:`RunRecorder` reads from a table: the subscriptions of a real feedback hub."""
-
-    def __init__(self) -> None:
-        self.feedback = Feedback()
-
-    def accelerations(self) -> Subscription[AccelBatch]:
-        return self.feedback.subscribe("accel")
-
-    def tilts(self) -> Subscription[object]:
-        return self.feedback.subscribe("tilt")
-
-    def statuses(self) -> Subscription[object]:
-        return self.feedback.subscribe("status")
-
-    def detections(self) -> Subscription[object]:
-        return self.feedback.subscribe("detection")
-
-    def faults(self) -> Subscription[object]:
-        return self.feedback.subscribe("fault")
+class FeedbackTable(FeedbackHub):
+    """The feedback hub; the recorder stops the table only when a write failed, which these tests never cause."""
 
     def stop(self) -> None:
         raise AssertionError("the recorder stopped the table: a write failed")
+
 
 
 def batches(first: int, last: int) -> list[AccelBatch]:

@@ -11,37 +11,17 @@ from typing import Any
 import numpy as np
 
 from analysis.table.limit_detectors import Detector, LimitDetectors
-from drivers.controller import AccelBatch, Feedback, Subscription, TableStatus
+from drivers.controller import AccelBatch, TableStatus
 from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.states import Progress
 from rig.session import SessionLog, read_session
+from tests.helpers.feedback import FeedbackTable
 
 SPACING_NS = 1_000_000
 """1 kHz accelerometer samples."""
 
-
-class FeedbackTable:
-    """What a :class:`RunRecorder` reads from a table: the subscriptions of a real feedback hub."""
-
-    def __init__(self) -> None:
-        self.feedback = Feedback()
-
-    def accelerations(self) -> Subscription[AccelBatch]:
-        return self.feedback.subscribe("accel")
-
-    def tilts(self) -> Subscription[object]:
-        return self.feedback.subscribe("tilt")
-
-    def statuses(self) -> Subscription[object]:
-        return self.feedback.subscribe("status")
-
-    def detections(self) -> Subscription[object]:
-        return self.feedback.subscribe("detection")
-
-    def faults(self) -> Subscription[object]:
-        return self.feedback.subscribe("fault")
 
 
 class CountingLog:

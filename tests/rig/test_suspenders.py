@@ -17,27 +17,7 @@ from rig.orchestrator import Orchestrator, OrchestratorState, Progress
 from rig.orchestrator.suspenders import suspensions
 from rig.sequence import load_sequence
 from rig.session import SessionLog, read_session
-
-TWO_RUNS = """\
-name = "door"
-angles_deg = [0]
-records = [
-    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] },
-    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },
-]
-
-[drive]
-corner_hz = 1.0
-settle_s = 0.3
-
-[operator]
-confirm_before_run = false
-
-[[bodies]]
-table5 = 5
-x = 0.0
-y = 0.0
-"""
+from tests.helpers.sequences import TINY
 
 
 def status(host_ns: int, inputs: tuple[str, ...] = ()) -> TableStatus:
@@ -56,7 +36,7 @@ def test_an_open_door_holds_the_sequence_until_it_closes(tmp_path: Path) -> None
     key_file = tmp_path / "rig.key"
     write_signing_key(key_file)
     path = tmp_path / "door.toml"
-    path.write_text(TWO_RUNS)
+    path.write_text(TINY)  # two records: the door holds the second
     sequence = load_sequence(path)
     log = SessionLog.create(tmp_path / "s.h5", rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
                             software_version="test")
