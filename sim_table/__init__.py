@@ -13,6 +13,8 @@ with ``mavlink://HOST:PORT``, ``zenoh://HOST:PORT/TABLE`` or ``canopen://CHANNEL
 - ``accelerometers``: the plate's motion differentiated; virtual accelerometers (specific force, plate frame).
 - ``endpoint``: the transport endpoints' interface, chosen by the listen URL's scheme.
 - ``mavlink_endpoint``, ``zenoh_endpoint``, ``canopen_endpoint``: the controller's side of each transport.
+  ``canopen_endpoint`` is the import surface of the package ``canopen`` (bus plumbing, SYNC timing, history,
+  node models, counters, the endpoint: one job per module).
 - ``process``: the emulator process (the tick loop, its options, fault injection, exit counters).
 - ``tick_profile``: the tick thread's CPU time split by stage (physics, servo, transport…), in the exit counters.
 """

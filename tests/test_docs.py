@@ -13,10 +13,6 @@ from rig.cli import app
 
 ROOT = Path(__file__).resolve().parents[1]
 
-NOT_YET = {"drivers/controller.py"}
-"""Files still citing the old ``ARCHITECTURE §N``: another session is cutting drivers/controller.py (issue 40,
-item 4); its citation means docs/architecture.md §2."""
-
 
 SKIPPED = re.compile(r"^(\.|build$|demo-output$|.*\.egg-info$)")
 """Directories that hold no source: hidden ones (.git, .venv), build outputs."""
@@ -38,13 +34,12 @@ def test_citations_of_the_architecture_page_name_its_sections() -> None:
     for path in tracked("*.py", "*.md"):
         name = str(path.relative_to(ROOT))
         body = text(path)
-        if "ARCHITECTURE §" in body and name not in {*NOT_YET, "tests/test_docs.py"}:
+        if "ARCHITECTURE §" in body and name != "tests/test_docs.py":
             old.append(name)
         for cited in re.findall(r"architecture(?:\.md|\]\(architecture\.md\)) ((?:§\d+(?:, )?)+)", body):
             unknown += [f"{name}: §{n}" for n in re.findall(r"§(\d+)", cited) if n not in sections]
     assert old == [], "cite docs/architecture.md §N, not ARCHITECTURE §N"
     assert unknown == []
-    assert all("ARCHITECTURE §" in text(ROOT / name) for name in NOT_YET), "paid: remove it from NOT_YET"
 
 
 def test_every_docs_path_and_markdown_link_resolves() -> None:
