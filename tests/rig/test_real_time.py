@@ -30,14 +30,14 @@ SLOW_ANSWER = 3.0
 
 class SlowOperator:
     """Places the bodies after :data:`SLOW_ANSWER` s; optionally has the table emergency-stopped meanwhile from a
-    second connection (a colleague at the console)."""
+    second connection (a colleague at the console: an observer, which does not claim the table but may stop it)."""
 
     def __init__(self, url: str | None = None, key: Path | None = None) -> None:
         self.url, self.key = url, key
 
     def place_bodies(self, prompt: str) -> None:
         if self.url is not None:
-            with open_table(self.url, key_file=str(self.key)) as other:
+            with open_table(self.url, key_file=str(self.key), observe=True) as other:
                 other.emergency_stop()
         time.sleep(SLOW_ANSWER)
 
