@@ -28,6 +28,8 @@ from __future__ import annotations
 
 import calendar
 import functools
+import hashlib
+import hmac
 import time
 from typing import Any
 
@@ -79,11 +81,21 @@ def signature_stream(frame: bytes) -> tuple[tuple[int, int, int], int] | None:
     return (frame[-13], frame[5], frame[6]), int.from_bytes(frame[-12:-6], "little")
 
 
+def signature_matches(key: bytes, frame: bytes) -> bool:
+    """Whether the signature of one signed MAVLink 2 ``frame`` is the one ``key`` makes of it (MAVLink 2 signing:
+    the first 6 bytes of SHA-256 over the key and the frame up to its signature)."""
+    return hmac.compare_digest(hashlib.sha256(key + frame[:-6]).digest()[:6], frame[-6:])
+
+
 def parse_guarded(mav: Any, guard: ReplayGuard, frame: bytes) -> tuple[list[Any], Freshness | None]:
     """The messages of one MAVLink 2 ``frame`` parsed by ``mav`` (signing enabled), flagged signed only when the
-    signature verified and ``guard`` found its stamp fresh, and that freshness (None: an unsigned frame). A signed
+    signature verified and ``guard`` found its stamp fresh, and that freshness (None: an unsigned frame, or one whose
+    signature is not the key's: its stamp is nobody's to judge, and the frame counts as badly signed). A signed
     message taken moves its stream in ``guard``; a stale or future one moves nothing (:func:`parse_verified`)."""
     stream = signature_stream(frame)
+    key = mav.signing.secret_key
+    if stream is not None and key is not None and not signature_matches(key, frame):
+        stream = None
     freshness = None if stream is None else guard.check(*stream)
     messages = parse_verified(mav, frame, stale=freshness not in (None, Freshness.FRESH))
     if stream is not None and freshness is Freshness.FRESH and any(msg.get_signed() for msg in messages):
