@@ -535,11 +535,7 @@ class TableController(ABC):
             return
         silent = (time.monotonic_ns() - seen) * 1e-9
         raise TableLinkLostError(f"{self.url}: table link lost: no status for {silent:.1f} s "
-                                 f"(link timeout {allowed:g} s; last: {latest.state}{self._link_lost_detail()})")
-
-    def _link_lost_detail(self) -> str:
-        """What a transport knows of a lost link beyond the silence (``"; …"``, or empty): e.g. sends that failed."""
-        return ""
+                                 f"(link timeout {allowed:g} s; last: {latest.state})")
 
     def wait(self, predicate: Callable[[], bool], timeout: float) -> bool:
         """Wait until ``predicate()`` (evaluated under the feedback lock at every publication) holds, at most

@@ -70,6 +70,7 @@ from drivers.controller import (
     Detection,
     SetpointRefusal,
     TableError,
+    TableLinkLostError,
     TableStatus,
     TableTimeoutError,
     TiltBatch,
@@ -376,7 +377,18 @@ class MavlinkTable(ChunkedStreamController):
                 self.send_failures += 1  # a datagram lost: the statuses that stop coming say the link is lost
                 self._send_failure = exc.strerror or str(exc)
 
+    def check_link(self) -> None:
+        """As the base's; a lost link's message also names the sends the network refused (module docstring)."""
+        try:
+            super().check_link()
+        except TableLinkLostError as exc:
+            detail = self._link_lost_detail()
+            if not detail:
+                raise
+            raise TableLinkLostError(f"{exc}{detail}") from None
+
     def _link_lost_detail(self) -> str:
+        """``"; N sends failed: REASON"`` once the network refused a send (empty before)."""
         failure = self._send_failure
         return f"; {self.send_failures} sends failed: {failure}" if failure is not None else ""
 
