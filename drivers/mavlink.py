@@ -38,10 +38,17 @@ Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
   SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
   each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
   END_OF_STREAM.
+- **A network that is down** (the cable pulled, the interface down: ``sendto`` fails with ENETUNREACH,
+  EHOSTUNREACH, ENETDOWN, EHOSTDOWN or ECONNREFUSED) loses the datagram, as UDP loses any: it is counted
+  (``send_failures`` in :meth:`MavlinkTable.link_stats`), the heartbeat thread goes on, and the statuses that stop
+  coming end the stream as :class:`~drivers.controller.TableLinkLostError` after the link timeout, its message
+  naming the failed sends. (The error once escaped the stream as a bare ``OSError``: the run ended ``faulted``
+  with ``[Errno 101] Network is unreachable`` and the heartbeat thread died.)
 """
 
 from __future__ import annotations
 
+import errno
 import ipaddress
 import secrets
 import threading
@@ -63,6 +70,7 @@ from drivers.controller import (
     Detection,
     SetpointRefusal,
     TableError,
+    TableLinkLostError,
     TableStatus,
     TableTimeoutError,
     TiltBatch,
@@ -188,6 +196,9 @@ class MavlinkTable(ChunkedStreamController):
         reordered within its stream, or opening a stream too far behind) or one too far ahead
         (:mod:`protocols.replay`)."""
         self._guard = replay_guard()
+        self.send_failures = 0
+        """Datagrams the network did not take (:data:`NETWORK_DOWN`): lost, as UDP loses them."""
+        self._send_failure: str | None = None  # the last one's reason
 
     # ----- connection -----------------------------------------------------------------------------------
 
@@ -358,7 +369,28 @@ class MavlinkTable(ChunkedStreamController):
             raise TableError(f"{self.url}: not connected")
         with self._send_lock:
             follow_wall_clock(link.mav, self._guard)
-            link.send(msg)
+            try:
+                link.send(msg)
+            except OSError as exc:
+                if exc.errno not in NETWORK_DOWN:
+                    raise
+                self.send_failures += 1  # a datagram lost: the statuses that stop coming say the link is lost
+                self._send_failure = exc.strerror or str(exc)
+
+    def check_link(self) -> None:
+        """As the base's; a lost link's message also names the sends the network refused (module docstring)."""
+        try:
+            super().check_link()
+        except TableLinkLostError as exc:
+            detail = self._link_lost_detail()
+            if not detail:
+                raise
+            raise TableLinkLostError(f"{exc}{detail}") from None
+
+    def _link_lost_detail(self) -> str:
+        """``"; N sends failed: REASON"`` once the network refused a send (empty before)."""
+        failure = self._send_failure
+        return f"; {self.send_failures} sends failed: {failure}" if failure is not None else ""
 
     # ----- commands (ChunkedStreamController) ---------------------------------------------------------
 
@@ -428,9 +460,13 @@ class MavlinkTable(ChunkedStreamController):
         first)."""
         beat = self.last_controller_heartbeat_ns
         return {**self.clock.stats(), **self.refused, "accel_batches_lost": self.accel_batches_lost,
-                "tilt_batches_lost": self.tilt_batches_lost,
+                "tilt_batches_lost": self.tilt_batches_lost, "send_failures": self.send_failures,
                 "duplicate_detections": self.feedback.duplicate_detections,
                 "controller_heartbeat_age_s": None if beat is None else (time.monotonic_ns() - beat) * 1e-9}
+
+
+NETWORK_DOWN = frozenset({errno.ENETUNREACH, errno.EHOSTUNREACH, errno.ENETDOWN, errno.EHOSTDOWN, errno.ECONNREFUSED})
+"""``sendto`` errors that mean the network did not take the datagram (no route, interface down, refused)."""
 
 
 def _is_loopback(host: str) -> bool:

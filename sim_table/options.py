@@ -109,7 +109,8 @@ def argument_parser() -> argparse.ArgumentParser:
                         "beside --key-file, KEYFILE.<transport>-replay.json; required with the key from "
                         f"${KEY_ENV}); mavlink and zenoh only")
     p.add_argument("--rig-config", type=Path, metavar="FILE",
-                   help="rig configuration TOML (default: Table IV, default hexapod)")
+                   help="rig configuration TOML (default: Table IV, default hexapod); its [network] gives a zenoh "
+                        "link's TLS identity when --tls-ca/--tls-cert/--tls-key are not given")
     p.add_argument("--leg-noise", type=float, metavar="M",
                    help="σ of a leg-length reading [m] (default: sim_table.actuators.ActuatorSettings's, 1 µm)")
     p.add_argument("--dynamics", choices=DYNAMICS, default="lag",

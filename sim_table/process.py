@@ -68,7 +68,7 @@ import numpy as np
 from analysis.table.model import TableModel
 from protocols.signing_key import KEY_ENV, load_signing_key
 from protocols.zenoh.config import PLAIN, LinkSecurity
-from protocols.zenoh.tls import load_tls
+from protocols.zenoh.tls import TlsOptions, load_tls
 from sim_table.accelerometers import Accelerometers, PlateTrack
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Refused, Snapshot, State
@@ -561,17 +561,21 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
                 raise ValueError(f"--replay-state FILE is needed with the key from ${KEY_ENV}: the controller keeps "
                                  "the signatures' last stamps there across restarts (docs/table-controller.md)")
             replay_state = default_path(args.key_file, scheme)
+        table = TableModel.from_toml(args.rig_config) if args.rig_config else TableModel()
+        tls = load_tls(args.tls_ca, args.tls_cert, args.tls_key)
+        if tls is None and scheme == "zenoh" and table.network.given:  # the rig configuration's [network]
+            network = table.network
+            tls = load_tls(network.ca, network.cert, network.key, names=TlsOptions(*network.where))
         config = EmulatorConfig(
             listen=args.listen, key=key, speed=args.speed,
             specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
-            table=TableModel.from_toml(args.rig_config) if args.rig_config else TableModel(),
+            table=table,
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
             stall_at=args.stall_at, leg_stall=args.leg_stall, door_open=args.door_open, seed=args.seed,
             watchdog=args.watchdog,
-            buffer=args.buffer, security=LinkSecurity(load_tls(args.tls_ca, args.tls_cert, args.tls_key),
-                                                      args.insecure_plain_tcp),
+            buffer=args.buffer, security=LinkSecurity(tls, args.insecure_plain_tcp),
             replay_state=replay_state if signs else None)
     except ValueError as exc:
         p.error(str(exc))

@@ -54,6 +54,9 @@ its key; a value outside it is refused with the range (``FILE:LINE: key: must be
     [limit_detectors.accel.x]          # levels on measured channels (analysis/table/limit_detectors.py)
     abort_high_g = 0.6
 
+    [network]                          # this machine's TLS identity on the lab network (analysis/table/network.py)
+    ca = "certs/ca.pem"                # the three paths relative to this file; not kept in a session file
+
 Only a regular file of at most 1 MiB is read (a FIFO, a device or a symlink to one is refused unread).
 Errors in a file raise `analysis.table.limits.TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
 :func:`configuration_dict` writes the same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit
@@ -87,6 +90,7 @@ from analysis.table.limits import (
 )
 from analysis.table.link import RANGES as LINK_KEYS
 from analysis.table.link import LinkSettings
+from analysis.table.network import NetworkSettings, read_network
 from analysis.table.sensors import SensorSheets, read_sensors
 from analysis.table.toml_check import TomlChecker, TomlFileError, read_toml, shown
 from analysis.table.toml_lines import KeyPath
@@ -104,6 +108,8 @@ class TableConfiguration(NamedTuple):
     drives: DriveSettings
     sensors: SensorSheets
     detectors: LimitDetectors
+    network: NetworkSettings = NetworkSettings()
+    """This machine's TLS identity (``[network]``): not written by :func:`configuration_dict`."""
 
 
 def configuration_dict(configuration: TableConfiguration) -> dict[str, Any]:
@@ -237,7 +243,7 @@ class _Reader(TomlChecker):
 
     def configuration(self, data: Mapping[str, Any]) -> TableConfiguration:
         top = self.table(data, (), ("table", "limits", "hexapod", "dynamics", "controller", "drives", "sensors",
-                                       "limit_detectors"))
+                                       "limit_detectors", "network"))
         table = self.quantities(self.table(top.get("table", {}), ("table",), _keys(_TABLE_SPEC)), ("table",),
                                 _TABLE_SPEC, {"controller_rate": 1000.0})
         limits = self.table(top.get("limits", {}), ("limits",), (*AXES, "tilt"))
@@ -256,7 +262,8 @@ class _Reader(TomlChecker):
                                   link=self.link(top.get("controller", {})),
                                   drives=read_drives(self, top.get("drives")),
                                   sensors=read_sensors(self, top.get("sensors")),
-                                  detectors=read_limit_detectors(self, top.get("limit_detectors")))
+                                  detectors=read_limit_detectors(self, top.get("limit_detectors")),
+                                  network=read_network(self, top.get("network")))
 
     def link(self, value: Any) -> LinkSettings:
         """The ``[controller]`` section (``analysis.table.link``); errors name its line and key."""

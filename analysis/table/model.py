@@ -50,6 +50,7 @@ from analysis.table.limits import (
     positive,
 )
 from analysis.table.link import LinkSettings
+from analysis.table.network import NetworkSettings
 from analysis.table.sensors import SensorSheets
 
 __all__ = [
@@ -87,6 +88,9 @@ class TableModel:
     """The accelerometers' calibration sheets (``[sensors]``, ``analysis.table.sensors``)."""
     detectors: LimitDetectors = field(default_factory=LimitDetectors)
     """Warning and abort levels on measured channels (``[limit_detectors]``, ``analysis.table.limit_detectors``)."""
+    network: NetworkSettings = field(default_factory=NetworkSettings, compare=False)
+    """This machine's TLS identity on the lab network (``[network]``, ``analysis.table.network``): not the table's,
+    so not compared and not written by :meth:`to_dict`."""
 
     def __post_init__(self) -> None:
         if not isinstance(self.limits, TableLimits) or not isinstance(self.geometry, HexapodGeometry):

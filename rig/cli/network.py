@@ -1,6 +1,8 @@
 """The lab-network options every zenoh command shares (``--tls-ca``, ``--tls-cert``, ``--tls-key``,
 ``--insecure-plain-tcp``; ``docs/lab-network.md``) and what they become: a ``protocols.zenoh.LinkSecurity`` for a
-zenoh session of this process, and the table driver's options for a ``zenoh://`` table."""
+zenoh session of this process, and the table driver's options for a ``zenoh://`` table. When none of the three
+files is given, the rig configuration's ``[network]`` (``analysis.table.network``) gives them
+(:func:`configured_security`)."""
 
 from __future__ import annotations
 
@@ -12,6 +14,7 @@ import typer
 from rig.cli._common import err_console, fail
 
 if TYPE_CHECKING:  # imported where used (rig --help loads no zenoh)
+    from analysis.table.network import NetworkSettings
     from protocols.zenoh import LinkSecurity
 
 TlsCa = Annotated[Path | None, typer.Option("--tls-ca", metavar="FILE",
@@ -52,3 +55,19 @@ def table_options(url: str | None, security: LinkSecurity) -> dict[str, Any]:
     if url is not None and not url.lower().startswith("zenoh://"):
         fail(f"--tls-ca/--tls-cert/--tls-key and --insecure-plain-tcp apply to a zenoh:// table, not {url}")
     return {"tls": security.tls, "insecure_plain_tcp": security.insecure}
+
+
+def configured_security(given: LinkSecurity, network: NetworkSettings) -> LinkSecurity:
+    """``given`` (the command line's) when it names a TLS identity or ``network`` names none; else the rig
+    configuration's ``[network]`` identity, its files checked (``protocols.zenoh.tls.load_tls``) and each problem
+    named ``FILE:LINE: network.KEY``; exits 2 when they cannot be used."""
+    if given.tls is not None or not network.given:
+        return given
+    from protocols.zenoh import LinkSecurity
+    from protocols.zenoh.tls import TlsError, TlsOptions, load_tls
+
+    try:
+        return LinkSecurity(load_tls(network.ca, network.cert, network.key, names=TlsOptions(*network.where)),
+                            given.insecure)
+    except TlsError as exc:
+        fail(str(exc))

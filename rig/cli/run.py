@@ -31,7 +31,16 @@ from rich.prompt import Confirm, Prompt
 from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail, fail_with, require_file
-from rig.cli.network import INSECURE_NOTE, Insecure, TlsCa, TlsCert, TlsKey, link_security, table_options
+from rig.cli.network import (
+    INSECURE_NOTE,
+    Insecure,
+    TlsCa,
+    TlsCert,
+    TlsKey,
+    configured_security,
+    link_security,
+    table_options,
+)
 from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 from rig.emulator import parse_speed
 
@@ -370,7 +379,10 @@ def register(app: typer.Typer) -> None:
                 sequence = load_checked(sequence_file)
                 path = output or default_session_path(sequence)
             choice = choose_table(sequence, table, emulate, speed_given, stored)
-            link = {} if choice.emulate else table_options(choice.url or sequence.table_url, security)
+            url_given = choice.url or sequence.table_url
+            if url_given is not None and url_given.lower().startswith("zenoh://"):  # else [network] does not apply
+                security = configured_security(security, sequence.table.network)
+            link = {} if choice.emulate else table_options(url_given, security)
             with table_for(sequence, choice.url, choice.emulate, key_file, choice.speed, link) as (url, options,
                                                                                                   counters):
                 log = resume_log(path) if resume is not None else create_log(sequence, path, choice)

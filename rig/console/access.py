@@ -1,5 +1,5 @@
 """Who may use the console: the tokens file (``--tokens FILE``), re-read when it changes, so that a token is added or
-revoked without restarting the console.
+revoked without restarting the console, and a token may carry the date-time it expires at.
 
 A tokens file is TOML, readable by its owner only (mode 0600, as the rig's key), one table per token::
 
@@ -12,6 +12,7 @@ A tokens file is TOML, readable by its owner only (mode 0600, as the rig's key),
     name = "tablet"
     role = "viewer"                # may watch only: its controls are refused and logged
     token = "q9Z…"
+    expires = 2026-12-31T18:00:00Z # optional: refused from then on (a date-time with its offset, Z or +01:00)
 
 (a token: ``python -c "import secrets; print(secrets.token_urlsafe(32))"``). The operator token derived from the rig's
 key (:mod:`rig.console.token`) stays an operator's, named ``rig key``. With a tokens file the console shows nothing
@@ -20,7 +21,9 @@ without a token: the feed, the state and the report need a browser session opene
 The file is looked at on every check (its size, modification time and inode); when it changed it is read again. A
 file that no longer reads (bad TOML, a bad entry, mode opened to others, removed) grants nothing until it is fixed —
 the console fails closed — and the reason is logged once. Browser sessions are checked against the file on every
-request: revoking a token ends the sessions opened with it.
+request: revoking a token ends the sessions opened with it, and so does its expiry. A token past its ``expires`` is
+refused with a message that says it expired and when (:meth:`TokensFile.expired`), and the refusal is logged once per
+token and version of the file.
 """
 
 from __future__ import annotations
@@ -35,6 +38,7 @@ import threading
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
+from datetime import UTC, datetime
 from pathlib import Path
 
 ROLES = ("operator", "viewer")
@@ -54,14 +58,25 @@ class AccessError(ValueError):
 
 @dataclass(frozen=True)
 class Grant:
-    """What a token gives: the ``name`` of its holder and its ``role`` (one of :data:`ROLES`)."""
+    """What a token gives: the ``name`` of its holder and its ``role`` (one of :data:`ROLES`), until ``expires``
+    (an aware date-time; None: no expiry)."""
 
     name: str
     role: str
+    expires: datetime | None = None
 
     @property
     def may_command(self) -> bool:
         return self.role == "operator"
+
+    def expired(self, now: datetime) -> bool:
+        """Whether the token is past its expiry at ``now`` (an aware date-time)."""
+        return self.expires is not None and now >= self.expires
+
+    def expiry_text(self) -> str:
+        """Its expiry in UTC, as the console says it (``2026-12-31T18:00:00Z``)."""
+        assert self.expires is not None
+        return self.expires.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 RIG_KEY_GRANT = Grant("rig key", "operator")
@@ -99,9 +114,9 @@ def read_tokens(path: Path) -> dict[str, Grant]:
     names: set[str] = set()
     for number, entry in enumerate(entries, 1):
         where = f"tokens file {path}: [[token]] #{number}"
-        extra = sorted(set(entry) - {"name", "role", "token"})
+        extra = sorted(set(entry) - {"name", "role", "token", "expires"})
         if extra:
-            raise AccessError(f"{where}: unknown field {extra[0]!r}; expected name, role, token")
+            raise AccessError(f"{where}: unknown field {extra[0]!r}; expected name, role, token, expires")
         name, role, token = entry.get("name"), entry.get("role"), entry.get("token")
         if not isinstance(name, str) or not _NAME.fullmatch(name) or name == RIG_KEY_GRANT.name:
             raise AccessError(f"{where}: name {name!r}: expected 1-63 letters, digits, ' ', '_', '.', '@' or '-' "
@@ -113,11 +128,15 @@ def read_tokens(path: Path) -> dict[str, Grant]:
         if not isinstance(token, str) or len(token) < MIN_TOKEN or not _TOKEN.fullmatch(token):
             raise AccessError(f"{where} ({name}): token: expected at least {MIN_TOKEN} characters of "
                               f"[A-Za-z0-9_-] (python -c \"import secrets; print(secrets.token_urlsafe(32))\")")
+        expires = entry.get("expires")
+        if expires is not None and (not isinstance(expires, datetime) or expires.utcoffset() is None):
+            raise AccessError(f"{where} ({name}): expires {expires!r}: expected a date-time with its offset, "
+                              f"e.g. expires = 2026-12-31T18:00:00Z or 2026-12-31T19:00:00+01:00")
         digest = _digest(token)
         if digest in grants:
             raise AccessError(f"{where} ({name}): the same token as {grants[digest].name!r}")
         names.add(name)
-        grants[digest] = Grant(name, role)
+        grants[digest] = Grant(name, role, expires)
     return grants
 
 
@@ -125,12 +144,15 @@ class TokensFile:
     """The tokens file ``path``, re-read when it changes (module docstring); thread-safe. The first read raises
     :class:`AccessError`; a later unreadable version grants nothing and is said once to ``say``."""
 
-    def __init__(self, path: Path, say: Callable[[str], None] = lambda message: None) -> None:
+    def __init__(self, path: Path, say: Callable[[str], None] = lambda message: None,
+                 clock: Callable[[], datetime] = lambda: datetime.now(UTC)) -> None:
         self.path = path
         self._say = say
+        self._clock = clock
         self._lock = threading.Lock()
         self._grants = read_tokens(path)
         self._seen = self._signature()
+        self._told: set[str] = set()  # the names whose expiry was logged since the file was last read
 
     def _signature(self) -> tuple[int, int, int] | None:
         try:
@@ -144,6 +166,7 @@ class TokensFile:
             seen = self._signature()
             if seen != self._seen:
                 self._seen = seen
+                self._told.clear()
                 try:
                     self._grants = read_tokens(self.path)
                     self._say(f"tokens file {self.path} read again: {len(self._grants)} tokens")
@@ -152,13 +175,31 @@ class TokensFile:
                     self._say(f"{exc}: no token of the file is accepted until it is fixed")
             return self._grants
 
-    def grant(self, token: str | None) -> Grant | None:
-        """The grant of ``token`` in the file as it is now (None: not there, or revoked)."""
+    def _entry(self, token: str | None) -> Grant | None:
         if not token:
             return None
         digest = _digest(token.strip())
         grants = self._current()
         return next((grant for known, grant in grants.items() if hmac.compare_digest(known, digest)), None)
+
+    def grant(self, token: str | None) -> Grant | None:
+        """The grant of ``token`` in the file as it is now (None: not there, revoked or expired; an expired token's
+        refusal is logged once per token and version of the file)."""
+        grant = self._entry(token)
+        if grant is None or not grant.expired(self._clock()):
+            return grant
+        with self._lock:
+            first = grant.name not in self._told
+            self._told.add(grant.name)
+        if first:
+            self._say(f"token of {grant.name!r} refused: it expired at {grant.expiry_text()}")
+        return None
+
+    def expired(self, token: str | None) -> Grant | None:
+        """The entry of ``token`` when it is in the file but past its expiry (None otherwise): what a refusal
+        names to say why."""
+        grant = self._entry(token)
+        return grant if grant is not None and grant.expired(self._clock()) else None
 
 
 def _digest(token: str) -> str:

@@ -123,9 +123,22 @@ class Console:
                    else self.browsers.find(cookie))
         if session is not None and self.grant_of(session.token) != session.grant:
             self.browsers.close(cookie)
-            self.say(f"browser session {session.number} of {session.grant.name!r} ended: its token was revoked")
+            why = "expired" if self.expired_of(session.token) is not None else "was revoked"
+            self.say(f"browser session {session.number} of {session.grant.name!r} ended: its token {why}")
             return None
         return session
+
+    def expired_of(self, token: str | None) -> Grant | None:
+        """The tokens file's entry of ``token`` when it is there but past its expiry (None otherwise)."""
+        return self.tokens.expired(token) if self.tokens is not None else None
+
+    def expiry_refusal(self, token: str | None) -> str | None:
+        """The refusal of an expired ``token``, naming its holder and when it expired (None: not an expired one)."""
+        grant = self.expired_of(token)
+        if grant is None:
+            return None
+        return (f"the token of {grant.name!r} expired at {grant.expiry_text()}: ask the operator for a new one "
+                f"(the tokens file's expires)")
 
     def watch_refused(self, conn: HTTPConnection) -> str | None:
         """Why this request may not watch (None: it may). Without a tokens file anyone who reaches the console
@@ -134,7 +147,8 @@ class Console:
             return None
         if self.session_of(conn, csrf=False) is not None or self.grant_of(conn.headers.get("x-operator-token")):
             return None
-        return "this console shows the test to token holders only: give a viewer's or an operator's token"
+        return (self.expiry_refusal(conn.headers.get("x-operator-token"))
+                or "this console shows the test to token holders only: give a viewer's or an operator's token")
 
     def deliver(self, kind: str, body: dict[str, Any]) -> None:
         """A telemetry publication (in the event loop's thread): folded into the state and offered to every
@@ -234,6 +248,9 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         given = request.headers.get("x-operator-token", "").strip()
         grant = console.grant_of(given)
         if grant is None:
+            expired = console.expiry_refusal(given)
+            if expired is not None:
+                return refused(403, f"refused: {expired}")
             return refused(403, "refused: the operator token is missing or wrong (rig service token prints it)")
         session = console.browsers.open(client_of(request), browser_of(request), grant, given)
         message = ("operator token accepted: controls unlocked for this browser" if grant.may_command else
@@ -274,6 +291,9 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
             return problem
         who = caller(request)
         if who is None:
+            expired = console.expiry_refusal(request.headers.get("x-operator-token"))
+            if expired is not None:
+                return refused(403, f"refused: {expired}")
             return refused(403, "refused: unlock the controls with the operator token first (rig service token "
                                 "prints it); the browser session is missing, expired or its CSRF token wrong")
         source, grant = who

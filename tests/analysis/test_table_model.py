@@ -502,7 +502,7 @@ leg_speed_m_s = 0.9
     ("[table]\ncontroller_rate_hz = \n", "rig.toml:2: TOML syntax error: Invalid value (column 22)"),
     ("[limit.surge]\ndisplacement_m = 0.3\n",
      "rig.toml:1: limit: unknown key (did you mean 'limits'?); expected one of table, limits, hexapod, dynamics, "
-     "controller, drives, sensors, limit_detectors"),
+     "controller, drives, sensors, limit_detectors, network"),
     ("[limits.tilt]\nangle_deg = \"10\"\n", "rig.toml:2: limits.tilt.angle_deg: expected a number, got '10'"),
     ("[limits.tilt]\nangle_deg = 10\nangle_rad = 0.2\n",
      "rig.toml:3: limits.tilt.angle_rad: give either angle_deg or angle_rad, not both"),

@@ -7,6 +7,7 @@
 - `console`: the console's test controls and headers, and Chromium's flags for the browser tests.
 - `session_writer`: the session-file writer and reader processes the ``kill -9`` campaigns start.
 - `feedback`: a table as the run recorder sees it (a real feedback hub the test feeds).
+- `link_cut`: the rig's side of the link-loss test, run in its network namespace (plays, then takes its link down).
 
 Fixtures live in the ``conftest.py`` of the folder that uses them (``tests/conftest.py`` for all).
 """

@@ -1,7 +1,8 @@
 """Who may use the console (issue 37 item 2), in process with starlette's TestClient: the tokens file's operators and
 viewers, a viewer's control refused and logged, a token revoked by editing the file without a restart, the source of
-a control from the transport and not from the request, the tokens file's bad input, and the HTTPS certificate given or
-made on first use; one test serves the page over real HTTPS (integration)."""
+a control from the transport and not from the request, the tokens file's bad input, a token past its expiry refused
+and logged, and the HTTPS certificate given or made on first use; one test serves the page over real HTTPS
+(integration)."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import threading
 import time
 import urllib.error
 import urllib.request
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -139,6 +141,43 @@ def test_a_tokens_file_broken_while_serving_grants_nothing(lab: dict[str, Any]) 
     assert any("no token of the file is accepted until it is fixed" in line for line in lab["said"])
 
 
+def test_an_expired_token_is_refused_with_a_clear_message_and_logged(tmp_path: Path) -> None:
+    now = [datetime(2026, 12, 6, 9, 0, tzinfo=UTC)]
+    stale, shift = secrets.token_urlsafe(32), secrets.token_urlsafe(32)
+    path = tmp_path / "tokens.toml"
+    path.write_text(f'[[token]]\nname = "last-week"\nrole = "operator"\ntoken = "{stale}"\n'
+                    f'expires = 2026-12-01T18:00:00+01:00\n\n'
+                    f'[[token]]\nname = "day-shift"\nrole = "operator"\ntoken = "{shift}"\n'
+                    f'expires = 2026-12-06T17:00:00Z\n')
+    path.chmod(0o600)
+    said: list[str] = []
+    controls = RecordingControls()
+    console = Console(controls, None, allowed_hosts={HOST}, say=said.append,
+                      tokens=TokensFile(path, said.append, clock=lambda: now[0]))
+    with TestClient(create_app(console), base_url=f"https://{HOST}") as client:
+        for _ in range(2):
+            refused = client.post("/api/token", headers={**SAME, "X-Operator-Token": stale})
+            assert refused.status_code == 403
+            assert refused.json()["message"] == ("refused: the token of 'last-week' expired at 2026-12-01T17:00:00Z: "
+                                                 "ask the operator for a new one (the tokens file's expires)")
+        by_header = client.post("/api/control/pause", headers={**SAME, "X-Operator-Token": stale})
+        assert by_header.status_code == 403 and "'last-week' expired at" in by_header.json()["message"]
+        watching = client.get("/api/state", headers={"Host": HOST, "X-Operator-Token": stale})
+        assert watching.status_code == 403 and "expired at" in watching.json()["message"]
+        opened = unlock(client, shift)  # before its expiry: a browser session, and its controls
+        assert client.post("/api/control/pause", headers={**SAME, "X-Console-CSRF": opened["csrf"]}).status_code == 200
+        now[0] = datetime(2026, 12, 6, 17, 0, tzinfo=UTC)  # the day shift's token expires: its session ends
+        after = client.post("/api/control/resume", headers={**SAME, "X-Console-CSRF": opened["csrf"]})
+        assert after.status_code == 403
+        again = client.post("/api/control/resume", headers={**SAME, "X-Operator-Token": shift})
+        assert again.status_code == 403 and "'day-shift' expired at 2026-12-06T17:00:00Z" in again.json()["message"]
+    assert [command for command, _ in controls.calls] == ["pause"]
+    expiries = [line for line in said if "refused: it expired" in line]
+    assert expiries == ["token of 'last-week' refused: it expired at 2026-12-01T17:00:00Z",
+                        "token of 'day-shift' refused: it expired at 2026-12-06T17:00:00Z"]  # each logged once
+    assert any("of 'day-shift' ended: its token expired" in line for line in said)
+
+
 @pytest.mark.parametrize(("text", "mode", "expected"), [
     ('[[token]]\nname = "a"\nrole = "operator"\ntoken = "' + "x" * 40 + '"\n', 0o644, "mode 0644 .* chmod 600"),
     ('[[token]]\nname = "a"\nrole = "operator"\ntoken = "short"\n', 0o600,
@@ -146,7 +185,11 @@ def test_a_tokens_file_broken_while_serving_grants_nothing(lab: dict[str, Any]) 
     ('[[token]]\nname = "a"\nrole = "admin"\ntoken = "' + "x" * 40 + '"\n', 0o600,
      r"#1 \(a\): role 'admin': expected one of operator, viewer"),
     ('[[token]]\nname = "a"\nrole = "viewer"\ntoken = "' + "x" * 40 + '"\nexpires = 3\n', 0o600,
-     "unknown field 'expires'"),
+     r"#1 \(a\): expires 3: expected a date-time with its offset"),
+    ('[[token]]\nname = "a"\nrole = "viewer"\ntoken = "' + "x" * 40 + '"\nexpires = 2026-12-31T18:00:00\n', 0o600,
+     r"#1 \(a\): expires .*: expected a date-time with its offset, e.g. expires = 2026-12-31T18:00:00Z"),
+    ('[[token]]\nname = "a"\nrole = "viewer"\ntoken = "' + "x" * 40 + '"\nvalid = 3\n', 0o600,
+     "unknown field 'valid'; expected name, role, token, expires"),
     ('[[token]]\nname = "a"\nrole = "viewer"\n\ntoken = = 1\n', 0o600, r"at line 5, column 9"),
     ('[[token]]\nname = "rig key"\nrole = "viewer"\ntoken = "' + "x" * 40 + '"\n', 0o600, "name 'rig key'"),
 ])

@@ -1,6 +1,7 @@
 """The lab network in process (docs/lab-network.md): the zenoh session configuration with a TLS identity, the checks
-of the TLS files, the certificates ``rig certs make`` writes, and the command line's refusals. No socket is opened
-(the links themselves: tests/transports/test_lab_network_netns.py)."""
+of the TLS files, the certificates ``rig certs make`` writes, the command line's refusals, and the rig
+configuration's ``[network]`` (read, refused with FILE:LINE, used by ``rig run`` and the emulator). No socket is
+opened (the links themselves: tests/transports/test_lab_network_netns.py)."""
 
 from __future__ import annotations
 
@@ -13,10 +14,15 @@ import pytest
 from cryptography import x509
 from typer.testing import CliRunner
 
+from analysis.table.limits import TableModelError
+from analysis.table.model import TableModel
 from protocols.zenoh import EndpointError, LinkSecurity, session_config
 from protocols.zenoh.tls import TlsError, TlsFiles, TlsOptions, load_tls
 from rig.certs import CertError, make_identity
 from rig.cli import app
+from rig.cli.network import configured_security
+from sim_table.process import parse_args
+from tests.helpers.sequences import TINY
 
 
 @pytest.fixture
@@ -144,3 +150,73 @@ def test_rig_commands_refuse_a_partial_identity_in_one_line(lab: Path) -> None:
     assert result.stderr.strip().splitlines() == [
         "error: --tls-ca, --tls-key given without --tls-cert: a TLS identity is the CA, the certificate and its "
         "key together"]
+
+
+# ----- the rig configuration's [network] -----------------------------------------------------------------------
+
+
+def _rig_toml(folder: Path, body: str) -> Path:
+    path = folder / "rig.toml"
+    path.write_text("[table]\ncontroller_rate_hz = 1000\n\n" + body)
+    return path
+
+
+def test_the_rig_toml_names_the_tls_identity_relative_to_its_folder(lab: Path) -> None:
+    folder = lab.parent
+    path = _rig_toml(folder, '[network]\nca = "certs/ca.pem"\ncert = "certs/rig.pem"\nkey = "certs/rig.key"\n')
+    model = TableModel.from_toml(path)
+    assert (model.network.ca, model.network.cert, model.network.key) == (lab / "ca.pem", lab / "rig.pem",
+                                                                         lab / "rig.key")
+    assert model.network.where == (f"{path}:5: network.ca", f"{path}:6: network.cert", f"{path}:7: network.key")
+    assert model == TableModel() and "network" not in model.to_dict()  # the machine's, not the table's
+    assert not TableModel().network.given
+    security = configured_security(LinkSecurity(), model.network)
+    assert security.tls == load_tls(*_files(lab, "rig"))
+    given = LinkSecurity(load_tls(*_files(lab, "table")))
+    assert configured_security(given, model.network) is given  # the command line's options win
+
+
+@pytest.mark.parametrize(("body", "expected"), [
+    ('[network]\nkey = "certs/rig.key"\n',
+     r"rig\.toml:5: network\.key: network\.key given without network\.ca and network\.cert: a TLS identity is"),
+    ('[network]\nca = "certs/ca.pem"\ncert = "certs/nope.pem"\nkey = "certs/rig.key"\n',
+     r"rig\.toml:6: network\.cert: this process's certificate '.*certs/nope\.pem': no such file$"),
+    ('[network]\nca = "certs"\ncert = "certs/rig.pem"\nkey = "certs/rig.key"\n',
+     r"rig\.toml:5: network\.ca: the lab's CA certificate '.*certs': not a regular file$"),
+    ('[network]\nca = "certs/ca.pem"\ncert = "certs/rig.pem"\nkey = 3\n',
+     r"rig\.toml:7: network\.key: expected the path of its private key \(a string\), got 3$"),
+    ('[network]\nca = "certs/ca.pem"\ncertificate = "certs/rig.pem"\n',
+     r"rig\.toml:6: network\.certificate: unknown key.*expected one of ca, cert, key$"),
+])
+def test_a_bad_network_table_is_refused_with_file_line_and_field(lab: Path, body: str, expected: str) -> None:
+    with pytest.raises(TableModelError, match=expected) as raised:
+        TableModel.from_toml(_rig_toml(lab.parent, body))
+    assert "\n" not in str(raised.value)
+
+
+def test_the_rig_toml_identity_is_checked_where_it_is_used_and_named_by_line(lab: Path, tmp_path: Path) -> None:
+    other = make_identity(tmp_path / "other", "rig")  # another lab's CA signed it
+    path = _rig_toml(lab.parent, f'[network]\nca = "certs/ca.pem"\ncert = "{other.certificate}"\n'
+                                 f'key = "{other.key}"\n')
+    sequence = tmp_path / "seq.toml"
+    sequence.write_text(f'table_url = "zenoh://10.231.0.2:7447/lab"\n{TINY}\n[rig]\nconfig = "{path}"\n')
+    result = CliRunner().invoke(app, ["run", str(sequence), "--yes", "-o", str(tmp_path / "s.h5")])
+    assert result.exit_code == 2, result.output
+    [line] = result.stderr.strip().splitlines()
+    assert line.startswith(f"error: {path}:6: network.cert {other.certificate}: ") and "CA" in line
+    assert not (tmp_path / "s.h5").exists()  # refused before a session file or a link
+
+
+def test_rig_emulate_takes_the_rig_toml_identity_for_zenoh_only(lab: Path, key_file: Path) -> None:
+    path = _rig_toml(lab.parent, '[network]\nca = "certs/ca.pem"\ncert = "certs/table.pem"\nkey = "certs/table.key"\n')
+    config, _, _ = parse_args(["--listen", "zenoh://10.231.0.2:7447/lab", "--key-file", str(key_file),
+                               "--rig-config", str(path)])
+    assert config.security == LinkSecurity(load_tls(*_files(lab, "table")))
+    config, _, _ = parse_args(["--listen", "mavlink://127.0.0.1:0", "--key-file", str(key_file),
+                               "--rig-config", str(path)])
+    assert config.security == LinkSecurity()  # MAVLink has no TLS: the [network] of the file does not apply
+    given = load_tls(*_files(lab, "rig"))  # the options win over the file (its identity would be the table's)
+    config, _, _ = parse_args(["--listen", "zenoh://127.0.0.1:7447/lab", "--key-file", str(key_file),
+                               "--rig-config", str(path), "--tls-ca", str(given.ca), "--tls-cert",
+                               str(given.certificate), "--tls-key", str(given.key)])
+    assert config.security.tls == given

@@ -5,12 +5,16 @@ the test did not make.
 
 ``rig run`` plays a one-run sequence on the table over MAVLink and over zenoh with mutual TLS; a client with a
 certificate of another CA, one that trusts another CA, and a plain ``tcp/`` table URL off loopback are each refused
-with one line that says which.
+with one line that says which; the link taken down mid-stream (``ip link set va down`` in the rig's namespace) ends
+the run ``interrupted: table link lost`` within the link timeout, the feedback up to the cut kept in the session
+file, and the controller stops the table by itself.
 """
 
 from __future__ import annotations
 
+import errno
 import json
+import os
 import shlex
 import shutil
 import subprocess
@@ -19,10 +23,13 @@ from pathlib import Path
 
 import pytest
 
+from analysis.table.link import LinkSettings
+from drivers.controller import LINK_GRACE, WAIT_SLICE
 from protocols.signing_key import write_signing_key
 from rig.certs import make_identity
 from rig.emulator import specimen_flags
 from rig.sequence import load_sequence
+from rig.session import read_session
 
 pytestmark = pytest.mark.integration  # starts processes and opens sockets (tests/conftest.py)
 
@@ -80,9 +87,10 @@ def _two_hosts(table_command: list[str], table_log: Path, rig_command: list[str]
                           cwd=ROOT)
 
 
-def _sequence(tmp_path: Path) -> tuple[Path, list[str]]:
+def _sequence(tmp_path: Path, window: str = "[0.5, 2.0]") -> tuple[Path, list[str]]:
     path = tmp_path / "labnet.toml"
-    path.write_text(_SEQUENCE.format(rig_config=str(ROOT / "examples" / "rig-table4.toml")))
+    text = _SEQUENCE.format(rig_config=str(ROOT / "examples" / "rig-table4.toml"))
+    path.write_text(text.replace("window_s = [0.5, 2.0]", f"window_s = {window}"))
     return path, specimen_flags(load_sequence(path).bodies)
 
 
@@ -184,3 +192,53 @@ def test_rig_table_list_finds_the_table_across_hosts_over_tls(tmp_path: Path, na
     assert json.loads(done.stdout) == {"found": [{
         "name": "lab", "role": "table", "transport": f"zenoh mutual TLS via tls/{TABLE_ADDRESS}:7447",
         "state": "idle"}]}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("transport", ["mavlink", "zenoh-tls"])
+def test_the_link_lost_between_hosts_ends_the_run_interrupted_with_its_samples(transport: str, tmp_path: Path,
+                                                                             namespaces: None) -> None:
+    """A 7.5 s record at real time; 1.5 s into it the rig's end of the veth goes down (tests/helpers/link_cut.py):
+    the run ends ``interrupted: table link lost`` within the link timeout (with the grace, one wait slice and the
+    lead of chunks already due — the bound of tests/rig/test_real_time.py), the poses measured up to the cut are in
+    the session file, and the table, hearing no host, stops itself (its watchdog, or its buffer run dry)."""
+    sequence, bodies = _sequence(tmp_path, "[0.5, 8.0]")
+    key = tmp_path / "rig.key"
+    write_signing_key(key)
+    certs = _identities(tmp_path)
+    if transport == "mavlink":
+        listen = url = f"mavlink://{TABLE_ADDRESS}:14600"
+        table_tls: list[str] = []
+    else:
+        listen, url = f"zenoh://{TABLE_ADDRESS}:7447/lab", f"zenoh://{TABLE_ADDRESS}:7447/lab"
+        table_tls = _tls(certs, "table")
+    table = [sys.executable, "-m", "sim_table", "--listen", listen, "--key-file", str(key), *bodies, *table_tls,
+             "--counters", str(tmp_path / "counters.json")]
+    session = tmp_path / "session.h5"
+    rig = [sys.executable, "-m", "tests.helpers.link_cut", str(sequence), url, str(key), str(session), "va", "1.5"]
+    if transport != "mavlink":
+        rig += [str(certs / "ca.pem"), str(certs / "rig.pem"), str(certs / "rig.key")]
+    done = _two_hosts(table, tmp_path / "table.log", rig)
+    assert done.returncode == 0, done.stderr + (tmp_path / "table.log").read_text()
+    outcome = json.loads(done.stdout.strip().splitlines()[-1])
+    assert outcome["state"] == "faulted", outcome
+    assert "table link lost" in outcome["message"], outcome
+    link = LinkSettings()
+    assert outcome["ended_after_s"] < link.link_timeout_s + LINK_GRACE + WAIT_SLICE + link.lead_s + 2.0, outcome
+    (run,) = read_session(session)["runs"]
+    assert run["status"] == "interrupted" and run["attrs"]["reason"].startswith("table link lost"), run["attrs"]
+    assert any(event["text"].startswith("interrupted: table link lost") for event in run["events"]), run["events"]
+    if transport == "mavlink":  # the sends the network refused are named
+        assert f"sends failed: {os.strerror(errno.ENETUNREACH)}" in run["attrs"]["reason"], run["attrs"]
+    poses = run["pose"]
+    assert len(poses) > 0
+    # nothing lost: the feedback is there up to the cut (less the status period and a busy machine's slack), in order
+    t = poses[:, 0]
+    assert (t[1:] >= t[:-1]).all()
+    assert t[-1] >= outcome["played_at_cut_s"] - 0.5, (t[-1], outcome)
+    counters = json.loads((tmp_path / "counters.json").read_text())
+    # the table, hearing no host, stopped itself: stopping (decelerating, homing) or already faulted, by its
+    # heartbeat or stream watchdog or by its buffer running dry (the lead buffered and the watchdog are both ~1 s:
+    # which trips first is a race, and each is a stopping fault)
+    assert counters["state"] in ("stopping", "faulted"), counters
+    assert {"HEARTBEAT_LOST", "STREAM_SILENT", "UNDERRUN"} & set(counters["faults"]), counters

@@ -6,8 +6,10 @@ never about wall-clock times (those are in ``benchmarks/stream.py``)."""
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import math
+import os
 import re
 import secrets
 import signal
@@ -618,3 +620,30 @@ def test_a_virtual_time_table_stalled_beyond_the_link_timeout_is_not_taken_for_l
     before, lost = _stalled_link(key_file)
     assert before.virtual_watchdog_s == 0.0
     assert lost
+
+
+class _DownLink:
+    """A link whose network is gone: every send fails with ``error`` (an errno)."""
+
+    def __init__(self, error: int) -> None:
+        self.mav = type("Mav", (), {"signing": type("Signing", (), {"timestamp": 0})()})()
+        self.error = error
+
+    def send(self, msg: Any) -> None:
+        raise OSError(self.error, os.strerror(self.error))
+
+
+def test_a_datagram_the_network_refuses_is_lost_and_counted_not_raised(key_file: Path) -> None:
+    """In process (no socket): the interface down, a send is a datagram lost — counted and named when the link is
+    declared lost — not an OSError out of the stream or the heartbeat thread; another OSError still raises."""
+    table = MavlinkTable("mavlink://10.231.0.2:14600", key_file=str(key_file))
+    table._link = _DownLink(errno.ENETUNREACH)  # type: ignore[assignment]
+    heartbeat = table.d.MAVLink_heartbeat_message(table.d.MAV_TYPE_GCS, table.d.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                  table.d.MAV_STATE_ACTIVE, 3)
+    table._send(heartbeat)
+    table._send(heartbeat)
+    assert table.send_failures == 2 and table.link_stats()["send_failures"] == 2
+    assert table._link_lost_detail() == f"; 2 sends failed: {os.strerror(errno.ENETUNREACH)}"
+    table._link = _DownLink(errno.EBADF)  # type: ignore[assignment]
+    with pytest.raises(OSError, match="Bad file descriptor"):
+        table._send(heartbeat)
