@@ -14,6 +14,8 @@ import re
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from analysis.input_file import MIB, InputFileError, read_regular_file
 
 from .motion import RecordError
@@ -49,6 +51,19 @@ _LINE_BREAK_RE = re.compile(r"\r*\n|\r")
 _BOM = b"\xef\xbb\xbf"
 #: The first line longer than `MAX_LINE_CHARS` (in text whose line breaks are LF).
 _LONG_LINE_RE = re.compile(rf"[^\n]{{{MAX_LINE_CHARS + 1},}}")
+
+# The same checks on a file's bytes, for the readers that parse a clean file without decoding it (`plain_ascii`).
+_LINE_BREAK_BYTES_RE = re.compile(rb"\r*\n|\r")
+#: A line longer than `MAX_LINE_CHARS`, tried only where a line starts (linear in the file's size, not its lines').
+_LONG_LINE_BYTES_RE = re.compile(rb"(?:\A|(?<=[\r\n]))[^\r\n]{%d}" % (MAX_LINE_CHARS + 1))
+_NONBLANK_BYTES_RE = re.compile(rb"\S")
+_SPACE_BYTES_RE = re.compile(rb"\s")
+_TOKEN_BYTES_RE = re.compile(rb"\S+")
+#: A whitespace-separated token that is not a strict decimal number without a Fortran ``D`` exponent (such a file
+#: is read line by line, by `TextSource.number`, which says what is wrong or reads the ``D``).
+_BAD_TOKEN_BYTES_RE = re.compile(rb"(?<!\S)(?![-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?!\S))\S")
+#: Bytes of a file parsed by numpy at a time (`parse_numbers`): a copy this long is all the parsing adds.
+CHUNK_BYTES = 1 << 20
 
 
 def located(path: Path, line: int | None, message: str) -> RecordError:
@@ -156,14 +171,93 @@ def _decoded(path: Path, raw: bytes, expected: str) -> str:
     return text
 
 
-def read_source(path: Path, expected: str) -> TextSource:
-    """Read ``path`` as a text record file; ``expected`` describes its content for the empty-file error."""
+def read_record(path: Path) -> tuple[bytes, str]:
+    """The bytes of a record file (`read_record_bytes`) and their hex SHA-256."""
     raw = read_record_bytes(path, "a record file")
-    sha = hashlib.sha256(raw).hexdigest()
+    return raw, hashlib.sha256(raw).hexdigest()
+
+
+def plain_ascii(raw: bytes) -> bool:
+    """True if ``raw`` passes every check of a readable file (see `read_source`) as it is: ASCII (so UTF-8, with no
+    byte-order mark), no NUL byte, not blank, no line longer than `MAX_LINE_CHARS`. Such a file can be parsed from its
+    bytes (`byte_lines`, `parse_numbers`) without decoding it into a copy; any other goes through `source_from`,
+    which says what is wrong with it."""
+    return (
+        raw.isascii() and b"\x00" not in raw and _NONBLANK_BYTES_RE.search(raw) is not None
+        and _LONG_LINE_BYTES_RE.search(raw) is None
+    )
+
+
+def line_start(raw: bytes, skip: int) -> int:
+    """The offset in ``raw`` where the line after its first ``skip`` lines starts (``len(raw)`` if it has fewer),
+    with the line breaks `read_source` knows."""
+    if skip <= 0:
+        return 0
+    for k, match in enumerate(_LINE_BREAK_BYTES_RE.finditer(raw), start=1):
+        if k == skip:
+            return match.end()
+    return len(raw)
+
+
+def byte_lines(raw: bytes, count: int) -> tuple[list[str], int]:
+    """The first ``count`` lines of a `plain_ascii` file (fewer if it has fewer), as `read_source` splits them, and
+    the offset where the next line starts (`line_start`)."""
+    start = line_start(raw, count)
+    parts = _LINE_BREAK_BYTES_RE.split(raw[:start])
+    if parts[-1] == b"":
+        parts.pop()
+    return [part.decode("ascii") for part in parts], start
+
+
+def line_count(raw: bytes) -> int:
+    """How many lines `read_source` finds in a `plain_ascii` file."""
+    breaks = sum(1 for _ in _LINE_BREAK_BYTES_RE.finditer(raw)) if b"\r" in raw else raw.count(b"\n")
+    return breaks + (not raw.endswith((b"\n", b"\r")))
+
+
+def count_tokens(raw: bytes, start: int = 0) -> int:
+    """Whitespace-separated tokens in ``raw`` from offset ``start``, counted without keeping one of them."""
+    return sum(1 for _ in _TOKEN_BYTES_RE.finditer(raw, start))
+
+
+def strict_numbers(raw: bytes, start: int = 0) -> bool:
+    """True if every whitespace-separated token from offset ``start`` is a strict decimal number (as
+    `TextSource.number` reads it, without a Fortran ``D`` exponent, NaN or infinity)."""
+    return _BAD_TOKEN_BYTES_RE.search(raw, start) is None
+
+
+def parse_numbers(raw: bytes, start: int, count: int) -> np.ndarray | None:
+    """The ``count`` whitespace-separated numbers of ``raw`` from offset ``start`` (checked by `strict_numbers`),
+    parsed by numpy `CHUNK_BYTES` at a time into one array; None if numpy finds another count."""
+    out = np.empty(count)
+    filled, at = 0, start
+    while at < len(raw):
+        cut = _SPACE_BYTES_RE.search(raw, min(at + CHUNK_BYTES, len(raw)))
+        end = len(raw) if cut is None else cut.start()
+        chunk = raw[at:end]
+        at = end + 1
+        if not chunk.strip():
+            continue
+        values = np.fromstring(chunk, sep=" ")
+        if filled + values.size > count:
+            return None
+        out[filled:filled + values.size] = values
+        filled += values.size
+    return out if filled == count else None
+
+
+def source_from(path: Path, raw: bytes, sha: str, expected: str) -> TextSource:
+    """The `TextSource` of a record file's bytes ``raw`` (SHA-256 ``sha``), after checking them (see `read_source`)."""
     lines = _decoded(path, raw, expected).split("\n")
     if lines[-1] == "":
         lines.pop()
     return TextSource(path=path, lines=lines, sha256=sha)
+
+
+def read_source(path: Path, expected: str) -> TextSource:
+    """Read ``path`` as a text record file; ``expected`` describes its content for the empty-file error."""
+    raw, sha = read_record(path)
+    return source_from(path, raw, sha, expected)
 
 
 def read_text_body(path: Path, expected: str) -> tuple[TextSource, str]:

@@ -1,7 +1,7 @@
-"""Long plain-text records (issue 42, item 3): parsed into arrays without a Python object per sample (peak memory per
-sample measured with tracemalloc, numpy's arrays included), and a record with more samples than the limit refused
-from its count of data lines, before a number is parsed, naming the file and the limit. The time it takes is
-``benchmarks/record_memory.py``'s to say, not a test's."""
+"""Long records (issue 42, item 3), plain text and PEER ``.AT2``: parsed into arrays without a Python object per
+sample (peak memory per sample measured with tracemalloc, numpy's arrays included), and a record with more samples
+than the limit refused from its count of data lines or values, before a number is parsed, naming the file and the
+limit. The time it takes is ``benchmarks/record_memory.py``'s to say, not a test's."""
 
 from __future__ import annotations
 
@@ -13,7 +13,10 @@ import numpy as np
 import pytest
 
 from rig.records import RecordError, RecordWarning
+from rig.records import peer as peer_reader
 from rig.records import text as text_reader
+from rig.records.peer import read_at2
+from rig.records.source import TextSource
 from rig.records.text import read_text
 
 GOAL_BYTES_PER_SAMPLE = 32
@@ -56,3 +59,47 @@ def test_a_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkey
     _one_sample_a_line(path, 1000)
     monkeypatch.undo()
     assert read_text(path).npts == 1000
+
+
+def _at2(path: Path, n: int, eol: str = "\n") -> np.ndarray:
+    """A PEER NGA-West2 ``.AT2`` file of ``n`` samples in g, five of 15 characters a line (16 bytes a sample)."""
+    values = np.random.default_rng(7).normal(0.0, 0.02, n)
+    rows = [" ".join(f"{v:15.7E}" for v in values[i:i + 5]) for i in range(0, n, 5)]
+    header = ["PEER NGA STRONG MOTION DATABASE RECORD", "Test, 1/1/2000, Station, H1",
+              "ACCELERATION TIME SERIES IN UNITS OF G", f"NPTS= {n}, DT= .0050 SEC"]
+    path.write_bytes((eol.join(header + rows) + eol).encode())
+    return np.array([float(f"{v:15.7E}") for v in values])
+
+
+@pytest.mark.parametrize("eol", ["\n", "\r\n"])
+def test_peak_memory_per_sample_of_a_long_at2_record(tmp_path: Path, eol: str) -> None:
+    n = 1_000_000
+    path = tmp_path / "long.AT2"
+    values = _at2(path, n, eol)
+    tracemalloc.start()
+    try:
+        motion = read_at2(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.005
+    assert motion.provenance["lines"] == 4 + n // 5
+    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
+
+
+def test_an_at2_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(peer_reader, "MAX_SAMPLES", 1000)
+
+    def parse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the samples were parsed")
+
+    monkeypatch.setattr(peer_reader.np, "fromstring", parse)
+    monkeypatch.setattr(TextSource, "acceleration", parse)
+    path = tmp_path / "long.AT2"
+    _at2(path, 1001)
+    with pytest.raises(RecordError, match=rf"^{path}: the record has 1,001 samples \(values after the header\); "
+                                          r"expected at most 1,000 \(refused before parsing them\)$"):
+        read_at2(path)
+    _at2(path, 1000)
+    monkeypatch.undo()
+    assert read_at2(path).npts == 1000
