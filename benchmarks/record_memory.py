@@ -1,16 +1,19 @@
 """Benchmark: peak memory per sample of reading a long record, per format (issue 42, item 3).
 
-Each format's worst usual case: the plain-text reader on one short value a line (``0.012\\n``: a few bytes a
-sample), the PEER ``.AT2`` reader on NGA-West2's five values of 15 characters a line. Measured in one process with
-``tracemalloc`` (numpy's arrays are traced too), for the same file:
+Each format's usual case: the plain-text reader on one short value a line (``0.012\\n``: a few bytes a sample,
+its worst case), the PEER ``.AT2`` reader on NGA-West2's five values of 15 characters a line, the CSV reader on
+``time_s,acc_g`` rows (``csv``: 16 bytes a row, held while the rows are parsed into two float64 columns, so about
+32 bytes a sample whatever the reader does) and on one ``acc_g`` column with a ``# dt`` line (``csv1``).
+Measured in one process with ``tracemalloc`` (numpy's arrays are traced too), for the same file:
 
-1. ``new``: the reader as it is (`rig.records.text.read_text`, `rig.records.peer.read_at2`: no Python object per
-   sample);
+1. ``new``: the reader as it is (`rig.records.text.read_text`, `rig.records.peer.read_at2`,
+   `rig.records.csvfile.read_csv`: no Python object per sample);
 2. ``old``: the way they read before: the file split into a list of lines, each split into tokens, each parsed into
    a Python float, then the array (the loops below are those readers', without their checks).
 
-Usage: ``python benchmarks/record_memory.py [--samples N] [--format text|at2 ...]``; prints one JSON object per
-format: ``bytes_per_sample`` of each, their ratio, the goal (32 bytes per sample) and whether the new reader meets it.
+Usage: ``python benchmarks/record_memory.py [--samples N] [--format text|at2|csv|csv1 ...]``; prints one JSON
+object per format: ``bytes_per_sample`` of each, their ratio, the goal (32 bytes per sample) and whether the new
+reader meets it.
 """
 
 from __future__ import annotations
@@ -27,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.records import RecordWarning
+from rig.records.csvfile import read_csv
 from rig.records.peer import read_at2
 from rig.records.source import read_source
 from rig.records.text import read_text
@@ -54,6 +58,25 @@ def _write_at2(path: Path, values: np.ndarray) -> None:
     path.write_text("\n".join(header + rows) + "\n")
 
 
+def _write_csv(path: Path, values: np.ndarray) -> None:
+    rows = "".join(f"{i * 0.005:.3f},{v:g}\n" for i, v in enumerate(np.round(values, 4)))
+    path.write_text("time_s,acc_g\n" + rows)
+
+
+def _write_csv1(path: Path, values: np.ndarray) -> None:
+    path.write_text("# dt = 0.005 s\nacc_g\n" + "".join(f"{v:g}\n" for v in np.round(values, 4)))
+
+
+def _old_csv(path: Path) -> dict[str, np.ndarray]:
+    src = read_source(path, "samples")
+    rows = [(n, line.split(",")) for n, line in enumerate(src.lines, 1) if line.strip() and not line.startswith("#")]
+    channels: list[list[float]] = [[] for _ in rows[0][1]]
+    for _, cells in rows[1:]:
+        for channel, cell in zip(channels, cells, strict=True):
+            channel.append(float(cell.strip()))
+    return {str(i): np.array(channel) for i, channel in enumerate(channels)}
+
+
 def _old_at2(path: Path) -> np.ndarray:
     src = read_source(path, "samples")
     values = [float(token) for line in src.lines[4:] for token in line.split()]
@@ -65,6 +88,8 @@ FORMATS: dict[str, tuple[str, Callable[[Path, np.ndarray], None], Callable[[Path
                          Callable[[Path], object]]] = {
     "text": ("long.txt", _write_text, lambda p: read_text(p).acc_h, _old_text),
     "at2": ("long.AT2", _write_at2, lambda p: read_at2(p).acc_h, _old_at2),
+    "csv": ("long.csv", _write_csv, lambda p: read_csv(p).acc_h, _old_csv),
+    "csv1": ("long.csv", _write_csv1, lambda p: read_csv(p).acc_h, _old_csv),
 }
 
 

@@ -8,11 +8,15 @@ message starts with ``file:line:`` and says what was expected.
 
 from __future__ import annotations
 
+import bisect
 import hashlib
 import math
 import re
+from array import array
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import overload
 
 import numpy as np
 
@@ -63,7 +67,7 @@ _TOKEN_BYTES_RE = re.compile(rb"\S+")
 #: is read line by line, by `TextSource.number`, which says what is wrong or reads the ``D``).
 _BAD_TOKEN_BYTES_RE = re.compile(rb"(?<!\S)(?![-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?!\S))\S")
 #: Bytes of a file parsed by numpy at a time (`parse_numbers`): a copy this long is all the parsing adds.
-CHUNK_BYTES = 1 << 20
+CHUNK_BYTES = 1 << 16
 
 
 def located(path: Path, line: int | None, message: str) -> RecordError:
@@ -323,3 +327,113 @@ def agreed_unit(path: Path, line: int | None, in_file: str | None, given: str | 
     if given is None:
         raise located(path, line, f"no acceleration unit: {missing}")
     return given
+
+
+# Rows of numbers separated by commas (CSV records), on the bytes of a `csv_ready` file: lines end in LF or CR LF.
+_NUMBER = rb"[ \t]*[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?[ \t]*"
+#: A data line (neither blank nor a comment, whose first character after blanks is '#'), and any other line.
+_DATA_LINE_BYTES_RE = re.compile(rb"^[ \t]*[^ \t\r\n#]", re.M)
+_OTHER_LINE_BYTES_RE = re.compile(rb"^[ \t]*(?:#[^\n]*|\r?)$", re.M)
+_COMMENT_LINE_BYTES_RE = re.compile(rb"^[ \t]*#[^\r\n]*", re.M)
+_ODD_BYTES_RE = re.compile(rb"[\x0b\x0c\x1c-\x1f]|\r(?!\n)")
+
+
+def csv_ready(raw: bytes) -> bool:
+    """True if ``raw`` is `plain_ascii`, its lines end in LF or CR LF and it has no other whitespace than spaces and
+    tabs (so its blank and comment lines are those `settings.is_comment` sees): a file `parse_rows` can read."""
+    return plain_ascii(raw) and _ODD_BYTES_RE.search(raw) is None
+
+
+def line_number(raw: bytes, offset: int) -> int:
+    """The 1-based line of a `csv_ready` file that holds byte ``offset``."""
+    return raw.count(b"\n", 0, offset) + 1
+
+
+def comment_lines(raw: bytes) -> Iterator[tuple[int, str]]:
+    """(line number, text) of each comment line of a `csv_ready` file, one at a time."""
+    line, at = 1, 0
+    for match in _COMMENT_LINE_BYTES_RE.finditer(raw):
+        line += raw.count(b"\n", at, match.start())
+        at = match.start()
+        yield line, match.group().decode("ascii")
+
+
+def first_data_line(raw: bytes, start: int = 0) -> int | None:
+    """The offset of the first data line of a `csv_ready` file from ``start`` (a line start), or None."""
+    match = _DATA_LINE_BYTES_RE.search(raw, start)
+    return None if match is None else match.start()
+
+
+def count_rows(raw: bytes, start: int = 0, end: int | None = None) -> int:
+    """Data lines of a `csv_ready` file from offset ``start``, counted without keeping one of them."""
+    return sum(1 for _ in _DATA_LINE_BYTES_RE.finditer(raw, start, len(raw) if end is None else end))
+
+
+def strict_rows(raw: bytes, start: int, width: int) -> bool:
+    """True if every data line of a `csv_ready` file from ``start`` is ``width`` strict decimal numbers (as
+    `TextSource.number` reads them, without a ``D`` exponent) separated by commas, spaces and tabs around them."""
+    row = _NUMBER + (rb"," + _NUMBER) * (width - 1)
+    bad = re.compile(rb"^(?![ \t]*(?:#|\r?$))(?!" + row + rb"\r?$)", re.M)
+    return bad.search(raw, start) is None
+
+
+def parse_rows(raw: bytes, start: int, count: int, width: int) -> list[np.ndarray] | None:
+    """The ``width`` columns of the ``count`` rows of a `csv_ready` file from offset ``start`` (checked by
+    `strict_rows`), parsed by numpy `CHUNK_BYTES` at a time straight into one array per column; None if numpy finds
+    another count."""
+    columns = [np.empty(count) for _ in range(width)]
+    filled, at = 0, start
+    while at < len(raw):
+        cut = raw.find(b"\n", min(at + CHUNK_BYTES, len(raw)))
+        end = len(raw) if cut < 0 else cut + 1
+        chunk = raw[at:end]
+        at = end
+        if b"#" in chunk:
+            chunk = _COMMENT_LINE_BYTES_RE.sub(b"", chunk)
+        chunk = chunk.replace(b",", b" ")
+        if not chunk.strip():
+            continue
+        try:
+            values = np.fromstring(chunk, sep=" ")
+        except ValueError:  # not all numbers: `strict_rows` was not asked
+            return None
+        rows = values.size // width
+        if rows * width != values.size or filled + rows > count:
+            return None
+        for i, column in enumerate(columns):
+            column[filled:filled + rows] = values[i::width]
+        filled += rows
+    return columns if filled == count else None
+
+
+class DataLines(Sequence[int]):
+    """The line number of each data line of a `csv_ready` file from an offset, without keeping the file: the first
+    line's number and, for each blank or comment line among them, how many data lines come before it."""
+
+    def __init__(self, raw: bytes, start: int, count: int) -> None:
+        self._count = count
+        first = first_data_line(raw, start)
+        self._first = 0 if first is None else line_number(raw, first)
+        self._gaps: array[int] = array("q")
+        rows, at = 0, first or start
+        for match in _OTHER_LINE_BYTES_RE.finditer(raw, at):
+            if match.start() == len(raw):
+                break
+            rows += count_rows(raw, at, match.start())
+            at = match.end()
+            self._gaps.append(rows)
+
+    def __len__(self) -> int:
+        return self._count
+
+    @overload
+    def __getitem__(self, index: int) -> int: ...
+    @overload
+    def __getitem__(self, index: slice) -> list[int]: ...
+    def __getitem__(self, index: int | slice) -> int | list[int]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._count))]
+        i = index + self._count if index < 0 else index
+        if not 0 <= i < self._count:
+            raise IndexError(index)
+        return self._first + i + bisect.bisect_right(self._gaps, i)

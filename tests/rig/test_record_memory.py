@@ -1,4 +1,4 @@
-"""Long records (issue 42, item 3), plain text and PEER ``.AT2``: parsed into arrays without a Python object per
+"""Long records (issue 42, item 3), plain text, PEER ``.AT2`` and CSV: parsed into arrays without a Python object per
 sample (peak memory per sample measured with tracemalloc, numpy's arrays included), and a record with more samples
 than the limit refused from its count of data lines or values, before a number is parsed, naming the file and the
 limit. The time it takes is ``benchmarks/record_memory.py``'s to say, not a test's."""
@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 
 from rig.records import RecordError, RecordWarning
+from rig.records import csvfile as csv_reader
 from rig.records import peer as peer_reader
 from rig.records import text as text_reader
+from rig.records.csvfile import read_csv
 from rig.records.peer import read_at2
 from rig.records.source import TextSource
 from rig.records.text import read_text
@@ -103,3 +105,49 @@ def test_an_at2_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, m
     _at2(path, 1000)
     monkeypatch.undo()
     assert read_at2(path).npts == 1000
+
+
+def _csv(path: Path, n: int, time_column: bool) -> np.ndarray:
+    """A CSV record of ``n`` samples in g: ``time_s,acc_g`` rows, or one ``acc_g`` column and a ``# dt`` line."""
+    values = np.round(np.random.default_rng(7).normal(0.0, 0.02, n), 4)
+    if time_column:
+        path.write_text("time_s,acc_g\n" + "".join(f"{i * 0.005:.3f},{v:g}\n" for i, v in enumerate(values)))
+    else:
+        path.write_text("# dt = 0.005 s\nacc_g\n" + "".join(f"{v:g}\n" for v in values))
+    return values
+
+
+@pytest.mark.parametrize("time_column", [False, True], ids=["acc", "time-acc"])
+def test_peak_memory_per_sample_of_a_long_csv_record(tmp_path: Path, time_column: bool) -> None:
+    n = 1_000_000
+    path = tmp_path / "long-HNE.csv"
+    values = _csv(path, n, time_column)
+    tracemalloc.start()
+    try:
+        motion = read_csv(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.005
+    # The file's bytes are held while its rows are parsed into one float64 array per column: with a time column
+    # (16 bytes a row here) that alone is 32 bytes a sample; the bound says nothing else is kept per sample.
+    goal = GOAL_BYTES_PER_SAMPLE if not time_column else path.stat().st_size / n + 8 * 2 + 1
+    assert peak / n <= goal, f"{peak / n:.1f} bytes per sample"
+
+
+def test_a_csv_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(csv_reader, "MAX_SAMPLES", 1000)
+
+    def parse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the samples were parsed")
+
+    monkeypatch.setattr(csv_reader.np, "fromstring", parse)
+    monkeypatch.setattr(TextSource, "number", parse)
+    path = tmp_path / "long-HNE.csv"
+    _csv(path, 1001, time_column=True)
+    with pytest.raises(RecordError, match=rf"^{path}: the record has 1,001 samples \(data rows\); "
+                                          r"expected at most 1,000 \(refused before parsing them\)$"):
+        read_csv(path)
+    _csv(path, 1000, time_column=True)
+    monkeypatch.undo()
+    assert read_csv(path).npts == 1000
