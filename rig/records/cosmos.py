@@ -62,7 +62,8 @@ from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
+from array import array
+from collections.abc import Callable, MutableSequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
@@ -71,7 +72,17 @@ import numpy as np
 
 from .component import HORIZONTAL, UNKNOWN, VERTICAL, component, name_component, warn
 from .motion import GroundMotion, array_sha256
-from .source import DT_RTOL, TextSource, dt_problem, given_dt, located, matching_dt, matching_unit, read_source
+from .source import (
+    DT_RTOL,
+    MAX_SAMPLES,
+    TextSource,
+    dt_problem,
+    given_dt,
+    located,
+    matching_dt,
+    matching_unit,
+    read_source,
+)
 from .units import TO_G, given_unit, parse_unit
 
 _T = TypeVar("_T")
@@ -248,9 +259,10 @@ def _values(
     fmt: FortranFormat,
     of_what: str,
     parse: Callable[[int, str, str], _T],
-) -> list[_T]:
-    """``count`` values laid out by ``fmt`` from line ``first`` on, each parsed by ``parse(line, token, where)``."""
-    values: list[_T] = []
+    values: MutableSequence[_T],
+) -> MutableSequence[_T]:
+    """``count`` values laid out by ``fmt`` from line ``first`` on, each parsed by ``parse(line, token, where)``, added
+    to ``values`` (an ``array("d")`` for data: 8 bytes a value, no Python float kept)."""
     lines = _lines_for(count, fmt)
     for offset in range(lines):
         lineno = first + offset
@@ -310,7 +322,7 @@ class _Block:
     unknown_real: float
     unit_text: str
     unit_code: int | None
-    values: list[float] | None
+    values: array[float] | None
     end: int
 
 
@@ -367,9 +379,11 @@ def _header(src: TextSource, lineno: int, pattern: re.Pattern[str], example: str
         )
     of_what = f"the {label} announced on line {lineno}"
     if integer:
-        values: list[Any] = _values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _integer(src, n, t, w))
+        values: list[Any] = list(
+            _values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _integer(src, n, t, w), [])
+        )
     else:
-        values = _values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt))
+        values = list(_values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt), []))
     return _Header(values=values, line=lineno, fmt=fmt)
 
 
@@ -456,6 +470,9 @@ def _block(src: TextSource, start: int) -> _Block:
     npts, quantity = int(match["npts"]), _quantity(match["what"])
     if npts == 0:
         raise src.error(data_line, f"the data header announces 0 values; expected {quantity} values")
+    if npts > MAX_SAMPLES:
+        raise src.error(data_line, f"the data header announces {npts:,} values; expected at most {MAX_SAMPLES:,} "
+                                   "(refused before parsing them)")
     fmt = _format(src, data_line, text, integer=False)
     _check_quantity(src, data_line, quantity, ints, unknown_int)
     unit_text, unit_code = _unit_code(src, data_line, text, ints, unknown_int)
@@ -474,12 +491,16 @@ def _with_data(src: TextSource, block: _Block) -> _Block:
     if block.quantity == "acceleration":
         unit = _acceleration_unit(src, block)
         shown = block.unit_text or unit
-        values = _values(
+        values: array[float] | None = array("d")
+        assert values is not None
+        _values(
             src, block.data_line + 1, block.npts, fmt, of_what,
-            lambda n, t, w: _acceleration(src, n, t, w, fmt, TO_G[unit], shown),
+            lambda n, t, w: _acceleration(src, n, t, w, fmt, TO_G[unit], shown), values,
         )
     else:
-        _values(src, block.data_line + 1, block.npts, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt))
+        _values(
+            src, block.data_line + 1, block.npts, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt), array("d")
+        )
         values = None
     end = block.data_line + 1 + _lines_for(block.npts, fmt)
     text = _line(src, end, f"'End-of-data for Chan …' after {of_what}")

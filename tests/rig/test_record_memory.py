@@ -13,9 +13,11 @@ import numpy as np
 import pytest
 
 from rig.records import RecordError, RecordWarning
+from rig.records import cosmos as cosmos_reader
 from rig.records import csvfile as csv_reader
 from rig.records import peer as peer_reader
 from rig.records import text as text_reader
+from rig.records.cosmos import read_cosmos
 from rig.records.csvfile import read_csv
 from rig.records.peer import read_at2
 from rig.records.source import TextSource
@@ -151,3 +153,21 @@ def test_a_csv_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, mo
     _csv(path, 1000, time_column=True)
     monkeypatch.undo()
     assert read_csv(path).npts == 1000
+
+
+def test_a_cosmos_channel_too_long_is_refused_before_it_is_parsed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sine = Path(__file__).parents[1] / "data" / "records" / "cosmos_sine.V2"  # one channel of 22 values, line 49
+    monkeypatch.setattr(cosmos_reader, "MAX_SAMPLES", 21)
+
+    def parse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the samples were parsed")
+
+    monkeypatch.setattr(TextSource, "acceleration", parse)
+    with pytest.raises(RecordError, match=rf"^{sine}:49: the data header announces 22 values; expected at most 21 "
+                                          r"\(refused before parsing them\)$"):
+        read_cosmos(sine)
+    monkeypatch.undo()
+    monkeypatch.setattr(cosmos_reader, "MAX_SAMPLES", 22)
+    assert read_cosmos(sine).npts == 22
