@@ -3,15 +3,17 @@
 Each format's usual case: the plain-text reader on one short value a line (``0.012\\n``: a few bytes a sample,
 its worst case), the PEER ``.AT2`` reader on NGA-West2's five values of 15 characters a line, the CSV reader on
 ``time_s,acc_g`` rows (``csv``: 16 bytes a row, held while the rows are parsed into two float64 columns, so about
-32 bytes a sample whatever the reader does) and on one ``acc_g`` column with a ``# dt`` line (``csv1``).
+32 bytes a sample whatever the reader does) and on one ``acc_g`` column with a ``# dt`` line (``csv1``), the
+COSMOS reader on one channel in Format=(5E15.6) (``cosmos``: its values are still parsed one field at a time, from
+lines decoded one at a time).
 Measured in one process with ``tracemalloc`` (numpy's arrays are traced too), for the same file:
 
 1. ``new``: the reader as it is (`rig.records.text.read_text`, `rig.records.peer.read_at2`,
-   `rig.records.csvfile.read_csv`: no Python object per sample);
+   `rig.records.csvfile.read_csv`, `rig.records.cosmos.read_cosmos`: no Python object kept per sample);
 2. ``old``: the way they read before: the file split into a list of lines, each split into tokens, each parsed into
    a Python float, then the array (the loops below are those readers', without their checks).
 
-Usage: ``python benchmarks/record_memory.py [--samples N] [--format text|at2|csv|csv1 ...]``; prints one JSON
+Usage: ``python benchmarks/record_memory.py [--samples N] [--format text|at2|csv|csv1|cosmos ...]``; prints one JSON
 object per format: ``bytes_per_sample`` of each, their ratio, the goal (32 bytes per sample) and whether the new
 reader meets it.
 """
@@ -30,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from rig.records import RecordWarning
+from rig.records.cosmos import read_cosmos
 from rig.records.csvfile import read_csv
 from rig.records.peer import read_at2
 from rig.records.source import read_source
@@ -77,6 +80,20 @@ def _old_csv(path: Path) -> dict[str, np.ndarray]:
     return {str(i): np.array(channel) for i, channel in enumerate(channels)}
 
 
+def _write_cosmos(path: Path, values: np.ndarray) -> None:
+    sine = Path(__file__).parents[1] / "tests" / "data" / "records" / "cosmos_sine.V2"
+    lines = sine.read_text().splitlines()
+    rows = ["".join(f"{v:15.6e}" for v in values[i:i + 5]) for i in range(0, values.size, 5)]
+    data_header = lines[48].replace("      22", f"{values.size:8d}")
+    path.write_text("\n".join([*lines[:48], data_header, *rows, lines[-1]]) + "\n")
+
+
+def _old_cosmos(path: Path) -> np.ndarray:
+    src = read_source(path, "samples")
+    values = [float(line[i:i + 15]) for line in src.lines[49:-1] for i in range(0, len(line), 15)]
+    return np.asarray(values, dtype=np.float64)
+
+
 def _old_at2(path: Path) -> np.ndarray:
     src = read_source(path, "samples")
     values = [float(token) for line in src.lines[4:] for token in line.split()]
@@ -90,6 +107,7 @@ FORMATS: dict[str, tuple[str, Callable[[Path, np.ndarray], None], Callable[[Path
     "at2": ("long.AT2", _write_at2, lambda p: read_at2(p).acc_h, _old_at2),
     "csv": ("long.csv", _write_csv, lambda p: read_csv(p).acc_h, _old_csv),
     "csv1": ("long.csv", _write_csv1, lambda p: read_csv(p).acc_h, _old_csv),
+    "cosmos": ("long.V2", _write_cosmos, lambda p: read_cosmos(p).acc_h, _old_cosmos),
 }
 
 

@@ -56,6 +56,12 @@ unknown marker are "unknown orientation"):
 A ``Down`` channel is negated so that it reads positive up; a vertical of unstated sense is taken as up
 (the provenance says so). Every problem raises `RecordError` naming the file, the line and what was
 expected.
+
+Memory: an ASCII file is kept as its bytes and where each line starts (`source.ByteLines`), each line decoded when
+it is read, and each block's values go into an ``array("d")``: no Python object kept per value or line
+(``benchmarks/record_memory.py`` measures the peak per sample). The values are still parsed one field at a time
+(seconds per million). A data header announcing more than `source.MAX_SAMPLES` values is refused before one is
+parsed.
 """
 
 from __future__ import annotations
@@ -75,13 +81,16 @@ from .motion import GroundMotion, array_sha256
 from .source import (
     DT_RTOL,
     MAX_SAMPLES,
+    ByteLines,
     TextSource,
     dt_problem,
     given_dt,
     located,
     matching_dt,
     matching_unit,
-    read_source,
+    plain_ascii,
+    read_record,
+    source_from,
 )
 from .units import TO_G, given_unit, parse_unit
 
@@ -703,7 +712,12 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
     """
     path = Path(path)
     given, units = given_dt(dt), given_unit(units)
-    src = read_source(path, _EXPECTED)
+    raw, sha = read_record(path)
+    if plain_ascii(raw):  # lines decoded from the bytes one at a time, not a list of strings (a long record)
+        src = TextSource(path=path, lines=ByteLines(raw), sha256=sha)
+    else:  # decoded and split into lines, which says what is wrong with the bytes if anything is
+        src = source_from(path, raw, sha, _EXPECTED)
+    del raw
     blocks = _blocks(src)
     accelerations = [b for b in blocks if b.quantity == "acceleration"]
     if not accelerations:
@@ -711,6 +725,7 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
         raise src.error(blocks[0].line, f"no acceleration block (found {found}); expected at least one "
                                         "acceleration block (a V1 or V2 acceleration file)")
     channels = [_channel(src, b, given, units) for b in accelerations]
+    n_lines, src = len(src.lines), TextSource(path=path, lines=[], sha256=src.sha256)  # the file's bytes let go
     named = name_component(path) if len(channels) == 1 else None
     for channel in channels:
         if channel.kind == "other" and named is None:
@@ -727,7 +742,7 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
         "file": path.name,
         "format": "COSMOS v01.20",
         "title": first.block.title,
-        "lines": len(src.lines),
+        "lines": n_lines,
         "blocks": [
             {"line": b.line, "quantity": b.quantity, "npts": b.npts, "kept": b.quantity == "acceleration"}
             for b in blocks

@@ -93,7 +93,7 @@ class TextSource:
     """
 
     path: Path
-    lines: list[str]
+    lines: Sequence[str]
     sha256: str
 
     def error(self, line: int | None, message: str) -> RecordError:
@@ -437,3 +437,30 @@ class DataLines(Sequence[int]):
         if not 0 <= i < self._count:
             raise IndexError(index)
         return self._first + i + bisect.bisect_right(self._gaps, i)
+
+
+class ByteLines(Sequence[str]):
+    """The lines of a `plain_ascii` file as `read_source` splits them, decoded one at a time when one is asked for:
+    the file's bytes and where each line starts (8 bytes a line), not a Python string per line."""
+
+    def __init__(self, raw: bytes) -> None:
+        self._raw = raw
+        self._starts: array[int] = array("q", [0])
+        self._starts.extend(match.end() for match in _LINE_BREAK_BYTES_RE.finditer(raw))
+        if self._starts[-1] != len(raw):
+            self._starts.append(len(raw))
+
+    def __len__(self) -> int:
+        return len(self._starts) - 1
+
+    @overload
+    def __getitem__(self, index: int) -> str: ...
+    @overload
+    def __getitem__(self, index: slice) -> list[str]: ...
+    def __getitem__(self, index: int | slice) -> str | list[str]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(len(self)))]
+        i = index + len(self) if index < 0 else index
+        if not 0 <= i < len(self):
+            raise IndexError(index)
+        return self._raw[self._starts[i]:self._starts[i + 1]].rstrip(b"\r\n").decode("ascii")

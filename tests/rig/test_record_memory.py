@@ -171,3 +171,30 @@ def test_a_cosmos_channel_too_long_is_refused_before_it_is_parsed(
     monkeypatch.undo()
     monkeypatch.setattr(cosmos_reader, "MAX_SAMPLES", 22)
     assert read_cosmos(sine).npts == 22
+
+
+def _cosmos(path: Path, n: int) -> np.ndarray:
+    """cosmos_sine.V2 with ``n`` samples [cm/s²] in Format=(5E15.6) instead of its 22."""
+    lines = (Path(__file__).parents[1] / "data" / "records" / "cosmos_sine.V2").read_text().splitlines()
+    values = np.random.default_rng(7).normal(0.0, 20.0, n)
+    rows = ["".join(f"{v:15.6e}" for v in values[i:i + 5]) for i in range(0, n, 5)]
+    assert lines[48].startswith("      22 acceleration pts")
+    path.write_text("\n".join([*lines[:48], lines[48].replace("      22", f"{n:8d}"), *rows, lines[-1]]) + "\n")
+    return np.array([float(f"{v:15.6e}") for v in values]) * (0.01 / 9.81)
+
+
+def test_peak_memory_per_sample_of_a_long_cosmos_record(tmp_path: Path) -> None:
+    n = 100_000  # its values are still parsed one field at a time: 1 M takes too long for the fast tier
+    path = tmp_path / "long.V2"
+    values = _cosmos(path, n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RecordWarning)
+        tracemalloc.start()
+        try:
+            motion = read_cosmos(path)
+            _, peak = tracemalloc.get_traced_memory()
+        finally:
+            tracemalloc.stop()
+    assert np.array_equal(motion.acc_h, values) and motion.npts == n
+    assert motion.provenance["lines"] == 48 + 1 + n // 5 + 1
+    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
