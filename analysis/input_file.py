@@ -70,9 +70,11 @@ def read_regular_file(path: str | Path, max_bytes: int, expected: str = "a file"
     try:
         opened = os.fstat(fd)
         _check(opened.st_mode, opened.st_size, max_bytes, expected)
-        chunks: list[bytes] = []
-        left = max_bytes + 1
-        while left > 0:
+        # One read of the whole file (one byte more, to see it grow): joining chunks would hold it twice.
+        data = os.read(fd, max_bytes + 1 if opened.st_size >= max_bytes else opened.st_size + 1)
+        chunks: list[bytes] = [data]
+        left = max_bytes + 1 - len(data)
+        while data and left > 0:  # a short read: the rest by chunks
             chunk = os.read(fd, min(left, MIB))
             if not chunk:
                 break
@@ -82,7 +84,7 @@ def read_regular_file(path: str | Path, max_bytes: int, expected: str = "a file"
         raise InputFileError(f"cannot read ({exc.strerror or exc})") from None
     finally:
         os.close(fd)
-    data = b"".join(chunks)
+    data = chunks[0] if len(chunks) == 1 else b"".join(chunks)
     if len(data) > max_bytes:
         raise InputFileError(f"grew beyond {max_bytes:,} bytes while it was read; expected {expected} that stays put")
     return data

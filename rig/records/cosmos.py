@@ -56,13 +56,20 @@ unknown marker are "unknown orientation"):
 A ``Down`` channel is negated so that it reads positive up; a vertical of unstated sense is taken as up
 (the provenance says so). Every problem raises `RecordError` naming the file, the line and what was
 expected.
+
+Memory: an ASCII file is kept as its bytes and where each line starts (`source.ByteLines`), each line decoded when
+it is read, and each block's values go into an ``array("d")``: no Python object kept per value or line
+(``benchmarks/record_memory.py`` measures the peak per sample). The values are still parsed one field at a time
+(seconds per million). A data header announcing more than `source.MAX_SAMPLES` values is refused before one is
+parsed.
 """
 
 from __future__ import annotations
 
 import math
 import re
-from collections.abc import Callable
+from array import array
+from collections.abc import Callable, MutableSequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, TypeVar
@@ -71,7 +78,20 @@ import numpy as np
 
 from .component import HORIZONTAL, UNKNOWN, VERTICAL, component, name_component, warn
 from .motion import GroundMotion, array_sha256
-from .source import DT_RTOL, TextSource, dt_problem, given_dt, located, matching_dt, matching_unit, read_source
+from .source import (
+    DT_RTOL,
+    MAX_SAMPLES,
+    ByteLines,
+    TextSource,
+    dt_problem,
+    given_dt,
+    located,
+    matching_dt,
+    matching_unit,
+    plain_ascii,
+    read_record,
+    source_from,
+)
 from .units import TO_G, given_unit, parse_unit
 
 _T = TypeVar("_T")
@@ -248,9 +268,10 @@ def _values(
     fmt: FortranFormat,
     of_what: str,
     parse: Callable[[int, str, str], _T],
-) -> list[_T]:
-    """``count`` values laid out by ``fmt`` from line ``first`` on, each parsed by ``parse(line, token, where)``."""
-    values: list[_T] = []
+    values: MutableSequence[_T],
+) -> MutableSequence[_T]:
+    """``count`` values laid out by ``fmt`` from line ``first`` on, each parsed by ``parse(line, token, where)``, added
+    to ``values`` (an ``array("d")`` for data: 8 bytes a value, no Python float kept)."""
     lines = _lines_for(count, fmt)
     for offset in range(lines):
         lineno = first + offset
@@ -310,7 +331,7 @@ class _Block:
     unknown_real: float
     unit_text: str
     unit_code: int | None
-    values: list[float] | None
+    values: array[float] | None
     end: int
 
 
@@ -367,9 +388,11 @@ def _header(src: TextSource, lineno: int, pattern: re.Pattern[str], example: str
         )
     of_what = f"the {label} announced on line {lineno}"
     if integer:
-        values: list[Any] = _values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _integer(src, n, t, w))
+        values: list[Any] = list(
+            _values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _integer(src, n, t, w), [])
+        )
     else:
-        values = _values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt))
+        values = list(_values(src, lineno + 1, count, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt), []))
     return _Header(values=values, line=lineno, fmt=fmt)
 
 
@@ -456,6 +479,9 @@ def _block(src: TextSource, start: int) -> _Block:
     npts, quantity = int(match["npts"]), _quantity(match["what"])
     if npts == 0:
         raise src.error(data_line, f"the data header announces 0 values; expected {quantity} values")
+    if npts > MAX_SAMPLES:
+        raise src.error(data_line, f"the data header announces {npts:,} values; expected at most {MAX_SAMPLES:,} "
+                                   "(refused before parsing them)")
     fmt = _format(src, data_line, text, integer=False)
     _check_quantity(src, data_line, quantity, ints, unknown_int)
     unit_text, unit_code = _unit_code(src, data_line, text, ints, unknown_int)
@@ -474,12 +500,16 @@ def _with_data(src: TextSource, block: _Block) -> _Block:
     if block.quantity == "acceleration":
         unit = _acceleration_unit(src, block)
         shown = block.unit_text or unit
-        values = _values(
+        values: array[float] | None = array("d")
+        assert values is not None
+        _values(
             src, block.data_line + 1, block.npts, fmt, of_what,
-            lambda n, t, w: _acceleration(src, n, t, w, fmt, TO_G[unit], shown),
+            lambda n, t, w: _acceleration(src, n, t, w, fmt, TO_G[unit], shown), values,
         )
     else:
-        _values(src, block.data_line + 1, block.npts, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt))
+        _values(
+            src, block.data_line + 1, block.npts, fmt, of_what, lambda n, t, w: _real(src, n, t, w, fmt), array("d")
+        )
         values = None
     end = block.data_line + 1 + _lines_for(block.npts, fmt)
     text = _line(src, end, f"'End-of-data for Chan …' after {of_what}")
@@ -682,7 +712,12 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
     """
     path = Path(path)
     given, units = given_dt(dt), given_unit(units)
-    src = read_source(path, _EXPECTED)
+    raw, sha = read_record(path)
+    if plain_ascii(raw):  # lines decoded from the bytes one at a time, not a list of strings (a long record)
+        src = TextSource(path=path, lines=ByteLines(raw), sha256=sha)
+    else:  # decoded and split into lines, which says what is wrong with the bytes if anything is
+        src = source_from(path, raw, sha, _EXPECTED)
+    del raw
     blocks = _blocks(src)
     accelerations = [b for b in blocks if b.quantity == "acceleration"]
     if not accelerations:
@@ -690,6 +725,7 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
         raise src.error(blocks[0].line, f"no acceleration block (found {found}); expected at least one "
                                         "acceleration block (a V1 or V2 acceleration file)")
     channels = [_channel(src, b, given, units) for b in accelerations]
+    n_lines, src = len(src.lines), TextSource(path=path, lines=[], sha256=src.sha256)  # the file's bytes let go
     named = name_component(path) if len(channels) == 1 else None
     for channel in channels:
         if channel.kind == "other" and named is None:
@@ -706,7 +742,7 @@ def read_cosmos(path: str | Path, *, dt: float | None = None, units: str | None 
         "file": path.name,
         "format": "COSMOS v01.20",
         "title": first.block.title,
-        "lines": len(src.lines),
+        "lines": n_lines,
         "blocks": [
             {"line": b.line, "quantity": b.quantity, "npts": b.npts, "kept": b.quantity == "acceleration"}
             for b in blocks

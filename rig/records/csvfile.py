@@ -31,12 +31,21 @@ checked against the rows, which catches a file cut off at the end of a line.
 A one-component file's component comes from its column name (``acc_h``, ``h1``, ``HN1`` say horizontal); a
 bare ``acc`` column says nothing, so the file name is read (``….HNZ.csv``), else a `RecordWarning` says the
 component is unknown.
+
+Memory: a file of ASCII text with LF or CR LF line breaks whose rows are all plain numbers (no quotes, no ``D``
+exponent) is parsed from its bytes by numpy, a chunk at a time, straight into one array per column, never one Python
+object per cell (``benchmarks/record_memory.py`` measures the peak per sample: the file's bytes and 8 bytes a column).
+Any other file is read row by row with the exact checks, which either give the same arrays or stop at the first bad
+cell with its ``FILE:LINE`` error. At most `source.MAX_SAMPLES` rows: they are counted before a cell is parsed.
 """
 
 from __future__ import annotations
 
 import csv
+import math
 import re
+from array import array
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -46,7 +55,28 @@ from .component import HORIZONTAL, VERTICAL, component, from_name, name_componen
 from .grid import time_step
 from .motion import GroundMotion, array_sha256
 from .settings import Settings, check_npts, is_comment, read_settings
-from .source import TextSource, agreed_dt, agreed_unit, given_dt, located, matching_dt, read_source
+from .source import (
+    MAX_ABS_G,
+    MAX_SAMPLES,
+    DataLines,
+    TextSource,
+    agreed_dt,
+    agreed_unit,
+    byte_lines,
+    comment_lines,
+    count_rows,
+    csv_ready,
+    first_data_line,
+    given_dt,
+    line_count,
+    line_number,
+    located,
+    matching_dt,
+    parse_rows,
+    read_record,
+    source_from,
+    strict_rows,
+)
 from .units import TO_G, given_unit, parse_unit
 
 _EXPECTED = "a CSV record: a header row such as 'time_s,acc_g' and one sample a row"
@@ -186,27 +216,56 @@ def read_csv(path: str | Path, *, dt: float | None = None, units: str | None = N
     """
     path = Path(path)
     dt, units = given_dt(dt), given_unit(units)
-    src = read_source(path, _EXPECTED)
-    settings = read_settings(src)
+    raw, sha = read_record(path)
+    header_at = first_data_line(raw) if csv_ready(raw) else None
+    if header_at is not None:  # the lines up to the header from the bytes; the rows are parsed from them too
+        header_lines, body = byte_lines(raw, line_number(raw, header_at))
+        src, n_lines = TextSource(path=path, lines=header_lines, sha256=sha), line_count(raw)
+        settings = read_settings(src, comment_lines(raw))
+    else:  # decoded and split into lines, which says what is wrong with the bytes if anything is
+        src = source_from(path, raw, sha, _EXPECTED)
+        n_lines, body = len(src.lines), 0
+        settings = read_settings(src)
     header_line, cells, columns = _header(src)
     file_unit, unit_text = _file_unit(src, header_line, columns, settings)
     unit = agreed_unit(
         path, header_line, file_unit, units,
         "expected a unit in the column names (acc_g, acc [cm/s2]), a '# units = …' line or a given unit (--units)",
     )
-    rows = _rows(src, header_line, len(cells))
-    channels: dict[str, list[float]] = {c.channel: [] for c in columns}
-    for line, row in rows:
-        for index, (column, cell) in enumerate(zip(columns, row, strict=True)):
-            what = f"column {index + 1} ({cells[index]})"
-            if column.channel == "t":
-                channels["t"].append(src.number(line, cell.strip(), what))
-            else:
-                channels[column.channel].append(src.acceleration(line, cell.strip(), what, TO_G[unit], unit))
-    lines = [line for line, _ in rows]
+    to_g = TO_G[unit]
+    count = count_rows(raw, body) if header_at is not None else sum(
+        1 for text in src.lines[header_line:] if text.strip() and not is_comment(text)
+    )
+    if count > MAX_SAMPLES:
+        raise located(path, None, f"the record has {count:,} samples (data rows); expected at most {MAX_SAMPLES:,} "
+                                  "(refused before parsing them)")
+    parsed = None
+    if header_at is not None and count and strict_rows(raw, body, len(cells)):
+        parsed = parse_rows(raw, body, count, len(cells))
+    channels: dict[str, np.ndarray] = {}
+    for column, values in zip(columns, parsed or [], strict=False):
+        if column.channel == "t":
+            ok = math.isfinite(values.min()) and math.isfinite(values.max())  # NaN and inf, without a mask
+        else:
+            values *= to_g
+            ok = bool(values.min() >= -MAX_ABS_G and values.max() <= MAX_ABS_G)  # NaN too
+        if not ok:  # the exact check says which value
+            channels = {}
+            break
+        channels[column.channel] = values
+    del parsed
+    lines: Sequence[int]
+    if channels:
+        lines = DataLines(raw, body, count)
+        del raw
+    else:
+        if header_at is not None:
+            src = source_from(path, raw, sha, _EXPECTED)
+        del raw
+        channels, lines = _exact_rows(src, header_line, cells, columns, unit)
     check_npts(src, settings, lines)
     if "t" in channels:
-        column_dt, t0 = time_step(src, np.array(channels["t"]), lines, settings)
+        column_dt, t0 = time_step(src, channels["t"], lines, settings)
         dt = matching_dt(path, lines[0], column_dt, dt)
         timing: dict[str, object] = {"dt_from": "time column", "t0": t0}
     else:
@@ -215,7 +274,7 @@ def read_csv(path: str | Path, *, dt: float | None = None, units: str | None = N
             "a CSV file without a time column needs a '# dt = …' line or a given dt (--dt S)",
         )
         timing = {"dt_from": "given" if settings.dt is None else "file"}
-    acc = {k: np.array(v) for k, v in channels.items() if k != "t"}
+    acc = {k: v for k, v in channels.items() if k != "t"}
     provenance = {
         "source": "file",
         "path": str(path.resolve()),
@@ -223,15 +282,15 @@ def read_csv(path: str | Path, *, dt: float | None = None, units: str | None = N
         "format": "CSV",
         "columns": cells,
         **({"component": _component(path, header_line, columns)} if len(acc) == 1 else {}),
-        "lines": len(src.lines),
+        "lines": n_lines,
         "units_in_file": unit_text or unit,
         "units_from": "given" if file_unit is None else "file",
         "to_g": TO_G[unit],
-        "npts": len(rows),
+        "npts": len(lines),
         "dt": dt,
         **timing,
         "sha256": array_sha256(acc["h"]),
-        "source_sha256": src.sha256,
+        "source_sha256": sha,
     }
     return GroundMotion(
         name=path.stem, dt=dt, acc_h=acc["h"], acc_h2=acc.get("h2"), acc_v=acc.get("v"), provenance=provenance
@@ -248,6 +307,24 @@ def _component(path: Path, line: int, columns: list[_Column]) -> dict[str, objec
         raise located(path, line, f"{column.said_by} is a horizontal channel but {named[1]} says {named[0]}; "
                                   "expected the two to agree (rename the file or the column)")
     return component(HORIZONTAL, column.said_by, line)
+
+
+def _exact_rows(
+    src: TextSource, header_line: int, cells: list[str], columns: list[_Column], unit: str
+) -> tuple[dict[str, np.ndarray], list[int]]:
+    """The channels and the line of each row, row by row with the exact checks (`TextSource.number`,
+    `.acceleration`): a file `source.parse_rows` does not take, which is either read the same or stopped at the
+    first bad cell with its ``FILE:LINE`` error."""
+    rows = _rows(src, header_line, len(cells))
+    channels: dict[str, array[float]] = {c.channel: array("d") for c in columns}
+    for line, row in rows:
+        for index, (column, cell) in enumerate(zip(columns, row, strict=True)):
+            what = f"column {index + 1} ({cells[index]})"
+            if column.channel == "t":
+                channels["t"].append(src.number(line, cell.strip(), what))
+            else:
+                channels[column.channel].append(src.acceleration(line, cell.strip(), what, TO_G[unit], unit))
+    return {k: np.frombuffer(v, dtype=np.float64).copy() for k, v in channels.items()}, [line for line, _ in rows]
 
 
 def _rows(src: TextSource, header_line: int, width: int) -> list[tuple[int, list[str]]]:

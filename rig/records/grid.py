@@ -32,9 +32,10 @@ def time_step(src: TextSource, times: np.ndarray, lines: Sequence[int], settings
             lines[0], "a time column needs at least 2 samples to give dt; expected more samples "
             "(or only an acceleration column and a given dt)",
         )
-    with np.errstate(over="ignore", invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):  # one temporary array at a time (a record of millions)
         steps = np.diff(times)
         back = np.flatnonzero(~(steps > 0.0))
+        del steps
         if back.size:
             j = int(back[0]) + 1
             raise src.error(
@@ -46,12 +47,18 @@ def time_step(src: TextSource, times: np.ndarray, lines: Sequence[int], settings
             raise src.error(
                 lines[-1], f"the time column spans {times[0]:g} s to {times[-1]:g} s; expected a finite dt"
             )
-        grid = times[0] + np.arange(n) * spacing
-        off = np.flatnonzero(~(np.abs(times - grid) <= GRID_TOLERANCE * spacing))
+        distance = np.arange(n, dtype=np.float64)  # the even grid t0 + i * spacing, then each time's distance to it
+        distance *= spacing
+        distance += times[0]
+        np.subtract(times, distance, out=distance)
+        np.abs(distance, out=distance)
+        off = np.flatnonzero(~(distance <= GRID_TOLERANCE * spacing))
+        del distance
         if off.size:
             i = int(off[0])
+            grid = times[0] + np.float64(i) * spacing
             raise src.error(
-                lines[i], f"uneven time column: t = {times[i]:g} s, expected {grid[i]:g} s "
+                lines[i], f"uneven time column: t = {times[i]:g} s, expected {grid:g} s "
                 f"(t0 + {i} x {spacing:g} s, within {GRID_TOLERANCE:.0%} of dt)",
             )
     dt = float(f"{spacing:.12g}")

@@ -18,18 +18,43 @@ truncated or padded.
 
 The component (horizontal or vertical) comes from the word after the last comma of line 2 and from the file
 name (`component.peer_component`), in ``provenance["component"]``.
+
+Memory: a file of ASCII text whose values are all strict decimal numbers (the usual case) is parsed from its bytes
+by numpy, a chunk at a time, into one array, never one Python object per value (``benchmarks/record_memory.py``
+measures the peak per sample). Any other file (a Fortran ``D`` exponent, a bad token, a value out of range, a count
+that is not NPTS, bytes that are not ASCII) is read line by line with the exact checks, which either give the same
+array or stop at the first bad value with its ``FILE:LINE`` error. At most `source.MAX_SAMPLES` values: they are
+counted before one is parsed.
 """
 
 from __future__ import annotations
 
 import re
+from array import array
 from pathlib import Path
 
 import numpy as np
 
 from .component import peer_component
 from .motion import GroundMotion, array_sha256
-from .source import TextSource, given_dt, matching_dt, matching_unit, read_source
+from .source import (
+    MAX_ABS_G,
+    MAX_SAMPLES,
+    TextSource,
+    byte_lines,
+    count_tokens,
+    given_dt,
+    line_count,
+    line_start,
+    located,
+    matching_dt,
+    matching_unit,
+    parse_numbers,
+    plain_ascii,
+    read_record,
+    source_from,
+    strict_numbers,
+)
 from .units import TO_G, UNIT_HELP, given_unit, parse_unit
 
 _HEADER_LINES = 4
@@ -81,9 +106,10 @@ def _npts_dt(src: TextSource) -> tuple[int, float, str]:
     return int(npts_text), dt, style
 
 
-def _samples(src: TextSource, to_g: float, unit: str) -> tuple[list[float], int]:
-    """All samples [g] after the header and the number of the last line that held data (1-based)."""
-    values: list[float] = []
+def _samples(src: TextSource, to_g: float, unit: str) -> tuple[array[float], int]:
+    """All samples [g] after the header and the number of the last line that held data (1-based), line by line
+    with the exact checks (`TextSource.acceleration`), into an array (8 bytes a sample, no Python float kept)."""
+    values: array[float] = array("d")
     last = _HEADER_LINES
     for lineno, text in enumerate(src.lines[_HEADER_LINES:], start=_HEADER_LINES + 1):
         tokens = text.split()
@@ -104,26 +130,50 @@ def read_at2(path: str | Path, *, dt: float | None = None, units: str | None = N
     """
     path = Path(path)
     dt, units = given_dt(dt), given_unit(units)
-    src = read_source(path, _EXPECTED)
-    if len(src.lines) < _HEADER_LINES:
+    raw, sha = read_record(path)
+    clean = plain_ascii(raw)
+    if clean:  # the header from the bytes: the samples are parsed from them too, without a copy of the file
+        header, body = byte_lines(raw, _HEADER_LINES)
+        src, n_lines = TextSource(path=path, lines=header, sha256=sha), line_count(raw)
+    else:  # decoded and split into lines, which says what is wrong with the bytes if anything is
+        src = source_from(path, raw, sha, _EXPECTED)
+        n_lines = len(src.lines)
+    if n_lines < _HEADER_LINES:
         raise src.error(
-            len(src.lines) + 1,
+            n_lines + 1,
             f"expected a {_HEADER_LINES}-line PEER header (title, event, units, NPTS/DT); "
-            f"the file has only {len(src.lines)} line(s)",
+            f"the file has only {n_lines} line(s)",
         )
     unit_text, unit = _units(src)
     matching_unit(path, 3, unit, units)
     npts, file_dt, style = _npts_dt(src)
     matching_dt(path, 4, file_dt, dt)
-    values, last = _samples(src, TO_G[unit], unit_text)
-    if len(values) != npts:
-        kind = "truncated data" if len(values) < npts else "extra data"
-        raise src.error(
-            last,
-            f"{kind}: line 4 declares NPTS={npts} but the file holds {len(values)} values "
-            f"(lines {_HEADER_LINES + 1}-{last}); expected {npts} values",
-        )
-    acc = np.asarray(values, dtype=np.float64)
+    to_g = TO_G[unit]
+    if not clean:
+        body = line_start(raw, _HEADER_LINES)
+    count = count_tokens(raw, body)
+    if count > MAX_SAMPLES:
+        raise located(path, None, f"the record has {count:,} samples (values after the header); expected at most "
+                                  f"{MAX_SAMPLES:,} (refused before parsing them)")
+    acc = parse_numbers(raw, body, count) if clean and count == npts and strict_numbers(raw, body) else None
+    if acc is not None:
+        acc *= to_g
+        if not (acc.min() >= -MAX_ABS_G and acc.max() <= MAX_ABS_G):  # NaN too: the exact check says which
+            acc = None
+    if acc is None and clean:  # a bad token or value, or a count that is not NPTS: line by line says where
+        src = source_from(path, raw, sha, _EXPECTED)
+    del raw
+    if acc is None:
+        values, last = _samples(src, to_g, unit_text)
+        if len(values) != npts:
+            kind = "truncated data" if len(values) < npts else "extra data"
+            raise src.error(
+                last,
+                f"{kind}: line 4 declares NPTS={npts} but the file holds {len(values)} values "
+                f"(lines {_HEADER_LINES + 1}-{last}); expected {npts} values",
+            )
+        acc = np.frombuffer(values, dtype=np.float64).copy()
+        del values
     provenance = {
         "source": "file",
         "path": str(path.resolve()),
@@ -131,12 +181,12 @@ def read_at2(path: str | Path, *, dt: float | None = None, units: str | None = N
         "format": style,
         "title": src.lines[1].strip(),
         "component": peer_component(src.lines[1], path),
-        "lines": len(src.lines),
+        "lines": n_lines,
         "units_in_file": unit_text,
         "to_g": TO_G[unit],
         "npts": npts,
         "dt": file_dt,
         "sha256": array_sha256(acc),
-        "source_sha256": src.sha256,
+        "source_sha256": sha,
     }
     return GroundMotion(name=path.stem, dt=file_dt, acc_h=acc, provenance=provenance)

@@ -1,7 +1,7 @@
-"""Long plain-text records (issue 42, item 3): parsed into arrays without a Python object per sample (peak memory per
-sample measured with tracemalloc, numpy's arrays included), and a record with more samples than the limit refused
-from its count of data lines, before a number is parsed, naming the file and the limit. The time it takes is
-``benchmarks/record_memory.py``'s to say, not a test's."""
+"""Long records (issue 42, item 3), plain text, PEER ``.AT2`` and CSV: parsed into arrays without a Python object per
+sample (peak memory per sample measured with tracemalloc, numpy's arrays included), and a record with more samples
+than the limit refused from its count of data lines or values, before a number is parsed, naming the file and the
+limit. The time it takes is ``benchmarks/record_memory.py``'s to say, not a test's."""
 
 from __future__ import annotations
 
@@ -13,7 +13,14 @@ import numpy as np
 import pytest
 
 from rig.records import RecordError, RecordWarning
+from rig.records import cosmos as cosmos_reader
+from rig.records import csvfile as csv_reader
+from rig.records import peer as peer_reader
 from rig.records import text as text_reader
+from rig.records.cosmos import read_cosmos
+from rig.records.csvfile import read_csv
+from rig.records.peer import read_at2
+from rig.records.source import TextSource
 from rig.records.text import read_text
 
 GOAL_BYTES_PER_SAMPLE = 32
@@ -56,3 +63,138 @@ def test_a_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkey
     _one_sample_a_line(path, 1000)
     monkeypatch.undo()
     assert read_text(path).npts == 1000
+
+
+def _at2(path: Path, n: int, eol: str = "\n") -> np.ndarray:
+    """A PEER NGA-West2 ``.AT2`` file of ``n`` samples in g, five of 15 characters a line (16 bytes a sample)."""
+    values = np.random.default_rng(7).normal(0.0, 0.02, n)
+    rows = [" ".join(f"{v:15.7E}" for v in values[i:i + 5]) for i in range(0, n, 5)]
+    header = ["PEER NGA STRONG MOTION DATABASE RECORD", "Test, 1/1/2000, Station, H1",
+              "ACCELERATION TIME SERIES IN UNITS OF G", f"NPTS= {n}, DT= .0050 SEC"]
+    path.write_bytes((eol.join(header + rows) + eol).encode())
+    return np.array([float(f"{v:15.7E}") for v in values])
+
+
+@pytest.mark.parametrize("eol", ["\n", "\r\n"])
+def test_peak_memory_per_sample_of_a_long_at2_record(tmp_path: Path, eol: str) -> None:
+    n = 1_000_000
+    path = tmp_path / "long.AT2"
+    values = _at2(path, n, eol)
+    tracemalloc.start()
+    try:
+        motion = read_at2(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.005
+    assert motion.provenance["lines"] == 4 + n // 5
+    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
+
+
+def test_an_at2_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(peer_reader, "MAX_SAMPLES", 1000)
+
+    def parse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the samples were parsed")
+
+    monkeypatch.setattr(peer_reader.np, "fromstring", parse)
+    monkeypatch.setattr(TextSource, "acceleration", parse)
+    path = tmp_path / "long.AT2"
+    _at2(path, 1001)
+    with pytest.raises(RecordError, match=rf"^{path}: the record has 1,001 samples \(values after the header\); "
+                                          r"expected at most 1,000 \(refused before parsing them\)$"):
+        read_at2(path)
+    _at2(path, 1000)
+    monkeypatch.undo()
+    assert read_at2(path).npts == 1000
+
+
+def _csv(path: Path, n: int, time_column: bool) -> np.ndarray:
+    """A CSV record of ``n`` samples in g: ``time_s,acc_g`` rows, or one ``acc_g`` column and a ``# dt`` line."""
+    values = np.round(np.random.default_rng(7).normal(0.0, 0.02, n), 4)
+    if time_column:
+        path.write_text("time_s,acc_g\n" + "".join(f"{i * 0.005:.3f},{v:g}\n" for i, v in enumerate(values)))
+    else:
+        path.write_text("# dt = 0.005 s\nacc_g\n" + "".join(f"{v:g}\n" for v in values))
+    return values
+
+
+@pytest.mark.parametrize("time_column", [False, True], ids=["acc", "time-acc"])
+def test_peak_memory_per_sample_of_a_long_csv_record(tmp_path: Path, time_column: bool) -> None:
+    n = 1_000_000
+    path = tmp_path / "long-HNE.csv"
+    values = _csv(path, n, time_column)
+    tracemalloc.start()
+    try:
+        motion = read_csv(path)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.005
+    # The file's bytes are held while its rows are parsed into one float64 array per column: with a time column
+    # (16 bytes a row here) that alone is 32 bytes a sample; the bound says nothing else is kept per sample.
+    goal = GOAL_BYTES_PER_SAMPLE if not time_column else path.stat().st_size / n + 8 * 2 + 1
+    assert peak / n <= goal, f"{peak / n:.1f} bytes per sample"
+
+
+def test_a_csv_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(csv_reader, "MAX_SAMPLES", 1000)
+
+    def parse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the samples were parsed")
+
+    monkeypatch.setattr(csv_reader.np, "fromstring", parse)
+    monkeypatch.setattr(TextSource, "number", parse)
+    path = tmp_path / "long-HNE.csv"
+    _csv(path, 1001, time_column=True)
+    with pytest.raises(RecordError, match=rf"^{path}: the record has 1,001 samples \(data rows\); "
+                                          r"expected at most 1,000 \(refused before parsing them\)$"):
+        read_csv(path)
+    _csv(path, 1000, time_column=True)
+    monkeypatch.undo()
+    assert read_csv(path).npts == 1000
+
+
+def test_a_cosmos_channel_too_long_is_refused_before_it_is_parsed(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    sine = Path(__file__).parents[1] / "data" / "records" / "cosmos_sine.V2"  # one channel of 22 values, line 49
+    monkeypatch.setattr(cosmos_reader, "MAX_SAMPLES", 21)
+
+    def parse(*args: object, **kwargs: object) -> None:
+        raise AssertionError("the samples were parsed")
+
+    monkeypatch.setattr(TextSource, "acceleration", parse)
+    with pytest.raises(RecordError, match=rf"^{sine}:49: the data header announces 22 values; expected at most 21 "
+                                          r"\(refused before parsing them\)$"):
+        read_cosmos(sine)
+    monkeypatch.undo()
+    monkeypatch.setattr(cosmos_reader, "MAX_SAMPLES", 22)
+    assert read_cosmos(sine).npts == 22
+
+
+def _cosmos(path: Path, n: int) -> np.ndarray:
+    """cosmos_sine.V2 with ``n`` samples [cm/s²] in Format=(5E15.6) instead of its 22."""
+    lines = (Path(__file__).parents[1] / "data" / "records" / "cosmos_sine.V2").read_text().splitlines()
+    values = np.random.default_rng(7).normal(0.0, 20.0, n)
+    rows = ["".join(f"{v:15.6e}" for v in values[i:i + 5]) for i in range(0, n, 5)]
+    assert lines[48].startswith("      22 acceleration pts")
+    path.write_text("\n".join([*lines[:48], lines[48].replace("      22", f"{n:8d}"), *rows, lines[-1]]) + "\n")
+    return np.array([float(f"{v:15.6e}") for v in values]) * (0.01 / 9.81)
+
+
+def test_peak_memory_per_sample_of_a_long_cosmos_record(tmp_path: Path) -> None:
+    n = 100_000  # its values are still parsed one field at a time: 1 M takes too long for the fast tier
+    path = tmp_path / "long.V2"
+    values = _cosmos(path, n)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RecordWarning)
+        tracemalloc.start()
+        try:
+            motion = read_cosmos(path)
+            _, peak = tracemalloc.get_traced_memory()
+        finally:
+            tracemalloc.stop()
+    assert np.array_equal(motion.acc_h, values) and motion.npts == n
+    assert motion.provenance["lines"] == 48 + 1 + n // 5 + 1
+    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
