@@ -406,7 +406,33 @@ def parse_rows(raw: bytes, start: int, count: int, width: int) -> list[np.ndarra
     return columns if filled == count else None
 
 
-class DataLines(Sequence[int]):
+class LineNumbers(Sequence[int]):
+    """The line numbers of a record's ``_count`` data lines, each found by :meth:`_line` when it is asked for (an
+    error names its line) rather than kept for every sample."""
+
+    _count: int
+
+    def _line(self, i: int) -> int:
+        """The line number of data line ``i`` (0 ≤ i < ``_count``)."""
+        raise NotImplementedError
+
+    def __len__(self) -> int:
+        return self._count
+
+    @overload
+    def __getitem__(self, index: int) -> int: ...
+    @overload
+    def __getitem__(self, index: slice) -> list[int]: ...
+    def __getitem__(self, index: int | slice) -> int | list[int]:
+        if isinstance(index, slice):
+            return [self[i] for i in range(*index.indices(self._count))]
+        i = index + self._count if index < 0 else index
+        if not 0 <= i < self._count:
+            raise IndexError(index)
+        return self._line(i)
+
+
+class DataLines(LineNumbers):
     """The line number of each data line of a `csv_ready` file from an offset, without keeping the file: the first
     line's number and, for each blank or comment line among them, how many data lines come before it."""
 
@@ -423,19 +449,7 @@ class DataLines(Sequence[int]):
             at = match.end()
             self._gaps.append(rows)
 
-    def __len__(self) -> int:
-        return self._count
-
-    @overload
-    def __getitem__(self, index: int) -> int: ...
-    @overload
-    def __getitem__(self, index: slice) -> list[int]: ...
-    def __getitem__(self, index: int | slice) -> int | list[int]:
-        if isinstance(index, slice):
-            return [self[i] for i in range(*index.indices(self._count))]
-        i = index + self._count if index < 0 else index
-        if not 0 <= i < self._count:
-            raise IndexError(index)
+    def _line(self, i: int) -> int:
         return self._first + i + bisect.bisect_right(self._gaps, i)
 
 

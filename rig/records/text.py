@@ -30,9 +30,8 @@ from __future__ import annotations
 
 import io
 import re
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator
 from pathlib import Path
-from typing import overload
 
 import numpy as np
 
@@ -43,6 +42,7 @@ from .settings import check_npts, read_settings
 from .source import (
     MAX_ABS_G,
     MAX_SAMPLES,
+    LineNumbers,
     TextSource,
     agreed_dt,
     agreed_unit,
@@ -68,30 +68,18 @@ def _numbered(text: str, pattern: re.Pattern[str]) -> Iterator[tuple[int, str]]:
         yield line, match.group()
 
 
-class _DataLines(Sequence[int]):
+class _DataLines(LineNumbers):
     """The line number of each data line, found by scanning the text when one is asked for (on an error)."""
 
     def __init__(self, text: str, count: int) -> None:
         self._text = text
         self._count = count
 
-    def __len__(self) -> int:
-        return self._count
-
-    @overload
-    def __getitem__(self, index: int) -> int: ...
-    @overload
-    def __getitem__(self, index: slice) -> list[int]: ...
-    def __getitem__(self, index: int | slice) -> int | list[int]:
-        if isinstance(index, slice):
-            return [self[i] for i in range(*index.indices(self._count))]
-        i = index + self._count if index < 0 else index
-        if not 0 <= i < self._count:
-            raise IndexError(index)
+    def _line(self, i: int) -> int:
         for k, (line, _) in enumerate(_numbered(self._text, _DATA_RE)):
             if k == i:
                 return line
-        raise IndexError(index)
+        raise IndexError(i)
 
 
 def _check_columns(src: TextSource, text: str) -> int:
