@@ -2,13 +2,16 @@
 
 One case is one body on the plate in one completed run: the analysis's predicted direction (per model) and the
 experiment's observed one (+1 low side, −1 high side, 0 did not overturn; docs/architecture.md §2). Per side,
-``COR = #(direction = +1) / #(direction ≠ 0)`` (NaN, ``null`` in JSON, with no overturn). Rows per model, angle and
-body (``body_id`` ≥ 1) and an average row per model and angle (``body_id = 0``): counts, ``runs``, ``records``, both
-CORs with their 95 % intervals (``*_low``, ``*_high``), ``difference = cor_analysis − cor_experiment`` (a fraction,
-not percent) with its 90 % interval, the equivalence ``verdict`` within ``margin`` (default 5 points) with its
-p-values and ``runs_to_resolve``, and McNemar's paired counts and p-values; ``max_difference`` per model. Cases are
-clustered by record (``Case.record``). :func:`rule_label` and :func:`side_by_side` put a model's impact rules
-together (``rig analyze --restitution all``).
+
+    COR = #(direction = +1) / #(direction ≠ 0)
+
+a case that did not overturn entering neither count of that side; NaN (``null`` in JSON) with no overturn. Rows per
+model, angle and body (``body_id`` ≥ 1) and an average row per model and angle (``body_id = 0``): counts, ``runs``,
+``records``, both CORs with their 95 % intervals (``*_low``, ``*_high``),
+``difference = cor_analysis − cor_experiment`` (a fraction, not percent) with its 90 % interval, the equivalence
+``verdict`` within ``margin`` (default 5 points) with its p-values and ``runs_to_resolve``, and McNemar's paired
+counts and p-values; ``max_difference`` per model. Cases are clustered by record (``Case.record``).
+:func:`rule_label` and :func:`side_by_side` put a model's impact rules together (``rig analyze --restitution all``).
 
 What each field means and which estimator gives it (Wilson, the cluster bootstrap, Miettinen–Nurminen TOST,
 McNemar's exact test): docs/fig13.md.
