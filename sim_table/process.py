@@ -1,39 +1,14 @@
 """The emulator process: ``python -m sim_table --listen URL [options]`` (or ``rig emulate``).
 
-One loop owns the emulated table. It wakes at absolute deadlines every 2 ms of real time (sleeping, never
-spinning), runs every 1 ms controller tick due by then in one batch (catching up after a late wake), and sends
-what the batch produced:
-
-1. host messages queued by the endpoint are applied to the :class:`~sim_table.controller.ControllerCore` at
-   their arrival time, between the ticks;
-2. each tick's reference pose goes through the :class:`~sim_table.actuators.Actuators` (vectorised per batch);
-3. the achieved motion, one tick late with central differences (:class:`~sim_table.accelerometers.PlateTrack`),
-   drives the virtual accelerometers and the physical specimens (``sim_table.specimens``, MuJoCo), whose
-   overturns become overturn events and whose angles are their tilt sensors' samples (:data:`TILT_RATE`);
-4. a status every 20 ms of controller time and at every state change, accelerometer and tilt batches, final
-   command answers, heartbeats.
-
-Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep ``--watchdog`` (the rig
-configuration's ``[controller] watchdog_s``, 1 s by default) of **real** time at any ``--speed`` (they guard the
-link, whose heartbeats keep real time). At real time the loop wakes every :data:`WAKE_PERIOD_NS` on the transports
-whose controller buffers setpoints (MAVLink, zenoh: their host sends the lead ahead, 1 s by default) and runs the
-ticks due as one batch, as virtual time does; CANopen's drives answer every SYNC with the physics of its instant,
-so there it wakes more often, every :data:`CANOPEN_WAKE_PERIOD_NS`.
-
-``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
-as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration (fewer where the last batch's wall time per
-tick says more would take longer than :data:`VIRTUAL_BATCH_WALL_NS`: the statuses go out at a batch's end, and a busy
-host must still hear them well within its link timeout), while the table has something to do — a
-move, a stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose
-end has not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a
-status tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time.
-Host messages are stamped with the controller time they were taken at and applied before the next tick; the link
-watchdogs count :data:`VIRTUAL_WATCHDOG_SECONDS` of host-monotonic time between the moments the messages are
-applied (a busy emulator does not trip them). With ``--delay`` a message is held that long in real time. See
-``docs/table-controller.md``.
-
-Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the emulator is
-also the operator.
+One loop owns the emulated table: it wakes at absolute deadlines (:data:`WAKE_PERIOD_NS`, on CANopen
+:data:`CANOPEN_WAKE_PERIOD_NS`), runs every 1 ms controller tick due by then in one batch — host messages applied at
+their arrival time, the reference through the actuators, the achieved motion into the accelerometers and the
+MuJoCo specimens (tilt samples at :data:`TILT_RATE` [Hz]) — and sends what the batch produced (a status every
+20 ms of controller time and at every state change, batches, answers, heartbeats). Controller time [ns] is
+``speed × (host monotonic − start)``; ``--speed max`` is virtual time (at most :data:`VIRTUAL_BATCH` ticks a
+batch, the clock holding at a stream's last buffered setpoint); the link watchdogs keep ``--watchdog`` of real time
+at any speed. Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the
+emulator is also the operator.
 
 Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
 drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S`` seizes leg LEG's actuator (it
@@ -44,6 +19,8 @@ one JSON object to stdout, or to ``--counters FILE``.
 Signing key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``): needed on the transports that sign, mavlink and
 zenoh; not on canopen, which has no authentication (the bus is a private cable). On those two the signatures' last
 stamps are kept across restarts in ``--replay-state FILE`` (default: beside the key file, ``sim_table.replay_store``).
+
+The loop's steps, its wake periods and virtual time: docs/table-controller.md §The emulator's loop and §Virtual time.
 """
 
 from __future__ import annotations
