@@ -7,8 +7,9 @@ consistent with the pose (what ``sim_table.specimens`` asks for).
 :class:`Accelerometers` are points fixed on the plate (``places`` (m, 3) [m], plate frame: x along the fall line,
 +x downhill, z normal to the plate, up). Each measures, at the same one-tick-late instants, the specific force in
 the plate frame ``f = Rᵀ (a − g)`` with ``g = (0, 0, −9.81) m/s²`` in the base frame and ``a`` the central second
-difference of the point's position ``x = t + R r`` [m/s²], plus Gaussian noise of σ ``noise`` (seeded): at rest on
-a plate tilted by pitch β, ``f = (−g sin β, 0, g cos β)``.
+difference of the point's position ``x = t + R r`` [m/s²], plus Gaussian noise of σ ``noise`` (seeded; a sensor's
+own σ in :attr:`Accelerometers.sigma`, raised by a fault): at rest on a plate tilted by pitch β,
+``f = (−g sin β, 0, g cos β)``.
 """
 
 from __future__ import annotations
@@ -49,6 +50,8 @@ class Accelerometers:
             raise ValueError(f"accelerometer noise must be >= 0 m/s², got {noise!r}")
         self.dt = float(dt)
         self.noise = float(noise)
+        self.sigma = np.full(len(self.places), self.noise)
+        """Each sensor's noise σ now [m/s²] (the emulator raises one for ``--accel-noisy``)."""
         self._rng = np.random.default_rng(seed)
 
     def measure(self, window: np.ndarray) -> np.ndarray:
@@ -57,6 +60,6 @@ class Accelerometers:
         points = window[:, None, :3] + np.einsum("kij,mj->kmi", R, self.places)  # (k + 2, m, 3)
         a = (points[2:] - 2.0 * points[1:-1] + points[:-2]) / (self.dt * self.dt)
         force = np.einsum("kji,kmj->kmi", R[1:-1], a - GRAVITY)
-        if self.noise:
-            force += self._rng.normal(0.0, self.noise, force.shape)
+        if self.sigma.any():
+            force += self._rng.normal(0.0, 1.0, force.shape) * self.sigma[None, :, None]
         return force

@@ -38,8 +38,9 @@ also the operator.
 Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
 drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S`` seizes leg LEG's actuator (it
 brakes to rest and stops following its command: on CANopen its drive's following-error supervision trips) from
-S seconds (controller time) after the first START_STREAM. At exit (SIGINT, SIGTERM) the counters are written as
-one JSON object to stdout, or to ``--counters FILE``.
+S seconds (controller time) after the first START_STREAM; ``--door-open S:D`` sets the enclosure door input and
+``--accel-noisy ID@S:D`` makes accelerometer ID noisy for D s from S s after it. At exit (SIGINT, SIGTERM) the
+counters are written as one JSON object to stdout, or to ``--counters FILE``.
 
 Signing key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``): needed on the transports that sign, mavlink and
 zenoh; not on canopen, which has no authentication (the bus is a private cable). On those two the signatures' last
@@ -141,6 +142,9 @@ fallen bodies' too; without bodies nothing is sent."""
 TIMING_WINDOW = 100_000
 """Batches kept for the tick-time percentiles in the counters."""
 
+NOISY_ACCEL_SIGMA = 0.5
+"""The noise σ a noisy accelerometer (``--accel-noisy``) adds to its own [m/s²], on every axis."""
+
 SIGNING_SCHEMES = frozenset({"mavlink", "zenoh"})
 """Transports that authenticate motion commands and setpoints with the rig's signing key (CANopen has no
 authentication: the bus is a private cable, and the emulator needs no key for it)."""
@@ -175,6 +179,9 @@ class EmulatorConfig:
     leg_stall: tuple[int, float] | None = None
     door_open: tuple[float, float] | None = None
     """The enclosure door open from S s after the first stream start for D s (controller time): (S, D)."""
+    accel_noisy: tuple[int, float, float] | None = None
+    """Accelerometer ID noisy (σ :data:`NOISY_ACCEL_SIGMA` more) from S s after the first stream start for D s
+    (controller time): (ID, S, D)."""
     seed: int = 0
     watchdog: float | None = None
     buffer: float | None = None
@@ -196,6 +203,9 @@ class EmulatorConfig:
             leg, at = self.leg_stall
             if not (isinstance(leg, int) and 1 <= leg <= 6 and math.isfinite(at) and at >= 0):
                 raise ValueError(f"leg_stall must be (leg 1..6, >= 0 s), got {self.leg_stall!r}")
+        if self.accel_noisy is not None and not 0 <= self.accel_noisy[0] < len(self.sensors):
+            raise ValueError(f"--accel-noisy: no accelerometer {self.accel_noisy[0]} on the emulated plate (it has "
+                             f"{len(self.sensors)}: ids 0 to {len(self.sensors) - 1})")
         scheme = listen_scheme(self.listen)
         if math.isinf(self.speed) and scheme == "canopen":
             raise ValueError("--speed max: CANopen has no virtual time (its master, the host, is the controller and "
@@ -507,6 +517,11 @@ class Emulator:
         if cfg.door_open is not None:
             opens = start + cfg.door_open[0] * 1e9
             self.core.inputs = int(opens <= t < opens + cfg.door_open[1] * 1e9)
+        if cfg.accel_noisy is not None:
+            sensor, opens_s, lasts_s = cfg.accel_noisy
+            opens = start + opens_s * 1e9
+            noisy = opens <= t < opens + lasts_s * 1e9
+            self.accelerometers.sigma[sensor] = self.accelerometers.noise + NOISY_ACCEL_SIGMA * noisy
         if cfg.leg_stall is not None and not self._leg_stalled and t >= start + cfg.leg_stall[1] * 1e9:
             self._leg_stalled = True
             self.actuators.stalled[cfg.leg_stall[0] - 1] = True
@@ -573,7 +588,8 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
-            stall_at=args.stall_at, leg_stall=args.leg_stall, door_open=args.door_open, seed=args.seed,
+            stall_at=args.stall_at, leg_stall=args.leg_stall, door_open=args.door_open,
+            accel_noisy=args.accel_noisy, seed=args.seed,
             watchdog=args.watchdog,
             buffer=args.buffer, security=LinkSecurity(tls, args.insecure_plain_tcp),
             replay_state=replay_state if signs else None)

@@ -15,9 +15,11 @@ calibrated = 2026-01-15        # a TOML date (or "2026-01-15")
 due = 2027-01-15               # after calibrated
 place_m = [0.30, -0.20, 0.05]  # where it sits, plate frame [m]: x downhill, z up from the plate; each within ±20 m
 axes = ["+x", "+y", "+z"]      # the plate axis each of its own axes (1, 2, 3) points along: each of x, y, z once
+noise_floor_m_s2 = 0.03        # optional: its noise at rest, RMS per axis [m/s²], 1e-6 … 1 and below the range
 ```
 
 A sensor is named by its accelerometer id (a whole number, 0 … 255). Every key of a sensor is required but
+``noise_floor_m_s2`` (without it the noise-floor suspender leaves the sensor alone: ``rig.orchestrator.noise``) and
 ``overdue``. Errors are ``FILE:LINE: sensors.ID.KEY: problem``. The date is not checked against today when the
 file is read (a session's stored configuration must stay readable a year on): :func:`overdue` does it at start.
 """
@@ -50,6 +52,9 @@ SENSITIVITY_RANGE = (1e-3, 1e5)
 RANGE_M_S2 = (0.01 * G, 1000.0 * G)
 """A full scale [m/s²]: 0.01 g to 1000 g."""
 
+NOISE_FLOOR_M_S2 = (1e-6, 1.0)
+"""A noise floor, RMS per axis [m/s²]: 0.1 µg (the best seismic sensors) to 0.1 g (no accelerometer worth a sheet)."""
+
 MAX_PLACE_M = 20.0
 """Largest |coordinate| of a sensor's place [m]."""
 
@@ -58,6 +63,7 @@ MAX_SENSOR_ID = 255
 
 _SENSOR_KEYS = ("model", "serial", "sensitivity", "sensitivity_unit", "range", "range_unit", "calibrated", "due",
                 "place_m", "axes")
+_OPTIONAL_KEYS = ("noise_floor_m_s2",)
 _AXES = ("x", "y", "z")
 _TEXT_LEN = 64
 
@@ -67,6 +73,7 @@ class SensorSheet:
     """One accelerometer's calibration sheet. ``sensitivity`` is as written, in ``sensitivity_unit``; ``range_m_s2``
     the full scale [m/s², read as ±]; ``place_m`` (x, y, z) in the plate frame [m] (x downhill, z up);
     ``axes`` the plate axis each of the sensor's three axes points along, signed (``"+x"``, ``"-y"``, …);
+    ``noise_floor_m_s2`` its noise at rest, RMS of each axis [m/s²] (None: not given, not watched);
     ``source`` and ``due_line`` say where it was written (the file, the line of its ``due`` key) for messages."""
 
     sensor: str
@@ -79,6 +86,7 @@ class SensorSheet:
     due: date
     place_m: tuple[float, float, float]
     axes: tuple[str, str, str]
+    noise_floor_m_s2: float | None = None
     source: str = field(default="", compare=False)
     due_line: int | None = field(default=None, compare=False)
 
@@ -97,7 +105,8 @@ class SensorSheet:
         return {"model": self.model, "serial": self.serial, "sensitivity": self.sensitivity,
                 "sensitivity_unit": self.sensitivity_unit, "range": self.range_m_s2, "range_unit": "m/s^2",
                 "calibrated": self.calibrated.isoformat(), "due": self.due.isoformat(),
-                "place_m": list(self.place_m), "axes": list(self.axes)}
+                "place_m": list(self.place_m), "axes": list(self.axes),
+                **({} if self.noise_floor_m_s2 is None else {"noise_floor_m_s2": self.noise_floor_m_s2})}
 
 
 @dataclass(frozen=True)
@@ -144,7 +153,7 @@ def read_sensors(checker: TomlChecker, value: Any) -> SensorSheets:
 
 
 def _sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> SensorSheet:
-    table = checker.table(value, path, _SENSOR_KEYS)
+    table = checker.table(value, path, (*_SENSOR_KEYS, *_OPTIONAL_KEYS))
     missing = [key for key in _SENSOR_KEYS if key not in table]
     if missing:
         raise checker.error(path, f"missing {', '.join(missing)}")
@@ -180,9 +189,21 @@ def _sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> SensorShe
                                                                 and a[0] in "+-" and a[1] in _AXES for a in axes)
             or sorted(a[1] for a in axes) != list(_AXES)):
         raise checker.error((*path, "axes"), f"expected {wanted}, got {shown(axes)}")
+    noise = None if "noise_floor_m_s2" not in table else _noise_floor(checker, table["noise_floor_m_s2"],
+                                                                     (*path, "noise_floor_m_s2"), full_scale)
     return SensorSheet(path[-1], text["model"], text["serial"], sensitivity, unit, full_scale, calibrated, due,
-                       (xyz[0], xyz[1], xyz[2]), (axes[0], axes[1], axes[2]), checker.source,
+                       (xyz[0], xyz[1], xyz[2]), (axes[0], axes[1], axes[2]), noise, checker.source,
                        checker.line((*path, "due")))
+
+
+def _noise_floor(checker: TomlChecker, value: Any, path: tuple[str, ...], full_scale: float) -> float:
+    """A noise floor [m/s² RMS] in :data:`NOISE_FLOOR_M_S2` and below the sensor's ``full_scale`` [m/s²]."""
+    low, high = NOISE_FLOOR_M_S2
+    floor = checker.ranged(value, path, low, high, f"a noise floor from {low:g} to {high:g} m/s² RMS")
+    if floor >= full_scale:
+        raise checker.error(path, f"noise floor {floor:g} m/s² RMS is not below the sensor's full scale "
+                                  f"{full_scale:.4g} m/s²")
+    return floor
 
 
 def _text(checker: TomlChecker, value: Any, path: tuple[str, ...]) -> str:
@@ -203,7 +224,6 @@ def _date(checker: TomlChecker, value: Any, path: tuple[str, ...]) -> date:
         if parsed is not None and len(value) == 10:
             return parsed
     raise checker.error(path, f"expected a date such as 2027-01-15, got {shown(value)}")
-
 
 
 def clipped_rows(xyz: np.ndarray, full_scale: float) -> np.ndarray:

@@ -29,6 +29,7 @@ calibrated = 2026-01-15
 due = 2027-01-15
 place_m = [0.30, -0.20, 0.05]
 axes = ["+x", "-y", "+z"]
+noise_floor_m_s2 = 0.03
 """
 
 
@@ -46,6 +47,7 @@ def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) 
     assert sheet.range_m_s2 == pytest.approx(5.0 * G)
     assert (sheet.calibrated, sheet.due) == (date(2026, 1, 15), date(2027, 1, 15))
     assert sheet.place_m == (0.30, -0.20, 0.05) and sheet.axes == ("+x", "-y", "+z")
+    assert sheet.noise_floor_m_s2 == 0.03
     assert (sheet.source, sheet.due_line) == (str(tmp_path / "rig.toml"), 12)
     stored = configuration_dict(configuration)
     assert stored["sensors"]["0"]["due"] == "2027-01-15"
@@ -62,6 +64,10 @@ def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) 
     ("range = 5.0", "range = 5000.0", 9, "sensors.0.range", "full scale from"),
     ('axes = ["+x", "-y", "+z"]', 'axes = ["+x", "+x", "+z"]', 14, "sensors.0.axes", "each of x, y, z once"),
     ("place_m = [0.30, -0.20, 0.05]", "place_m = [30, 0, 0]", 13, "sensors.0.place_m", "within ±20 m"),
+    ("noise_floor_m_s2 = 0.03", "noise_floor_m_s2 = 3.0", 15, "sensors.0.noise_floor_m_s2",
+     "a noise floor from 1e-06 to 1 m/s² RMS"),
+    ("noise_floor_m_s2 = 0.03", "noise_floor_m_s2 = 0.0", 15, "sensors.0.noise_floor_m_s2", "a noise floor from"),
+    ("noise_floor_m_s2 = 0.03", 'noise_floor_m_s2 = "low"', 15, "sensors.0.noise_floor_m_s2", "a noise floor from"),
     ('overdue = "refuse"', 'overdue = "ignore"', 2, "sensors.overdue", "expected one of warn, refuse"),
     ("[sensors.0]", "[sensors.front]", 4, "sensors.front", "accelerometer id"),
     ('serial = "LW231455"\n', "", 4, "sensors.0", "missing serial"),
@@ -88,3 +94,18 @@ def test_overdue_finds_the_sheets_due_on_or_before_a_day(tmp_path: Path) -> None
 def test_a_reading_at_its_full_scale_is_clipped() -> None:
     xyz = np.array([[0.0, 0.0, 9.81], [49.0, 0.0, 0.0], [0.0, -49.0, 0.0], [0.0, 0.0, 48.99]])
     assert clipped_rows(xyz, 49.0).tolist() == [1, 2]
+
+
+def test_the_noise_floor_may_be_left_out(tmp_path: Path) -> None:
+    configuration = read_configuration(_write(tmp_path, SHEET.replace("noise_floor_m_s2 = 0.03\n", "")))
+    assert configuration.sensors.sheets["0"].noise_floor_m_s2 is None
+    assert "noise_floor_m_s2" not in configuration_dict(configuration)["sensors"]["0"]
+    assert configuration_from_dict(configuration_dict(configuration)) == configuration
+
+
+def test_a_noise_floor_at_the_full_scale_is_refused(tmp_path: Path) -> None:
+    text = SHEET.replace("range = 5.0", "range = 0.05").replace("floor_m_s2 = 0.03", "floor_m_s2 = 0.6")
+    path = _write(tmp_path, text)
+    with pytest.raises(TableModelError, match=r"rig.toml:15: sensors.0.noise_floor_m_s2: noise floor 0.6 m/s² RMS is "
+                                              r"not below the sensor's full scale 0.4905 m/s²$"):
+        read_configuration(path)
