@@ -58,6 +58,8 @@ class NoiseWatch:
                        if sheet.noise_floor_m_s2 is not None}
         self._windows: dict[int, deque[AccelBatch]] = {sensor: deque() for sensor in self.sheets}
         self._subscription: Subscription[AccelBatch] | None = None
+        self.silent: list[int] = []
+        """The watched sensors without a full window after the first wait (not judged)."""
 
     def __enter__(self) -> NoiseWatch:
         if self.sheets:
@@ -82,6 +84,7 @@ class NoiseWatch:
                 self._take([self._subscription.get(timeout=max(deadline - time.monotonic(), 0.0))])
             except TimeoutError:
                 break
+        self.silent = [sensor for sensor in self.sheets if not self._full(sensor)]
         found = []
         for sensor, sheet in self.sheets.items():
             if self._full(sensor):

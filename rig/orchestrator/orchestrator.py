@@ -54,6 +54,7 @@ from drivers.controller import (
 )
 from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap, commanded_fall_line
+from rig.orchestrator.noise import WINDOW_S as NOISE_WINDOW_S
 from rig.orchestrator.noise import NoiseWatch
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.sinks import RunSink, SessionSink
@@ -460,6 +461,9 @@ class Orchestrator:
                 return suspensions(table.status(), time.monotonic_ns(), timeout) + noise.reasons()
 
             reasons = now()
+            if noise.silent:
+                self.log_event(f"noise floor not checked: accelerometer(s) {', '.join(map(str, noise.silent))} sent "
+                               f"no {NOISE_WINDOW_S:g} s of samples at rest")
             if not reasons:
                 return
             why = "; ".join(reasons)

@@ -96,8 +96,15 @@ def test_a_sensor_noisier_than_its_floor_holds_and_clears_over_the_latest_window
             table.send(seq, 0.01, rng)
         assert watch.reasons() != []
         table.send(2 * batches - 1, 0.01, rng)
-        assert watch.reasons() == []
+        assert watch.reasons() == [] and watch.silent == []
     assert not table.feedback._subscribers["accel"]  # unsubscribed on exit
+
+
+def test_a_sensor_that_sends_nothing_is_not_judged(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr("rig.orchestrator.noise.WAIT_S", 0.05)
+    table = _Table()
+    with NoiseWatch(table, _sheets(tmp_path)) as watch:
+        assert watch.reasons() == [] and watch.silent == [0]
 
 
 def test_a_sheet_without_a_noise_floor_is_not_watched(tmp_path: Path) -> None:
