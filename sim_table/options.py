@@ -87,7 +87,9 @@ def argument_parser() -> argparse.ArgumentParser:
                         "friction coefficient and measured restitution (its impacts reproduce it; default: the "
                         "contact's own, Housner's); repeat for more (body ids 0, 1, … in this order)")
     p.add_argument("--accel", action="append", type=_point, metavar="X,Y,Z",
-                   help="an accelerometer at plate (x, y, z) [m]; repeat for more (default: one at the centre)")
+                   help="an accelerometer at plate (x, y, z) [m], with the plate's axes; repeat for more (default: "
+                        "where the rig configuration's [sensors] sheets put them, with their axes; without sheets "
+                        "one at the centre)")
     p.add_argument("--loss", type=float, default=0.0, metavar="PCT", help="drop this %% of datagrams, both ways")
     p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay every datagram, both ways")
     p.add_argument("--drive-fault-at", type=float, metavar="S", help="drive fault S s after the first stream start")

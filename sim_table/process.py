@@ -70,7 +70,7 @@ from analysis.table.model import TableModel
 from protocols.signing_key import KEY_ENV, load_signing_key
 from protocols.zenoh.config import PLAIN, LinkSecurity
 from protocols.zenoh.tls import TlsOptions, load_tls
-from sim_table.accelerometers import Accelerometers, PlateTrack
+from sim_table.accelerometers import Accelerometers, PlateTrack, sheet_accelerometers
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Refused, Snapshot, State
 from sim_table.dynamics import make_actuators, specimen_loads
@@ -167,7 +167,9 @@ class EmulatorConfig:
     key: bytes | None = field(default=None, repr=False)
     speed: float = 1.0
     specimens: tuple[Specimen, ...] = ()
-    sensors: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),)
+    sensors: tuple[tuple[float, float, float], ...] | None = None
+    """The accelerometers' places [m, plate frame], each with the plate's axes (``--accel``); None: where the
+    table's calibration sheets put them, with their axes (``[sensors]``: :func:`sheet_accelerometers`)."""
     table: TableModel = field(default_factory=TableModel)
     actuators: ActuatorSettings = field(default_factory=ActuatorSettings)
     dynamics: str = "lag"
@@ -203,9 +205,13 @@ class EmulatorConfig:
             leg, at = self.leg_stall
             if not (isinstance(leg, int) and 1 <= leg <= 6 and math.isfinite(at) and at >= 0):
                 raise ValueError(f"leg_stall must be (leg 1..6, >= 0 s), got {self.leg_stall!r}")
-        if self.accel_noisy is not None and not 0 <= self.accel_noisy[0] < len(self.sensors):
+        if self.sensors is not None and self.table.sensors.sheets:
+            raise ValueError("--accel places accelerometers the rig configuration's [sensors] sheets place too: "
+                             "give one or the other")
+        count = len(self.accelerometer_places()[0])
+        if self.accel_noisy is not None and not 0 <= self.accel_noisy[0] < count:
             raise ValueError(f"--accel-noisy: no accelerometer {self.accel_noisy[0]} on the emulated plate (it has "
-                             f"{len(self.sensors)}: ids 0 to {len(self.sensors) - 1})")
+                             f"{count}: ids 0 to {count - 1})")
         scheme = listen_scheme(self.listen)
         if math.isinf(self.speed) and scheme == "canopen":
             raise ValueError("--speed max: CANopen has no virtual time (its master, the host, is the controller and "
@@ -216,6 +222,13 @@ class EmulatorConfig:
         if scheme != "zenoh" and self.security != PLAIN:
             raise ValueError(f"--listen {self.listen}: --tls-ca/--tls-cert/--tls-key and --insecure-plain-tcp are "
                              "options of a zenoh link")
+
+
+    def accelerometer_places(self) -> tuple[np.ndarray, np.ndarray]:
+        """The accelerometers' places (m, 3) [m, plate frame] and mountings (m, 3, 3) (plate frame → their axes)."""
+        if self.sensors is None:
+            return sheet_accelerometers(self.table.sensors)
+        return np.array(self.sensors, dtype=float), np.tile(np.eye(3), (len(self.sensors), 1, 1))
 
 
 class Emulator:
@@ -242,7 +255,8 @@ class Emulator:
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
                                         loads=specimen_loads(config.specimens))
         self.track = PlateTrack(dt)
-        self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
+        places, mountings = config.accelerometer_places()
+        self.accelerometers = Accelerometers(places, dt, mountings=mountings, noise=config.accel_noise,
                                              seed=config.seed + 1)
         self.profile = TickProfile()
         """The tick thread's CPU time per stage (``sim_table.tick_profile``), in the counters' ``timing``."""
@@ -583,7 +597,7 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
             tls = load_tls(network.ca, network.cert, network.key, names=TlsOptions(*network.where))
         config = EmulatorConfig(
             listen=args.listen, key=key, speed=args.speed,
-            specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
+            specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel) if args.accel else None,
             table=table,
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
@@ -636,7 +650,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sim_table: WARNING: --insecure-plain-tcp: the link at {emulator.url} may be plain text off loopback "
               "(nothing encrypted)", file=sys.stderr, flush=True)
     print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
-          f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
+          f"{len(emulator.accelerometers.places)} accelerometers)", file=sys.stderr, flush=True)
     try:
         emulator.run(stop)
     finally:

@@ -55,6 +55,9 @@ RANGE_M_S2 = (0.01 * G, 1000.0 * G)
 NOISE_FLOOR_M_S2 = (1e-6, 1.0)
 """A noise floor, RMS per axis [m/s²]: 0.1 µg (the best seismic sensors) to 0.1 g (no accelerometer worth a sheet)."""
 
+PLATE_AXES = ("+x", "+y", "+z")
+"""The axes of a sensor mounted along the plate's: its readings are the plate frame's."""
+
 MAX_PLACE_M = 20.0
 """Largest |coordinate| of a sensor's place [m]."""
 
@@ -94,6 +97,15 @@ class SensorSheet:
     def due_key(self) -> str:
         """The dotted key of its due date."""
         return f"sensors.{self.sensor}.due"
+
+    def mounting(self) -> np.ndarray:
+        """The 3×3 matrix ``A`` that turns a vector in the plate frame into the sensor's own axes (``s = A f``; a
+        signed permutation, so ``f = Aᵀ s``): row i has ``±1`` in the column of the plate axis its axis i points
+        along."""
+        matrix = np.zeros((3, 3))
+        for row, axis in enumerate(self.axes):
+            matrix[row, _AXES.index(axis[1])] = 1.0 if axis[0] == "+" else -1.0
+        return matrix
 
     def overdue_problem(self) -> str:
         """What an overdue sheet is, in words (no place)."""
