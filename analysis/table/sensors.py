@@ -16,16 +16,27 @@ due = 2027-01-15               # after calibrated
 place_m = [0.30, -0.20, 0.05]  # where it sits, plate frame [m]: x downhill, z up from the plate; each within ±20 m
 axes = ["+x", "+y", "+z"]      # the plate axis each of its own axes (1, 2, 3) points along: each of x, y, z once
 noise_floor_m_s2 = 0.03        # optional: its noise at rest, RMS per axis [m/s²], 1e-6 … 1 and below the range
+
+[sensors.tilt.1]               # the tilt sensor of body 1 (the sequence's body_id: the session file's tilt/1)
+model = "Jewell A602"
+serial = "T-0423"
+range = 90.0                   # full scale, read as ±: 1° … 180° (0.01745 … 3.1416 rad)
+range_unit = "deg"             # deg or rad
+calibrated = 2026-02-01
+due = 2027-02-01               # after calibrated
 ```
 
-A sensor is named by its accelerometer id (a whole number, 0 … 255). Every key of a sensor is required but
-``noise_floor_m_s2`` (without it the noise-floor suspender leaves the sensor alone: ``rig.orchestrator.noise``) and
-``overdue``. Errors are ``FILE:LINE: sensors.ID.KEY: problem``. The date is not checked against today when the
-file is read (a session's stored configuration must stay readable a year on): :func:`overdue` does it at start.
+An accelerometer is named by its id (a whole number, 0 … 255); every key of its sheet is required but
+``noise_floor_m_s2`` (without it the noise-floor suspender leaves the sensor alone: ``rig.orchestrator.noise``).
+A tilt sensor is named by its body's id (1 … 255: the sequence's ``body_id``), under ``tilt``; every key of its
+sheet is required. ``overdue`` is optional. Errors are ``FILE:LINE: sensors.ID.KEY: problem``. The date is not
+checked against today when the file is read (a session's stored configuration must stay readable a year on):
+:func:`overdue` does it at start.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import date
@@ -61,12 +72,22 @@ PLATE_AXES = ("+x", "+y", "+z")
 MAX_PLACE_M = 20.0
 """Largest |coordinate| of a sensor's place [m]."""
 
+TILT_RANGE_UNITS = {"deg": math.pi / 180.0, "rad": 1.0}
+"""Angle units of a tilt sensor's range, with their factor to rad."""
+
+TILT_RANGE_RAD = (math.radians(1.0), math.pi)
+"""A tilt sensor's full scale [rad]: 1° to 180°."""
+
+MAX_BODY_ID = 255
+"""Largest body id of a tilt sensor's sheet."""
+
 MAX_SENSOR_ID = 255
 """Largest accelerometer id."""
 
 _SENSOR_KEYS = ("model", "serial", "sensitivity", "sensitivity_unit", "range", "range_unit", "calibrated", "due",
                 "place_m", "axes")
 _OPTIONAL_KEYS = ("noise_floor_m_s2",)
+_TILT_KEYS = ("model", "serial", "range", "range_unit", "calibrated", "due")
 _AXES = ("x", "y", "z")
 _TEXT_LEN = 64
 
@@ -122,27 +143,62 @@ class SensorSheet:
 
 
 @dataclass(frozen=True)
+class TiltSheet:
+    """One body's tilt sensor's calibration sheet (the overturn detector's channel: the body's rocking angle
+    relative to the plate, > 0 towards the low side). ``body`` the body's id as text; ``range_rad`` the full scale
+    [rad, read as ±]; ``source`` and ``due_line`` as :class:`SensorSheet`'s."""
+
+    body: str
+    model: str
+    serial: str
+    range_rad: float
+    calibrated: date
+    due: date
+    source: str = field(default="", compare=False)
+    due_line: int | None = field(default=None, compare=False)
+
+    @property
+    def due_key(self) -> str:
+        """The dotted key of its due date."""
+        return f"sensors.tilt.{self.body}.due"
+
+    def overdue_problem(self) -> str:
+        """What an overdue sheet is, in words (no place)."""
+        return (f"the tilt sensor of body {self.body} ({self.model}, serial {self.serial}) was due for calibration "
+                f"on {self.due.isoformat()}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """The sheet in the TOML layout, range in rad, dates as ISO text."""
+        return {"model": self.model, "serial": self.serial, "range": self.range_rad, "range_unit": "rad",
+                "calibrated": self.calibrated.isoformat(), "due": self.due.isoformat()}
+
+
+@dataclass(frozen=True)
 class SensorSheets:
-    """The ``[sensors]`` table: the sheets by sensor name (the accelerometer id as text) and the overdue policy."""
+    """The ``[sensors]`` table: the accelerometers' sheets by sensor name (the accelerometer id as text), the
+    tilt sensors' by body id (as text) and the overdue policy."""
 
     sheets: Mapping[str, SensorSheet] = field(default_factory=dict)
     overdue: str = "warn"
+    tilts: Mapping[str, TiltSheet] = field(default_factory=dict)
 
     def to_dict(self) -> dict[str, Any]:
-        """The table in the TOML layout (`SensorSheet.to_dict` per sensor)."""
-        return {"overdue": self.overdue, **{name: sheet.to_dict() for name, sheet in self.sheets.items()}}
+        """The table in the TOML layout (``to_dict`` per sheet; the tilt sensors under ``tilt``)."""
+        tilts = {"tilt": {body: sheet.to_dict() for body, sheet in self.tilts.items()}} if self.tilts else {}
+        return {"overdue": self.overdue, **{name: sheet.to_dict() for name, sheet in self.sheets.items()}, **tilts}
 
     def __eq__(self, other: object) -> bool:
         return (isinstance(other, SensorSheets) and self.overdue == other.overdue
-                and dict(self.sheets) == dict(other.sheets))
+                and dict(self.sheets) == dict(other.sheets) and dict(self.tilts) == dict(other.tilts))
 
     def __hash__(self) -> int:
-        return hash((self.overdue, tuple(sorted(self.sheets.items()))))
+        return hash((self.overdue, tuple(sorted(self.sheets.items())), tuple(sorted(self.tilts.items()))))
 
 
-def overdue(sheets: SensorSheets, today: date) -> list[SensorSheet]:
-    """The sheets whose calibration is due on or before ``today``."""
-    return [sheet for sheet in sheets.sheets.values() if sheet.due <= today]
+def overdue(sheets: SensorSheets, today: date) -> list[SensorSheet | TiltSheet]:
+    """The sheets (accelerometers', then tilt sensors') whose calibration is due on or before ``today``."""
+    every: list[SensorSheet | TiltSheet] = [*sheets.sheets.values(), *sheets.tilts.values()]
+    return [sheet for sheet in every if sheet.due <= today]
 
 
 def read_sensors(checker: TomlChecker, value: Any) -> SensorSheets:
@@ -150,8 +206,8 @@ def read_sensors(checker: TomlChecker, value: Any) -> SensorSheets:
     if value is None:
         return SensorSheets()
     path = ("sensors",)
-    names = [key for key in value if key != "overdue"] if isinstance(value, Mapping) else []
-    top = checker.table(value, path, ("overdue", *names))
+    names = [key for key in value if key not in ("overdue", "tilt")] if isinstance(value, Mapping) else []
+    top = checker.table(value, path, ("overdue", "tilt", *names))
     policy = top.get("overdue", "warn")
     if policy not in OVERDUE_POLICIES:
         raise checker.error((*path, "overdue"), f"expected one of {', '.join(OVERDUE_POLICIES)}, got {shown(policy)}")
@@ -161,7 +217,47 @@ def read_sensors(checker: TomlChecker, value: Any) -> SensorSheets:
             raise checker.error((*path, name), f"expected an accelerometer id from 0 to {MAX_SENSOR_ID} as the "
                                                f"sensor's name, got {shown(name)}")
         sheets[name] = _sheet(checker, (*path, name), top[name])
-    return SensorSheets(sheets, policy)
+    return SensorSheets(sheets, policy, _tilts(checker, top.get("tilt")))
+
+
+def _tilts(checker: TomlChecker, value: Any) -> dict[str, TiltSheet]:
+    """The ``[sensors.tilt]`` table: a sheet per body id."""
+    if value is None:
+        return {}
+    path = ("sensors", "tilt")
+    bodies = list(value) if isinstance(value, Mapping) else []
+    table = checker.table(value, path, bodies)
+    tilts = {}
+    for body in bodies:
+        if not body.isdigit() or not 1 <= int(body) <= MAX_BODY_ID or str(int(body)) != body:
+            raise checker.error((*path, body), f"expected a body id from 1 to {MAX_BODY_ID} (the sequence's "
+                                               f"body_id) as the tilt sensor's name, got {shown(body)}")
+        tilts[body] = _tilt_sheet(checker, (*path, body), table[body])
+    return tilts
+
+
+def _tilt_sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> TiltSheet:
+    table = checker.table(value, path, _TILT_KEYS)
+    missing = [key for key in _TILT_KEYS if key not in table]
+    if missing:
+        raise checker.error(path, f"missing {', '.join(missing)}")
+    text = {key: _text(checker, table[key], (*path, key)) for key in ("model", "serial")}
+    unit = table["range_unit"]
+    if unit not in TILT_RANGE_UNITS:
+        raise checker.error((*path, "range_unit"), f"expected an angle unit, one of {', '.join(TILT_RANGE_UNITS)}, "
+                                                   f"got {shown(unit)}")
+    factor = TILT_RANGE_UNITS[unit]
+    low, high = TILT_RANGE_RAD
+    full_scale = checker.ranged(table["range"], (*path, "range"), low / factor * (1 - 1e-12),
+                                high / factor * (1 + 1e-12),
+                                f"a full scale from {low / factor:.4g} to {high / factor:.5g} {unit}") * factor
+    calibrated = _date(checker, table["calibrated"], (*path, "calibrated"))
+    due = _date(checker, table["due"], (*path, "due"))
+    if due <= calibrated:
+        raise checker.error((*path, "due"), f"due date {due.isoformat()} is not after the calibration date "
+                                            f"{calibrated.isoformat()}")
+    return TiltSheet(path[-1], text["model"], text["serial"], full_scale, calibrated, due, checker.source,
+                     checker.line((*path, "due")))
 
 
 def _sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> SensorSheet:

@@ -11,7 +11,9 @@ Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (floa
 ``started`` and ``ended`` (ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``,
 ``sensors`` (JSON list of the accelerometer names), ``attribute_units`` (JSON: the units of the numeric run
 attributes present, `RUN_ATTR_UNITS`: ``rate`` in Hz, …), at the end ``clipped`` (JSON {sensor: samples at or
-beyond its full scale}, for the sensors with a calibration sheet), plus any extra attributes given by the caller.
+beyond its full scale}, for the sensors with a calibration sheet) and ``tilt_clipped`` (JSON {body_id: tilt samples
+at or beyond its tilt sensor's full scale}, for the bodies whose tilt sensor has a sheet), plus any extra
+attributes given by the caller.
 
 ``status`` is one of `FINAL_STATUSES`, or the transient value ``"running"`` while the run is being
 recorded. ``degraded``: the drive played to its end, but something went wrong while the table moved (an underrun,
@@ -44,7 +46,8 @@ Every dataset has attributes ``columns`` and ``units``: one entry per column (ar
 order, comma-separated; ``1`` is dimensionless, ``-`` (`NOT_A_QUANTITY`) text or an identifier. An
 ``accel/<sensor>`` whose sensor has a calibration sheet (``analysis.table.sensors``) also has ``place_m`` (x, y, z
 [m], plate frame), ``axes`` (e.g. ``"+x,-y,+z"``), ``range_m_s2``, ``sensitivity``, ``sensitivity_unit``,
-``model``, ``serial``, ``calibrated`` and ``due`` (ISO dates).
+``model``, ``serial``, ``calibrated`` and ``due`` (ISO dates); a ``tilt/<body_id>`` whose tilt sensor has one
+(``[sensors.tilt.BODY_ID]``) has ``range_rad``, ``model``, ``serial``, ``calibrated`` and ``due``.
 
 Text fields of the compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field size
 (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
@@ -69,7 +72,7 @@ DETECTION_SOURCES = ("sensor", "operator")
 
 #: Attributes every run group has (extra caller attributes may not reuse these names).
 RUN_ATTRS = ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt",
-             "sensors", "attribute_units", "clipped")
+             "sensors", "attribute_units", "clipped", "tilt_clipped")
 
 ACCEL_COLUMNS = ("t", "ax", "ay", "az")
 ACCEL_UNITS = ("s", "m/s^2", "m/s^2", "m/s^2")

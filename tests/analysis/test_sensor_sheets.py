@@ -109,3 +109,52 @@ def test_a_noise_floor_at_the_full_scale_is_refused(tmp_path: Path) -> None:
     with pytest.raises(TableModelError, match=r"rig.toml:15: sensors.0.noise_floor_m_s2: noise floor 0.6 m/s² RMS is "
                                               r"not below the sensor's full scale 0.4905 m/s²$"):
         read_configuration(path)
+
+
+TILT = """\
+[sensors.tilt.2]
+model = "Jewell A602"
+serial = "T-0423"
+range = 90.0
+range_unit = "deg"
+calibrated = 2026-02-01
+due = 2027-02-01
+"""
+
+
+def test_a_tilt_sensor_s_sheet_is_read_in_rad_and_kept_through_the_json_layout(tmp_path: Path) -> None:
+    configuration = read_configuration(_write(tmp_path, SHEET + "\n" + TILT))
+    tilt = configuration.sensors.tilts["2"]
+    assert tilt.range_rad == pytest.approx(np.pi / 2)
+    assert (tilt.model, tilt.serial, tilt.calibrated, tilt.due) == ("Jewell A602", "T-0423", date(2026, 2, 1),
+                                                                   date(2027, 2, 1))
+    assert set(configuration.sensors.sheets) == {"0"}  # the tilt table is no accelerometer
+    stored = configuration_dict(configuration)
+    assert stored["sensors"]["tilt"]["2"] == {"model": "Jewell A602", "serial": "T-0423", "range": pytest.approx(
+        np.pi / 2), "range_unit": "rad", "calibrated": "2026-02-01", "due": "2027-02-01"}
+    assert configuration_from_dict(stored) == configuration
+    sheets = configuration.sensors
+    assert overdue(sheets, date(2027, 1, 20)) == [sheets.sheets["0"]]
+    assert overdue(sheets, date(2027, 2, 1)) == [sheets.sheets["0"], tilt]
+    assert tilt.overdue_problem() == ("the tilt sensor of body 2 (Jewell A602, serial T-0423) was due for calibration "
+                                      "on 2027-02-01")
+
+
+@pytest.mark.parametrize(("old", "new", "line", "key", "words"), [
+    ('range_unit = "deg"', 'range_unit = "g"', 5, "sensors.tilt.2.range_unit", "an angle unit, one of deg, rad"),
+    ("range = 90.0", "range = 400.0", 4, "sensors.tilt.2.range", "a full scale from 1 to 180 deg"),
+    ("due = 2027-02-01", 'due = "soon"', 7, "sensors.tilt.2.due", "expected a date"),
+    ("due = 2027-02-01", "due = 2026-01-01", 7, "sensors.tilt.2.due", "not after the calibration date"),
+    ("[sensors.tilt.2]", "[sensors.tilt.0]", 1, "sensors.tilt.0", "expected a body id from 1 to 255"),
+    ('serial = "T-0423"\n', "", 1, "sensors.tilt.2", "missing serial"),
+    ('model = "Jewell A602"', 'model = "Jewell A602"\nplace_m = [0, 0, 0]', 3, "sensors.tilt.2.place_m", "unknown"),
+])
+def test_a_bad_tilt_sheet_is_refused_with_file_line_and_key(tmp_path: Path, old: str, new: str, line: int, key: str,
+                                                             words: str) -> None:
+    assert old in TILT
+    path = _write(tmp_path, TILT.replace(old, new))
+    with pytest.raises(TableModelError) as caught:
+        read_configuration(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}:{line}: {key}: "), message
+    assert words in message and "\n" not in message
