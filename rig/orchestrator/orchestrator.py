@@ -101,18 +101,21 @@ class Orchestrator:
     :class:`~rig.orchestrator.sinks.SessionSink`); ``table_options`` go to
     :func:`drivers.controller.open_table` (e.g. ``key_file``; ``table``, the table model every trajectory is checked
     against before it is streamed, is the sequence's rig unless given); ``sensors`` the accelerometer ids the table
-    reports (logged as ``accel/<id>``); ``operator`` answers the operator's steps (default: unattended);
+    reports (logged as ``accel/<id>``; default: 0 and every one with a calibration sheet in the sequence's rig);
+    ``operator`` answers the operator's steps (default: unattended);
     ``on_update(progress)`` is called from the orchestrator's threads whenever the state or the progress changes
     (at most about ten times a second while streaming).
     """
 
     def __init__(self, sequence: Sequence, table_url: str, log: SessionSink, *,
-                 table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] = (0,),
+                 table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] | None = None,
                  operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None) -> None:
         self.sequence = sequence
         self.table_url = table_url
         self.log = log
         self.table_options = table_options or {}
+        if sensors is None:
+            sensors = tuple(sorted({0, *(int(name) for name in sequence.table.sensors.sheets)}))
         self.sensors = {sensor: str(sensor) for sensor in sensors}
         self.operator: Operator = operator or Unattended()
         self.progress = Progress(runs_total=len(sequence.plan()))

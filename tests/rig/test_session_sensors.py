@@ -13,17 +13,20 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import tomli_w
 
 from analysis.body import G
 from analysis.table.configuration import configuration_dict, read_configuration
 from analysis.table.model import TableModel
 from rig.analyze import analyze_session
+from rig.orchestrator import OrchestratorState
 from rig.orchestrator.setup import check_sensors
 from rig.report.data import read_header
 from rig.report.sensors import sensors_table
 from rig.report.session_report import session_body
 from rig.sequence import SequenceError, load_sequence
-from rig.session import SessionLog
+from rig.session import SessionLog, read_session
+from tests.helpers.sequences import TINY, new_log, play
 
 SHEET = """\
 [sensors.0]
@@ -221,3 +224,56 @@ def test_an_overdue_tilt_sensor_warns_at_start(tmp_path: Path) -> None:
     assert len(texts) == 2 and "sensors.0.due: accelerometer 0" in texts[0]
     assert texts[1] == (f"{tmp_path / 'rig.toml'}:7: sensors.tilt.1.due: the tilt sensor of body 1 (Jewell A602, "
                         "serial T-0423) was due for calibration on 2027-02-01: recalibrate it (docs/sensors.md)")
+
+
+PLACED = """\
+[sensors.0]
+model = "PCB 356A16"
+serial = "LW231455"
+sensitivity = 100.0
+sensitivity_unit = "mV/g"
+range = 5.0
+range_unit = "g"
+calibrated = 2026-01-15
+due = 2099-01-15
+place_m = [0.30, -0.20, 0.05]
+axes = ["-y", "+x", "+z"]
+
+[sensors.1]
+model = "PCB 356A16"
+serial = "LW231456"
+sensitivity = 100.0
+sensitivity_unit = "mV/g"
+range = 5.0
+range_unit = "g"
+calibrated = 2026-01-15
+due = 2099-01-15
+place_m = [-0.40, 0.30, 0.0]
+axes = ["+x", "-y", "-z"]
+"""
+
+
+@pytest.mark.integration  # starts the emulator
+def test_the_emulated_sensors_sit_where_their_sheets_say_and_are_recorded_in_the_plate_frame(
+        tmp_path: Path, key_file: Path) -> None:
+    (tmp_path / "rig.toml").write_text(PLACED)
+    path = tmp_path / "placed.toml"
+    path.write_text(TINY.replace('    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },\n', "")
+                    + '\n[rig]\nconfig = "rig.toml"\n')
+    sequence = load_sequence(path)
+    rig = tmp_path / "emulated-rig.toml"
+    rig.write_text(tomli_w.dumps(sequence.table.to_dict()))
+    log = new_log(sequence, tmp_path / "s.h5")
+    try:
+        state, _ = play(sequence, log, key_file, emulator_flags=("--rig-config", str(rig)))
+    finally:
+        log.close()
+    assert state is OrchestratorState.DONE
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    assert run["status"] == "completed" and set(run["accel"]) == {"0", "1"}
+    assert not [e for e in run["events"] if "not declared" in e["text"]]
+    for sensor in ("0", "1"):  # each mounted off the plate's axes (z down for 1), at rest: the plate frame's (0, 0, g)
+        rows = run["accel"][sensor]
+        rest = rows[rows[:, 0] < 0.2, 1:]
+        assert len(rest) > 100
+        np.testing.assert_allclose(rest.mean(axis=0), [0.0, 0.0, G], atol=0.02)
