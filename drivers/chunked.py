@@ -131,6 +131,7 @@ class ChunkedStreamController(TableController):
         self.table = table or TableModel()
         """The table model a trajectory is checked against before it is streamed (``analysis.table.setpoints``):
         the controller's, the rig configuration's (default: Table IV and the default hexapod)."""
+        self.feedback.mount(self.table.sensors)
         self.refusals: list[SetpointRefusal] = []
         """The setpoint chunks the controller refused for their values, each once, in the order they came."""
         self.clock = ClockSync()

@@ -11,7 +11,8 @@ index into the sequence's plan), ``attempt`` (int, 1 for the first run of that p
 (ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``, ``sensors`` (JSON list of the
 accelerometer names), ``attribute_units`` (JSON: the units of the numeric run attributes present, `RUN_ATTR_UNITS`:
 ``rate`` in Hz, …), at the end ``clipped`` (JSON {sensor: samples at or beyond its full scale}, for the sensors with a
-calibration sheet), plus any extra attributes given by the caller.
+calibration sheet) and ``tilt_clipped`` (the same per body, for the tilt sensors with a sheet), plus any extra
+attributes given by the caller.
 
 ``status``: one of `FINAL_STATUSES` (their meaning: docs/orchestrator.md §The session file), or ``"running"`` while
 recorded (until `SessionLog.resume` turns a dead writer's into ``"interrupted"``), stored with ``ended`` as
@@ -34,9 +35,9 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
   written to the datasets above (absent in files written before checksums: "not checksummed").
 
 Every dataset has attributes ``columns`` and ``units``, one entry per column or field, in order, comma-separated
-(``1`` dimensionless, ``-`` `NOT_A_QUANTITY`); a calibrated sensor's ``accel/<sensor>`` carries its sheet
-(docs/sensors.md). Text fields of compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field
-size (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
+(``1`` dimensionless, ``-`` `NOT_A_QUANTITY`); a calibrated sensor's ``accel/<sensor>`` and a body's ``tilt/<body_id>``
+carry their sheets (docs/sensors.md). Text fields of compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut
+at the field size (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
 """
 
 from __future__ import annotations
@@ -58,7 +59,7 @@ DETECTION_SOURCES = ("sensor", "operator")
 
 #: Attributes every run group has (extra caller attributes may not reuse these names).
 RUN_ATTRS = ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt",
-             "sensors", "attribute_units", "clipped")
+             "sensors", "attribute_units", "clipped", "tilt_clipped")
 
 ACCEL_COLUMNS = ("t", "ax", "ay", "az")
 ACCEL_UNITS = ("s", "m/s^2", "m/s^2", "m/s^2")
