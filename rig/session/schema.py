@@ -10,9 +10,8 @@ Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (floa
 index into the sequence's plan), ``attempt`` (int, 1 for the first run of that plan index), ``started`` and ``ended``
 (ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``, ``sensors`` (JSON list of the
 accelerometer names), ``attribute_units`` (JSON: the units of the numeric run attributes present, `RUN_ATTR_UNITS`:
-``rate`` in Hz, …), at the end ``clipped`` (JSON {sensor: samples at or beyond its full scale}, for the sensors with a
-calibration sheet) and ``tilt_clipped`` (the same per body, for the tilt sensors with a sheet), plus any extra
-attributes given by the caller.
+``rate`` in Hz, …), at the end ``clipped`` and ``tilt_clipped`` (JSON {sensor or body: samples at or beyond the full
+scale of its calibration sheet}), plus any extra attributes given by the caller.
 
 ``status``: one of `FINAL_STATUSES` (their meaning: docs/orchestrator.md §The session file), or ``"running"`` while
 recorded (until `SessionLog.resume` turns a dead writer's into ``"interrupted"``), stored with ``ended`` as
