@@ -42,6 +42,7 @@ from rig.cli.network import (
     table_options,
 )
 from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
+from rig.cli.web import HttpName, HttpsCert, HttpsDir, HttpsKey, TokensOption, web_access
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
@@ -322,6 +323,8 @@ def register(app: typer.Typer) -> None:
                                                   "on stdout, the progress on stderr; needs --yes")] = False,
             tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
             insecure_plain_tcp: Insecure = False, key_passphrase: KeyPassphrase = None,
+            http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
+            https_key: HttpsKey = None, https_dir: HttpsDir = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file. With --resume the session
         continues on the table it ran on (its URL, or the emulated table at its speed) unless --table or --emulate
@@ -335,12 +338,17 @@ def register(app: typer.Typer) -> None:
         speed_given = speed
         speed = 1.0 if speed is None else speed
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
+        web = (http_name, tokens, https_cert, https_key, https_dir)
         if console_at is not None:
             from rig.cli.with_console import run_with_console
 
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
-                                              speed=speed, service=service, linger_s=console_linger))
+                                              speed=speed, service=service, linger_s=console_linger,
+                                              security=security, access=web_access(*web)))
+        if any(web):
+            fail("--http-name, --tokens, --https-cert, --https-key and --https-dir are the console's: give --console "
+                 "HOST:PORT too")
 
         from rig.emulator import EmulatorError
         from rig.orchestrator.bodies import BodiesMismatchError

@@ -12,6 +12,9 @@ the source the transport vouches for (:mod:`rig.service.audit`).
 ``$SHAKETABLE_MAVLINK_KEY``; :mod:`protocols.zenoh.auth`); ``pause``, ``abort``, ``estop`` and ``state`` from anyone
 (stopping never waits for a key). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures.
 
+A request whose args carry ``refused`` (a reason: the console passing on a viewer's control) is answered refused
+and only logged, never acted on.
+
 Each command's arguments and reply, the reply's fields, the refusals and why the commands are split so:
 docs/service.md.
 """
@@ -166,12 +169,14 @@ class OrchestratorService:
             verdict = self._verdict(command, payload, attachment)
             if asked != command:
                 ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
+            elif "refused" in args:  # refused by the client that passes it on (a console: a viewer's): logged only
+                ok, message, extra = False, f"refused by the console: {args['refused']}", {}
             elif command in SIGNED_COMMANDS and verdict not in (None, Verdict.SIGNED):
                 ok, message, extra = False, f"{command} refused: {REFUSALS[verdict]}", {}
             else:
                 handler = self._queue_session if command == "queue" else getattr(self, f"_{command}")
                 ok, message, extra = handler(args)
-            if command in LOGGED_CONTROLS and asked == command:
+            if (command in LOGGED_CONTROLS or "refused" in args) and asked == command:
                 self._log_control(command, request_source(args.get("source"), verdict, attachment), ok, message)
             if not ok:
                 self._say(f"{command}: {message}")
