@@ -34,11 +34,13 @@ from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail,
 from rig.cli.network import (
     INSECURE_NOTE,
     Insecure,
+    NetworkConfig,
     TlsCa,
     TlsCert,
     TlsKey,
     configured_security,
     link_security,
+    network_of,
     table_options,
 )
 from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
@@ -46,6 +48,8 @@ from rig.cli.web import HttpName, HttpsCert, HttpsDir, HttpsKey, TokensOption, w
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
+    from analysis.table.network import NetworkSettings
+    from protocols.zenoh import LinkSecurity
     from rig.orchestrator import Orchestrator, OrchestratorState
     from rig.orchestrator import Progress as RunProgress
     from rig.sequence import PlacedBody, PlannedRun, Sequence
@@ -290,6 +294,20 @@ def _paused_unattended(orchestrator: Orchestrator, interrupts: list[int], consol
             reading = False  # end of input: only Ctrl-C, the console or the service go on from here
 
 
+def _service_security(given: LinkSecurity, network: NetworkSettings | None, sequence: Path | None) -> LinkSecurity:
+    """The TLS identity for the link to a rig service on a ``tls/`` endpoint: ``given`` (``--tls-*``), else the
+    ``[network]`` of ``--rig-config`` (``network``), else that of the sequence's ``[rig] config``; exits 2 naming
+    ``FILE:LINE`` when the sequence or its ``[network]`` is bad."""
+    if network is None and sequence is not None and given.tls is None:
+        from rig.sequence import SequenceError, load_sequence
+
+        try:
+            network = load_sequence(sequence).table.network
+        except SequenceError as exc:
+            fail_with(exc)
+    return given if network is None else configured_security(given, network)
+
+
 def register(app: typer.Typer) -> None:
     """Add ``rig run``."""
 
@@ -324,7 +342,7 @@ def register(app: typer.Typer) -> None:
             tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
             insecure_plain_tcp: Insecure = False, key_passphrase: KeyPassphrase = None,
             http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
-            https_key: HttpsKey = None, https_dir: HttpsDir = None,
+            https_key: HttpsKey = None, https_dir: HttpsDir = None, rig_config: NetworkConfig = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file. With --resume the session
         continues on the table it ran on (its URL, or the emulated table at its speed) unless --table or --emulate
@@ -338,6 +356,9 @@ def register(app: typer.Typer) -> None:
         speed_given = speed
         speed = 1.0 if speed is None else speed
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
+        network = network_of(rig_config)
+        if service is not None and service.lower().startswith("tls/"):
+            security = _service_security(security, network, sequence_file)
         web = (http_name, tokens, https_cert, https_key, https_dir)
         if console_at is not None:
             from rig.cli.with_console import run_with_console
@@ -389,7 +410,7 @@ def register(app: typer.Typer) -> None:
             choice = choose_table(sequence, table, emulate, speed_given, stored)
             url_given = choice.url or sequence.table_url
             if url_given is not None and url_given.lower().startswith("zenoh://"):  # else [network] does not apply
-                security = configured_security(security, sequence.table.network)
+                security = configured_security(security, sequence.table.network if network is None else network)
             link = {} if choice.emulate else table_options(url_given, security)
             with table_for(sequence, choice.url, choice.emulate, key_file, choice.speed, link) as (url, options,
                                                                                                   counters):

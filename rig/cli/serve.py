@@ -23,7 +23,16 @@ from rich.prompt import Confirm
 from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, handle_sigint, print_error
-from rig.cli.network import Insecure, TlsCa, TlsCert, TlsKey, link_security
+from rig.cli.network import (
+    Insecure,
+    NetworkConfig,
+    TlsCa,
+    TlsCert,
+    TlsKey,
+    configured_security,
+    link_security,
+    network_of,
+)
 from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 from rig.cli.web import HttpName, HttpsCert, HttpsDir, HttpsKey, TokensOption, web_access
 
@@ -314,11 +323,15 @@ def register(app: typer.Typer) -> None:
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
         https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
+        rig_config: NetworkConfig = None,
     ) -> None:
         """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
         use_key_passphrase(key_passphrase, key_file)
-        serve(listen, sessions_dir, key_file, no_auth, fail, http,
-              link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp),
+        network = network_of(rig_config)
+        security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
+        if network is not None and listen.lower().startswith("tls/"):  # a tls/ endpoint needs an identity
+            security = configured_security(security, network)
+        serve(listen, sessions_dir, key_file, no_auth, fail, http, security,
               web_access(http_name, tokens, https_cert, https_key, https_dir))
 
     @app.command("console")
