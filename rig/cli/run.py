@@ -294,18 +294,27 @@ def _paused_unattended(orchestrator: Orchestrator, interrupts: list[int], consol
             reading = False  # end of input: only Ctrl-C, the console or the service go on from here
 
 
+def _configured_network(network: NetworkSettings | None, sequence: Path | None) -> NetworkSettings | None:
+    """The ``[network]`` of ``--rig-config`` (``network``), else that of the sequence's ``[rig] config`` (None
+    without a sequence: ``--resume``); exits 2 naming ``FILE:LINE`` when the sequence or its ``[network]`` is
+    bad."""
+    if network is not None or sequence is None:
+        return network
+    from rig.sequence import SequenceError, load_sequence
+
+    try:
+        return load_sequence(sequence).table.network
+    except SequenceError as exc:
+        fail_with(exc)
+
+
 def _service_security(given: LinkSecurity, network: NetworkSettings | None, sequence: Path | None) -> LinkSecurity:
     """The TLS identity for the link to a rig service on a ``tls/`` endpoint: ``given`` (``--tls-*``), else the
-    ``[network]`` of ``--rig-config`` (``network``), else that of the sequence's ``[rig] config``; exits 2 naming
-    ``FILE:LINE`` when the sequence or its ``[network]`` is bad."""
-    if network is None and sequence is not None and given.tls is None:
-        from rig.sequence import SequenceError, load_sequence
-
-        try:
-            network = load_sequence(sequence).table.network
-        except SequenceError as exc:
-            fail_with(exc)
-    return given if network is None else configured_security(given, network)
+    configured one (:func:`_configured_network`)."""
+    if given.tls is not None:
+        return given
+    configured = _configured_network(network, sequence)
+    return given if configured is None else configured_security(given, configured)
 
 
 def register(app: typer.Typer) -> None:
@@ -363,10 +372,12 @@ def register(app: typer.Typer) -> None:
         if console_at is not None:
             from rig.cli.with_console import run_with_console
 
+            configured = _configured_network(network, sequence_file)
+            access = web_access(*web, None if configured is None else configured.console)
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
                                               speed=speed, service=service, linger_s=console_linger,
-                                              security=security, access=web_access(*web)))
+                                              security=security, access=access))
         if any(web):
             fail("--http-name, --tokens, --https-cert, --https-key and --https-dir are the console's: give --console "
                  "HOST:PORT too")

@@ -332,7 +332,8 @@ def register(app: typer.Typer) -> None:
         if network is not None and listen.lower().startswith("tls/"):  # a tls/ endpoint needs an identity
             security = configured_security(security, network)
         serve(listen, sessions_dir, key_file, no_auth, fail, http, security,
-              web_access(http_name, tokens, https_cert, https_key, https_dir))
+              web_access(http_name, tokens, https_cert, https_key, https_dir,
+                         None if network is None else network.console))
 
     @app.command("console")
     def console_cmd(
@@ -341,13 +342,18 @@ def register(app: typer.Typer) -> None:
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
         https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
+        rig_config: NetworkConfig = None,
     ) -> None:
         """Serve the operator's console (live web page and controls) for a running `rig serve`."""
         from rig.console import ConsoleError, serve_console
 
         use_key_passphrase(key_passphrase, key_file)
+        network = network_of(rig_config)
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
-        access = web_access(http_name, tokens, https_cert, https_key, https_dir)
+        if network is not None and connect.lower().startswith("tls/"):
+            security = configured_security(security, network)
+        access = web_access(http_name, tokens, https_cert, https_key, https_dir,
+                            None if network is None else network.console)
         try:
             serve_console(connect, http, key_file=key_file, security=security, access=access,
                           say=lambda message: print(f"rig console: {message}", file=sys.stderr, flush=True))

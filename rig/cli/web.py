@@ -1,6 +1,7 @@
 """The console's options shared by every command that serves it (``rig serve --http``, ``rig console``, ``rig run
 --console``): the names browsers reach it at, the tokens file of operators and viewers and its HTTPS certificate
-(``docs/console.md``, *From another machine*), and what they become: a ``rig.console.WebAccess``."""
+(``docs/console.md``, *From another machine*), and what they become: a ``rig.console.WebAccess``, the options not
+given taken from the rig configuration's ``[network.console]`` (``analysis.table.network``)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,7 @@ from typing import TYPE_CHECKING, Annotated
 import typer
 
 if TYPE_CHECKING:  # imported where used (rig --help loads no web server)
+    from analysis.table.network import ConsoleSettings
     from rig.console import WebAccess
 
 HttpName = Annotated[list[str] | None, typer.Option("--http-name", metavar="NAME",
@@ -27,8 +29,15 @@ HttpsDir = Annotated[Path | None, typer.Option("--https-dir", metavar="DIR",
 
 
 def web_access(names: list[str] | None, tokens: Path | None, https_cert: Path | None, https_key: Path | None,
-               https_dir: Path | None) -> WebAccess:
-    """The options as a ``rig.console.WebAccess`` (its files are checked when the console starts)."""
+               https_dir: Path | None, configured: ConsoleSettings | None = None) -> WebAccess:
+    """The options as a ``rig.console.WebAccess`` (its files are checked when the console starts), each one not
+    given taken from ``configured`` (``[network.console]``; the HTTPS certificate as a whole: the command line's
+    ``--https-*`` when any is given, else the configuration's)."""
     from rig.console import WebAccess
 
-    return WebAccess(tuple(names or ()), tokens, https_cert, https_key, https_dir)
+    given = WebAccess(tuple(names or ()), tokens, https_cert, https_key, https_dir)
+    if configured is None:
+        return given
+    https = ((https_cert, https_key, https_dir) if any((https_cert, https_key, https_dir)) else
+             (configured.https_cert, configured.https_key, configured.https_dir))
+    return WebAccess(given.names or configured.names, tokens or configured.tokens, *https)

@@ -150,3 +150,40 @@ def test_rig_run_resume_on_a_zenoh_table_takes_the_identity_of_rig_config(
     assert given[0]["tls"].certificate == config.parent / "certs" / "operator.pem"
     bad = _rig_toml(tmp_path / "bad", "bad", BAD_NETWORK)
     _refused_at_line_3(CliRunner().invoke(app, [*resume, "--rig-config", str(bad)]), bad)
+
+
+CONSOLE_TOML = ('[network.console]\nhttps_dir = "web"\nnames = ["rig.lab"]\ntokens = "tokens.toml"\n')
+"""A ``[network.console]``: the console's certificate made in ``web``, reached as rig.lab, a tokens file."""
+
+
+def test_rig_serve_http_and_rig_run_console_take_the_console_from_the_rig_toml(
+        tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import rig.cli.serve
+    import rig.cli.with_console
+    from rig.console import WebAccess
+
+    config = _rig_toml(tmp_path, "rig", CONSOLE_TOML)
+    (tmp_path / "tokens.toml").write_text("")
+    configured = WebAccess(("rig.lab",), tmp_path / "tokens.toml", None, None, tmp_path / "web")
+    served: list[Any] = []
+    monkeypatch.setattr(rig.cli.serve, "serve", lambda *args: served.append(args[7]))
+    done = CliRunner().invoke(app, ["serve", "--http", "10.231.0.1:8443", "--rig-config", str(config)])
+    assert done.exit_code == 0, done.output
+    assert served == [configured]
+
+    given: list[Any] = []
+
+    def run_with_console(http: str, sequence: Path | None, **options: Any) -> int:
+        given.append(options["access"])
+        return 0
+
+    monkeypatch.setattr(rig.cli.with_console, "run_with_console", run_with_console)
+    sequence = tmp_path / "tiny.toml"
+    sequence.write_text(TINY + '\n[rig]\nconfig = "rig.toml"\n')
+    run = ["run", str(sequence), "--emulate", "--yes", "--console", "10.231.0.1:8443"]
+    assert CliRunner().invoke(app, run).exit_code == 0
+    # the command line wins, the HTTPS certificate as a whole
+    assert CliRunner().invoke(app, [*run, "--http-name", "10.231.0.5", "--https-cert", "c.pem", "--https-key",
+                                    "c.key"]).exit_code == 0
+    assert given == [configured, WebAccess(("10.231.0.5",), tmp_path / "tokens.toml", Path("c.pem"), Path("c.key"),
+                                           None)]
