@@ -187,3 +187,20 @@ def test_rig_serve_http_and_rig_run_console_take_the_console_from_the_rig_toml(
                                     "c.key"]).exit_code == 0
     assert given == [configured, WebAccess(("10.231.0.5",), tmp_path / "tokens.toml", Path("c.pem"), Path("c.key"),
                                            None)]
+
+
+def test_rig_console_takes_its_identity_and_console_from_the_rig_toml(tmp_path: Path,
+                                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    import rig.console
+    from rig.console import WebAccess
+
+    (tmp_path / "tokens.toml").write_text("")
+    config = _rig_toml(tmp_path, "rig")
+    config.write_text(config.read_text() + CONSOLE_TOML)
+    given: list[dict[str, Any]] = []
+    monkeypatch.setattr(rig.console, "serve_console", lambda connect, http, **options: given.append(options))
+    done = CliRunner().invoke(app, ["console", "--connect", "tls/10.231.0.1:7448", "--http", "10.231.0.1:8443",
+                                    "--rig-config", str(config)])
+    assert done.exit_code == 0, done.output
+    assert given[0]["security"].tls.certificate == tmp_path / "certs" / "rig.pem"
+    assert given[0]["access"] == WebAccess(("rig.lab",), tmp_path / "tokens.toml", None, None, tmp_path / "web")
