@@ -308,6 +308,18 @@ def _configured_network(network: NetworkSettings | None, sequence: Path | None) 
         fail_with(exc)
 
 
+def _table_url(table: str | None, sequence: Path | None) -> str:
+    """``--table``, else the sequence's ``table_url`` (lower case; "" when neither names one)."""
+    if table is None and sequence is not None:
+        from rig.sequence import SequenceError, load_sequence
+
+        try:
+            table = load_sequence(sequence).table_url
+        except SequenceError as exc:
+            fail_with(exc)
+    return (table or "").lower()
+
+
 def _service_security(given: LinkSecurity, network: NetworkSettings | None, sequence: Path | None) -> LinkSecurity:
     """The TLS identity for the link to a rig service on a ``tls/`` endpoint: ``given`` (``--tls-*``), else the
     configured one (:func:`_configured_network`)."""
@@ -374,6 +386,8 @@ def register(app: typer.Typer) -> None:
 
             configured = _configured_network(network, sequence_file)
             access = web_access(*web, None if configured is None else configured.console)
+            if service is None and configured is not None and _table_url(table, sequence_file).startswith("zenoh://"):
+                security = configured_security(security, configured)  # for the in-process service's table
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
                                               speed=speed, service=service, linger_s=console_linger,

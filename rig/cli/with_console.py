@@ -67,7 +67,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
     which stays up after it for ``linger_s`` s (None: until Ctrl-C) (module docstring); the exit code of ``rig run
     --service`` (0 all runs done, 1 stopped early, 2 refused). ``access``: the console's names, tokens file and HTTPS
     certificate (``rig serve --http``'s options; None: loopback, plain HTTP); ``security``: the zenoh link's TLS
-    identity to the service at ``service`` (the in-process one listens on loopback)."""
+    identity to the service at ``service``, or (the in-process service listens on loopback) to a zenoh table."""
     from protocols.signing_key import KEY_ENV
     from rig.cli.serve import drive_service
     from rig.console.server import ConsoleError, ConsoleProcess
@@ -101,7 +101,7 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
         endpoint = _free_endpoint()
         try:
             service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),
-                                          say=lambda m: say(f"rig service: {m}"))
+                                          say=lambda m: say(f"rig service: {m}"), table_security=security)
         except ServiceError as exc:
             print_error(console, "error", str(exc))
             return EXIT_USAGE

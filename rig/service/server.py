@@ -63,16 +63,19 @@ class OrchestratorService:
     ``sessions_dir`` holds the session files (created if missing; relative paths of requests are taken from it);
     ``key_file`` the rig's key (else ``$SHAKETABLE_MAVLINK_KEY``); ``rig`` the rig's name in the key space;
     ``say(message)`` reports what happens (e.g. to stderr); ``security`` the zenoh session's TLS identity (listen on
-    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``). Raises
+    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``), also used for
+    the zenoh tables of its sessions unless ``table_security`` is given (``rig run --console``: a service on
+    loopback, its table across hosts). Raises
     :class:`ServiceError` when it cannot listen or
     has no key while ``require_auth``. :meth:`close` aborts a running session and closes the zenoh session.
     """
 
     def __init__(self, listen: str, *, key_file: Path | None = None, sessions_dir: Path, rig: str = DEFAULT_RIG,
                  require_auth: bool = True, say: Callable[[str], None] = lambda message: None,
-                 security: LinkSecurity = PLAIN) -> None:
+                 security: LinkSecurity = PLAIN, table_security: LinkSecurity | None = None) -> None:
         self.listen = listen
         self.security = security
+        self.table_security = security if table_security is None else table_security
         self.keys = ServiceKeys.for_rig(rig)
         self.key_file = key_file
         self.sessions_dir = Path(sessions_dir).expanduser().resolve()
@@ -269,8 +272,8 @@ class OrchestratorService:
             with self._lock:
                 busy = self._starting or self._current
                 if busy is None or not busy.alive:
-                    link = ({} if self.security == PLAIN else
-                            {"tls": self.security.tls, "insecure_plain_tcp": self.security.insecure})
+                    table = self.table_security
+                    link = {} if table == PLAIN else {"tls": table.tls, "insecure_plain_tcp": table.insecure}
                     session = ServiceSession(request, sessions_dir=self.sessions_dir, key_file=self.key_file,
                                              on_update=self._telemetry.changed, say=self._say, link=link)
                     self._starting = session

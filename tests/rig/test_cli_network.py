@@ -204,3 +204,29 @@ def test_rig_console_takes_its_identity_and_console_from_the_rig_toml(tmp_path: 
     assert done.exit_code == 0, done.output
     assert given[0]["security"].tls.certificate == tmp_path / "certs" / "rig.pem"
     assert given[0]["access"] == WebAccess(("rig.lab",), tmp_path / "tokens.toml", None, None, tmp_path / "web")
+
+
+def test_rig_run_console_gives_its_service_the_identity_for_a_zenoh_table(tmp_path: Path,
+                                                                          monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rig run --console`` plays through a service of its own on loopback: the table's TLS identity (here the
+    sequence's ``[rig] config``) is given to that service for its zenoh table, not for its own loopback endpoint."""
+    import rig.service
+    from rig.service import ServiceError
+
+    given: list[dict[str, Any]] = []
+
+    def service(endpoint: str, **options: Any) -> Any:
+        given.append({"endpoint": endpoint, **options})
+        raise ServiceError("not started in this test")
+
+    import rig.cli.with_console
+
+    monkeypatch.setattr(rig.service, "OrchestratorService", service)
+    monkeypatch.setattr(rig.cli.with_console, "_free_endpoint", lambda: "tcp/127.0.0.1:7447")  # no socket
+    _rig_toml(tmp_path, "rig")
+    sequence = tmp_path / "tiny.toml"
+    sequence.write_text('table_url = "zenoh://10.231.0.2:7447/lab"\n' + TINY + '\n[rig]\nconfig = "rig.toml"\n')
+    done = CliRunner().invoke(app, ["run", str(sequence), "--yes", "--console", "127.0.0.1:8080"])
+    assert done.exit_code == 2 and "not started in this test" in done.output, done.output
+    assert given[0]["endpoint"] == "tcp/127.0.0.1:7447" and "security" not in given[0]
+    assert given[0]["table_security"].tls.certificate == tmp_path / "certs" / "rig.pem"
