@@ -10,6 +10,10 @@ COMMAND_LONG, resent with ``confirmation`` 1, 2, … until acknowledged; the clo
 (:class:`drivers.clock.ClockSync`); streams are SHAKETABLE_SETPOINT_CHUNKs of 8 samples (``drivers.chunked``). A
 send the network refuses (:data:`NETWORK_DOWN`) is counted (``send_failures``), not raised.
 
+A command refused TEMPORARILY_REJECTED after a STATUSTEXT of severity ERROR raises
+:class:`~drivers.controller.CommandRejectedError` with that text: the controller's reason (an ARM without the
+heartbeat kept up).
+
 Each protocol decision and its reasons: docs/transports.md §MAVLink: the host; the controller side is
 ``sim_table.mavlink_endpoint``.
 """
@@ -154,6 +158,9 @@ class MavlinkTable(ChunkedStreamController):
         self._input_bits = [(bit, entry.name.removeprefix("SHAKETABLE_INPUT_").lower())
                             for bit, entry in self.d.enums["SHAKETABLE_INPUT"].items() if bit & (bit - 1) == 0]
         self.last_controller_heartbeat_ns: int | None = None
+        self._status_text: tuple[str, int] | None = None
+        """The controller's last STATUSTEXT of severity ERROR or worse and when it arrived [host ns]: why it
+        refused the command it precedes (an ARM without the heartbeat kept up)."""
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
         self._owner_report: tuple[Any, int] | None = None  # the last SHAKETABLE_OWNER, host ns received
@@ -276,6 +283,8 @@ class MavlinkTable(ChunkedStreamController):
             self.last_controller_heartbeat_ns = now
         elif kind == "SHAKETABLE_OWNER":
             self._owner_report = (msg, now)
+        elif kind == "STATUSTEXT" and msg.severity <= self.d.MAV_SEVERITY_ERROR:
+            self._status_text = (_text_of(msg.text), now)
 
     def _owner_refusal(self) -> str:
         """The owner as the SHAKETABLE_OWNER sent before the refusing ACK names it (the ACK and its SHAKETABLE_OWNER
@@ -405,6 +414,11 @@ class MavlinkTable(ChunkedStreamController):
             owner = self._owner_report
             if owner is not None and owner[1] >= sent_ns:  # a SHAKETABLE_OWNER came with the refusal
                 raise CommandRejectedError(name, result_name, state, f"table in use by {self._owner_refusal()}")
+            said = self._status_text
+            if said is not None and said[1] >= sent_ns and said[0]:  # the controller said why (STATUSTEXT)
+                why = said[0].removeprefix(f"{name} refused: ")
+                raise CommandRejectedError(name, result_name, state, why if why != said[0] else
+                                           f"the controller says: {why}")
             raise CommandRejectedError(name, result_name, state, "not accepted in this state")
         why = {d.MAV_RESULT_FAILED: "invalid parameters", d.MAV_RESULT_UNSUPPORTED: "unsupported"}.get(
             result, f"result {result_name}")
@@ -445,3 +459,10 @@ def _is_loopback(host: str) -> bool:
 
 
 register_scheme("mavlink", MavlinkTable)
+
+
+def _text_of(text: str | bytes) -> str:
+    """A STATUSTEXT's text as printable ASCII (pymavlink gives ``str`` or ``bytes``; padding NULs dropped, any other
+    control or non-ASCII character as ``?``: it ends up on the operator's terminal)."""
+    raw = text.encode("latin-1", "replace") if isinstance(text, str) else bytes(text)
+    return "".join(chr(b) if 32 <= b < 127 else "?" for b in raw.rstrip(b"\0")).strip()

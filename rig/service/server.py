@@ -12,6 +12,9 @@ the source the transport vouches for (:mod:`rig.service.audit`).
 ``$SHAKETABLE_MAVLINK_KEY``; :mod:`protocols.zenoh.auth`); ``pause``, ``abort``, ``estop`` and ``state`` from anyone
 (stopping never waits for a key). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures.
 
+A request whose args carry ``refused`` (a reason: the console passing on a viewer's control) is answered refused
+and only logged, never acted on.
+
 Each command's arguments and reply, the reply's fields, the refusals and why the commands are split so:
 docs/service.md.
 """
@@ -60,16 +63,19 @@ class OrchestratorService:
     ``sessions_dir`` holds the session files (created if missing; relative paths of requests are taken from it);
     ``key_file`` the rig's key (else ``$SHAKETABLE_MAVLINK_KEY``); ``rig`` the rig's name in the key space;
     ``say(message)`` reports what happens (e.g. to stderr); ``security`` the zenoh session's TLS identity (listen on
-    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``). Raises
+    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``), also used for
+    the zenoh tables of its sessions unless ``table_security`` is given (``rig run --console``: a service on
+    loopback, its table across hosts). Raises
     :class:`ServiceError` when it cannot listen or
     has no key while ``require_auth``. :meth:`close` aborts a running session and closes the zenoh session.
     """
 
     def __init__(self, listen: str, *, key_file: Path | None = None, sessions_dir: Path, rig: str = DEFAULT_RIG,
                  require_auth: bool = True, say: Callable[[str], None] = lambda message: None,
-                 security: LinkSecurity = PLAIN) -> None:
+                 security: LinkSecurity = PLAIN, table_security: LinkSecurity | None = None) -> None:
         self.listen = listen
         self.security = security
+        self.table_security = security if table_security is None else table_security
         self.keys = ServiceKeys.for_rig(rig)
         self.key_file = key_file
         self.sessions_dir = Path(sessions_dir).expanduser().resolve()
@@ -166,12 +172,14 @@ class OrchestratorService:
             verdict = self._verdict(command, payload, attachment)
             if asked != command:
                 ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
+            elif "refused" in args:  # refused by the client that passes it on (a console: a viewer's): logged only
+                ok, message, extra = False, f"refused by the console: {args['refused']}", {}
             elif command in SIGNED_COMMANDS and verdict not in (None, Verdict.SIGNED):
                 ok, message, extra = False, f"{command} refused: {REFUSALS[verdict]}", {}
             else:
                 handler = self._queue_session if command == "queue" else getattr(self, f"_{command}")
                 ok, message, extra = handler(args)
-            if command in LOGGED_CONTROLS and asked == command:
+            if (command in LOGGED_CONTROLS or "refused" in args) and asked == command:
                 self._log_control(command, request_source(args.get("source"), verdict, attachment), ok, message)
             if not ok:
                 self._say(f"{command}: {message}")
@@ -264,8 +272,8 @@ class OrchestratorService:
             with self._lock:
                 busy = self._starting or self._current
                 if busy is None or not busy.alive:
-                    link = ({} if self.security == PLAIN else
-                            {"tls": self.security.tls, "insecure_plain_tcp": self.security.insecure})
+                    table = self.table_security
+                    link = {} if table == PLAIN else {"tls": table.tls, "insecure_plain_tcp": table.insecure}
                     session = ServiceSession(request, sessions_dir=self.sessions_dir, key_file=self.key_file,
                                              on_update=self._telemetry.changed, say=self._say, link=link)
                     self._starting = session
