@@ -230,7 +230,7 @@ def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key
 def test_version_and_shell_completion() -> None:
     from rig import __version__
 
-    assert rig("--version", cwd=ROOT).stdout == f"rig {__version__}\n"
+    assert rig_in_process("--version", cwd=ROOT).stdout == f"rig {__version__}\n"
     assert {"--install-completion", "--show-completion", "--version"} <= options_of()
     script = subprocess.run([*RIG, "--show-completion", "bash"], capture_output=True, text=True, cwd=ROOT,
                             env={**os.environ, "_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION": "1"}, timeout=120)
@@ -249,10 +249,10 @@ def test_json_options_print_one_object(tmp_path: Path) -> None:
     assert run["resume"] == (None if run["complete"] else "rig run --resume s.h5 --yes")
     if run["complete"]:
         assert run["runs_done"] == 2 and run["state"] == "done"
-    shown = json.loads(rig("sessions", "show", "s.h5", "--json", cwd=tmp_path).stdout)
+    shown = json.loads(rig_in_process("sessions", "show", "s.h5", "--json", cwd=tmp_path).stdout)
     assert [r["status"] for r in shown["runs"]] == [r["status"] for r in read_session(tmp_path / "s.h5")["runs"]]
     assert shown["table"] == {"emulate": True, "speed": "max"} and shown["sequence"] == "tiny"
-    listed = json.loads(rig("sessions", "list", ".", "--json", cwd=tmp_path).stdout)
+    listed = json.loads(rig_in_process("sessions", "list", ".", "--json", cwd=tmp_path).stdout)
     assert [Path(s["path"]).name for s in listed["sessions"]] == ["s.h5"]
 
 
@@ -287,7 +287,7 @@ def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_pa
 
 @pytest.mark.integration
 def test_emulate_help_and_counters_table(tmp_path: Path, key_file: Path) -> None:
-    help_text = rig("emulate", "--help", cwd=ROOT).stdout
+    help_text = rig_in_process("emulate", "--help", cwd=ROOT).stdout
     assert help_text.startswith("Usage: rig emulate [OPTIONS]")
     for option in ("--listen URL", "--body", "--speed FACTOR|max", "--json", "--counters FILE"):
         assert option in help_text, option
