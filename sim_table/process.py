@@ -676,6 +676,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # bodies that overlap or do not fit the scene
         print(f"sim_table: {exc}", file=sys.stderr)
         return 2
+    if isinstance(emulator.endpoint, Rests):  # before "listening": whoever reads that may send it at once
+        signal.signal(signal.SIGUSR1, lambda *_: emulator.rest_requested.set())
     gc.collect()
     gc.freeze()  # the set-up out of reach of the collector: its full passes stay short while serving (drivers/heap)
     speed = "max" if emulator.virtual else f"{config.speed:g}"
@@ -684,8 +686,6 @@ def main(argv: list[str] | None = None) -> int:
               "(nothing encrypted)", file=sys.stderr, flush=True)
     print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
           f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
-    if isinstance(emulator.endpoint, Rests):
-        signal.signal(signal.SIGUSR1, lambda *_: emulator.rest_requested.set())
     try:
         emulator.run(stop, on_rest=lambda counters: print(json.dumps(counters), flush=True))
     finally:
