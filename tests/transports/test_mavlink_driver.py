@@ -18,7 +18,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -51,6 +51,7 @@ from rig.emulator import EmulatorProcess
 from rig.records import load_record
 from tests.helpers import table_checks
 from tests.helpers.streams import drive_excerpt, stream_and_check, surge
+from tests.helpers.tables import SharedTable
 
 D = dialect()
 LISTEN = "mavlink://127.0.0.1:0"
@@ -71,16 +72,15 @@ def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess
 
 
 @pytest.fixture(scope="module")
-def plain(key_file: Path) -> Iterator[EmulatorProcess]:
-    """One emulator without bodies for the tests that leave it at rest."""
-    emulator = start_emulator(key_file=key_file)
-    yield emulator
-    emulator.stop()
+def key_file(shared_key_file: Path) -> Path:
+    """The shared tables' signing key, also for this module's tests that start an emulator of their own."""
+    return shared_key_file
 
 
-def at_rest(table: MavlinkTable) -> TableStatus:
-    """Wait until an earlier test's motion (a stop after its host left) is over."""
-    return table.wait_for_status(lambda s: s.state not in ("stopping", "homing", "tilting", "streaming"), 15)
+@pytest.fixture
+def plain(shared_mavlink_table: SharedTable) -> EmulatorProcess:
+    """The session's emulator without bodies, at rest and checked so before each test (``tests/helpers/tables.py``)."""
+    return shared_mavlink_table.emulator
 
 
 # ----- a hand-driven host -------------------------------------------------------------------------------------
@@ -210,7 +210,7 @@ def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
 @pytest.mark.integration
 def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorProcess, key_file: Path) -> None:
     with open_table(plain.url, key_file=str(key_file)) as table:
-        before = at_rest(table)
+        before = table.status()
         unsigned = RawHost(mavlink_address(plain), system=255)
         forged = RawHost(mavlink_address(plain), secrets.token_bytes(32), system=255,  # the driver's own ids and link,
                          timestamp=signing_timestamp(time.time() + 3600))  # a timestamp an hour ahead
@@ -249,7 +249,6 @@ def test_telemetry_forged_by_a_local_process_is_dropped_and_counted(plain: Emula
     None reaches the feedback (the record); each is counted once."""
     with open_table(plain.url, key_file=str(key_file)) as table:
         assert isinstance(table, MavlinkTable) and table._link is not None
-        at_rest(table)
         detections, accelerations, statuses = table.detections(), table.accelerations(), table.statuses()
         forger = UdpLink.open(peer=table._link.local_address, source_system=1, source_component=1)
         if forger_key == "wrong":
