@@ -46,6 +46,7 @@ from protocols.mavlink import (
     tilt_batches,
 )
 from protocols.mavlink.signing import signing_timestamp
+from protocols.signing_key import write_signing_key
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
@@ -308,9 +309,12 @@ def captured_commands(key: bytes, unix_time: float, *commands: tuple[str, float]
 
 
 @pytest.mark.integration
-def test_a_signed_arm_and_tilt_captured_before_a_restart_are_refused(key_file: Path) -> None:
+def test_a_signed_arm_and_tilt_captured_before_a_restart_are_refused(tmp_path: Path) -> None:
     """Captured signed ARM and SET_TILT (a stream stamped 36 s ago, as in issue 25) replayed to a controller that
-    has just started: refused as unsigned; a host stamping from the wall clock arms."""
+    has just started: refused as unsigned; a host stamping from the wall clock arms. A key of its own: no replay
+    state kept beside it yet (the shared key's holds the shared table's stamps, which a restart would take up)."""
+    key_file = tmp_path / "rig.key"
+    write_signing_key(key_file)
     key = bytes.fromhex(key_file.read_text())
     emulator = start_emulator(key_file=key_file)
     try:
