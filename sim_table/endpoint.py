@@ -194,6 +194,15 @@ class HeldAnswers(Protocol):
     def send_answers(self) -> bool: ...
 
 
+@runtime_checkable
+class Rests(Protocol):
+    """An endpoint that can forget its hosts (MAVLink, zenoh): no owner, no peer, no command in progress or
+    remembered, every counter zero; the signatures' replay guard kept. What ``sim_table.process.Emulator.rest``
+    needs of it (CANopen's drives keep their own state machines: not offered there)."""
+
+    def rest(self) -> None: ...
+
+
 def listen_scheme(url: str) -> str:
     """The scheme of a listen URL, checked against the known endpoints (ValueError names the choices)."""
     scheme = urlsplit(url).scheme

@@ -510,6 +510,24 @@ class ZenohEndpoint(BatchedTelemetry):
         if self._store is not None:
             self._store.close()
 
+    def rest(self) -> None:
+        """Forget every host (`sim_table.endpoint.Rests`): no owner, remembered command, event waiting to be sent,
+        no message waiting in the inbox (a query among them ended without a reply), the samples short of a batch
+        dropped, every counter zero; the signatures' replay guard kept."""
+        with self._lock:
+            queries = [query for _, _, query, _ in self._inbox if query is not None]
+            discards = [discard for _, _, _, discard in self._outbox if discard is not None]
+            self.counters = LinkCounters()
+            self._ownership = Ownership(round(OWNER_TIMEOUT * 1e9))
+            for kept in (self._inbox, self._outbox, self._answers, self._requesters, self._resends):
+                kept.clear()
+            self._accel = Batcher(ACCEL_PER_BATCH)
+            self._tilt = Batcher(TILT_PER_BATCH)
+        for query in queries:
+            query.drop()
+        for discard in discards:
+            discard()
+
     def counters_dict(self) -> dict[str, int]:
         ownership = self._ownership
         return {**asdict(self.counters), "claims_granted": ownership.claims_granted,
