@@ -49,6 +49,7 @@ only goes to the table), for a bench without a table.
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import threading
 import time
@@ -124,7 +125,7 @@ class OrchestratorService:
         self._telemetry = TelemetryPublisher(self._zenoh, self.keys, self.snapshot)
         self._live = LivePublisher(self._zenoh, self.keys, self._live_tap)
         self._queryables = [self._zenoh.declare_queryable(self.keys.commands[command],
-                                                          lambda query, c=command: self._arrived(c, query))
+                                                          functools.partial(self._arrived, command))
                             for command in COMMANDS]
         self._token = self._zenoh.liveliness().declare_token(self.keys.alive)
         self._closed = False
@@ -194,6 +195,7 @@ class OrchestratorService:
                 query.reply_err(f"{command}: {exc}".encode())
                 return
             verdict = self._verdict(command, payload, attachment)
+            extra: dict[str, Any]
             if asked != command:
                 ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
             elif command in SIGNED_COMMANDS and verdict not in (None, Verdict.SIGNED):
