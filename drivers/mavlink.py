@@ -1,49 +1,17 @@
 """The table controller over MAVLink 2 on UDP: ``open_table("mavlink://HOST:PORT", key_file=...)``.
 
-The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with
-the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.signing_key.load_signing_key`) both
-ways: what the controller sends is taken only when signed with that key, fresh, by a stream not replayed
-(:func:`protocols.mavlink.parse_guarded`: the stamps' rules of :mod:`protocols.replay`); the rest is dropped and
-counted (:meth:`MavlinkTable.link_stats`: ``junk_datagrams``, ``refused_unsigned``, ``refused_bad_signature``,
-``refused_stale``, ``refused_future``), so that no local process
-can put an overturn, an accelerometer sample or a status into the record.
+The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with the
+rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) both ways: what the controller sends is taken only when
+signed with that key, fresh and not replayed (:func:`protocols.mavlink.parse_guarded`); the rest is dropped and
+counted (:meth:`MavlinkTable.link_stats`). A **receive thread** stamps each datagram with its arrival time and
+dispatches it (feedback, the waiting command, the clock); a **heartbeat thread** sends HEARTBEAT at
+:data:`HEARTBEAT_RATE` [Hz] and a TIMESYNC request every :data:`TIMESYNC_EVERY` heartbeats. Commands are
+COMMAND_LONG, resent with ``confirmation`` 1, 2, … until acknowledged; the clock is fitted from TIMESYNC round trips
+(:class:`drivers.clock.ClockSync`); streams are SHAKETABLE_SETPOINT_CHUNKs of 8 samples (``drivers.chunked``). A
+send the network refuses (:data:`NETWORK_DOWN`) is counted (``send_failures``), not raised.
 
-Threads: a **receive thread** drains the socket continuously (receive buffer enlarged to
-:data:`RECEIVE_BUFFER`), stamps each datagram with its arrival time and dispatches every message to the feedback
-(status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id), to the waiting
-command, or to the clock; a **heartbeat thread** sends HEARTBEAT at :data:`HEARTBEAT_RATE` and a TIMESYNC request every
-:data:`TIMESYNC_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread;
-sending is serialised by a lock.
-
-Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
-
-- **Commands** go as COMMAND_LONG, ``confirmation`` 0 first; without a COMMAND_ACK within ``command_timeout`` s
-  the command is sent again with ``confirmation`` 1, 2, … up to ``retries`` times, then
-  :class:`~drivers.controller.TableTimeoutError`. The controller executes a command with ``confirmation`` > 0
-  that repeats the last one from this host (same command and parameters, within 1 s) only once and answers it
-  with that command's result: retries are safe for every command. HOME and SET_TILT answer IN_PROGRESS, then a
-  final ACK when the motion ended; waiting for it also accepts a status that shows the motion over (the final
-  ACK may be lost).
-- **Clock**: TIMESYNC (common.xml) round trips; the controller answers ``tc1`` = its time [ns]. Of the last
-  :data:`drivers.clock.CLOCK_WINDOW` round trips, those within 100 µs of twice the shortest delay are fitted with a line
-  (controller time against the midpoint of send and receive) through the shortest round trip: offset
-  ``tc − (t_send + t_recv)/2`` there, and the slope follows a controller clock that runs at another rate (an
-  emulator's ``--speed``, a drifting oscillator). :meth:`MavlinkTable.connect` exchanges round trips 20 ms apart
-  until they span :data:`drivers.clock.FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
-- **One host at a time**: :meth:`MavlinkTable.connect` ends with a signed MAV_CMD_SHAKETABLE_CLAIM; refused
-  (TEMPORARILY_REJECTED), the SHAKETABLE_OWNER sent before the ACK names the owner (address, system, component,
-  since when) in the :class:`~drivers.controller.TableInUseError`. :meth:`MavlinkTable.close` first sends
-  MAV_CMD_SHAKETABLE_RELEASE (``drivers.chunked``).
-- **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then
-  SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
-  each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
-  END_OF_STREAM.
-- **A network that is down** (the cable pulled, the interface down: ``sendto`` fails with ENETUNREACH,
-  EHOSTUNREACH, ENETDOWN, EHOSTDOWN or ECONNREFUSED) loses the datagram, as UDP loses any: it is counted
-  (``send_failures`` in :meth:`MavlinkTable.link_stats`), the heartbeat thread goes on, and the statuses that stop
-  coming end the stream as :class:`~drivers.controller.TableLinkLostError` after the link timeout, its message
-  naming the failed sends. (The error once escaped the stream as a bare ``OSError``: the run ended ``faulted``
-  with ``[Errno 101] Network is unreachable`` and the heartbeat thread died.)
+Each protocol decision and its reasons: docs/transports.md §MAVLink: the host; the controller side is
+``sim_table.mavlink_endpoint``.
 """
 
 from __future__ import annotations

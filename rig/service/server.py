@@ -1,49 +1,19 @@
 """``rig serve``: the orchestrator as a service whose control plane is zenoh.
 
 :class:`OrchestratorService` opens a zenoh session that listens on a loopback endpoint (scouting off,
-:func:`protocols.zenoh.session_config`) and declares the queryables of :mod:`rig.service.keys`. Each query is
-handled in a thread of its own (zenoh's threads are never blocked); requests and replies are those of
-:mod:`rig.service.wire`:
+:func:`protocols.zenoh.session_config`) and declares the queryables of :mod:`rig.service.keys`: ``start``,
+``pause``, ``resume``, ``abort``, ``estop``, ``state``, ``queue`` and ``answer``. Each query is handled in a thread
+of its own (zenoh's threads are never blocked); requests and replies are those of :mod:`rig.service.wire`. One
+session at a time, played by :class:`~rig.service.session.ServiceSession` in a worker thread; its progress is
+published as telemetry (:mod:`rig.service.telemetry`); control requests are logged in the session's events with
+the source the transport vouches for (:mod:`rig.service.audit`).
 
-==========  =========================================================  =================================
-command     args                                                       reply (``ok`` true)
-==========  =========================================================  =================================
-``start``   :class:`~rig.service.session.StartRequest` (sequence file  ``session``: the session file;
-            or text, table URL or ``emulate``, output or ``resume``)   sent once the session runs
-``pause``   ``{}``                                                     pauses at the end of the record
-``resume``  ``{}``                                                     continues
-``abort``   ``{}``                                                     controlled stop now
-``estop``   ``{}``                                                     emergency stop (brake) now
-``state``   ``{}``                                                     the progress and session path
-``queue``   a :class:`~rig.service.session.StartRequest`'s args        ``queued``: its id; started later
-``start``   ``{"queued": id}``: the queued session ``id``              as ``start`` above
-``answer``  ``{"prompt": id, "reply": "done"|"decline", "fell": …}``   the attended session's prompt
-                                                                       answered (:mod:`rig.service.operator`)
-==========  =========================================================  =================================
+``start``, ``resume``, ``queue`` and ``answer`` are accepted only when signed with the rig's key (``key_file``, else
+``$SHAKETABLE_MAVLINK_KEY``; :mod:`protocols.zenoh.auth`); ``pause``, ``abort``, ``estop`` and ``state`` from anyone
+(stopping never waits for a key). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures.
 
-The control requests (``pause``, ``resume``, ``abort``, ``estop``, ``answer``) may carry a ``source`` (who asked,
-e.g. the console's browser session); every one is logged in the running session's events with the source the
-transport vouches for (:mod:`rig.service.audit`: a ``source`` is written only from a request signed with the rig's key).
-
-Every reply (and STATUS publication) carries ``state``, ``message``, ``session``, ``active``, ``progress``, ``queue``
-(the queued sessions: ``id``, ``name``, ``emulate``, ``attended``), ``prompt`` (the attended session's waiting prompt,
-or null) and ``seq`` (the number of the
-last STATUS published before it: a status with a lower one is older than the reply). Refusals (``ok`` false):
-a malformed request, a bad sequence (its ``FILE:LINE: key: problem``), a session file that exists, a table or an
-emulator that cannot be reached, ``start`` while a session is prepared or played, and ``pause``/``resume``/
-``abort``/``estop`` with no session running. A payload that is no CONTROL_REQUEST gets a zenoh error reply.
-
-One session at a time, played by :class:`~rig.service.session.ServiceSession` in a worker thread; its progress is
-published as telemetry (:mod:`rig.service.telemetry`).
-
-**Authentication.** ``start``, ``resume``, ``queue`` and ``answer`` make the table move (or line up a session that
-will): they are accepted only when signed with the rig's key (the table link's HMAC-SHA256 scheme,
-:mod:`protocols.zenoh.auth`, with its replay stamps; the signature is the query's attachment). ``pause``,
-``abort``, ``estop`` and ``state`` are accepted from anyone on the zenoh network: stopping the table must never wait
-for a key, and the network is loopback only (a client with the key signs them too, to be named in the log). The key
-is ``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; the same key goes to the table's driver (and the emulator of
-``emulate`` sessions). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures (``key_file`` then
-only goes to the table), for a bench without a table.
+Each command's arguments and reply, the reply's fields, the refusals and why the commands are split so:
+docs/service.md.
 """
 
 from __future__ import annotations

@@ -34,6 +34,9 @@ x = 0.0
 y = 0.0
 """
 
+TINY_ONE_RUN = TINY.replace('    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },\n', "")
+""":data:`TINY` with its first record only: one run."""
+
 
 def new_log(sequence: Sequence, path: Path) -> SessionLog:
     return SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
