@@ -30,8 +30,8 @@ from analysis.table.model import TableModel
 from protocols.zenoh.config import PLAIN, LinkSecurity
 from sim_table.controller import ControllerCore, Done, Refused, Snapshot, State
 
-Action = Callable[[ControllerCore], None]
-"""A host message as an effect on the controller core."""
+Action = Callable[[ControllerCore], object]
+"""A host message as an effect on the controller core (what it returns is not used)."""
 
 #: Listen-URL scheme → module providing ``open_endpoint(url, options)``.
 ENDPOINT_MODULES: dict[str, str] = {
