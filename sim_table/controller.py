@@ -35,6 +35,7 @@ import numpy as np
 
 from analysis.table.model import TableModel
 from analysis.table.moves import Move, axis_limits, shortest_duration
+from analysis.table.setpoint_screen import SetpointScreen
 from analysis.table.setpoints import SetpointProblem, check_setpoints
 
 SEQ_MODULUS = 2**32
@@ -248,6 +249,7 @@ class ControllerCore:
         buffer, plays the drive (its one-sample chunks stop whenever it disables the drives)."""
         self._link_clock = link_clock
         self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
+        self._screen = SetpointScreen(table)
         self.state = State.IDLE
         self.faults = Fault(0)
         self.inputs = 0
@@ -370,7 +372,8 @@ class ControllerCore:
     def _check(self, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> SetpointProblem | None:
         """What forbids playing ``samples`` (n, 6) due from ``t_start_ns`` every ``spacing_ns`` [ns]: the checks of
         ``analysis.table.setpoints``, the steps from the sample buffered (or played last) before them and to the one
-        buffered after them included; None when nothing does."""
+        buffered after them included; None when nothing does. A chunk the compiled screen clears
+        (``analysis.table.setpoint_screen``: the same checks, with a margin) is not checked again in numpy."""
         if samples.ndim != 2 or samples.shape[1] != 6 or len(samples) == 0 or spacing_ns <= 0:
             return SetpointProblem(0, "shape", f"{samples.shape} samples spaced {spacing_ns} ns: expected (n, 6), "
                                                "spaced > 0 ns")
@@ -382,6 +385,8 @@ class ControllerCore:
         after = buffer[j] if j < len(buffer) else None
         previous = None if before is None else (before[1], (t_start_ns - before[0]) * 1e-9)
         following = None if after is None else (after[1], (after[0] - t_end_ns) * 1e-9)
+        if self._screen.clears(samples, spacing_ns * 1e-9, previous, following):
+            return None
         return check_setpoints(self.table, samples, spacing_ns * 1e-9, previous, following)
 
     def refuse_chunk(self, seq: int, reason: str, t_ns: int) -> None:
@@ -559,7 +564,11 @@ class ControllerCore:
         late = int(np.count_nonzero(times <= last))
         self.counters.samples_late += late
         buffer = self._buffer
-        for t, pose in zip(times[late:].tolist(), samples[late:], strict=True):
+        times_due = times[late:].tolist()
+        if times_due and (not buffer or times_due[0] > buffer[-1][0]):  # the usual chunk: after all buffered
+            buffer.extend(zip(times_due, samples[late:], strict=True))
+            return
+        for t, pose in zip(times_due, samples[late:], strict=True):
             if not buffer or t > buffer[-1][0]:
                 buffer.append((t, pose))
                 continue
