@@ -260,7 +260,7 @@ class ControllerCore:
         """Controller time of the first accepted START_STREAM (fault injection times count from it)."""
         self._events: list[StateChange | Done | Refused] = []
         self._p = np.zeros(6) if pose is None else np.array(pose, dtype=float)
-        self._v = np.zeros(6)
+        self._p_before, self._dt = self._p, 0.0  # the reference a tick before and that tick [s]: its velocity
         self._achieved = self._p.copy()
         self._t: int | None = None  # the last tick
         self._last_heartbeat: int | None = None
@@ -422,7 +422,7 @@ class ControllerCore:
         self._watchdogs(t_ns)
         state = self.state
         if state in BRAKED:
-            self._v[:] = 0.0
+            self._p_before, self._dt = self._p, 0.0
             return self._p, True
         if state is State.STREAMING:
             if self._gaps:
@@ -438,7 +438,7 @@ class ControllerCore:
             pose = self._stopping(t_ns, dt)
         else:  # ARMED: hold
             pose = self._p
-        self._v = (pose - self._p) / dt if dt > 0 else np.zeros(6)
+        self._p_before, self._dt = self._p, dt
         self._p = pose
         return pose, False
 
@@ -461,7 +461,7 @@ class ControllerCore:
             return Result.REJECTED
         if self.state in BRAKED:
             self._p = self._achieved.copy()
-            self._v[:] = 0.0
+            self._p_before, self._dt = self._p, 0.0
         self.faults = Fault(0)
         self._last_heartbeat = self.link_time(t_ns)
         self._set_state(State.ARMED, t_ns)
@@ -584,6 +584,8 @@ class ControllerCore:
         ta, pa = self._anchor
         if buffer:
             self._dry = False
+            if t_ns == ta:  # a tick on a sample (the usual grid): the sample itself
+                return pa
             tb, pb = buffer[0]
             return pa + (pb - pa) * ((t_ns - ta) / (tb - ta))
         end = self._end_ns
@@ -609,9 +611,13 @@ class ControllerCore:
         self._anchor = (t_ns, pose)
         return pose
 
+    def _velocity(self) -> np.ndarray:
+        """The reference's velocity over the last tick (6,) [m/s, rad/s]: zero after a braked tick or ARM."""
+        return (self._p - self._p_before) / self._dt if self._dt > 0 else np.zeros(6)
+
     def _decelerate(self, dt: float) -> np.ndarray:
         """The reference one tick on, its velocity reduced by the axis accelerations (exactly zero at rest)."""
-        v = self._v
+        v = self._velocity()
         slower = np.sign(v) * np.maximum(np.abs(v) - self._acceleration_limit * dt, 0.0)
         return self._p + slower * dt
 
