@@ -61,10 +61,11 @@ class State(enum.Enum):
     EMERGENCY_STOPPED = "emergency_stopped"
 
 
-BRAKED = frozenset({State.IDLE, State.FAULTED, State.EMERGENCY_STOPPED})
-"""States with the drives disabled: the legs hold where they are."""
+BRAKED = (State.IDLE, State.FAULTED, State.EMERGENCY_STOPPED)
+"""States with the drives disabled: the legs hold where they are. (Tuples, not sets: ``in`` on a tuple compares
+members by identity, a set hashes them in Python — Enum's ``__hash__`` — twice a tick.)"""
 
-_HEARTBEAT_GUARDED = frozenset({State.ARMED, State.HOMING, State.TILTING, State.STREAMING})
+_HEARTBEAT_GUARDED = (State.ARMED, State.HOMING, State.TILTING, State.STREAMING)
 
 
 class Fault(enum.IntFlag):
