@@ -8,6 +8,7 @@ with ``mavlink://HOST:PORT``, ``zenoh://HOST:PORT/TABLE`` or ``canopen://CHANNEL
   their overturns.
 - ``controller``: the controller's states, commands, setpoint buffer, watchdogs and counters, transport-free.
 - ``actuators``: the six legs on the table model (lag, speed and stroke limits, measurement noise).
+- ``forward_kinematics``: leg lengths → plate poses, the table model's Newton compiled (numba), pose by pose.
 - ``dynamics``: servo-hydraulic legs (valve, oil column, displacement loop; ``--dynamics servo``).
 - ``offline``: a drive played through the legs and accelerometers without transport or clock.
 - ``accelerometers``: the plate's motion differentiated; virtual accelerometers (specific force, plate frame).

@@ -11,7 +11,8 @@ Per tick of ``dt`` seconds (``docs/table-controller.md``, "The emulator's physic
    when that bites). With the drives braked (idle, faulted, emergency stop) the legs ignore the command and
    their speed decays at ``brake_deceleration`` to rest; so does, for good, a leg whose actuator seized
    (:attr:`Actuators.stalled`, an injected fault).
-4. Forward kinematics (``TableModel.pose_from_leg_lengths``) gives the achieved pose: Newton from the previous
+4. Forward kinematics (``TableModel.pose_from_leg_lengths``'s Newton, compiled: ``sim_table.forward_kinematics``)
+   gives the achieved pose: Newton from the previous
    achieved pose advanced by the same lag applied to the poses (within ~1e-8 m of the answer, so one Newton step
    reaches the 1e-12 m tolerance; from the previous pose itself it takes two).
 
@@ -30,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from analysis.table.model import TableModel
+from sim_table.forward_kinematics import ForwardKinematics
 
 
 @njit(cache=True)
@@ -96,6 +98,7 @@ class Actuators:
         """Legs whose actuator seized (set by the owner: injected fault): they brake to rest and stop following
         their command."""
         self._filter(np.zeros((0, 6)), self.lengths)  # compile (or load) the numba loop now, not mid-stream
+        self._kinematics = ForwardKinematics(table)
 
     def step(self, reference: np.ndarray, braked: np.ndarray) -> ActuatorStep:
         """Run k ticks: ``reference`` (k, 6) poses, ``braked`` (k,) whether the drives are braked at each."""
@@ -113,7 +116,7 @@ class Actuators:
             guess = np.broadcast_to(self.pose, clipped.shape)
         else:
             guess = self._filter(clipped, self.pose)
-        poses = self.table.pose_from_leg_lengths(out, guess=guess)
+        poses = self._kinematics.poses(out, guess)
         self.pose = poses[-1]
         demand = np.where(braked[:, None], out, commanded)
         return ActuatorStep(poses, out, demand, setpoint_limited, stroke_limited)
@@ -165,4 +168,4 @@ class Actuators:
         lengths = np.asarray(lengths, dtype=float)
         readings = (lengths + self._rng.normal(0.0, self.settings.noise, lengths.shape) if self.settings.noise
                     else lengths)
-        return self.table.pose_from_leg_lengths(readings, guess=pose)
+        return self._kinematics.poses(readings, pose)

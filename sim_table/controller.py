@@ -35,6 +35,7 @@ import numpy as np
 
 from analysis.table.model import TableModel
 from analysis.table.moves import Move, axis_limits, shortest_duration
+from analysis.table.setpoint_screen import SetpointScreen
 from analysis.table.setpoints import SetpointProblem, check_setpoints
 
 SEQ_MODULUS = 2**32
@@ -60,10 +61,11 @@ class State(enum.Enum):
     EMERGENCY_STOPPED = "emergency_stopped"
 
 
-BRAKED = frozenset({State.IDLE, State.FAULTED, State.EMERGENCY_STOPPED})
-"""States with the drives disabled: the legs hold where they are."""
+BRAKED = (State.IDLE, State.FAULTED, State.EMERGENCY_STOPPED)
+"""States with the drives disabled: the legs hold where they are. (Tuples, not sets: ``in`` on a tuple compares
+members by identity, a set hashes them in Python — Enum's ``__hash__`` — twice a tick.)"""
 
-_HEARTBEAT_GUARDED = frozenset({State.ARMED, State.HOMING, State.TILTING, State.STREAMING})
+_HEARTBEAT_GUARDED = (State.ARMED, State.HOMING, State.TILTING, State.STREAMING)
 
 
 class Fault(enum.IntFlag):
@@ -248,6 +250,7 @@ class ControllerCore:
         buffer, plays the drive (its one-sample chunks stop whenever it disables the drives)."""
         self._link_clock = link_clock
         self._velocity_limit, self._acceleration_limit, self._jerk_limit = axis_limits(table)
+        self._screen = SetpointScreen(table)
         self.state = State.IDLE
         self.faults = Fault(0)
         self.inputs = 0
@@ -258,7 +261,7 @@ class ControllerCore:
         """Controller time of the first accepted START_STREAM (fault injection times count from it)."""
         self._events: list[StateChange | Done | Refused] = []
         self._p = np.zeros(6) if pose is None else np.array(pose, dtype=float)
-        self._v = np.zeros(6)
+        self._p_before, self._dt = self._p, 0.0  # the reference a tick before and that tick [s]: its velocity
         self._achieved = self._p.copy()
         self._t: int | None = None  # the last tick
         self._last_heartbeat: int | None = None
@@ -370,7 +373,8 @@ class ControllerCore:
     def _check(self, t_start_ns: int, spacing_ns: int, samples: np.ndarray) -> SetpointProblem | None:
         """What forbids playing ``samples`` (n, 6) due from ``t_start_ns`` every ``spacing_ns`` [ns]: the checks of
         ``analysis.table.setpoints``, the steps from the sample buffered (or played last) before them and to the one
-        buffered after them included; None when nothing does."""
+        buffered after them included; None when nothing does. A chunk the compiled screen clears
+        (``analysis.table.setpoint_screen``: the same checks, with a margin) is not checked again in numpy."""
         if samples.ndim != 2 or samples.shape[1] != 6 or len(samples) == 0 or spacing_ns <= 0:
             return SetpointProblem(0, "shape", f"{samples.shape} samples spaced {spacing_ns} ns: expected (n, 6), "
                                                "spaced > 0 ns")
@@ -382,6 +386,8 @@ class ControllerCore:
         after = buffer[j] if j < len(buffer) else None
         previous = None if before is None else (before[1], (t_start_ns - before[0]) * 1e-9)
         following = None if after is None else (after[1], (after[0] - t_end_ns) * 1e-9)
+        if self._screen.clears(samples, spacing_ns * 1e-9, previous, following):
+            return None
         return check_setpoints(self.table, samples, spacing_ns * 1e-9, previous, following)
 
     def refuse_chunk(self, seq: int, reason: str, t_ns: int) -> None:
@@ -417,7 +423,7 @@ class ControllerCore:
         self._watchdogs(t_ns)
         state = self.state
         if state in BRAKED:
-            self._v[:] = 0.0
+            self._p_before, self._dt = self._p, 0.0
             return self._p, True
         if state is State.STREAMING:
             if self._gaps:
@@ -433,7 +439,7 @@ class ControllerCore:
             pose = self._stopping(t_ns, dt)
         else:  # ARMED: hold
             pose = self._p
-        self._v = (pose - self._p) / dt if dt > 0 else np.zeros(6)
+        self._p_before, self._dt = self._p, dt
         self._p = pose
         return pose, False
 
@@ -456,7 +462,7 @@ class ControllerCore:
             return Result.REJECTED
         if self.state in BRAKED:
             self._p = self._achieved.copy()
-            self._v[:] = 0.0
+            self._p_before, self._dt = self._p, 0.0
         self.faults = Fault(0)
         self._last_heartbeat = self.link_time(t_ns)
         self._set_state(State.ARMED, t_ns)
@@ -559,7 +565,11 @@ class ControllerCore:
         late = int(np.count_nonzero(times <= last))
         self.counters.samples_late += late
         buffer = self._buffer
-        for t, pose in zip(times[late:].tolist(), samples[late:], strict=True):
+        times_due = times[late:].tolist()
+        if times_due and (not buffer or times_due[0] > buffer[-1][0]):  # the usual chunk: after all buffered
+            buffer.extend(zip(times_due, samples[late:], strict=True))
+            return
+        for t, pose in zip(times_due, samples[late:], strict=True):
             if not buffer or t > buffer[-1][0]:
                 buffer.append((t, pose))
                 continue
@@ -575,6 +585,8 @@ class ControllerCore:
         ta, pa = self._anchor
         if buffer:
             self._dry = False
+            if t_ns == ta:  # a tick on a sample (the usual grid): the sample itself
+                return pa
             tb, pb = buffer[0]
             return pa + (pb - pa) * ((t_ns - ta) / (tb - ta))
         end = self._end_ns
@@ -600,9 +612,13 @@ class ControllerCore:
         self._anchor = (t_ns, pose)
         return pose
 
+    def _velocity(self) -> np.ndarray:
+        """The reference's velocity over the last tick (6,) [m/s, rad/s]: zero after a braked tick or ARM."""
+        return (self._p - self._p_before) / self._dt if self._dt > 0 else np.zeros(6)
+
     def _decelerate(self, dt: float) -> np.ndarray:
         """The reference one tick on, its velocity reduced by the axis accelerations (exactly zero at rest)."""
-        v = self._v
+        v = self._velocity()
         slower = np.sign(v) * np.maximum(np.abs(v) - self._acceleration_limit * dt, 0.0)
         return self._p + slower * dt
 

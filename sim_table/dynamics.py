@@ -34,6 +34,7 @@ from numba import njit
 from analysis.table.dynamics import PlateLoad, TableDynamics
 from analysis.table.model import TableModel
 from sim_table.actuators import Actuators, ActuatorSettings, ActuatorStep
+from sim_table.forward_kinematics import ForwardKinematics
 from sim_table.options import DYNAMICS
 
 if TYPE_CHECKING:  # scipy.signal takes 0.6 s to import: only the servo model's analysis needs it
@@ -248,6 +249,7 @@ class ServoActuators:
         self._bound = np.array([lim.surge.displacement, lim.lateral.displacement, lim.heave.displacement,
                                 lim.tilt.angle, lim.tilt.angle, math.inf])
         self._rng = np.random.default_rng(seed)
+        self._kinematics = ForwardKinematics(table)
         self.pose = np.zeros(6) if pose is None else np.array(pose, dtype=float)
         """The true achieved pose after the last tick."""
         self.lengths = table.leg_lengths(self.pose)
@@ -392,7 +394,7 @@ class ServoActuators:
         out, saturated = self._advance(commanded, braked)
         ahead = np.arange(1, len(clipped) + 1)[:, None]
         guess = np.where(braked[:, None], self.pose, clipped + self._offset + self._drift * ahead)
-        poses = self.table.pose_from_leg_lengths(out, guess=guess)
+        poses = self._kinematics.poses(out, guess)
         self.pose, self.lengths = poses[-1], out[-1].copy()
         offsets = poses - clipped
         if braked.any() or len(poses) < 2:
@@ -418,7 +420,7 @@ class ServoActuators:
         lengths = np.asarray(lengths, dtype=float)
         readings = (lengths + self._rng.normal(0.0, self.settings.noise, lengths.shape) if self.settings.noise
                     else lengths)
-        return self.table.pose_from_leg_lengths(readings, guess=pose)
+        return self._kinematics.poses(readings, pose)
 
 
 def make_actuators(kind: str, table: TableModel, dt: float, settings: ActuatorSettings, *, payload: float = 0.0,

@@ -208,21 +208,19 @@ class SpecimenScene:
         paths = _hermite(np.vstack([pose0[None, order], poses[:-1, order]]),
                          spans * np.vstack([vel0[None, order], rates[:-1, order]]),
                          poses[:, order], spans * rates[:, order])  # each (k, 6): one curve an interval
-        interval, u_here, u_there = [], [], []
-        clock = d.time
-        for j, (start, end, span) in enumerate(zip(starts.tolist(), times.tolist(), spans[:, 0].tolist(),
-                                                   strict=True)):
-            while clock + 0.5 * dt <= end:  # the physics steps of each interval, as advance() takes them
-                interval.append(j)
-                u_here.append((clock - start) / span)
-                u_there.append((clock + dt - start) / span)
-                clock += dt
+        # the physics steps of each interval, as advance() takes them: each step's start (the clock advanced by
+        # dt, step after step, as advance() advances it) in the first interval whose end is at least half a step on
+        count = max(0, math.ceil((times[-1] - d.time) / dt) + 2)
+        clocks = np.cumsum(np.concatenate([[d.time], np.full(count, dt)]))
+        clocks = clocks[clocks + 0.5 * dt <= times[-1]]
+        interval = np.searchsorted(times, clocks + 0.5 * dt)
         found: list[Overturn] = []
         angles = self.specimen_angles()[None, :]  # before the batch, then after each step
-        if interval:
+        if len(interval):
             steps = [c[interval] for c in paths]
-            here_array = _evaluate(steps, np.array(u_here)[:, None])
-            there_array = _evaluate(steps, np.array(u_there)[:, None])
+            start, span = starts[interval], spans[interval, 0]
+            here_array = _evaluate(steps, ((clocks - start) / span)[:, None])
+            there_array = _evaluate(steps, ((clocks + dt - start) / span)[:, None])
             step_rates = (there_array - here_array) / dt
             previous_rates = np.vstack([self._plate_rate[None, :], step_rates[:-1]])
             force = np.zeros((len(interval), m.nv))
