@@ -745,6 +745,96 @@ def _reaction_event(rs: bool, hold: bool, jam: bool, ev: int, tau_ev: float, th_
 
 
 @njit(cache=True, inline="always")
+def _at_reaction(motion: tuple, contact: tuple, tally: tuple, rs: bool, kind_r: int, tau_r: float, u_top: float,
+                 hc: tuple, H: float, seg: tuple, alpha: float, r: float, k: float, ig2: float, mu: float, cb: float,
+                 sb: float) -> tuple[tuple, tuple, tuple]:
+    """ROCK's or ROCKSLIDE's step of H [s] cut at its reaction event τ_r [s] (``_reaction_event``'s kind_r):
+    θ_max over the part taken (``hc``: the step's Hermite coefficients, ``u_top`` where |θ| peaks in it or −1
+    if not found yet), the slide, then what the pivot does: FLIGHT on a lift-off of the sliding pivot, else
+    ``after_reaction`` (stick, slide the other way, fly)."""
+    t, theta, omega, v, z, w = motion
+    stage, s, slip, psi_ref, r_ref, fresh, jam, hold, instant, t_last, t_rest = contact
+    theta_max, u, u_peak, t_slide, impacts, steps = tally
+    ti, a0x, sx, a0y, sy = seg
+    c3, c2, c1h, c0 = hc
+    if rs:
+        _, th_r, om_r, v_r = _rs_f(tau_r, 0, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                                   ig2, mu, cb, sb)
+    else:
+        _, th_r, om_r, _, _ = _rock_f(tau_r, 0, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k,
+                                      mu, cb, sb)
+        v_r = 0.0
+    if u_top < 0.0:
+        u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
+    if u_top * H <= tau_r:
+        theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+    theta_max = max(theta_max, abs(th_r))
+    if tau_r > 0.0:
+        instant = 0
+    if rs:
+        u += _rs_shift(theta, omega, v, th_r, om_r, v_r, t, tau_r, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                       ig2, mu, cb, sb)
+        u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_r
+    t += tau_r
+    theta, omega = th_r, om_r
+    gxr, gzr = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
+    if kind_r == 1:  # lift-off of the sliding pivot
+        z, v, w = flight_entry(theta, omega, v_r, s, alpha, r)
+        stage = ST_FLIGHT
+    else:  # ROCK's reactions, or the slide stops: stick, slide (the other way) or fly
+        stage, v, w, z, slip, jam, hold = after_reaction(theta, omega, v_r, w, z, s, slip, jam, kind_r == 0,
+                                                         gxr, gzr, alpha, r, ig2, k, mu)
+    fresh = not hold
+    if t == t_last:
+        instant += 1
+    t_last = t
+    return ((t, theta, omega, v, z, w), (stage, s, slip, psi_ref, r_ref, fresh, jam, hold, instant, t_last, t_rest),
+            (theta_max, u, u_peak, t_slide, impacts, steps))
+
+
+@njit(cache=True, inline="always")
+def _at_theta_event(motion: tuple, contact: tuple, tally: tuple, rs: bool, ev: int, tau_ev: float, th_e: float,
+                    om_e: float, v_e: float, u_top: float, hc: tuple, fall: float, seg: tuple, alpha: float,
+                    r: float, e: float, ig2: float, mu: float, cb: float, sb: float) -> tuple[int, tuple, tuple, tuple]:
+    """ROCK's or ROCKSLIDE's step cut at its θ event τ_ev [s], where the state is (θ_e, ω_e, v_e): ev 1 the
+    body overturns (returns its direction; t its time, θ_max the fall angle), ev 2 a corner impact (the stage
+    after it: ``_after_impact``; returns 0)."""
+    t, theta, omega, v, z, w = motion
+    stage, s, slip, psi_ref, r_ref, fresh, jam, hold, instant, t_last, t_rest = contact
+    theta_max, u, u_peak, t_slide, impacts, steps = tally
+    ti, a0x, sx, a0y, sy = seg
+    c3, c2, c1h, c0 = hc
+    d = 0
+    if rs:
+        u += _rs_shift(theta, omega, v, th_e, om_e, v_e, t, tau_ev, ti, a0x, sx, a0y, sy, s, slip, alpha,
+                       r, ig2, mu, cb, sb)
+        u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_ev
+    t += tau_ev
+    if ev == 1:  # overturned
+        d = int(s)
+        theta_max = fall
+    else:  # impact
+        theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+        impacts += 1
+        vp = corner_impact_velocity(v_e, om_e, e, r, alpha) if rs else 0.0
+        theta = 0.0
+        if tau_ev > 0.0:
+            instant = 0
+        stage, omega, v, slip, s = _after_impact(e * om_e, vp, e, s, slip)
+        if stage == ST_REST:
+            t_rest = t
+        elif stage in (ST_ROCK, ST_ROCKSLIDE):  # rocking goes on about the other corner
+            jam = False
+        fresh = True
+        if t == t_last:
+            instant += 1
+        t_last = t
+    return (d, (t, theta, omega, v, z, w),
+            (stage, s, slip, psi_ref, r_ref, fresh, jam, hold, instant, t_last, t_rest),
+            (theta_max, u, u_peak, t_slide, impacts, steps))
+
+
+@njit(cache=True, inline="always")
 def _rock_step(motion: tuple, contact: tuple, tally: tuple, trig: tuple, seg: tuple, H: float, te: float,
                sides: tuple, ig2: float, mu: float, cb: float, sb: float, fall_plus: float, fall_minus: float
                ) -> tuple[int, tuple, tuple, tuple, tuple]:
@@ -757,7 +847,6 @@ def _rock_step(motion: tuple, contact: tuple, tally: tuple, trig: tuple, seg: tu
     theta_max, u, u_peak, t_slide, impacts, steps = tally
     trig_theta, trig_s, c_psi, s_psi = trig
     ti, a0x, sx, a0y, sy = seg
-    d = 0
     rs = stage == ST_ROCKSLIDE
     # the pivot's corner (the body's sides differ when its centre of mass is off the middle)
     if s > 0.0:
@@ -808,77 +897,31 @@ def _rock_step(motion: tuple, contact: tuple, tally: tuple, trig: tuple, seg: tu
     tau_r, kind_r, jam = _reaction_event(rs, hold, jam, ev, tau_ev, th_e, om_e, v_e, c_e, s_e, theta, omega, v, t, H,
                                          seg, s, slip, alpha, r, k, ig2, mu, cb, sb)
     hold = False
+    motion = (t, theta, omega, v, z, w)
+    contact = (stage, s, slip, psi_ref, r_ref, fresh, jam, hold, instant, t_last, t_rest)
+    tally = (theta_max, u, u_peak, t_slide, impacts, steps)
+    trig = (trig_theta, trig_s, c_psi, s_psi)
     if kind_r >= 0:  # a reaction event before the θ event / step end
-        if rs:
-            _, th_r, om_r, v_r = _rs_f(tau_r, 0, theta, omega, v, t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
-                                       ig2, mu, cb, sb)
-        else:
-            _, th_r, om_r, _, _ = _rock_f(tau_r, 0, theta, omega, t, ti, a0x, sx, a0y, sy, s, alpha, r, k,
-                                          mu, cb, sb)
-            v_r = 0.0
-        if u_top < 0.0:
-            u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
-        if u_top * H <= tau_r:
-            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
-        theta_max = max(theta_max, abs(th_r))
-        if tau_r > 0.0:
-            instant = 0
-        if rs:
-            u += _rs_shift(theta, omega, v, th_r, om_r, v_r, t, tau_r, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
-                           ig2, mu, cb, sb)
-            u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_r
-        t += tau_r
-        theta, omega = th_r, om_r
-        gxr, gzr = plate_gravity(a0x + sx * (t - ti), a0y + sy * (t - ti), cb, sb)
-        if kind_r == 1:  # lift-off of the sliding pivot
-            z, v, w = flight_entry(theta, omega, v_r, s, alpha, r)
-            stage = ST_FLIGHT
-        else:  # ROCK's reactions, or the slide stops: stick, slide (the other way) or fly
-            stage, v, w, z, slip, jam, hold = after_reaction(theta, omega, v_r, w, z, s, slip, jam, kind_r == 0,
-                                                             gxr, gzr, alpha, r, ig2, k, mu)
-        fresh = not hold
-        if t == t_last:
-            instant += 1
-        t_last = t
-    elif ev != 0:
-        if rs:
-            u += _rs_shift(theta, omega, v, th_e, om_e, v_e, t, tau_ev, ti, a0x, sx, a0y, sy, s, slip, alpha,
-                           r, ig2, mu, cb, sb)
-            u_peak, t_slide = max(u_peak, abs(u)), t_slide + tau_ev
-        t += tau_ev
-        if ev == 1:  # overturned
-            d = int(s)
-            theta_max = fall
-        else:  # impact
-            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
-            impacts += 1
-            vp = corner_impact_velocity(v_e, om_e, e, r, alpha) if rs else 0.0
-            theta = 0.0
-            if tau_ev > 0.0:
-                instant = 0
-            stage, omega, v, slip, s = _after_impact(e * om_e, vp, e, s, slip)
-            if stage == ST_REST:
-                t_rest = t
-            elif stage in (ST_ROCK, ST_ROCKSLIDE):  # rocking goes on about the other corner
-                jam = False
-            fresh = True
-            if t == t_last:
-                instant += 1
-            t_last = t
-    else:
-        if omega * omega1 < 0.0:
-            u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
-            theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
-        theta_max = max(theta_max, abs(theta1))
-        if rs:
-            u += _rs_shift(theta, omega, v, theta1, omega1, v1, t, te - t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
-                           ig2, mu, cb, sb)
-            u_peak, t_slide = max(u_peak, abs(u)), t_slide + (te - t)
-        if not rs:  # cos/sin of ψ at the new state, for the next step
-            trig_theta, trig_s, c_psi, s_psi = theta1, s, c_e, s_e
-        theta, omega, v, t = theta1, omega1, v1, te
-        instant = 0
-    return (d, (t, theta, omega, v, z, w), (stage, s, slip, psi_ref, r_ref, fresh, jam, hold, instant, t_last, t_rest),
+        motion, contact, tally = _at_reaction(motion, contact, tally, rs, kind_r, tau_r, u_top, (c3, c2, c1h, c0), H,
+                                              seg, alpha, r, k, ig2, mu, cb, sb)
+        return 0, motion, contact, tally, trig
+    if ev != 0:
+        d, motion, contact, tally = _at_theta_event(motion, contact, tally, rs, ev, tau_ev, th_e, om_e, v_e, u_top,
+                                                    (c3, c2, c1h, c0), fall, seg, alpha, r, e, ig2, mu, cb, sb)
+        return d, motion, contact, tally, trig
+    # no event: the whole step
+    if omega * omega1 < 0.0:
+        u_top = hermite.argmax_scaled(c3, c2, c1h, c0, s)
+        theta_max = max(theta_max, abs(hermite.value(c3, c2, c1h, c0, u_top)))
+    theta_max = max(theta_max, abs(theta1))
+    if rs:
+        u += _rs_shift(theta, omega, v, theta1, omega1, v1, t, te - t, ti, a0x, sx, a0y, sy, s, slip, alpha, r,
+                       ig2, mu, cb, sb)
+        u_peak, t_slide = max(u_peak, abs(u)), t_slide + (te - t)
+    else:  # cos/sin of ψ at the new state, for the next step
+        trig_theta, trig_s, c_psi, s_psi = theta1, s, c_e, s_e
+    theta, omega, v, t = theta1, omega1, v1, te
+    return (0, (t, theta, omega, v, z, w), (stage, s, slip, psi_ref, r_ref, fresh, jam, hold, 0, t_last, t_rest),
             (theta_max, u, u_peak, t_slide, impacts, steps), (trig_theta, trig_s, c_psi, s_psi))
 
 
