@@ -567,13 +567,13 @@ def _flight_step(motion: tuple, contact: tuple, tally: tuple, H: float, sx: floa
         if g0 > 0.0 and not was_fresh:
             lo = 0.0
         else:  # just lifted off (gap 0): find the hop, if any
-            u = 0.5
+            frac = 0.5  # of the step tried
             for _ in range(40):
-                if _gap(u * tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m,
+                if _gap(frac * tau, theta, omega, v, z, w, gx0, gx1, gz0, gz1, alpha_p, r_p, alpha_m, r_m,
                         psi_ref, r_ref) > 0.0:
-                    lo = u * tau
+                    lo = frac * tau
                     break
-                u *= 0.5
+                frac *= 0.5
         if lo < 0.0:
             tau_l = 0.0
         else:
