@@ -27,6 +27,9 @@ of Eq. 9 not positive, below ``DEN_MIN``) sticks (``jam``). The corrections to d
 
 Inputs are in SI (m/s²); ``ax``/``ay`` carry one extra trailing zero sample, after which the input
 is zero: the free motion is followed for ``t_after`` seconds more or until rest/overturn.
+
+``simulate_general`` is a short dispatcher over one step function per stage (``_rest_step``, ``_slide_step``,
+``_flight_step``, ``_rock_step``), all inlined; the comment above them says what state they pass on.
 """
 
 from __future__ import annotations
