@@ -21,13 +21,16 @@ from analysis.equations import pivot_reactions, plate_gravity, rocking_accelerat
 from analysis.fast_general import (
     REST,
     ST_FLIGHT,
+    ST_REST,
     ST_ROCK,
     ST_ROCKSLIDE,
     ST_SLIDE,
+    _flight_step,
     corner_impact_velocity,
     landing_omega,
     simulate_general,
 )
+from analysis.general_stages import geometry
 from analysis.reference_general import GeneralTrace, simulate_general_reference
 from analysis.simulate import simulate
 from tests.helpers.newton_euler import newton_euler, rot
@@ -661,3 +664,20 @@ def test_robustness_sweep() -> None:
         _check_sane(run(body, ah, dt, "fast", acc_v=av, **kw), body, ah, dt)
     for body, ah, av, dt, kw in list(_robust_cases(40, 51)):
         _check_sane(run(body, ah, dt, "reference", acc_v=av, **kw), body, ah, dt)
+
+
+def test_a_hop_after_lift_off_keeps_the_slide_displacement():
+    """A hop that lands within the step it starts in (found by halving the step from a gap of 0 at lift-off)
+    does not touch the slide displacement u: with no horizontal motion (v = 0, gx = 0, θ = 0) u and its peak
+    stay what the slide before made them, 0.3 m; it lands (one landing) flat, at rest. Flight time 2 w/g."""
+    body = Body.from_p_alpha(2.0, 0.2)
+    geo = geometry(body.alpha_plus, body.r_plus, body.alpha_minus, body.r_minus, body.i_g**2)
+    t0, w0, H = 1.0, 0.01, 0.005  # [s], [m/s] upwards at lift-off, [s] > 2 w0/g = 0.002 s
+    motion = (t0, 0.0, 0.0, 0.0, 0.0, w0)
+    contact = (ST_FLIGHT, 1.0, 1.0, body.alpha_plus, body.r_plus, False, False, False, 0, t0, 0.0)
+    tally = (0.0, 0.3, 0.3, 0.1, 0, 0)
+    d, (t, theta, *_), (stage, *_), (_, u, u_peak, t_slide, impacts, _) = _flight_step(
+        motion, contact, tally, H, 0.0, 0.0, 0.0, G, 1.0, 0.0, geo, body.i_g**2, math.pi / 2, math.pi / 2)
+    assert d == 0 and stage == ST_REST and impacts == 1 and theta == 0.0
+    assert t - t0 == pytest.approx(2.0 * w0 / G, rel=1e-9)
+    assert (u, u_peak, t_slide) == (0.3, 0.3, 0.1)
