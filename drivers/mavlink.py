@@ -59,6 +59,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.controller_limits import CLEAR_CODE, ControllerLevel, ControllerTrip
 from analysis.table.model import TableModel
 from drivers.bodies import BodyReports, TableBody
 from drivers.chunked import MOTION_STATES, ChunkedStreamController, CommandAnswer
@@ -292,6 +293,8 @@ class MavlinkTable(ChunkedStreamController):
         elif kind == "SHAKETABLE_BODY":
             self._body_reports.add(msg.count, TableBody(msg.body_id, msg.b, msg.h, msg.depth, msg.x, msg.y)
                                    if msg.count else None)
+        elif kind == "SHAKETABLE_LIMIT_TRIP":
+            self._limit_trip(msg)
         elif kind == "SHAKETABLE_CHUNK_REFUSED":
             self._publish_refusal(SetpointRefusal(msg.t_ns, msg.chunk_seq, msg.reason))
         elif kind == "SHAKETABLE_OVERTURN_EVENT":
@@ -334,6 +337,26 @@ class MavlinkTable(ChunkedStreamController):
                            msg.refused_commands, np.array(msg.pose, dtype=np.float64), now, msg.buffer_capacity,
                            msg.samples_late, msg.virtual_watchdog_ms * 1e-3,
                            tuple(name for bit, name in self._input_bits if msg.inputs & bit))
+
+    def _limit_trip(self, msg: Any) -> None:
+        """A SHAKETABLE_LIMIT_TRIP as a :class:`ControllerTrip` (one whose code packs no level is counted as junk)."""
+        try:
+            level = ControllerLevel.decode((float(msg.code), float(msg.level)))
+        except ValueError:
+            self.refused["junk_datagrams"] += 1
+            return
+        self.feedback.publish_limit_trip(ControllerTrip(msg.t_ns, msg.sensor, float(msg.value), level))
+
+    def download_limits(self, levels: tuple[ControllerLevel, ...]) -> str | None:
+        """MAV_CMD_SHAKETABLE_SET_LIMIT: clear, then one command per level (signed); a controller that answers
+        the first with anything but ACCEPTED (UNSUPPORTED: an older controller) does not take them."""
+        try:
+            self._command("set_limit", (float(CLEAR_CODE), 0.0))
+        except (CommandFailedError, CommandRejectedError) as exc:
+            return f"the controller refused SET_LIMIT: {exc}"
+        for level in levels:
+            self._command("set_limit", level.params())
+        return None
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)

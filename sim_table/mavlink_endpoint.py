@@ -83,6 +83,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
 from protocols.mavlink import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
@@ -180,6 +181,7 @@ class LinkCounters:
     overturn_events: int = 0
     overturn_messages_sent: int = 0
     refusals_sent: int = 0
+    limit_trips_sent: int = 0
     status_sent: int = 0
 
 
@@ -542,6 +544,15 @@ class MavlinkEndpoint(BatchedTelemetry):
         self.counters.refusals_sent += 1
         reason = refused.reason.encode("ascii", "replace")[:REASON_BYTES]
         message = self.d.MAVLink_shaketable_chunk_refused_message(refused.t_ns, refused.seq, reason)
+        self._send(message)
+        self._refusals.append((message, REFUSAL_REPEATS))
+
+    def limit_tripped(self, trip: ControllerTrip) -> None:
+        """A SHAKETABLE_LIMIT_TRIP (the controller's own level passed), now and with the next
+        :data:`REFUSAL_REPEATS` statuses."""
+        self.counters.limit_trips_sent += 1
+        message = self.d.MAVLink_shaketable_limit_trip_message(trip.t_ns, trip.value, trip.level.threshold,
+                                                               trip.level.code(), trip.sensor)
         self._send(message)
         self._refusals.append((message, REFUSAL_REPEATS))
 

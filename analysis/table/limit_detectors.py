@@ -38,6 +38,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 from analysis.table.toml_check import TomlChecker, shown
 
 G = 9.81
@@ -194,3 +196,19 @@ def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: 
     where = f"{checker.source}:{line}" if line else checker.source
     return Detector(channel, levels.get("abort_low"), levels.get("warn_low"), levels.get("warn_high"),
                     levels.get("abort_high"), persistence, action, where)
+
+
+def first_trip(past: np.ndarray, carry: int, persistence: int) -> tuple[int | None, int]:
+    """Where ``persistence`` consecutive samples past a level are first complete in a batch.
+
+    ``past`` (n,) bool: each sample beyond the level; ``carry``: consecutive samples past it at the end of the
+    batches before. Returns (the index of the sample that completes the persistence, or None; the consecutive
+    count at the batch's end, the next batch's ``carry``)."""
+    n = len(past)
+    if n == 0:
+        return None, carry
+    index = np.arange(n)
+    last_clear = np.maximum.accumulate(np.where(past, -1, index))
+    run = index - last_clear + np.where(last_clear < 0, carry, 0)
+    hits = np.flatnonzero(run >= persistence)
+    return (int(hits[0]) if len(hits) else None), int(run[-1])

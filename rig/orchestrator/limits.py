@@ -14,14 +14,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors
+from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors, first_trip
 
 
 @dataclass(frozen=True)
 class Trip:
     """A level passed: ``channel`` (the instance, e.g. ``accel.0.x``), ``level`` (``warn_high`` …), the sample's
     ``value`` and the level's ``threshold`` [``unit``, SI], its time ``t`` [s, run time] (the sample that completed
-    the persistence) and the ``action`` taken (``record`` for a warning; the detector's for an abort level)."""
+    the persistence) and the ``action`` taken (``record`` for a warning; the detector's for an abort level);
+    ``source`` who found it: ``host`` (:class:`LimitWatch`) or ``controller`` (its own levels, reported)."""
 
     channel: str
     level: str
@@ -30,27 +31,13 @@ class Trip:
     unit: str
     t: float
     action: str
+    source: str = "host"
 
     def text(self) -> str:
-        """The session event's line: ``limit accel.0.x: 6.02 m/s² past abort high 5.886 m/s²: controlled_stop``."""
+        """The session event's line: ``limit accel.0.x: 6.02 m/s² past abort high 5.886 m/s²: controlled_stop
+        (host)``."""
         return (f"limit {self.channel}: {self.value:.4g} {self.unit} past {self.level.replace('_', ' ')} "
-                f"{self.threshold:.4g} {self.unit}: {self.action}")
-
-
-def first_trip(past: np.ndarray, carry: int, persistence: int) -> tuple[int | None, int]:
-    """Where ``persistence`` consecutive samples past a level are first complete in a batch.
-
-    ``past`` (n,) bool: each sample beyond the level; ``carry``: consecutive samples past it at the end of the
-    batches before. Returns (the index of the sample that completes the persistence, or None; the consecutive
-    count at the batch's end, the next batch's ``carry``)."""
-    n = len(past)
-    if n == 0:
-        return None, carry
-    index = np.arange(n)
-    last_clear = np.maximum.accumulate(np.where(past, -1, index))
-    run = index - last_clear + np.where(last_clear < 0, carry, 0)
-    hits = np.flatnonzero(run >= persistence)
-    return (int(hits[0]) if len(hits) else None), int(run[-1])
+                f"{self.threshold:.4g} {self.unit}: {self.action} ({self.source})")
 
 
 class ChannelWatch:

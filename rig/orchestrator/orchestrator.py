@@ -41,6 +41,8 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from analysis.table.controller_limits import controller_levels
+from analysis.table.limit_detectors import CHANNELS
 from analysis.table.link import BUFFER_MARGIN_S
 from drivers.controller import (
     DEFAULT_LEAD,
@@ -106,8 +108,13 @@ class Orchestrator:
 
     def __init__(self, sequence: Sequence, table_url: str, log: SessionSink, *,
                  table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] = (0,),
-                 operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None) -> None:
+                 operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None,
+                 controller_limits: bool = True) -> None:
         self.sequence = sequence
+        self.controller_limits = controller_limits
+        """Download the abort levels that stop the table to the controller before each run (``docs/limits.md``,
+        On the controller); False: the host's detectors act alone (``benchmarks/limits.py`` compares the two)."""
+        self._limits_said = False  # the fallback to the host's detectors was said (once a session)
         self.table_url = table_url
         self.log = log
         self.table_options = table_options or {}
@@ -183,6 +190,25 @@ class Orchestrator:
         else:
             self._request_stop("emergency stop" if trip.action == "emergency_stop" else "abort",
                                reason=f"limit {trip.channel}")
+
+    def _download_limits(self, table: TableController, run_log: RunSink) -> None:
+        """Give the controller the run's abort levels that stop the table (``analysis.table.controller_limits``),
+        an event saying which; a controller that cannot take them (or :attr:`controller_limits` False): the host's
+        detectors act alone, said once a session on the status line and as an event."""
+        levels = controller_levels(self.sequence.table.detectors)
+        if not levels:
+            return
+        why = table.download_limits(levels) if self.controller_limits else "host only, as asked"
+        if why is None:
+            run_log.add_event(float("nan"), "limit detectors on the controller: " + ", ".join(
+                f"{level.channel} {level.side.replace('_', ' ')} {level.threshold:.4g} "
+                f"{CHANNELS[level.channel].si}" for level in levels))
+        elif not self._limits_said:
+            self._limits_said = True
+            text = (f"limit detectors on the host only ({why}): an abort level stops the table when the host "
+                    "sees the crossing, up to a status batch and a command later")
+            run_log.add_event(float("nan"), text)
+            self._note(text)
 
     def _request_stop(self, kind: str, reason: str | None = None) -> None:
         """Stop the table now: ``kind`` ``abort`` (a controlled stop) or ``emergency stop``; ``reason`` what asked
@@ -305,6 +331,7 @@ class Orchestrator:
                    "governing_quantity": drive.governing.quantity, "corner_frequency": drive.corner_frequency,
                    "record_start": drive.record_start, "rate": drive.rate, "table_url": self.table_url})
         self._write_pending_events(run_log)
+        self._download_limits(table, run_log)
         self.live.begin_run(self._live_header(run, entry.label(), drive))
         recorder = RunRecorder(table, run_log, self.sensors, [b.body_id for b in self.sequence.bodies],
                                self.progress, live=self.live, limits=LimitWatch(self.sequence.table.detectors),

@@ -27,6 +27,8 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
+from analysis.table.limit_detectors import CHANNELS
 from drivers.controller import (
     AccelBatch,
     Detection,
@@ -93,6 +95,7 @@ class RunRecorder:
         self._statuses = table.statuses()
         self._detections = table.detections()
         self._faults = table.faults()
+        self._controller_trips = table.limit_trips()
         self._t0_ns: int | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="run-recorder", daemon=True)
@@ -119,7 +122,7 @@ class RunRecorder:
                 time.sleep(POLL_SECONDS)
             self._stop.set()
             self._thread.join()
-        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults):
+        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults, self._controller_trips):
             sub.close()
 
     def short_of(self, until: float) -> dict[str, float | None]:
@@ -159,6 +162,8 @@ class RunRecorder:
             self._write_accel(batch)
         for tilt in self._tilts.drain():
             self._write_tilt(tilt)
+        for trip in self._controller_trips.drain():
+            self._write_controller_trip(trip)
         statuses = self._statuses.drain()
         if statuses:
             self._write_poses(statuses)
@@ -190,6 +195,14 @@ class RunRecorder:
             self.progress.peak_accel = max(self.progress.peak_accel, float(np.abs(fall_line).max()))
             if self.live is not None and batch.sensor_id == next(iter(self.sensors)):  # the display's sensor
                 self.live.accel(batch.sensor_id, times, fall_line)
+
+    def _write_controller_trip(self, trip: ControllerTrip) -> None:
+        """A trip of the controller's own levels (it has acted already): as the host's, marked ``controller``."""
+        level = trip.level
+        axis = level.channel.split(".")[1]
+        sensor = self.sensors.get(trip.sensor, str(trip.sensor))
+        self._tripped([Trip(f"accel.{sensor}.{axis}", level.side, trip.value, level.threshold,
+                            CHANNELS[level.channel].si, float(self._seconds(trip.t_ns)), level.action, "controller")])
 
     def _write_tilt(self, batch: TiltBatch) -> None:
         if not 0 <= batch.body_id < len(self.body_ids):
@@ -234,7 +247,8 @@ class RunRecorder:
     def _stopped_after_trip(self, t: np.ndarray, statuses: list[TableStatus]) -> None:
         """After a trip that stops the table: the first status that shows it stopped gives the latency in table
         time (:attr:`stop_latency`), written as an event."""
-        trip = next((trip for trip in self.trips if trip.action in _STOPPING), None)
+        stopping = [trip for trip in self.trips if trip.action in _STOPPING]
+        trip = next((trip for trip in stopping if trip.source == "controller"), stopping[0] if stopping else None)
         if trip is None or self.stop_latency is not None:
             return
         shown = next((k for k, status in enumerate(statuses) if status.state in _STOPPING[trip.action]), None)
@@ -242,7 +256,8 @@ class RunRecorder:
             return
         self.stop_latency = float(t[shown]) - trip.t
         self.run_log.add_event(float(t[shown]), f"limit {trip.channel}: the table was {statuses[shown].state} "
-                                                f"{self.stop_latency * 1e3:.1f} ms after the crossing (table time)")
+                                                f"{self.stop_latency * 1e3:.1f} ms after the crossing (table time; "
+                                                f"tripped by the {trip.source})")
 
     def _write_detection(self, detection: Detection) -> None:
         t = float(self._seconds(detection.t_ns))

@@ -42,7 +42,7 @@ def test_warnings_only_record_and_each_level_trips_once_per_run() -> None:
         ("warn_high", 0.01, "record"), ("abort_high", 0.02, "pause"), ("warn_low", 0.03, "record")]
     assert watch.feed(t + 1, np.array([9.0, -9.0])) == [Trip("accel.1.x", "abort_low", -9.0, -8.0, "m/s²", 1.01,
                                                              "pause")]
-    assert trips[1].text() == "limit accel.1.x: 9 m/s² past abort high 8 m/s²: pause"
+    assert trips[1].text() == "limit accel.1.x: 9 m/s² past abort high 8 m/s²: pause (host)"
 
 
 def test_each_accelerometer_and_body_is_its_own_instance() -> None:

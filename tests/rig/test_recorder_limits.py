@@ -69,10 +69,10 @@ def test_a_trip_is_acted_on_written_shown_and_its_stop_timed(tmp_path: Path) -> 
     assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.012) < 1e-9
     (run,) = read_session(tmp_path / "s.h5")["runs"]
     assert [(event["t"], event["text"]) for event in run["events"]] == [
-        (0.002, "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record"),
-        (0.005, "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop"),
-        (0.017, "limit accel.0.x: the table was stopping 12.0 ms after the crossing (table time)")]
+        (0.002, "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record (host)"),
+        (0.005, "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop (host)"),
+        (0.017, "limit accel.0.x: the table was stopping 12.0 ms after the crossing (table time; tripped by the host)")]
     assert [item for item in live.drain() if item[0] == "fault"] == [
-        ("fault", 0.002, "limit accel.0.x", "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record"),
-        ("fault", 0.005, "limit accel.0.x", "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop")]
+        ("fault", 0.002, "limit accel.0.x", "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record (host)"),
+        ("fault", 0.005, "limit accel.0.x", "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop (host)")]
 
