@@ -59,7 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from analysis.table.controller_limits import CLEAR_CODE, ControllerLevel, ControllerTrip
+from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.model import TableModel
 from drivers.bodies import BodyReports, TableBody
 from drivers.chunked import MOTION_STATES, ChunkedStreamController, CommandAnswer
@@ -346,17 +346,6 @@ class MavlinkTable(ChunkedStreamController):
             self.refused["junk_datagrams"] += 1
             return
         self.feedback.publish_limit_trip(ControllerTrip(msg.t_ns, msg.sensor, float(msg.value), level))
-
-    def download_limits(self, levels: tuple[ControllerLevel, ...]) -> str | None:
-        """MAV_CMD_SHAKETABLE_SET_LIMIT: clear, then one command per level (signed); a controller that answers
-        the first with anything but ACCEPTED (UNSUPPORTED: an older controller) does not take them."""
-        try:
-            self._command("set_limit", (float(CLEAR_CODE), 0.0))
-        except (CommandFailedError, CommandRejectedError) as exc:
-            return f"the controller refused SET_LIMIT: {exc}"
-        for level in levels:
-            self._command("set_limit", level.params())
-        return None
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)

@@ -33,6 +33,7 @@ table link key                                  zenoh entity        payload (:mo
 ``shaketable/<t>/controller/accel/<s>``         publication         ACCEL (one key per accelerometer ``<s>``)
 ``shaketable/<t>/controller/overturn``          publication         OVERTURN
 ``shaketable/<t>/controller/refusal``           publication         REFUSAL (a setpoint chunk refused, and why)
+``shaketable/<t>/controller/limit-trip``        publication         LIMIT_TRIP (the controller's own level passed)
 ``shaketable/<t>/controller/tilt``              publication         TILT (every body's, the body in the payload)
 ``shaketable/<t>/controller/heartbeat``         publication         HEARTBEAT (controller time)
 ==============================================  ==================  ===========================================
@@ -55,7 +56,7 @@ TELEMETRY_KINDS = ("status", "accel", "detection", "run")
 """Telemetry publications (``accel`` has one more chunk: the sensor)."""
 
 TABLE_KINDS = ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "accel", "overturn",
-               "heartbeat", "tilt", "bodies", "refusal")
+               "heartbeat", "tilt", "bodies", "refusal", "limit-trip")
 """Keys of the table link (``accel`` has one more chunk: the sensor)."""
 
 PLANES = ("service", "telemetry", "alive", "controller")

@@ -23,7 +23,7 @@ kind            body
 ==============  ============================================================================================
 COMMAND         cmd_id u64 (the host's, unique per command: retries repeat it), command u8 (:data:`COMMANDS`),
                 param1, param2 f64 (SET_TILT: angle [rad], axis 0 pitch / 1 roll; START_STREAM: first chunk
-                number); [signature]
+                number; SET_LIMIT: a level's code and value, ``analysis.table.controller_limits``); [signature]
 ANSWER          cmd_id u64, result u8 (:data:`RESULTS`), t_ns i64 (when the controller took the command, or
                 when the motion of an ``in_progress`` one ended)
 CLOCK_REQUEST   t_send i64 [ns, host monotonic]
@@ -46,6 +46,8 @@ REFUSAL         t_ns i64 (when the chunk arrived), seq u32 (the chunk refused), 
 OWNER           cmd_id u64, since_ms i64 (controller wall clock, ms since the Unix epoch), silent_ms u32, timeout_ms
                 u32, n u16, n bytes of UTF-8 (the owner, at most :data:`MAX_REASON` bytes): the reply, in place of an
                 ANSWER, to a signed ``claim`` or motion command refused because another host owns the table
+LIMIT_TRIP      t_ns i64 (the sample that completed the persistence), sensor u16, code u32 (the level's SET_LIMIT
+                code), value f64, level f64 [SI]: a downloaded level tripped and the controller started its stop
 ==============  ============================================================================================
 
 A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
@@ -73,7 +75,8 @@ VERSION = 1
 DEFAULT_TABLE = "table"
 """Table name of a URL without one."""
 
-COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop", "claim", "release")
+COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop", "claim", "release",
+            "set_limit")
 """Command codes (index)."""
 
 RESULTS = ("accepted", "in_progress", "denied", "rejected", "failed", "cancelled")
@@ -125,6 +128,7 @@ _BODY = struct.Struct("<5d")
 _COUNT = struct.Struct("<H")
 _REFUSAL = struct.Struct("<qIH")
 _OWNER = struct.Struct("<QqIIH")
+_LIMIT_TRIP = struct.Struct("<qHIdd")
 
 
 class TableKind(IntEnum):
@@ -143,6 +147,7 @@ class TableKind(IntEnum):
     BODIES = 11
     REFUSAL = 12
     OWNER = 13
+    LIMIT_TRIP = 14
 
 
 class TableUrl(NamedTuple):
@@ -251,6 +256,18 @@ class Refusal(NamedTuple):
     t_ns: int
     seq: int
     reason: str
+
+
+class LimitTripReport(NamedTuple):
+    """A level downloaded with ``set_limit`` tripped on accelerometer ``sensor``'s sample ``value`` [SI] at ``t_ns``
+    [ns, controller time]; ``code`` and ``level`` [SI] the level's ``set_limit`` parameters
+    (``analysis.table.controller_limits``)."""
+
+    t_ns: int
+    sensor: int
+    code: int
+    value: float
+    level: float
 
 
 class OwnerReport(NamedTuple):
@@ -524,6 +541,14 @@ def decode_overturn(payload: bytes) -> Overturn:
     if event.direction not in (-1, 1):
         raise PayloadError(f"OVERTURN direction must be +1 or -1, got {event.direction}")
     return event
+
+
+def encode_limit_trip(trip: LimitTripReport) -> bytes:
+    return _header(TableKind.LIMIT_TRIP) + _LIMIT_TRIP.pack(*trip)
+
+
+def decode_limit_trip(payload: bytes) -> LimitTripReport:
+    return LimitTripReport(*_fixed(payload, TableKind.LIMIT_TRIP, _LIMIT_TRIP))
 
 
 def encode_refusal(refusal: Refusal) -> bytes:

@@ -1,9 +1,9 @@
 """Limit detectors on the emulated table (its own process, MAVLink over loopback UDP, ``--speed max``): an abort
-level on the plate's acceleration, downloaded to the controller, stops the table within one status period of the
-crossing in the table's time and ends the run ``aborted: limit accel.0.x`` with the controller's trip event and
-the data up to it kept, and the controller's persistence of N ignores shorter spikes; the host's detectors alone
-(the fallback) also stop it, later; a warning level only records; a persistence of N on the host ignores
-shorter excursions and trips on the N-th sample in a row."""
+level on the plate's acceleration, downloaded to the controller (MAVLink and zenoh), stops the table within one
+status period of the crossing in the table's time and ends the run ``aborted: limit accel.0.x`` with the
+controller's trip event and the data up to it kept, and the controller's persistence of N ignores shorter spikes;
+the host's detectors alone (the fallback) also stop it, later; a warning level only records; a persistence of N
+on the host ignores shorter excursions and trips on the N-th sample in a row."""
 
 from __future__ import annotations
 
@@ -59,13 +59,13 @@ def sequence(tmp_path: Path, levels: str) -> Sequence:
     return load_sequence(path)
 
 
-def play(sequence: Sequence, path: Path, key_file: Path, *, controller_limits: bool = True
-         ) -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
-    """The sequence played on a fresh emulator into ``path``: the final state, the emulator's counters, the run
-    (``controller_limits`` False: the host's detectors act alone)."""
+def play(sequence: Sequence, path: Path, key_file: Path, *, controller_limits: bool = True,
+         listen: str = "mavlink://127.0.0.1:0") -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
+    """The sequence played on a fresh emulator listening on ``listen`` into ``path``: the final state, the
+    emulator's counters, the run (``controller_limits`` False: the host's detectors act alone)."""
     log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
                             software_version="test")
-    emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
+    emulator = EmulatorProcess.start(listen, *specimen_flags(sequence.bodies), "--speed", "max",
                                      key_file=key_file)
     try:
         orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
@@ -96,8 +96,11 @@ def stop_latency_ms(run: dict[str, Any], source: str) -> float:
     return float(stopped.split(" was stopping ")[1].split(" ms ")[0])
 
 
-def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path: Path, key_file: Path) -> None:
-    state, counters, run = play(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", key_file)
+@pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
+def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path: Path, key_file: Path,
+                                                                       listen: str) -> None:
+    state, counters, run = play(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", key_file,
+                                listen=listen)
     assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit accel.0.x: ")
     assert counters["limit_trips"] == 1 and counters["emergency_stops"] == 0 and counters["streams_completed"] == 0
