@@ -336,7 +336,8 @@ class MavlinkTable(ChunkedStreamController):
         return TableStatus(msg.t_ns, state, msg.buffer_depth, msg.last_chunk_seq, msg.underruns, faults,
                            msg.refused_commands, np.array(msg.pose, dtype=np.float64), now, msg.buffer_capacity,
                            msg.samples_late, msg.virtual_watchdog_ms * 1e-3,
-                           tuple(name for bit, name in self._input_bits if msg.inputs & bit))
+                           tuple(name for bit, name in self._input_bits if msg.inputs & bit),
+                           np.array(msg.following_error, dtype=np.float64))
 
     def _limit_trip(self, msg: Any) -> None:
         """A SHAKETABLE_LIMIT_TRIP as a :class:`ControllerTrip` (one whose code packs no level is counted as junk)."""

@@ -339,7 +339,7 @@ class ZenohTable(ChunkedStreamController):
                                                  report.last_chunk_seq, report.underruns, fault_names(report.faults),
                                                  report.refused_commands, report.pose, now, report.buffer_capacity,
                                                  report.samples_late, report.virtual_watchdog_ms * 1e-3,
-                                                 input_names(report.inputs)))
+                                                 input_names(report.inputs), report.following_error))
 
     def _on_answer(self, payload: bytes, now: int) -> None:
         answer = decode_answer(payload)

@@ -197,6 +197,9 @@ class Snapshot:
     virtual_watchdog_ns: int = 0
     inputs: int = 0
     """The interlock inputs set now (bit 0: the enclosure door open)."""
+    following_error: np.ndarray | None = None
+    """Each leg's following error (6,) [m]: its commanded length minus its measured length, legs 1…6 (None: the
+    core does not know the legs; the emulator loop sets it)."""
 
 
 @dataclass

@@ -532,7 +532,8 @@ class MavlinkEndpoint(BatchedTelemetry):
             snap.t_ns, getattr(self.d, f"SHAKETABLE_STATE_{snap.state.name}"), min(snap.buffer_depth, 65535),
             snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
             [float(v) for v in snap.pose], snap.buffer_capacity, min(snap.samples_late, 2**32 - 1),
-            min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs))
+            min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs,
+            [0.0] * 6 if snap.following_error is None else [float(v) for v in snap.following_error]))
         pending, self._refusals = self._refusals, []
         for message, left in pending:
             self._send(message)

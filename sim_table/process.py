@@ -281,6 +281,7 @@ class Emulator:
         self._virtual_full = False  # virtual time: the last iteration ran as many ticks as its cap allowed
         self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
         self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
+        self._last_following = np.zeros(6)  # each leg's commanded minus true length at the last tick [m]
 
     def controller_time(self, host_ns: int) -> int:
         """Controller time [ns] at host monotonic time ``host_ns`` (virtual time: the last tick's, whatever
@@ -425,9 +426,14 @@ class Emulator:
         held = self._held_status
         if changed or held is None or held[0] != self._clock or now - held[1] >= STATUS_PERIOD_NS:
             self._held_status = (self._clock, now)
-            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
+            endpoint.send_status(self._held_snapshot())
         if self._answers is not None and self._answers.send_answers():
-            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
+            endpoint.send_status(self._held_snapshot())
+
+    def _held_snapshot(self) -> Snapshot:
+        """The status while virtual time holds: the pose and the legs' following errors of the last tick."""
+        snap = self.core.snapshot(self._clock, self.actuators.measure(*self._last_legs))
+        return replace(snap, following_error=self._last_following)
 
     def _batch(self, times: np.ndarray) -> None:
         core, endpoint, profile = self.core, self.endpoint, self.profile
@@ -468,12 +474,14 @@ class Emulator:
         if statuses:  # the batch's measured poses in one forward-kinematics call
             rows = [i for i, _ in statuses]
             measured = self.actuators.measure(step.lengths[rows], step.poses[rows])
-            for (_, snap), pose in zip(statuses, measured, strict=True):
-                endpoint.send_status(replace(snap, pose=pose))
+            following = step.commanded[rows] - step.lengths[rows]
+            for (_, snap), pose, error in zip(statuses, measured, following, strict=True):
+                endpoint.send_status(replace(snap, pose=pose, following_error=error))
         self._last_legs = step.lengths[-1], step.poses[-1]
+        self._last_following = step.commanded[-1] - step.lengths[-1]
         if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
             pose = self.actuators.measure(step.lengths[-1], step.poses[-1])
-            endpoint.send_status(core.snapshot(int(times[-1]), pose))
+            endpoint.send_status(replace(core.snapshot(int(times[-1]), pose), following_error=self._last_following))
         profile.lap("transport")
         centre, rates, window = self.track.advance(step.poses)
         self._last_centre = centre[-1]

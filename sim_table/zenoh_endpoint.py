@@ -446,7 +446,7 @@ class ZenohEndpoint(BatchedTelemetry):
             snap.t_ns, snap.state.value, min(snap.buffer_depth, 2**32 - 1), snap.last_chunk_seq, snap.underruns,
             int(snap.faults), snap.refused_commands, snap.pose, snap.buffer_capacity,
             min(snap.samples_late, 2**32 - 1), min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1),
-            snap.inputs)))
+            snap.inputs, snap.following_error)))
 
     def _send_accel(self, batch: Batch) -> None:
         key = table_key(self.address.table, "accel", str(batch.source))

@@ -22,7 +22,9 @@ Channels (:data:`CHANNELS`) and the units their levels may be given in:
   (``deg``, ``rad``): the plate's pose as the controller's feedback reports it;
 - ``velocity.surge`` … ``velocity.yaw``: its rate between consecutive statuses (``m_s``, ``mm_s``; ``deg_s``,
   ``rad_s``);
-- ``tilt.angle``: each body's tilt sensor, relative to the plate, > 0 towards the low side (``deg``, ``rad``).
+- ``tilt.angle``: each body's tilt sensor, relative to the plate, > 0 towards the low side (``deg``, ``rad``);
+- ``leg.following_error``: each leg's following error as the controller's statuses report it, its commanded minus
+  its measured length (``m``, ``mm``).
 
 A **high** level is passed by a value above it, a **low** level by one below it; present levels must be ordered
 ``abort_low < warn_low < warn_high < abort_high``. A level trips when ``persistence`` consecutive samples are past
@@ -84,6 +86,7 @@ CHANNELS: dict[str, Quantity] = {
     **{f"pose.{axis}": _LENGTH if k < 3 else _ANGLE for k, axis in enumerate(POSE_AXES)},
     **{f"velocity.{axis}": _SPEED if k < 3 else _RATE for k, axis in enumerate(POSE_AXES)},
     "tilt.angle": _ANGLE,
+    "leg.following_error": _LENGTH,
 }
 """Every channel a detector may watch, with what it measures (module docstring)."""
 

@@ -33,7 +33,9 @@ SETPOINTS       seq u32, flags u8 (bit 0 END_OF_STREAM), t_start i64, spacing i6
                 [signature]
 STATUS          t_ns i64, state u8 (:data:`STATES`), buffer_depth, last_chunk_seq, underruns, faults (bit i =
                 :data:`FAULTS` [i]), refused_commands u32, pose 6 × f64 (achieved), buffer_capacity u32,
-                samples_late u32, virtual_watchdog_ms u32 (0: real time; may be absent, read as 0)
+                samples_late u32, virtual_watchdog_ms u32 (0: real time; may be absent, read as 0), inputs u32
+                (may be absent, read as 0), following_error 6 × f64 (each leg's commanded minus measured length
+                [m], legs 1…6; may be absent, read as not reported)
 ACCEL           sensor u16, seq u32 (the sensor's batch count), t_start i64, spacing i64, n u32, n × 3 f64
 OVERTURN        event_id u64, body_id u32, direction i8 (+1 low side, −1 high side), tilt f64 [rad], t_ns i64
 HEARTBEAT       t_ns i64 (the sender's clock: host monotonic, or controller time)
@@ -114,7 +116,10 @@ _ANSWER = struct.Struct("<QBq")
 _CLOCK_REQUEST = struct.Struct("<q")
 _CLOCK_REPLY = struct.Struct("<qq")
 _SETPOINTS = struct.Struct("<IBqqH")
-_STATUS = struct.Struct("<qBIIIII6dIIII")
+_STATUS = struct.Struct("<qBIIIII6dIIII6d")
+_STATUS_NO_LEGS = struct.Struct("<qBIIIII6dIIII")
+"""A status without its last field (the legs' ``following_error``), as a controller that does not report it may
+send it."""
 _STATUS_REAL_TIME = struct.Struct("<qBIIIII6dII")
 """A status without its last two fields (``virtual_watchdog_ms``, ``inputs``), as a controller that keeps real time
 and has no interlock inputs may send it."""
@@ -227,6 +232,8 @@ class StatusReport(NamedTuple):
     host time], the silence the host allows it instead of its link timeout (as SHAKETABLE_STATUS's field)."""
     inputs: int = 0
     """The interlock inputs set now (bit 0: the enclosure door open; :data:`INPUTS`)."""
+    following_error: np.ndarray | None = None
+    """Each leg's commanded minus measured length (6,) [m], legs 1…6 (None: not reported)."""
 
 
 class AccelSamples(NamedTuple):
@@ -474,19 +481,21 @@ def encode_status(status: StatusReport) -> bytes:
     return _header(TableKind.STATUS) + _STATUS.pack(
         status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
         status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64),
-        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms, status.inputs)
+        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms, status.inputs,
+        *(np.zeros(6) if status.following_error is None else np.asarray(status.following_error, dtype=np.float64)))
 
 
 def decode_status(payload: bytes) -> StatusReport:
-    """A STATUS; a shorter body without ``inputs`` (or also without ``virtual_watchdog_ms``: a real-time controller's
-    without inputs) reads as 0 there."""
+    """A STATUS; a shorter body without the legs' ``following_error`` reads None there, one also without ``inputs``
+    (or also without ``virtual_watchdog_ms``: a real-time controller's without inputs) 0 there."""
     size = len(_body(payload, TableKind.STATUS))
-    layout = next((s for s in (_STATUS_REAL_TIME, _STATUS_NO_INPUTS) if size == s.size), _STATUS)
+    layout = next((s for s in (_STATUS_REAL_TIME, _STATUS_NO_INPUTS, _STATUS_NO_LEGS) if size == s.size), _STATUS)
     fields = _fixed(payload, TableKind.STATUS, layout)
     t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = fields[:15]
-    watchdog_ms, inputs = (*fields[15:], 0, 0)[:2]
+    watchdog_ms, inputs = (*fields[15:17], 0, 0)[:2]
+    following = np.array(fields[17:], dtype=np.float64) if layout is _STATUS else None
     return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
-                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms, inputs)
+                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms, inputs, following)
 
 
 def encode_accel(batch: AccelSamples) -> bytes:

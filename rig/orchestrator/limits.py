@@ -2,10 +2,11 @@
 table's feedback arrives: one numpy pass per batch, a few comparisons per sample.
 
 :class:`LimitWatch` takes what the run recorder receives — accelerometer batches, body tilt batches, the
-controller's statuses (pose; the velocity between consecutive statuses) — and returns the :class:`Trip` of every
-level passed for its detector's persistence. Each level of each channel instance (``accel.0.x``: accelerometer 0's
-x; ``tilt.2.angle``: body 2's tilt sensor; ``pose.heave``; ``velocity.roll``) trips at most once per run.
-Times are the run's [s]; values and levels SI (m/s², m, rad, m/s, rad/s).
+controller's statuses (pose; the velocity between consecutive statuses; the legs' following errors) — and returns
+the :class:`Trip` of every level passed for its detector's persistence. Each level of each channel instance
+(``accel.0.x``: accelerometer 0's x; ``tilt.2.angle``: body 2's tilt sensor; ``pose.heave``; ``velocity.roll``;
+``leg.3.following_error``: leg 3's) trips at most once per run. Times are the run's [s]; values and levels SI
+(m/s², m, rad, m/s, rad/s).
 """
 
 from __future__ import annotations
@@ -95,6 +96,14 @@ class LimitWatch:
     def tilt(self, body_id: int, t: np.ndarray, angle: np.ndarray) -> list[Trip]:
         """Body ``body_id``'s tilt sensor: ``t`` (k,) [s], ``angle`` (k,) [rad]."""
         return self._feed("tilt.angle", f"tilt.{body_id}.angle", t, angle)
+
+    def following_errors(self, t: np.ndarray, errors: np.ndarray) -> list[Trip]:
+        """The statuses' leg following errors: ``t`` (k,) [s], ``errors`` (k, 6) [m, commanded minus measured
+        length], legs 1…6 (``leg.1.following_error`` …)."""
+        trips = []
+        for leg in range(errors.shape[1]):
+            trips += self._feed("leg.following_error", f"leg.{leg + 1}.following_error", t, errors[:, leg])
+        return sorted(trips, key=lambda trip: trip.t)
 
     def poses(self, t: np.ndarray, pose: np.ndarray) -> list[Trip]:
         """The statuses' measured poses: ``t`` (k,) [s], ``pose`` (k, 6) (m, rad); the velocity is the difference

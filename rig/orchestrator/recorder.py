@@ -222,6 +222,10 @@ class RunRecorder:
         poses = np.array([s.pose for s in statuses])
         if self.limits is not None:
             self._tripped(self.limits.poses(t, poses))
+            legs = [k for k, s in enumerate(statuses) if s.following_error is not None]
+            if legs:
+                errors = np.array([statuses[k].following_error for k in legs])
+                self._tripped(self.limits.following_errors(t[legs], errors))
         self.run_log.append_pose(t, poses)
         self._stopped_after_trip(t, statuses)
         for when, status in zip(t.tolist(), statuses, strict=True):

@@ -41,7 +41,7 @@ table5 = 5
 x = 0.0
 y = 0.0
 
-[limit_detectors.accel.x]
+[limit_detectors.{channel}]
 {levels}
 """
 
@@ -53,19 +53,19 @@ def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
-def sequence(tmp_path: Path, levels: str) -> Sequence:
+def sequence(tmp_path: Path, levels: str, channel: str = "accel.x") -> Sequence:
     path = tmp_path / "limits.toml"
-    path.write_text(SEQUENCE.format(levels=levels))
+    path.write_text(SEQUENCE.format(channel=channel, levels=levels))
     return load_sequence(path)
 
 
-def play(sequence: Sequence, path: Path, key_file: Path, *, controller_limits: bool = True,
+def play(sequence: Sequence, path: Path, key_file: Path, *flags: str, controller_limits: bool = True,
          listen: str = "mavlink://127.0.0.1:0") -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
-    """The sequence played on a fresh emulator listening on ``listen`` into ``path``: the final state, the
-    emulator's counters, the run (``controller_limits`` False: the host's detectors act alone)."""
+    """The sequence played on a fresh emulator listening on ``listen`` (with ``flags``) into ``path``: the final
+    state, the emulator's counters, the run (``controller_limits`` False: the host's detectors act alone)."""
     log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
                             software_version="test")
-    emulator = EmulatorProcess.start(listen, *specimen_flags(sequence.bodies), "--speed", "max",
+    emulator = EmulatorProcess.start(listen, *specimen_flags(sequence.bodies), "--speed", "max", *flags,
                                      key_file=key_file)
     try:
         orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
@@ -183,3 +183,17 @@ def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file:
     first_long = starts[np.argmax(lengths >= 25)]
     [trip] = [event for event in run["events"] if event["text"].startswith("limit accel.0.x: ")]
     assert trip["t"] == pytest.approx(float(accel[first_long + 24, 0]))  # the 25th sample in a row
+
+
+@pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
+def test_a_stalled_leg_trips_its_following_error(tmp_path: Path, key_file: Path, listen: str) -> None:
+    limited = sequence(tmp_path, "abort_high_mm = 5\nabort_low_mm = -5\npersistence = 2", "leg.following_error")
+    state, _, run = play(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
+    assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit leg.2.following_error: ")
+    assert state is OrchestratorState.DONE
+    [trip] = [event for event in run["events"] if event["text"].startswith("limit leg.2.following_error: ")
+              and " past abort " in event["text"]]
+    assert trip["text"].endswith(": controlled_stop (host)")
+    value = float(trip["text"].split(": ")[1].split(" m past")[0])
+    assert abs(value) > 0.005
+    assert 0.5 < trip["t"] < run["commanded"][-1, 0]  # after the leg seized (0.5 s of controller time), mid-run
