@@ -11,11 +11,14 @@ the :class:`Trip` of every level passed for its detector's persistence. Each lev
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors, first_trip
+from drivers.controller import FaultEvent
+from protocols.canopen.od import EMCY_FOLLOWING_ERROR, EMCY_REFERENCE_LIMIT
 
 
 @dataclass(frozen=True)
@@ -23,7 +26,9 @@ class Trip:
     """A level passed: ``channel`` (the instance, e.g. ``accel.0.x``), ``level`` (``warn_high`` …), the sample's
     ``value`` and the level's ``threshold`` [``unit``, SI], its time ``t`` [s, run time] (the sample that completed
     the persistence) and the ``action`` taken (``record`` for a warning; the detector's for an abort level);
-    ``source`` who found it: ``host`` (:class:`LimitWatch`) or ``controller`` (its own levels, reported)."""
+    ``source`` who found it: ``host`` (:class:`LimitWatch`) or ``controller`` (its own levels, reported; or one of
+    its own limits, :func:`controller_limits`, whose ``value`` and ``threshold`` it does not report: NaN, and
+    ``detail`` says what it reported)."""
 
     channel: str
     level: str
@@ -33,10 +38,14 @@ class Trip:
     t: float
     action: str
     source: str = "host"
+    detail: str = ""
 
     def text(self) -> str:
         """The session event's line: ``limit accel.0.x: 6.02 m/s² past abort high 5.886 m/s²: controlled_stop
-        (host)``."""
+        (host)``; a controller's own limit: ``limit leg.stroke: past the controller's limit (a leg's command
+        reached its stroke): controlled_stop (controller)``."""
+        if math.isnan(self.value):
+            return f"limit {self.channel}: past the controller's limit ({self.detail}): {self.action} ({self.source})"
         return (f"limit {self.channel}: {self.value:.4g} {self.unit} past {self.level.replace('_', ' ')} "
                 f"{self.threshold:.4g} {self.unit}: {self.action} ({self.source})")
 
@@ -124,3 +133,37 @@ class LimitWatch:
             trips += self._feed(f"pose.{axis}", f"pose.{axis}", t, pose[:, k])
             trips += self._feed(f"velocity.{axis}", f"velocity.{axis}", t_velocity, velocity[:, k])
         return sorted(trips, key=lambda trip: trip.t)
+
+
+FAULT_LIMITS = {
+    "STROKE": ("leg.stroke", "a leg's command reached its stroke"),
+    "SETPOINT_LIMIT": ("setpoint.envelope", "a reference was clipped to the envelope or a leg's speed"),
+    "SETPOINT_REFUSED": ("setpoint.refused", "a setpoint chunk held a sample beyond the table's limits"),
+}
+"""The fault bits that are a controller's own limits: the channel they are recorded as, what the bit means."""
+
+EMCY_LIMITS = {
+    EMCY_FOLLOWING_ERROR: ("following_error", "EMCY 0x8611 following error", "DRIVE"),
+    EMCY_REFERENCE_LIMIT: ("reference", "EMCY 0x8612 reference limit", "SETPOINT_REFUSED"),
+}
+"""The CiA 402 drives' EMCY codes that are a limit of leg (node) N: the channel ``leg.N.<name>``, what it means,
+the fault bit the master latches for it."""
+
+_FAULT_ACTIONS = {"stopping": "controlled_stop", "faulted": "controlled_stop", "emergency_stopped": "emergency_stop"}
+"""What the controller did, by its state with the fault (otherwise the fault only latched: ``record``)."""
+
+
+def controller_limits(fault: FaultEvent, t: float) -> list[Trip]:
+    """The controller's own limits among the faults ``fault`` raised at ``t`` [s, run time], as trips marked
+    ``controller``: a drive's EMCY of a limit names its leg (CANopen: node N is leg N); the fault bits of
+    :data:`FAULT_LIMITS` otherwise."""
+    action = _FAULT_ACTIONS.get(fault.state, "record")
+    emcys = [(source.node, EMCY_LIMITS[source.code]) for source in fault.sources if source.code in EMCY_LIMITS]
+    trips = [Trip(f"leg.{node}.{name}", "limit", math.nan, math.nan, "", t, action, "controller", detail)
+             for node, (name, detail, _) in emcys]
+    named = {bit for _, (_, _, bit) in emcys}  # said by the drives, leg by leg
+    for bit in fault.raised:
+        if bit in FAULT_LIMITS and bit not in named:
+            channel, detail = FAULT_LIMITS[bit]
+            trips.append(Trip(channel, "limit", math.nan, math.nan, "", t, action, "controller", detail))
+    return trips

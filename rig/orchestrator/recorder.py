@@ -38,7 +38,7 @@ from drivers.controller import (
     TableStatus,
     TiltBatch,
 )
-from rig.orchestrator.limits import LimitWatch, Trip
+from rig.orchestrator.limits import LimitWatch, Trip, controller_limits
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.sinks import RunSink
 from rig.orchestrator.states import Progress
@@ -283,6 +283,10 @@ class RunRecorder:
 
     def _write_fault(self, fault: FaultEvent) -> None:
         t = float(self._seconds(fault.t_ns))
+        for trip in controller_limits(fault, t):  # the controller acted already: recorded beside the host's trips
+            self.run_log.add_event(trip.t, trip.text())
+            if self.live is not None:
+                self.live.put("fault", trip.t, f"limit {trip.channel}", trip.text())
         self._faults_raised.extend(fault.raised)
         for name in fault.raised:
             self.run_log.add_fault(t, name, f"table {fault.state}; latched: {', '.join(fault.faults)}")

@@ -5,13 +5,17 @@ run log a real session file."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
+from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.limit_detectors import Detector, LimitDetectors
-from drivers.controller import AccelBatch, TableStatus
+from drivers.controller import AccelBatch, FaultSource, TableStatus
+from protocols.canopen.od import EMCY_FOLLOWING_ERROR
 from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.recorder import RunRecorder
@@ -76,3 +80,38 @@ def test_a_trip_is_acted_on_written_shown_and_its_stop_timed(tmp_path: Path) -> 
         ("fault", 0.002, "limit accel.0.x", "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record (host)"),
         ("fault", 0.005, "limit accel.0.x", "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop (host)")]
 
+
+
+def test_the_controller_s_own_trips_and_limits_are_recorded_marked_controller(tmp_path: Path) -> None:
+    table = FeedbackTable()
+    log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
+                            software_version="test")
+    run_log = log.begin_run(0, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)), bodies=[],
+                            sensors=["front"])
+    acted: list[Trip] = []
+    limits = LimitWatch(LimitDetectors((Detector("accel.x", abort_high=4.0),)))
+    recorder = RunRecorder(table, run_log, {0: "front"}, [], Progress(runs_total=1),  # type: ignore[arg-type]
+                           limits=limits, on_trip=acted.append)
+    recorder.start(0)
+    level = ControllerLevel("accel.x", "abort_high", 4.0, 1, "controlled_stop")
+    trip = ControllerTrip(5_000_000, 0, 6.0, level)
+    table.feedback.publish_limit_trip(trip)
+    table.feedback.publish_limit_trip(trip)  # the controller repeats it: kept once
+    table.feedback.publish_status(status(1_000_000, "streaming"))
+    table.feedback.publish_status(replace(status(7_000_000, "stopping"), faults=("STROKE",)))
+    table.feedback.publish_status(replace(status(9_000_000, "faulted"), faults=("STROKE", "DRIVE")),
+                                  sources=(FaultSource(2, EMCY_FOLLOWING_ERROR),))
+    recorder.finish(0.2)
+    run_log.end("aborted", reason="limit accel.front.x")
+    log.close()
+    assert [(t.channel, t.source) for t in acted] == [("accel.front.x", "controller")]  # acted on as the host's
+    assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.002) < 1e-9
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    assert [(pytest.approx(event["t"]), event["text"]) for event in run["events"]] == [
+        (0.005, "limit accel.front.x: 6 m/s² past abort high 4 m/s²: controlled_stop (controller)"),
+        (0.007, "limit accel.front.x: the table was stopping 2.0 ms after the crossing (table time; tripped by the "
+                "controller)"),
+        (0.007, "limit leg.stroke: past the controller's limit (a leg's command reached its stroke): "
+                "controlled_stop (controller)"),
+        (0.009, "limit leg.2.following_error: past the controller's limit (EMCY 0x8611 following error): "
+                "controlled_stop (controller)")]
