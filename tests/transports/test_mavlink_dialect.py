@@ -336,7 +336,9 @@ def _examples(d):
         d.MAVLink_shaketable_status_message(t_ns=987_654_321, state=d.SHAKETABLE_STATE_STREAMING, buffer_depth=96,
                                             last_chunk_seq=41, underruns=3,
                                             faults=d.SHAKETABLE_FAULT_UNDERRUN | d.SHAKETABLE_FAULT_STROKE,
-                                            refused_commands=2, pose=[0.01, -0.02, 0.003, 0.0, 0.0873, -0.001]),
+                                            refused_commands=2, pose=[0.01, -0.02, 0.003, 0.0, 0.0873, -0.001],
+                                            following_error=[0.0004, -0.0006, 0.0, 0.0052, -0.0001, 0.0]),
+        d.MAVLink_shaketable_limit_trip_message(t_ns=2**63 + 7, value=6.02, level=5.886, code=98_307, sensor=3),
         *[d.MAVLink_command_long_message(TABLE[0], TABLE[1], value, 0, 0.0873 if name.endswith("TILT") else 0,
                                          d.SHAKETABLE_TILT_AXIS_ROLL if name.endswith("TILT") else 0, 0, 0, 0, 0, 0)
           for name, value in COMMANDS.items()],
