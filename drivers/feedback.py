@@ -116,6 +116,16 @@ class SetpointRefusal:
 
 
 @dataclass(frozen=True)
+class ControllerText:
+    """A text the controller sent (MAVLink STATUSTEXT): its ``severity`` (``EMERGENCY`` … ``DEBUG``, MAV_SEVERITY's
+    names) and ``text``, received at ``host_ns`` [ns, host monotonic] (the message carries no controller time)."""
+
+    host_ns: int
+    severity: str
+    text: str
+
+
+@dataclass(frozen=True)
 class FaultEvent:
     """Fault bits that became set (``raised``) in the status at ``t_ns``; ``faults`` all latched, ``state`` then;
     ``sources`` the device reports that came with them, when the transport has them (CANopen: the EMCYs received

@@ -16,7 +16,15 @@ from typing import Any, Generic, TypeVar
 
 from analysis.table.controller_limits import ControllerTrip
 from drivers.errors import TableError
-from drivers.feedback import AccelBatch, Detection, FaultEvent, FaultSource, TableStatus, TiltBatch
+from drivers.feedback import (
+    AccelBatch,
+    ControllerText,
+    Detection,
+    FaultEvent,
+    FaultSource,
+    TableStatus,
+    TiltBatch,
+)
 
 T = TypeVar("T")
 
@@ -94,7 +102,7 @@ class Feedback:
     of this object (one connection).
     """
 
-    _TOPICS = ("status", "accel", "tilt", "detection", "fault", "limit_trip")
+    _TOPICS = ("status", "accel", "tilt", "detection", "fault", "limit_trip", "controller_text")
 
     def __init__(self) -> None:
         self._lock = threading.Condition()
@@ -156,6 +164,10 @@ class Feedback:
             if trip not in self._trips:
                 self._trips.add(trip)
                 self._publish("limit_trip", trip)
+
+    def publish_controller_text(self, text: ControllerText) -> None:
+        with self._lock:
+            self._publish("controller_text", text)
 
     def notify(self) -> None:
         """Wake :meth:`wait_for` callers (e.g. when a command's answer arrived)."""

@@ -27,7 +27,15 @@ from analysis.table.model import TableModel
 from analysis.table.setpoints import check_setpoints
 from drivers.bodies import TableBody
 from drivers.errors import SetpointError, TableError, TableLinkLostError, TableTimeoutError
-from drivers.feedback import AccelBatch, Detection, FaultEvent, StreamReport, TableStatus, TiltBatch
+from drivers.feedback import (
+    AccelBatch,
+    ControllerText,
+    Detection,
+    FaultEvent,
+    StreamReport,
+    TableStatus,
+    TiltBatch,
+)
 from drivers.heap import HeapHold
 from drivers.hub import Feedback, Subscription
 
@@ -239,6 +247,10 @@ class TableController(ABC):
     def limit_trips(self) -> Subscription[ControllerTrip]:
         """Every trip of the controller's own limit levels from now on (:meth:`download_limits`), each once."""
         return self.feedback.subscribe("limit_trip")
+
+    def controller_texts(self) -> Subscription[ControllerText]:
+        """Every text the controller sends from now on (MAVLink STATUSTEXT; none on the other transports)."""
+        return self.feedback.subscribe("controller_text")
 
     def download_limits(self, levels: tuple[ControllerLevel, ...]) -> str | None:
         """Give the controller ``levels`` for the next stream (``analysis.table.controller_limits``; the ones it

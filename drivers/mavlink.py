@@ -68,6 +68,7 @@ from drivers.controller import (
     CommandDeniedError,
     CommandFailedError,
     CommandRejectedError,
+    ControllerText,
     Detection,
     SetpointRefusal,
     TableError,
@@ -293,6 +294,11 @@ class MavlinkTable(ChunkedStreamController):
         elif kind == "SHAKETABLE_BODY":
             self._body_reports.add(msg.count, TableBody(msg.body_id, msg.b, msg.h, msg.depth, msg.x, msg.y)
                                    if msg.count else None)
+        elif kind == "STATUSTEXT":
+            severity = self.d.enums["MAV_SEVERITY"][msg.severity].name if msg.severity in self.d.enums[
+                "MAV_SEVERITY"] else str(msg.severity)
+            self.feedback.publish_controller_text(ControllerText(now, severity.removeprefix("MAV_SEVERITY_"),
+                                                                 msg.text))
         elif kind == "SHAKETABLE_LIMIT_TRIP":
             self._limit_trip(msg)
         elif kind == "SHAKETABLE_CHUNK_REFUSED":

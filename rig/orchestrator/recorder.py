@@ -20,6 +20,7 @@ the run and the session saying so; the rows the session file already committed s
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -31,6 +32,7 @@ from analysis.table.controller_limits import ControllerTrip
 from analysis.table.limit_detectors import CHANNELS
 from drivers.controller import (
     AccelBatch,
+    ControllerText,
     Detection,
     FaultEvent,
     TableController,
@@ -56,6 +58,9 @@ FEEDBACK_WAIT = 5.0
 to reach the drive's end: the controller sends the last batch once it is full (MAVLink: 19 samples after the drive's
 last), and a busy host or controller can take longer than the linger over it (seen: a compensation play whose last
 4 ms were missing at a load average of 6–7). What has not come by then is missing (:meth:`RunRecorder.short_of`)."""
+
+SEVERE = ("EMERGENCY", "ALERT", "CRITICAL", "ERROR", "WARNING")
+"""The severities of a controller's text that are recorded as the run's events (MAV_SEVERITY's names)."""
 
 BASELINE_SAMPLES = 200
 """Samples per sensor that give the static plate-x reading (the tilt's gravity component) for the status line."""
@@ -96,6 +101,8 @@ class RunRecorder:
         self._detections = table.detections()
         self._faults = table.faults()
         self._controller_trips = table.limit_trips()
+        self._controller_texts = table.controller_texts()
+        self._last_status_t: float | None = None  # the run time of the latest status [s]
         self._t0_ns: int | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="run-recorder", daemon=True)
@@ -122,7 +129,8 @@ class RunRecorder:
                 time.sleep(POLL_SECONDS)
             self._stop.set()
             self._thread.join()
-        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults, self._controller_trips):
+        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults, self._controller_trips,
+                    self._controller_texts):
             sub.close()
 
     def short_of(self, until: float) -> dict[str, float | None]:
@@ -169,6 +177,8 @@ class RunRecorder:
             self._write_poses(statuses)
         for detection in self._detections.drain():
             self._write_detection(detection)
+        for text in self._controller_texts.drain():
+            self._write_controller_text(text)
         for fault in self._faults.drain():
             self._write_fault(fault)
 
@@ -204,6 +214,17 @@ class RunRecorder:
         self._tripped([Trip(f"accel.{sensor}.{axis}", level.side, trip.value, level.threshold,
                             CHANNELS[level.channel].si, float(self._seconds(trip.t_ns)), level.action, "controller")])
 
+    def _write_controller_text(self, text: ControllerText) -> None:
+        """A text the controller sent (MAVLink STATUSTEXT) of severity WARNING or worse: an event marked
+        ``controller`` at the latest status's time (the text carries none; NaN before any status)."""
+        if text.severity not in SEVERE:
+            return
+        t = math.nan if self._last_status_t is None else self._last_status_t
+        line = f"controller {text.severity}: {text.text} (controller)"
+        self.run_log.add_event(t, line)
+        if self.live is not None:
+            self.live.put("fault", t, f"controller {text.severity}", line)
+
     def _write_tilt(self, batch: TiltBatch) -> None:
         if not 0 <= batch.body_id < len(self.body_ids):
             if batch.body_id not in self._undeclared_tilts:
@@ -234,6 +255,7 @@ class RunRecorder:
                 self.run_log.add_event(when, f"interlock inputs: {', '.join(status.inputs) or 'none set'}")
         if self.live is not None:
             self.live.put("pose", t.tolist(), [list(s.pose) for s in statuses])
+        self._last_status_t = float(t[-1])
         self.progress.table_state = statuses[-1].state
         self.progress.buffer_depth = statuses[-1].buffer_depth
 

@@ -29,3 +29,6 @@ class FeedbackTable:
 
     def limit_trips(self) -> Subscription[object]:
         return self.feedback.subscribe("limit_trip")
+
+    def controller_texts(self) -> Subscription[object]:
+        return self.feedback.subscribe("controller_text")

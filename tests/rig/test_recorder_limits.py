@@ -14,7 +14,7 @@ import pytest
 
 from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.limit_detectors import Detector, LimitDetectors
-from drivers.controller import AccelBatch, FaultSource, TableStatus
+from drivers.controller import AccelBatch, ControllerText, FaultSource, TableStatus
 from protocols.canopen.od import EMCY_FOLLOWING_ERROR
 from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap
@@ -82,7 +82,7 @@ def test_a_trip_is_acted_on_written_shown_and_its_stop_timed(tmp_path: Path) -> 
 
 
 
-def test_the_controller_s_own_trips_and_limits_are_recorded_marked_controller(tmp_path: Path) -> None:
+def test_the_controller_s_own_trips_limits_and_warnings_are_recorded_marked_controller(tmp_path: Path) -> None:
     table = FeedbackTable()
     log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
                             software_version="test")
@@ -101,13 +101,18 @@ def test_the_controller_s_own_trips_and_limits_are_recorded_marked_controller(tm
     table.feedback.publish_status(replace(status(7_000_000, "stopping"), faults=("STROKE",)))
     table.feedback.publish_status(replace(status(9_000_000, "faulted"), faults=("STROKE", "DRIVE")),
                                   sources=(FaultSource(2, EMCY_FOLLOWING_ERROR),))
+    table.feedback.publish_controller_text(ControllerText(0, "ERROR", "leg 2 drive: following error"))
+    table.feedback.publish_controller_text(ControllerText(0, "INFO", "drives enabled"))  # not a warning: not kept
     recorder.finish(0.2)
     run_log.end("aborted", reason="limit accel.front.x")
     log.close()
     assert [(t.channel, t.source) for t in acted] == [("accel.front.x", "controller")]  # acted on as the host's
     assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.002) < 1e-9
     (run,) = read_session(tmp_path / "s.h5")["runs"]
-    assert [(pytest.approx(event["t"]), event["text"]) for event in run["events"]] == [
+    [said] = [event for event in run["events"] if event["text"].startswith("controller ")]
+    assert (said["t"], said["text"]) == (pytest.approx(0.009),
+                                         "controller ERROR: leg 2 drive: following error (controller)")
+    assert [(pytest.approx(event["t"]), event["text"]) for event in run["events"] if event is not said] == [
         (0.005, "limit accel.front.x: 6 m/s² past abort high 4 m/s²: controlled_stop (controller)"),
         (0.007, "limit accel.front.x: the table was stopping 2.0 ms after the crossing (table time; tripped by the "
                 "controller)"),
