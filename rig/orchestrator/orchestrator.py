@@ -191,24 +191,25 @@ class Orchestrator:
             self._request_stop("emergency stop" if trip.action == "emergency_stop" else "abort",
                                reason=f"limit {trip.channel}")
 
-    def _download_limits(self, table: TableController, run_log: RunSink) -> None:
-        """Give the controller the run's abort levels that stop the table (``analysis.table.controller_limits``),
-        an event saying which; a controller that cannot take them (or :attr:`controller_limits` False): the host's
-        detectors act alone, said once a session on the status line and as an event."""
+    def _download_limits(self, table: TableController) -> str | None:
+        """Give the controller the run's abort levels that stop the table (``analysis.table.controller_limits``);
+        the run's event saying which. A controller that cannot take them (or :attr:`controller_limits` False): the
+        host's detectors act alone, said once a session on the status line and as the event (None otherwise)."""
         levels = controller_levels(self.sequence.table.detectors)
         if not levels:
-            return
+            return None
         why = table.download_limits(levels) if self.controller_limits else "host only, as asked"
         if why is None:
-            run_log.add_event(float("nan"), "limit detectors on the controller: " + ", ".join(
+            return "limit detectors on the controller: " + ", ".join(
                 f"{level.channel} {level.side.replace('_', ' ')} {level.threshold:.4g} "
-                f"{CHANNELS[level.channel].si}" for level in levels))
-        elif not self._limits_said:
-            self._limits_said = True
-            text = (f"limit detectors on the host only ({why}): an abort level stops the table when the host "
-                    "sees the crossing, up to a status batch and a command later")
-            run_log.add_event(float("nan"), text)
-            self._note(text)
+                f"{CHANNELS[level.channel].si}" for level in levels)
+        if self._limits_said:
+            return None
+        self._limits_said = True
+        text = (f"limit detectors on the host only ({why}): an abort level stops the table when the host sees the "
+                "crossing, up to a status batch and a command later")
+        self._note(text)
+        return text
 
     def _request_stop(self, kind: str, reason: str | None = None) -> None:
         """Stop the table now: ``kind`` ``abort`` (a controlled stop) or ``emergency stop``; ``reason`` what asked
@@ -323,6 +324,7 @@ class Orchestrator:
                                             len(self.sequence.bodies)),
                    f"run {run.plan_index + 1} ({drive.duration:.1f} s of drive, {len(self.sensors)} accelerometers, "
                    f"{len(self.sequence.bodies)} bodies)")
+        limits_said = self._download_limits(table)  # before the run begins: a table error here leaves no run open
         run_log = self.log.begin_run(
             run.plan_index, record=entry.label(), scale_factor=drive.scale_factor, angle_deg=run.angle_deg,
             commanded=np.column_stack([drive.t, drive.poses]), bodies=self._bodies(),
@@ -331,7 +333,8 @@ class Orchestrator:
                    "governing_quantity": drive.governing.quantity, "corner_frequency": drive.corner_frequency,
                    "record_start": drive.record_start, "rate": drive.rate, "table_url": self.table_url})
         self._write_pending_events(run_log)
-        self._download_limits(table, run_log)
+        if limits_said is not None:
+            run_log.add_event(float("nan"), limits_said)
         self.live.begin_run(self._live_header(run, entry.label(), drive))
         recorder = RunRecorder(table, run_log, self.sensors, [b.body_id for b in self.sequence.bodies],
                                self.progress, live=self.live, limits=LimitWatch(self.sequence.table.detectors),
