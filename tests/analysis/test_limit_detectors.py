@@ -60,7 +60,8 @@ def test_a_leg_s_following_error_takes_levels_in_mm(tmp_path: Path) -> None:
     ("[limit_detectors.accel.w]\nabort_high_g = 0.4\n",
      r":1: limit_detectors\.accel\.w: unknown key; expected one of x, y, z"),
     ("[limit_detectors.legs.x]\nabort_high_g = 0.4\n",
-     r":1: limit_detectors\.legs: unknown key; expected one of accel, leg, pose, tilt, velocity"),
+     r":1: limit_detectors\.legs: unknown key \(did you mean 'leg'\?\); expected one of accel, leg, pose, tilt, "
+     r"velocity"),
     ("[limit_detectors.leg.following_error]\nabort_high_deg = 2\n",
      r":2: limit_detectors\.leg\.following_error\.abort_high_deg: unit 'deg' does not fit leg\.following_error, a "
      r"length: expected abort_high_m or abort_high_mm"),
