@@ -15,7 +15,7 @@ PYTEST := $(BIN)/pytest -q
 # starts compile the project once, not each time (some shells set PYTHONDONTWRITEBYTECODE)
 unexport PYTHONDONTWRITEBYTECODE
 
-.PHONY: demo test test-integration test-slow test-all test-tools bench lint clean
+.PHONY: demo test test-integration test-slow test-all test-tools coverage bench lint clean
 
 $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -47,6 +47,19 @@ test-slow: $(STAMP) test-tools
 
 test-all: test test-integration test-slow
 
+# line coverage of the packages ([tool.coverage] in pyproject.toml: the rig, emulator and console processes the
+# tests start are measured too) over the three tiers, the fast tier's own figure first; every tier runs even when
+# one fails, and the exit status says whether all passed
+coverage: $(STAMP) test-tools
+	@mkdir -p $(REPORTS); $(BIN)/coverage erase; status=0; \
+	$(PYTEST) -n auto -m "not integration and not slow" --timeout=300 --cov --cov-report= || status=1; \
+	echo "fast tier: $$($(BIN)/coverage report --format=total) % of the packages' lines" | tee $(REPORTS)/coverage.txt; \
+	$(PYTEST) -m "integration and not slow" --timeout=900 --cov --cov-append --cov-report= || status=1; \
+	$(PYTEST) -n auto -m "slow and not integration" --timeout=1800 --cov --cov-append --cov-report= || status=1; \
+	$(PYTEST) -m "slow and integration" --timeout=1800 --cov --cov-append --cov-report= || status=1; \
+	echo "all tiers: $$($(BIN)/coverage report --format=total) % of the packages' lines" | tee -a $(REPORTS)/coverage.txt; \
+	$(BIN)/coverage report --skip-covered --sort=cover >> $(REPORTS)/coverage.txt; exit $$status
+
 # Debian's programs that tests use as the other end: Chromium (the console's browser tests) and hdf5-tools (h5dump
 # reads a session file); installed where this user may (root with apt-get), else said: those tests are then skipped
 DEBIAN_TOOLS := chromium:chromium h5dump:hdf5-tools
@@ -73,4 +86,4 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/report.py
 
 clean:
-	rm -rf $(VENV) build *.egg-info $(REPORTS)
+	rm -rf $(VENV) build *.egg-info $(REPORTS) .coverage .coverage.*

@@ -1,42 +1,12 @@
-"""Benchmark: stream a prepared FEMA drive through a table transport (MAVLink over UDP, or zenoh) to the emulator
-and measure the link and the emulator, all in one run (loopback, the emulator a separate process, real time by
-default).
-
-Prints one JSON object, each figure beside what it is compared with:
-
-* ``send_lateness_ms``: setpoint chunk send time − its deadline on the host (p50, p99, max), against the chunk
-  period (8 ms at 1 kHz) and the lead (what lateness may use up before an underrun);
-* ``host_to_controller_ms``: one-way latency of a chunk, from the controller's arrival stamps and the host's send
-  times on the TIMESYNC-aligned clocks: mean (lead − mean arrival margin − mean send lateness) and worst bound
-  (lead − smallest margin, which includes the send lateness); and half the TIMESYNC round trip (min, p50, p99);
-* ``controller_to_host_ms``: status arrival on the host − its controller time stamp (p50, p99): the emulator's
-  batching (a wake every 20 ms at 1x on MAVLink and zenoh, 2 ms on CANopen) plus the link;
-* ``accelerometer``: samples per second received per sensor against the 1 kHz sampling rate, batches lost, samples
-  inside the stream against duration × rate;
-* ``emulator``: tick compute time (wall: mean, p99; and the tick thread's CPU time) against the tick budget
-  (1 ms / speed), the real-time factor (controller time simulated per wall second of compute), batch sizes and the
-  largest lag behind real time (how late the oldest tick of a batch ran), and ``profile_cpu_us_per_tick``: the tick
-  thread's CPU time per tick split by stage (controller, servo, plate, physics, impacts, specimens, transport:
-  ``sim_table/tick_profile.py``), which a loaded host does not inflate;
-* ``tracking``: largest |achieved − commanded| surge against v_max · τ, underruns, overturns (and the retransmitted
-  copies the driver dropped).
-
-* ``send_timing_ms`` (issue 4): the setpoint send jitter (send time − deadline: p50, p99, max) over the whole
-  stream; per chunk on MAVLink/zenoh, per SYNC cycle (500 Hz) on CANopen;
-* ``end_to_end_latency_ms`` (issue 4): command → achieved pose, the lag that best aligns the achieved surge
-  (statuses, controller time) with the commanded surge (least squares over 0–200 ms in 0.1 ms steps);
-* ``messages_lost``: accelerometer batches (samples on CANopen) lost, chunks missing and samples late in the
-  emulator's counters;
-* ``real_time_factor``: the emulator's (from its counters) against the target 2× with the bodies on the plate; with
-  ``--speed max`` (virtual time, ``docs/table-controller.md``) the stream's controller time per wall second,
-  host and emulator together, against the target 15× (MAVLink, zenoh; issue 41) with the seven Table V bodies,
-  and the emulator's own in CPU time (``emulator_cpu``: controller time per CPU second of its tick thread), and the same
-  configuration run at 1x beside it (``at_1x``; ``--no-1x`` leaves it out).
+"""Benchmark: stream a prepared FEMA drive through a table transport to the emulator and measure the link and the
+emulator, all in one run (loopback, real time by default). Prints one JSON object, each figure beside what it is
+compared with: ``send_lateness_ms``, ``host_to_controller_ms``, ``controller_to_host_ms`` [ms], ``accelerometer``,
+``emulator`` (with ``profile_cpu_us_per_tick`` [µs]), ``tracking``, ``send_timing_ms``, ``end_to_end_latency_ms``
+[ms], ``messages_lost`` and ``real_time_factor`` (with ``emulator_cpu`` and ``at_1x``). What each one measures and
+against what: docs/transports.md §Measuring a link.
 
 Transports: ``mavlink`` and ``zenoh`` run the emulator as a separate process; ``canopen`` runs it in a thread of
-this process on python-can's ``virtual`` bus (the only way that transport works on one host), at the driver's
-default 500 Hz SYNC rate.
-
+this process on python-can's ``virtual`` bus (the only way that transport works on one host), at 500 Hz SYNC.
 ``--duration S`` makes the drive at least S s long: the prepared drive repeated while whole copies fit, then held
 at rest (its first and last pose, both at rest) up to S s, so send timing is measured over S s at 1 kHz.
 ``--bodies table5`` puts the seven bodies of the paper's Table V on the plate (b × h, depth 2·b: the emulator's

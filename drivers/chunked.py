@@ -1,55 +1,19 @@
 """The transports whose controller buffers setpoints (MAVLink, zenoh): their commands, written once over a small
 request hook, and streaming by timestamped setpoint chunks sent ahead of the controller's clock.
 
-**Commands.** As python-can's ``BusABC`` writes ``recv`` once over a backend's ``_recv_internal``,
-:class:`ChunkedStreamController` writes ARM, DISARM, HOME, SET_TILT, STOP, EMERGENCY_STOP and START_STREAM once
-over :meth:`ChunkedStreamController._request`: the backend sends a command (named in lower case, two float
-parameters) until the controller answers, raises on a refusal or no answer, and returns the answer as a
-:class:`CommandAnswer`. A command then returns once a status shows what it did (:data:`STATUS_TIMEOUT`: else the
-link is lost). HOME and SET_TILT are answered "in progress", then finally when the motion ends; waiting for a
-motion ends at its final answer, or at a status taken after its answer that shows the table out of
-:data:`MOTION_STATES` (the final answer may be lost); it then fails with :class:`CommandFailedError` unless the
-motion reached its target (its final answer says so, or without one the table is ``armed``).
+As python-can's ``BusABC`` writes ``recv`` once over a backend's ``_recv_internal``,
+:class:`ChunkedStreamController` writes ARM, DISARM, HOME, SET_TILT, STOP, EMERGENCY_STOP and START_STREAM once over
+:meth:`ChunkedStreamController._request` (send a command, named in lower case with two float parameters, until the
+controller answers; return the :class:`CommandAnswer`); a command returns once a status shows what it did
+(:data:`STATUS_TIMEOUT` [s]). ``connect`` ends with a CLAIM (:meth:`~ChunkedStreamController._claim`; another live
+host's table: :class:`TableInUseError`) unless ``observe=True``; ``close`` starts with a RELEASE. A stream is
+START_STREAM with the next chunk number (below :data:`FIRST_SEQ_LIMIT`), then chunks of ``samples_per_chunk`` poses
+sent ``lead`` [s] ahead of their first sample in controller time [ns], never more than :data:`AHEAD_NS` [ns] ahead
+of the latest status, each sent twice and the last one again every :data:`RESEND_S` [s] until taken. A backend says
+how to encode a chunk and send it.
 
-**One host at a time** (``docs/table-controller.md``): :meth:`ChunkedStreamController._claim`, at the end of a
-backend's ``connect``, sends a signed CLAIM; a controller that another live host owns refuses it and says who
-(:meth:`ChunkedStreamController._owner_refusal`), and ``connect`` fails with :class:`TableInUseError` "table in use
-by … since …" having changed nothing. :meth:`ChunkedStreamController._release`, at the start of ``close``, gives
-the table up (RELEASE) so that another host may claim it at once; a host that cannot say so loses its claim when
-the controller has not heard it for its peer timeout. A host opened with ``observe=True`` claims nothing: a monitor
-that receives the telemetry and may stop the table.
-
-**Streams.** These transports (``docs/table-controller.md``) stream the same way: START_STREAM with the next
-chunk number (numbers run on across streams, below :data:`FIRST_SEQ_LIMIT`), then chunks of ``samples_per_chunk``
-poses, each made just before it is due and sent when the controller time of its first sample is ``lead`` s away
-(``time.sleep`` to the absolute host deadline from the clock estimate, never busy waiting), the last flagged end
-of stream; then wait until the controller reports the stream played. A backend says how to encode a chunk and
-send it.
-
-Pacing follows the controller's clock: a chunk goes out when the clock estimate says its first sample is
-``lead`` away, or earlier when a status already shows the controller there (a clock running faster than
-estimated), and never before a status shows the controller within :data:`AHEAD_NS` + ``lead`` of the chunk (a
-clock that holds for setpoints: an emulator in virtual time, ``--speed max``, runs as fast as it computes but
-never past the setpoints it has; the host keeps it supplied and at most that far ahead, well inside the buffer's
-capacity). A controller that falls silent holds the stream back until the link is declared lost
-(:class:`~drivers.controller.TableLinkLostError`): chunks never go out on the clock estimate alone.
-At real time the clock estimate rules and the bound seldom bites (statuses come every 20 ms, at most a batch late;
-an emulator that lags behind real time on a loaded machine holds its host back with it). The first sample is
-due ``lead`` after the later of the clock estimate and the latest status (a controller holding its clock has
-reported where), but no later than ``lead`` + :data:`AHEAD_NS` after that status (a clock that ran fast and now
-holds makes the estimate overshoot).
-
-Every chunk is **sent twice**: again right after the next chunk, one chunk period later and still
-``lead`` minus a chunk period ahead (the last one just after itself). The controller drops the copy it already
-has by its chunk number (``chunks_duplicate``), so a chunk is missing only when both copies are lost: with 5 %
-of the datagrams lost, 0.25 % of the chunks instead of 5 %, and a missing chunk is bridged by the controller's
-interpolation (``CHUNK_GAP`` latched, the drive plays on). A chunk whose second copy waits on the next chunk must
-not wait on it for ever: while the host waits (for the next chunk's time, or for the controller to take the last
-chunk, END_OF_STREAM) and the latest status shows the chunk sent last not taken (``last_chunk_seq``), that chunk
-goes again every :data:`RESEND_S`. Without it a controller holding for setpoints (virtual time) whose stream's
-first chunk was lost held for it while the host held the second chunk until a status showed the controller past
-the first — stopped by the stream watchdog (``STREAM_SILENT``) in about one stream in ten at 10 % loss — and a
-lost END_OF_STREAM (both copies) left the controller waiting for the end likewise.
+Commands, claims and the stream's pacing, copies and resends with the reasons for each: docs/transports.md §What
+both hosts share.
 """
 
 from __future__ import annotations
@@ -168,6 +132,7 @@ class ChunkedStreamController(TableController):
         self.table = table or TableModel()
         """The table model a trajectory is checked against before it is streamed (``analysis.table.setpoints``):
         the controller's, the rig configuration's (default: Table IV and the default hexapod)."""
+        self.feedback.mount(self.table.sensors)
         self.refusals: list[SetpointRefusal] = []
         """The setpoint chunks the controller refused for their values, each once, in the order they came."""
         self.clock = ClockSync()

@@ -51,8 +51,9 @@ class TableStatus:
 
 @dataclass(frozen=True, eq=False)
 class AccelBatch:
-    """Consecutive samples of one plate accelerometer: row k of ``samples`` (n, 3) [m/s², plate frame, specific
-    force incl. gravity] was taken at ``t_start_ns + k * spacing_ns`` [ns, controller time]; ``seq`` counts the
+    """Consecutive samples of one plate accelerometer: row k of ``samples`` (n, 3) [m/s², plate frame once
+    published — :meth:`drivers.hub.Feedback.mount` turns a sensor mounted off the plate's axes from its own —,
+    specific force incl. gravity] was taken at ``t_start_ns + k * spacing_ns`` [ns, controller time]; ``seq`` counts the
     sensor's batches (a gap is a lost batch)."""
 
     sensor_id: int

@@ -12,9 +12,13 @@ from __future__ import annotations
 import queue
 import threading
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import Any, Generic, TypeVar
 
+import numpy as np
+
 from analysis.table.controller_limits import ControllerTrip
+from analysis.table.sensors import PLATE_AXES, SensorSheets
 from drivers.errors import TableError
 from drivers.feedback import (
     AccelBatch,
@@ -110,6 +114,7 @@ class Feedback:
         self.latest: TableStatus | None = None
         self._events: set[int] = set()
         self._trips: set[ControllerTrip] = set()
+        self._mountings: dict[int, np.ndarray] = {}
         self.duplicate_detections = 0
         """Retransmitted overturn events dropped (the first copy of each event id was kept)."""
 
@@ -140,7 +145,18 @@ class Feedback:
                 self._publish("fault", FaultEvent(status.t_ns, raised, status.faults, status.state, sources))
             self._lock.notify_all()
 
+    def mount(self, sheets: SensorSheets) -> None:
+        """From now on, turn each batch of an accelerometer whose calibration sheet in ``sheets`` mounts it off the
+        plate's axes from its own axes (as it reports them) into the plate frame (``f = Aᵀ s``,
+        ``SensorSheet.mounting``)."""
+        self._mountings = {int(name): sheet.mounting() for name, sheet in sheets.sheets.items()
+                           if sheet.axes != PLATE_AXES}
+
     def publish_accel(self, batch: AccelBatch) -> None:
+        """Publish an accelerometer batch, in the plate frame (:meth:`mount`)."""
+        mounting = self._mountings.get(batch.sensor_id)
+        if mounting is not None:
+            batch = replace(batch, samples=np.asarray(batch.samples, dtype=float) @ mounting)
         with self._lock:
             self._publish("accel", batch)
 

@@ -1,49 +1,21 @@
 """The table controller over MAVLink 2 on UDP: ``open_table("mavlink://HOST:PORT", key_file=...)``.
 
-The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with
-the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; :func:`protocols.signing_key.load_signing_key`) both
-ways: what the controller sends is taken only when signed with that key, fresh, by a stream not replayed
-(:func:`protocols.mavlink.parse_guarded`: the stamps' rules of :mod:`protocols.replay`); the rest is dropped and
-counted (:meth:`MavlinkTable.link_stats`: ``junk_datagrams``, ``refused_unsigned``, ``refused_bad_signature``,
-``refused_stale``, ``refused_future``), so that no local process
-can put an overturn, an accelerometer sample or a status into the record.
+The link is a :class:`protocols.mavlink.UdpLink` to the controller at HOST:PORT, every message **signed** with the
+rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``) both ways: what the controller sends is taken only when
+signed with that key, fresh and not replayed (:func:`protocols.mavlink.parse_guarded`); the rest is dropped and
+counted (:meth:`MavlinkTable.link_stats`). A **receive thread** stamps each datagram with its arrival time and
+dispatches it (feedback, the waiting command, the clock); a **heartbeat thread** sends HEARTBEAT at
+:data:`HEARTBEAT_RATE` [Hz] and a TIMESYNC request every :data:`TIMESYNC_EVERY` heartbeats. Commands are
+COMMAND_LONG, resent with ``confirmation`` 1, 2, … until acknowledged; the clock is fitted from TIMESYNC round trips
+(:class:`drivers.clock.ClockSync`); streams are SHAKETABLE_SETPOINT_CHUNKs of 8 samples (``drivers.chunked``). A
+send the network refuses (:data:`NETWORK_DOWN`) is counted (``send_failures``), not raised.
 
-Threads: a **receive thread** drains the socket continuously (receive buffer enlarged to
-:data:`RECEIVE_BUFFER`), stamps each datagram with its arrival time and dispatches every message to the feedback
-(status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id), to the waiting
-command, or to the clock; a **heartbeat thread** sends HEARTBEAT at :data:`HEARTBEAT_RATE` and a TIMESYNC request every
-:data:`TIMESYNC_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread;
-sending is serialised by a lock.
+A command refused TEMPORARILY_REJECTED after a STATUSTEXT of severity ERROR raises
+:class:`~drivers.controller.CommandRejectedError` with that text: the controller's reason (an ARM without the
+heartbeat kept up).
 
-Protocol decisions (the controller side is ``sim_table.mavlink_endpoint``):
-
-- **Commands** go as COMMAND_LONG, ``confirmation`` 0 first; without a COMMAND_ACK within ``command_timeout`` s
-  the command is sent again with ``confirmation`` 1, 2, … up to ``retries`` times, then
-  :class:`~drivers.controller.TableTimeoutError`. The controller executes a command with ``confirmation`` > 0
-  that repeats the last one from this host (same command and parameters, within 1 s) only once and answers it
-  with that command's result: retries are safe for every command. HOME and SET_TILT answer IN_PROGRESS, then a
-  final ACK when the motion ended; waiting for it also accepts a status that shows the motion over (the final
-  ACK may be lost).
-- **Clock**: TIMESYNC (common.xml) round trips; the controller answers ``tc1`` = its time [ns]. Of the last
-  :data:`drivers.clock.CLOCK_WINDOW` round trips, those within 100 µs of twice the shortest delay are fitted with a line
-  (controller time against the midpoint of send and receive) through the shortest round trip: offset
-  ``tc − (t_send + t_recv)/2`` there, and the slope follows a controller clock that runs at another rate (an
-  emulator's ``--speed``, a drifting oscillator). :meth:`MavlinkTable.connect` exchanges round trips 20 ms apart
-  until they span :data:`drivers.clock.FIT_SPAN` (about 0.25 s), then every :data:`TIMESYNC_EVERY` heartbeats refine it.
-- **One host at a time**: :meth:`MavlinkTable.connect` ends with a signed MAV_CMD_SHAKETABLE_CLAIM; refused
-  (TEMPORARILY_REJECTED), the SHAKETABLE_OWNER sent before the ACK names the owner (address, system, component,
-  since when) in the :class:`~drivers.controller.TableInUseError`. :meth:`MavlinkTable.close` first sends
-  MAV_CMD_SHAKETABLE_RELEASE (``drivers.chunked``).
-- **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then
-  SHAKETABLE_SETPOINT_CHUNKs of 8 samples scheduled ``lead`` s ahead of their first sample in controller time,
-  each sent at its deadline by ``time.sleep`` to the absolute host time (never busy-waiting); the last flagged
-  END_OF_STREAM.
-- **A network that is down** (the cable pulled, the interface down: ``sendto`` fails with ENETUNREACH,
-  EHOSTUNREACH, ENETDOWN, EHOSTDOWN or ECONNREFUSED) loses the datagram, as UDP loses any: it is counted
-  (``send_failures`` in :meth:`MavlinkTable.link_stats`), the heartbeat thread goes on, and the statuses that stop
-  coming end the stream as :class:`~drivers.controller.TableLinkLostError` after the link timeout, its message
-  naming the failed sends. (The error once escaped the stream as a bare ``OSError``: the run ended ``faulted``
-  with ``[Errno 101] Network is unreachable`` and the heartbeat thread died.)
+Each protocol decision and its reasons: docs/transports.md §MAVLink: the host; the controller side is
+``sim_table.mavlink_endpoint``.
 """
 
 from __future__ import annotations
@@ -188,6 +160,9 @@ class MavlinkTable(ChunkedStreamController):
         self._input_bits = [(bit, entry.name.removeprefix("SHAKETABLE_INPUT_").lower())
                             for bit, entry in self.d.enums["SHAKETABLE_INPUT"].items() if bit & (bit - 1) == 0]
         self.last_controller_heartbeat_ns: int | None = None
+        self._status_text: tuple[str, int] | None = None
+        """The controller's last STATUSTEXT of severity ERROR or worse and when it arrived [host ns]: why it
+        refused the command it precedes (an ARM without the heartbeat kept up)."""
         """Host time [ns] of the controller's last HEARTBEAT."""
         self._body_reports = BodyReports()
         self._owner_report: tuple[Any, int] | None = None  # the last SHAKETABLE_OWNER, host ns received
@@ -317,6 +292,8 @@ class MavlinkTable(ChunkedStreamController):
             self.last_controller_heartbeat_ns = now
         elif kind == "SHAKETABLE_OWNER":
             self._owner_report = (msg, now)
+        elif kind == "STATUSTEXT" and msg.severity <= self.d.MAV_SEVERITY_ERROR:
+            self._status_text = (_text_of(msg.text), now)
 
     def _owner_refusal(self) -> str:
         """The owner as the SHAKETABLE_OWNER sent before the refusing ACK names it (the ACK and its SHAKETABLE_OWNER
@@ -456,6 +433,11 @@ class MavlinkTable(ChunkedStreamController):
             owner = self._owner_report
             if owner is not None and owner[1] >= sent_ns:  # a SHAKETABLE_OWNER came with the refusal
                 raise CommandRejectedError(name, result_name, state, f"table in use by {self._owner_refusal()}")
+            said = self._status_text
+            if said is not None and said[1] >= sent_ns and said[0]:  # the controller said why (STATUSTEXT)
+                why = said[0].removeprefix(f"{name} refused: ")
+                raise CommandRejectedError(name, result_name, state, why if why != said[0] else
+                                           f"the controller says: {why}")
             raise CommandRejectedError(name, result_name, state, "not accepted in this state")
         why = {d.MAV_RESULT_FAILED: "invalid parameters", d.MAV_RESULT_UNSUPPORTED: "unsupported"}.get(
             result, f"result {result_name}")
@@ -496,3 +478,10 @@ def _is_loopback(host: str) -> bool:
 
 
 register_scheme("mavlink", MavlinkTable)
+
+
+def _text_of(text: str | bytes) -> str:
+    """A STATUSTEXT's text as printable ASCII (pymavlink gives ``str`` or ``bytes``; padding NULs dropped, any other
+    control or non-ASCII character as ``?``: it ends up on the operator's terminal)."""
+    raw = text.encode("latin-1", "replace") if isinstance(text, str) else bytes(text)
+    return "".join(chr(b) if 32 <= b < 127 else "?" for b in raw.rstrip(b"\0")).strip()

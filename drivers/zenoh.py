@@ -1,47 +1,17 @@
 """The table controller over zenoh: ``open_table("zenoh://HOST:PORT/TABLE", key_file=..., tls=...)``.
 
-The controller's zenoh session listens on ``tls/HOST:PORT`` (mutual TLS with the lab's certificates, ``tls``: a
+This host opens a zenoh peer session connecting to the controller's ``tls/HOST:PORT`` (mutual TLS, ``tls``: a
 :class:`~protocols.zenoh.tls.TlsFiles`) or ``tcp/HOST:PORT`` (loopback, or any address with
-``insecure_plain_tcp``); this host opens a peer session that connects there (scouting off,
-:func:`protocols.zenoh.session_config`) and speaks the table link of
-:mod:`protocols.zenoh.table` on ``shaketable/TABLE/controller/...`` (the controller side is
-``sim_table.zenoh_endpoint``). Every command, setpoint chunk and heartbeat is signed (:mod:`protocols.zenoh.auth`:
-HMAC-SHA256 with the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``, a random sender id per connection
-and a strictly increasing µs stamp against replay), and so is everything the controller sends: a publication or
-reply without a valid, fresh signature is dropped and counted (:meth:`ZenohTable.link_stats`: ``refused_unsigned``,
-``refused_bad_signature``, ``refused_stale``, ``refused_future``), so that no other zenoh peer can put an overturn,
-an accelerometer sample or a status into the record.
+``insecure_plain_tcp``) and speaks the table link of :mod:`protocols.zenoh.table` on
+``shaketable/TABLE/controller/...``. Everything is signed both ways (:mod:`protocols.zenoh.auth`: HMAC-SHA256 with
+the rig's key, ``key_file`` else ``$SHAKETABLE_MAVLINK_KEY``); what the controller sends without a valid, fresh
+signature is dropped and counted (:meth:`ZenohTable.link_stats`). zenoh's callback threads stamp each publication
+with its arrival time; a **heartbeat thread** publishes HEARTBEAT at :data:`HEARTBEAT_RATE` [Hz] and a clock query
+every :data:`CLOCK_EVERY` heartbeats. Commands are queries with a command id, retried with the same id at least
+:data:`RETRY_SPACING` s apart; streams are SETPOINTS published reliably (``drivers.chunked``).
 
-Threads: zenoh's callback threads stamp each publication of the controller with its arrival time and publish it
-to the feedback (status, accelerometer batches, body-tilt batches, overturn events de-duplicated by event id, final
-answers) or the clock; a **heartbeat thread** publishes HEARTBEAT at :data:`HEARTBEAT_RATE` and a clock query every
-:data:`CLOCK_EVERY` heartbeats, at absolute deadlines. Commands and streams run on the caller's thread; signing and
-sending are serialised per key (commands, setpoints), so each key's stamps leave in order and a setpoint
-publication waiting on a congested link never holds up a STOP.
-
-Protocol decisions:
-
-- **Commands** are zenoh queries on ``command`` carrying a command id (random start, then counting); the reply is
-  the ANSWER. A query that ends without one — zenoh's route race right after connecting, a lost message, the
-  querier's ``command_timeout`` — is sent again with the same id (and a fresh signature), at least
-  :data:`RETRY_SPACING` s after the previous attempt, up to ``retries`` times, then
-  :class:`~drivers.controller.TableTimeoutError`; the controller executes an id once and answers its retries with
-  its result. HOME and SET_TILT answer ``in_progress``, then a final ANSWER is published on ``answer``; waiting for
-  it also accepts a status taken after the command that shows the motion over (a lost final answer).
-- **One host at a time**: :meth:`ZenohTable.connect` ends with a signed ``claim``; refused, the controller replies
-  with an OWNER (who owns the table, since when) instead of an ANSWER, and ``connect`` fails with
-  :class:`~drivers.controller.TableInUseError`. :meth:`ZenohTable.close` first sends ``release``
-  (``drivers.chunked``).
-- **Clock**: queries on ``clock``; the controller answers with its time. The estimate is
-  :class:`drivers.clock.ClockSync` (shortest round trips, rate fitted): :meth:`ZenohTable.connect` queries
-  20 ms apart until it is fitted, then every :data:`CLOCK_EVERY` heartbeats refine it.
-- **Streams**: START_STREAM with the next chunk number (numbers run on across streams, below 2^24), then SETPOINTS
-  of :data:`~protocols.zenoh.table.SETPOINTS_PER_CHUNK` samples published reliably (congestion control BLOCK:
-  never dropped), each ``lead`` s ahead of its first sample in controller time, sent at its deadline by
-  ``time.sleep`` to the absolute host time; the last flagged END_OF_STREAM.
-- **Heartbeats** are publications both ways (host 50 Hz, controller 20 Hz), not liveliness tokens: a token lives
-  as long as the zenoh session's lease (seconds, kept up by zenoh's own threads), so it neither shows 100 ms of
-  silence nor a host whose program hangs.
+Each protocol decision and its reasons: docs/transports.md §zenoh: the host; the controller side is
+``sim_table.zenoh_endpoint``.
 """
 
 from __future__ import annotations

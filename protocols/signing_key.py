@@ -31,10 +31,10 @@ from __future__ import annotations
 import hashlib
 import itertools
 import os
-import shlex
-import stat
 from collections.abc import Mapping
 from pathlib import Path
+
+from protocols.private_file import PrivateFileError, read_private_file
 
 KEY_ENV = "SHAKETABLE_MAVLINK_KEY"
 """Environment variable holding the signing key as 64 hexadecimal digits."""
@@ -67,22 +67,6 @@ def _parse_hex(text: str, source: str) -> bytes:
         return bytes.fromhex(text)
     except ValueError:
         raise SigningKeyError(f"{source}: not hexadecimal") from None
-
-
-def _read_key_file(path: Path, source: str) -> bytes:
-    """The bytes of the key file ``path``, refused when others may read it or it is no regular file."""
-    try:
-        with path.open("rb") as file:
-            info = os.fstat(file.fileno())
-            if not stat.S_ISREG(info.st_mode):
-                raise SigningKeyError(f"{source}: not a regular file")
-            mode = stat.S_IMODE(info.st_mode)
-            if os.name == "posix" and mode & 0o077:
-                raise SigningKeyError(f"{source}: mode {mode:04o} lets other users read the rig's key; run: "
-                                      f"chmod 600 {shlex.quote(str(path))}")
-            return file.read(_MAX_KEY_FILE + 1)
-    except OSError as exc:
-        raise SigningKeyError(f"{source}: {exc.strerror or exc}") from exc
 
 
 def check_key_strength(key: bytes, source: str) -> bytes:
@@ -124,7 +108,10 @@ def load_signing_key(path: str | os.PathLike[str] | None = None, *, env: Mapping
     """
     if path is not None:
         source = f"signing key file {os.fspath(path)}"
-        data = _read_key_file(Path(path), source)
+        try:
+            data = read_private_file(Path(path), source, "the rig's key", _MAX_KEY_FILE)
+        except PrivateFileError as exc:
+            raise SigningKeyError(str(exc)) from exc.__cause__
         if len(data) == KEY_BYTES and all(32 <= b < 127 for b in data):
             raise SigningKeyError(f"{source}: 32 printable characters: a password or half a hexadecimal key, not "
                                   f"{KEY_BYTES} random raw bytes nor {2 * KEY_BYTES} hexadecimal digits")

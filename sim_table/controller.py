@@ -9,40 +9,17 @@ through :meth:`observe`; faults seen by the physics (stroke, limits, drive) thro
 
 Times are integer nanoseconds of controller time; poses ``(surge, sway, heave [m], roll, pitch, yaw [rad])``.
 
-Reference generation:
+A stream plays the buffer (at most ``buffer_capacity`` samples; a chunk that does not fit is refused), interpolating
+linearly between samples at the tick from the pose held at START_STREAM; late samples are skipped, a repeated chunk
+ignored, a reordered one played by its times, a gap's chunk that never came counted and latched as CHUNK_GAP. An
+underrun (the buffer dry before END_OF_STREAM, once a sample has arrived) stops the table (UNDERRUN, ``faulted``)
+— or, with ``underrun_stops=False`` (CANopen's CSP drives), decelerates to rest, holds and takes up the samples that
+come again. Moves are quintic profiles within the axis limits; stopping decelerates to rest, then moves home. The
+watchdogs (``watchdog_ns``: STREAM_SILENT, HEARTBEAT_LOST) count controller time, or a ``link_clock``'s [ns] in
+virtual time (:meth:`ControllerCore.watch` looks without a tick).
 
-- **Streaming** plays the buffer, interpolating linearly between samples at the tick; it starts from the pose
-  held at START_STREAM. Samples due at or before the last tick when they arrive are skipped (late).
-- **Underrun** (the buffer dry before END_OF_STREAM, once a sample has arrived) ends the stream with a
-  controlled stop: one underrun counted, ``UNDERRUN`` latched, and the table stops as for STOP (the reference
-  keeps its velocity and decelerates at the axis limits — Table IV accelerations, the tilt acceleration for
-  rotations — to rest, then moves home) and ends ``faulted``. Samples arriving after it are not played: a stream
-  never resumes from a held pose (resuming would jump to where the drive has got to meanwhile). With
-  ``underrun_stops=False`` (the CANopen endpoint's CSP drives, whose master plays the drive one target a SYNC) the
-  reference decelerates to rest and holds instead, and takes up the samples that come again (late ones skipped).
-- **Buffer capacity**: the buffer holds at most ``buffer_capacity`` samples (reported in every status); a chunk
-  that does not fit is refused (``chunks_overflow``), as a host that sends further ahead than the buffer holds
-  is misconfigured (its lead must stay below the capacity).
-- **Moves** (HOME, SET_TILT, the return home of a stop) are quintic profiles ``s = 10τ³ − 15τ⁴ + 6τ⁵`` as in
-  ``rig.drive.tilt``, as short as the axis limits allow (velocity and acceleration; for rotations also the tilt
-  jerk).
-- **Stopping** (STOP, a watchdog, a drive fault): decelerate to rest as in an underrun, then move home; then
-  ``armed`` (STOP) or ``faulted``.
-- A move has ended when its reference has arrived and the achieved pose (:meth:`observe`) is in position
-  (``analysis.table.moves.IN_POSITION``); not in position ``SETTLE_TIME_NS`` after its reference arrived → DRIVE fault
-  (following error; a stop's return home then ends ``faulted`` where the plate is).
-
-Watchdogs: while streaming (before END_OF_STREAM arrived), no chunk for more than ``watchdog_ns`` →
-STREAM_SILENT; while armed, homing, tilting or streaming, no host heartbeat for more than ``watchdog_ns``
-(ARM counts as one) → HEARTBEAT_LOST. Both stop the table (stopping → faulted). They count controller time, or
-with a ``link_clock`` (virtual time, where controller time runs at no fixed rate) that clock's time [ns] when the
-message was applied and when the watchdog looks (:meth:`ControllerCore.watch` looks without a tick).
-
-Chunk sequence numbers: a repeated one is ignored; an older one not seen before (reordered: a host's second copy
-after a lost first) is played by its times; one beyond the expected leaves a gap, which the chunks it skipped may
-still fill. A gap's chunk that has not come when the playback reaches the gap's time (the last sample buffered
-before it) is missing: counted in ``chunks_missing`` and latched as CHUNK_GAP (the stream continues, bridged by
-interpolation). A gap filled in time is no fault: the drive played as sent.
+Each rule and its reasons: docs/table-controller.md §States, §Setpoint stream and §Clock and time stamps (virtual
+time).
 """
 
 from __future__ import annotations

@@ -1,49 +1,24 @@
 """Servo-hydraulic legs under a rigid plate: the table's dynamics behind ``rig emulate --dynamics servo``
 (``docs/table-dynamics.md``).
 
-The plate is a rigid body (``analysis.table.dynamics``: its mass, inertia and centre of gravity, the specimens' masses
-at their places) on six oil columns along the legs' axes, each leg a servo-valve feeding a double-acting cylinder,
-closed by the controller's digital displacement loop at the controller rate. In the legs' lengths L (6,) [m], with
-the valves' flows written as piston speeds w [m/s]:
-
-    valves       ẇ_a = ω_v (w − w_a)                    first-order, ω_v = 2π·valve_bandwidth
-    oil columns  ẏ   = w_a − v                          y: the columns' compressions [m], forces k_h·y
-    plate        M_L v̇ = k_h y − C v,   L̇ = v            v: the legs' rates [m/s]
-
-M_L = J⁻ᵀ M J⁻¹ + m_p I is the plate's mass matrix M (pose coordinates, ``TableDynamics.mass_matrix``) seen by the
-legs through the hexapod's Jacobian J (``TableModel.leg_jacobian``), plus each leg's piston and rod. The legs being
-equal (K = k_h I, the same valve and loop on each), the eigenvectors U of M_L (M_L = U diag(μ_j) Uᵀ) decouple the
-system into six **modes**, each a single leg's model with its own oil-column frequency ω_j = sqrt(k_h / μ_j) — the
-plate's modal frequencies, the generalised eigenproblem Jᵀ K J φ = ω² (M + m_p JᵀJ) φ
-(``analysis.table.dynamics.plate_modes``). The damping C = U diag(2 ζ ω_j μ_j) Uᵀ gives every mode the damping ratio
-ζ (modal damping; ``docs/table-dynamics.md`` says why). Per tick (sampled, the valve commands w held over the tick)
-the controller's law is each leg's own
-
-    w_k = K_v (r_k − L_k) + f (r_k − r_{k−1}) / dt,    |w_k| ≤ leg_speed  (the valve's flow saturates)
-
-with r the leg's commanded length, K_v the loop gain and f the velocity feed-forward. Each mode is discretised
-exactly for the held command (zero-order hold, :func:`_zoh`), the state kept in the legs' coordinates and turned into
-the modes' for each tick's step, so saturation, brakes, a seized leg and the end stops act on each leg. From the legs'
-commands to their lengths, mode j's continuous closed loop is
-
-    H_j(s) = G_j(s) (K_v + f s) / (s + K_v G_j(s)),   G_j(s) = ω_v/(s + ω_v) · ω_j²/(s² + 2ζω_j s + ω_j²)
-
-(:meth:`ServoActuators.closed_loops`), and the legs' response matrix is U diag(H_j) Uᵀ; the plate's, in pose
-coordinates, J⁻¹ U diag(H_j) Uᵀ J (:meth:`ServoActuators.frequency_response`). The sampled loops
-(:meth:`ServoActuators.discrete_closed_loops`) and their stability margins (:meth:`ServoActuators.loop_margins`) are
-what the emulator runs.
-
-M_L and J depend on the plate's pose: they are evaluated where the plate starts, and again at the start of a batch
-of ticks when the achieved pose has moved more than :data:`RELINEARISE_M` or :data:`RELINEARISE_RAD` from where they
-last were. The
-velocity-product terms of the rigid body (Coriolis, J̇ q̇) are left out: at Table IV's 0.5 m/s they stay below
-v²/L ≈ 0.1 m/s². Gravity is carried by the columns' static pressure: y, the forces and the plate's motion are
-deviations from the static load.
+The plate is a rigid body (``analysis.table.dynamics``) on six oil columns along the legs' axes, each leg a
+servo-valve feeding a double-acting cylinder, closed by the controller's digital displacement loop at the
+controller rate. State in the legs' lengths L (6,) [m], the valves' flows as piston speeds w [m/s], the columns'
+compressions y [m] (deviations from the static load) and the legs' rates v [m/s]. The eigenvectors of the legs'
+mass matrix decouple six **modes**; each is discretised exactly for the valve command held over a tick
+(:func:`_zoh`), the state turned into the modes' for each step so that saturation, brakes, a seized leg and the end
+stops act on each leg. :meth:`ServoActuators.closed_loops`, :meth:`~ServoActuators.frequency_response`,
+:meth:`~ServoActuators.discrete_closed_loops` and :meth:`~ServoActuators.loop_margins` give the loops the emulator
+runs; the model is re-evaluated when the pose has moved more than :data:`RELINEARISE_M` [m] or
+:data:`RELINEARISE_RAD` [rad].
 
 Interface as :class:`sim_table.actuators.Actuators` (which stays the default, ``--dynamics lag``): the reference pose
 is clipped to the per-axis envelope and the legs' commands to their stroke; braked drives (and a seized leg,
 :attr:`ServoActuators.stalled`) close their valve command at ``brake_deceleration``; leg readings carry noise
 (:meth:`ServoActuators.measure`). The batch runs in one numba loop over ticks, legs and modes.
+
+The equations, the controller's law, the closed loops and what is left out: docs/table-dynamics.md §The plate on its
+six legs.
 """
 
 from __future__ import annotations

@@ -1,66 +1,17 @@
 """The emulator's MAVLink 2 side: the controller end of the table link over UDP (``protocols.mavlink``).
 
-Threads: a **receive thread** waits on the socket (receive buffer enlarged) and drains it: it stamps every
-datagram with its arrival time, verifies signatures (``signed_with_key``) and queues the messages; it answers
-TIMESYNC at once (``tc1`` = controller time at arrival) unless a delay is injected. The emulator's tick thread
-drains the socket too before it takes the queued messages in arrival order (:meth:`MavlinkEndpoint.take`, each as
-an action on the :class:`ControllerCore` at its arrival time), and sends everything else; receiving and sending
-are each serialised by a lock.
+A **receive thread** drains the socket, stamps every datagram with the kernel's arrival time (``SO_TIMESTAMPNS``,
+converted to the monotonic clock), verifies signatures, answers TIMESYNC at once and queues the rest; the
+emulator's tick thread takes the queue in arrival order (:meth:`MavlinkEndpoint.take`, each message an action on
+the :class:`ControllerCore` at its arrival time) and sends everything else. Commands (COMMAND_LONG) are answered by
+COMMAND_ACK; a retransmission (``confirmation`` > 0 repeating the last command from its host within
+:data:`DEDUP_WINDOW` s) is answered, not re-run. ARM, HOME, SET_TILT, START_STREAM and setpoint chunks need a valid,
+fresh signature; STOP, DISARM and EMERGENCY_STOP are taken unsigned. One host owns the table at a time
+(``sim_table.ownership``); telemetry goes to every signed HEARTBEAT's sender heard within :data:`PEER_TIMEOUT` s; a
+drain reads at most :data:`DRAIN_LIMIT` datagrams; ``loss`` and ``delay`` inject faults.
 
-**Arrival times are the kernel's** (``SO_TIMESTAMPNS``: the time the datagram reached the socket, converted from
-the real-time clock to the monotonic one), so a datagram read late — the emulator's process not scheduled for a
-while on a loaded machine — still counts at the time it came, and the tick thread, draining before it runs the
-ticks it catches up on, sees every heartbeat and setpoint chunk that came before them. Stamped at the read
-instead (where the platform has no such stamp), a 100 ms stall of the emulator's own process looked to the
-watchdog like 100 ms without heartbeats (HEARTBEAT_LOST) and to the buffer like chunks that never came (UNDERRUN).
-
-Protocol decisions (the host side is ``drivers.mavlink``):
-
-- **Commands** arrive as COMMAND_LONG and are answered by COMMAND_ACK to the sender: ACCEPTED; IN_PROGRESS
-  (progress 0) for HOME and SET_TILT, then a final ACK with progress 100 (ACCEPTED, or FAILED when the motion
-  was stopped first); DENIED for a missing or bad signature (counted in ``refused_commands``); TEMPORARILY_REJECTED in a
-  state that does not take the command; FAILED for invalid parameters; UNSUPPORTED for other signed commands.
-- **Retries and de-duplication.** The host sends a command with ``confirmation`` 0 and resends it with 1, 2, …
-  until it gets an ACK. A command with ``confirmation`` > 0 that repeats (same command and parameters) the
-  **last** command executed from its host (address, system, component) within :data:`DEDUP_WINDOW` s is a
-  retransmission: it is answered with that command's latest result and not executed again (a SET_TILT ramp does
-  not restart, a START_STREAM does not reset the buffer). ``confirmation`` 0 always executes. The one case this
-  gets wrong: the same command sent again on purpose within the window, nothing else in between, its first
-  transmission lost — it is taken for a retransmission of the first and answered with its result.
-- **Signatures.** Unsigned or badly signed ARM, HOME, SET_TILT, START_STREAM and setpoint chunks are refused;
-  STOP, DISARM and EMERGENCY_STOP are accepted unsigned. A badly signed message must not move pymavlink's
-  per-stream replay timestamp (:func:`protocols.mavlink.parse_verified`). A signed message counts as unsigned when
-  its stamp is stale (not above its stream's last one, or opening a stream more than
-  :data:`~protocols.mavlink.REPLAY_WINDOW` s behind the current stamp: ``stale_signatures``) or more than
-  :data:`~protocols.mavlink.STAMP_AHEAD` s ahead of it (``future_signatures``): ``protocols.replay``. With a
-  ``replay_state`` file (``sim_table.replay_store``) the streams' stamps survive a restart, so a capture replayed
-  after one is denied whatever the controller's clock says. Everything the controller sends is signed with the same
-  key (the host drops what is not), its stamps following the current stamp.
-- **One host at a time** (``sim_table.ownership``): a host is its address, system and component. A signed
-  MAV_CMD_SHAKETABLE_CLAIM makes it the owner unless another host owns the table and was heard (a signed HEARTBEAT
-  or command) within :data:`PEER_TIMEOUT` s: then a SHAKETABLE_OWNER (the owner's address, ids, since when, how
-  long silent) and a TEMPORARILY_REJECTED ACK answer it. While a host owns the table, another host's signed ARM,
-  HOME, SET_TILT and START_STREAM are answered the same way (``commands_other_host``) and its setpoint chunks
-  dropped (``chunks_other_host``); STOP, DISARM and EMERGENCY_STOP are taken from anyone. A signed motion command
-  while nobody owns the table claims it. The owner's signed MAV_CMD_SHAKETABLE_RELEASE ends its claim.
-- **Heartbeats.** Only a signed HEARTBEAT makes its sender a peer (telemetry goes to it), and only a signed one
-  from the table's owner keeps its claim and feeds the watchdog; the others are counted (``heartbeats_refused``
-  unsigned or badly signed, ``heartbeats_other_host``). A signed ARM from a sender whose signed heartbeats do not
-  come at least twice per watchdog (``sim_table.arming``) is refused at once: a STATUSTEXT (severity ERROR) saying
-  why, then COMMAND_ACK TEMPORARILY_REJECTED (``arms_refused_heartbeat``), where it would otherwise arm and fault
-  with HEARTBEAT_LOST mid-motion.
-- **Bounded reading.** A datagram that is not a whole number of MAVLink 2 frames is dropped unparsed
-  (``junk_datagrams``); one drain reads at most :data:`DRAIN_LIMIT` datagrams, so that a flood cannot hold the
-  tick thread (the receive thread drains the rest).
-- **Telemetry** (status, accelerometer batches, tilt batches of :data:`~protocols.mavlink.TILT_PER_BATCH` angles
-  per body, overturn events, heartbeats) goes to every address that sent a HEARTBEAT within :data:`PEER_TIMEOUT`
-  s. Overturn events are sent at once and again 3 times 100 ms apart (real time), with the same event id.
-- **Refused setpoints.** A signed chunk the core refuses for its values (``analysis.table.setpoints``: not finite,
-  outside the envelope or a leg's stroke, beyond the leg speed or tilt rate) is answered with a
-  SHAKETABLE_CHUNK_REFUSED (chunk_seq, arrival time, the reason) to the peers, sent at once and with the next
-  :data:`REFUSAL_REPEATS` statuses; the statuses carry ``SETPOINT_REFUSED`` while the table stops.
-- **Fault injection**: ``loss`` drops each datagram in either direction with that probability; ``delay`` [s]
-  holds each one that long in either direction (seeded).
+Each protocol decision, its counters and its reasons: docs/transports.md §MAVLink: the controller; the host side is
+``drivers.mavlink``.
 """
 
 from __future__ import annotations

@@ -57,6 +57,20 @@ def _door(text: str) -> tuple[float, float]:
     return door
 
 
+def _accel_noisy(text: str) -> tuple[int, float, float]:
+    sensor, _, span = text.partition("@")
+    opens, _, lasts = span.partition(":")
+    try:
+        noisy = int(sensor), float(opens), float(lasts)
+    except ValueError:
+        noisy = (-1, math.nan, math.nan)
+    if not (0 <= noisy[0] <= 255 and math.isfinite(noisy[1]) and noisy[1] >= 0 and math.isfinite(noisy[2])
+            and noisy[2] > 0):
+        raise argparse.ArgumentTypeError(f"expected ID@S:D, an accelerometer id 0..255, seconds >= 0 and a duration "
+                                         f"> 0 s, got {text!r}")
+    return noisy
+
+
 def argument_parser() -> argparse.ArgumentParser:
     """The emulator's command line (``python -m sim_table --help``)."""
     p = argparse.ArgumentParser(prog="python -m sim_table", formatter_class=argparse.ArgumentDefaultsHelpFormatter,
@@ -73,7 +87,9 @@ def argument_parser() -> argparse.ArgumentParser:
                         "friction coefficient and measured restitution (its impacts reproduce it; default: the "
                         "contact's own, Housner's); repeat for more (body ids 0, 1, … in this order)")
     p.add_argument("--accel", action="append", type=_point, metavar="X,Y,Z",
-                   help="an accelerometer at plate (x, y, z) [m]; repeat for more (default: one at the centre)")
+                   help="an accelerometer at plate (x, y, z) [m], with the plate's axes; repeat for more (default: "
+                        "where the rig configuration's [sensors] sheets put them, with their axes; without sheets "
+                        "one at the centre)")
     p.add_argument("--loss", type=float, default=0.0, metavar="PCT", help="drop this %% of datagrams, both ways")
     p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay every datagram, both ways")
     p.add_argument("--drive-fault-at", type=float, metavar="S", help="drive fault S s after the first stream start")
@@ -81,6 +97,9 @@ def argument_parser() -> argparse.ArgumentParser:
     p.add_argument("--door-open", type=_door, metavar="S:D",
                    help="the enclosure door (an interlock input in every status) opens S s after the first stream "
                         "start and closes D s later")
+    p.add_argument("--accel-noisy", type=_accel_noisy, metavar="ID@S:D",
+                   help="accelerometer ID turns noisy (σ 0.5 m/s² more on every axis: a loose mount, a bad cable) S s "
+                        "after the first stream start, for D s")
     p.add_argument("--leg-stall", type=_leg_stall, metavar="LEG@S",
                    help="leg LEG's actuator (1..6) seizes S s after the first stream start: it brakes to rest and "
                         "stops following its command (CANopen: its drive's following-error supervision trips)")

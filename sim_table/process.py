@@ -1,49 +1,27 @@
 """The emulator process: ``python -m sim_table --listen URL [options]`` (or ``rig emulate``).
 
-One loop owns the emulated table. It wakes at absolute deadlines every 2 ms of real time (sleeping, never
-spinning), runs every 1 ms controller tick due by then in one batch (catching up after a late wake), and sends
-what the batch produced:
-
-1. host messages queued by the endpoint are applied to the :class:`~sim_table.controller.ControllerCore` at
-   their arrival time, between the ticks;
-2. each tick's reference pose goes through the :class:`~sim_table.actuators.Actuators` (vectorised per batch);
-3. the achieved motion, one tick late with central differences (:class:`~sim_table.accelerometers.PlateTrack`),
-   drives the virtual accelerometers and the physical specimens (``sim_table.specimens``, MuJoCo), whose
-   overturns become overturn events and whose angles are their tilt sensors' samples (:data:`TILT_RATE`);
-4. a status every 20 ms of controller time and at every state change, accelerometer and tilt batches, final
-   command answers, heartbeats.
-
-Controller time is ``speed × (host monotonic − start)`` [ns]; the watchdogs keep ``--watchdog`` (the rig
-configuration's ``[controller] watchdog_s``, 1 s by default) of **real** time at any ``--speed`` (they guard the
-link, whose heartbeats keep real time). At real time the loop wakes every :data:`WAKE_PERIOD_NS` on the transports
-whose controller buffers setpoints (MAVLink, zenoh: their host sends the lead ahead, 1 s by default) and runs the
-ticks due as one batch, as virtual time does; CANopen's drives answer every SYNC with the physics of its instant,
-so there it wakes more often, every :data:`CANOPEN_WAKE_PERIOD_NS`.
-
-``--speed max`` is **virtual time**: controller time is the time of the last tick run, and the loop runs ticks
-as fast as it computes them, up to :data:`VIRTUAL_BATCH` an iteration (fewer where the last batch's wall time per
-tick says more would take longer than :data:`VIRTUAL_BATCH_WALL_NS`: the statuses go out at a batch's end, and a busy
-host must still hear them well within its link timeout), while the table has something to do — a
-move, a stop, a stream whose setpoints are buffered — but never past the last buffered setpoint of a stream whose
-end has not arrived: there the clock **holds** (no tick, no underrun) until the host's next chunk comes, and a
-status tells the host where it holds. At rest (idle, armed, faulted, emergency stopped) it ticks at real time.
-Host messages are stamped with the controller time they were taken at and applied before the next tick; the link
-watchdogs count :data:`VIRTUAL_WATCHDOG_SECONDS` of host-monotonic time between the moments the messages are
-applied (a busy emulator does not trip them). With ``--delay`` a message is held that long in real time. See
-``docs/table-controller.md``.
-
-Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the emulator is
-also the operator.
+One loop owns the emulated table: it wakes at absolute deadlines (:data:`WAKE_PERIOD_NS`, on CANopen
+:data:`CANOPEN_WAKE_PERIOD_NS`), runs every 1 ms controller tick due by then in one batch — host messages applied at
+their arrival time, the reference through the actuators, the achieved motion into the accelerometers and the
+MuJoCo specimens (tilt samples at :data:`TILT_RATE` [Hz]) — and sends what the batch produced (a status every
+20 ms of controller time and at every state change, batches, answers, heartbeats). Controller time [ns] is
+``speed × (host monotonic − start)``; ``--speed max`` is virtual time (at most :data:`VIRTUAL_BATCH` ticks a
+batch, the clock holding at a stream's last buffered setpoint); the link watchdogs keep ``--watchdog`` of real time
+at any speed. Specimens are placed afresh (upright, at rest, where ``--body`` puts them) at every START_STREAM: the
+emulator is also the operator.
 
 Fault injection: ``--loss PCT`` and ``--delay MS`` on every datagram both ways; ``--drive-fault-at S`` raises a
 drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S`` seizes leg LEG's actuator (it
 brakes to rest and stops following its command: on CANopen its drive's following-error supervision trips) from
-S seconds (controller time) after the first START_STREAM. At exit (SIGINT, SIGTERM) the counters are written as
-one JSON object to stdout, or to ``--counters FILE``.
+S seconds (controller time) after the first START_STREAM; ``--door-open S:D`` sets the enclosure door input and
+``--accel-noisy ID@S:D`` makes accelerometer ID noisy for D s from S s after it. At exit (SIGINT, SIGTERM) the
+counters are written as one JSON object to stdout, or to ``--counters FILE``.
 
 Signing key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``): needed on the transports that sign, mavlink and
 zenoh; not on canopen, which has no authentication (the bus is a private cable). On those two the signatures' last
 stamps are kept across restarts in ``--replay-state FILE`` (default: beside the key file, ``sim_table.replay_store``).
+
+The loop's steps, its wake periods and virtual time: docs/table-controller.md §The emulator's loop and §Virtual time.
 """
 
 from __future__ import annotations
@@ -70,7 +48,7 @@ from analysis.table.model import TableModel
 from protocols.signing_key import KEY_ENV, load_signing_key
 from protocols.zenoh.config import PLAIN, LinkSecurity
 from protocols.zenoh.tls import TlsOptions, load_tls
-from sim_table.accelerometers import Accelerometers, PlateTrack
+from sim_table.accelerometers import Accelerometers, PlateTrack, sheet_accelerometers
 from sim_table.actuators import ActuatorSettings
 from sim_table.controller import ControllerCore, Done, Fault, Refused, Snapshot, State
 from sim_table.dynamics import make_actuators, specimen_loads
@@ -156,6 +134,9 @@ fallen bodies' too; without bodies nothing is sent."""
 TIMING_WINDOW = 100_000
 """Batches kept for the tick-time percentiles in the counters."""
 
+NOISY_ACCEL_SIGMA = 0.5
+"""The noise σ a noisy accelerometer (``--accel-noisy``) adds to its own [m/s²], on every axis."""
+
 SIGNING_SCHEMES = frozenset({"mavlink", "zenoh"})
 """Transports that authenticate motion commands and setpoints with the rig's signing key (CANopen has no
 authentication: the bus is a private cable, and the emulator needs no key for it)."""
@@ -178,7 +159,9 @@ class EmulatorConfig:
     key: bytes | None = field(default=None, repr=False)
     speed: float = 1.0
     specimens: tuple[Specimen, ...] = ()
-    sensors: tuple[tuple[float, float, float], ...] = ((0.0, 0.0, 0.0),)
+    sensors: tuple[tuple[float, float, float], ...] | None = None
+    """The accelerometers' places [m, plate frame], each with the plate's axes (``--accel``); None: where the
+    table's calibration sheets put them, with their axes (``[sensors]``: :func:`sheet_accelerometers`)."""
     table: TableModel = field(default_factory=TableModel)
     actuators: ActuatorSettings = field(default_factory=ActuatorSettings)
     dynamics: str = "lag"
@@ -190,6 +173,9 @@ class EmulatorConfig:
     leg_stall: tuple[int, float] | None = None
     door_open: tuple[float, float] | None = None
     """The enclosure door open from S s after the first stream start for D s (controller time): (S, D)."""
+    accel_noisy: tuple[int, float, float] | None = None
+    """Accelerometer ID noisy (σ :data:`NOISY_ACCEL_SIGMA` more) from S s after the first stream start for D s
+    (controller time): (ID, S, D)."""
     seed: int = 0
     watchdog: float | None = None
     buffer: float | None = None
@@ -211,6 +197,13 @@ class EmulatorConfig:
             leg, at = self.leg_stall
             if not (isinstance(leg, int) and 1 <= leg <= 6 and math.isfinite(at) and at >= 0):
                 raise ValueError(f"leg_stall must be (leg 1..6, >= 0 s), got {self.leg_stall!r}")
+        if self.sensors is not None and self.table.sensors.sheets:
+            raise ValueError("--accel places accelerometers the rig configuration's [sensors] sheets place too: "
+                             "give one or the other")
+        count = len(self.accelerometer_places()[0])
+        if self.accel_noisy is not None and not 0 <= self.accel_noisy[0] < count:
+            raise ValueError(f"--accel-noisy: no accelerometer {self.accel_noisy[0]} on the emulated plate (it has "
+                             f"{count}: ids 0 to {count - 1})")
         scheme = listen_scheme(self.listen)
         if math.isinf(self.speed) and scheme == "canopen":
             raise ValueError("--speed max: CANopen has no virtual time (its master, the host, is the controller and "
@@ -221,6 +214,13 @@ class EmulatorConfig:
         if scheme != "zenoh" and self.security != PLAIN:
             raise ValueError(f"--listen {self.listen}: --tls-ca/--tls-cert/--tls-key and --insecure-plain-tcp are "
                              "options of a zenoh link")
+
+
+    def accelerometer_places(self) -> tuple[np.ndarray, np.ndarray]:
+        """The accelerometers' places (m, 3) [m, plate frame] and mountings (m, 3, 3) (plate frame → their axes)."""
+        if self.sensors is None:
+            return sheet_accelerometers(self.table.sensors)
+        return np.array(self.sensors, dtype=float), np.tile(np.eye(3), (len(self.sensors), 1, 1))
 
 
 class Emulator:
@@ -247,7 +247,8 @@ class Emulator:
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
                                         loads=specimen_loads(config.specimens))
         self.track = PlateTrack(dt)
-        self.accelerometers = Accelerometers(np.array(config.sensors), dt, noise=config.accel_noise,
+        places, mountings = config.accelerometer_places()
+        self.accelerometers = Accelerometers(places, dt, mountings=mountings, noise=config.accel_noise,
                                              seed=config.seed + 1)
         self.profile = TickProfile()
         """The tick thread's CPU time per stage (``sim_table.tick_profile``), in the counters' ``timing``."""
@@ -556,6 +557,11 @@ class Emulator:
         if cfg.door_open is not None:
             opens = start + cfg.door_open[0] * 1e9
             self.core.inputs = int(opens <= t < opens + cfg.door_open[1] * 1e9)
+        if cfg.accel_noisy is not None:
+            sensor, opens_s, lasts_s = cfg.accel_noisy
+            opens = start + opens_s * 1e9
+            noisy = opens <= t < opens + lasts_s * 1e9
+            self.accelerometers.sigma[sensor] = self.accelerometers.noise + NOISY_ACCEL_SIGMA * noisy
         if cfg.leg_stall is not None and not self._leg_stalled and t >= start + cfg.leg_stall[1] * 1e9:
             self._leg_stalled = True
             self.actuators.stalled[cfg.leg_stall[0] - 1] = True
@@ -617,12 +623,13 @@ def parse_args(argv: list[str]) -> tuple[EmulatorConfig, Path | None, bool]:
             tls = load_tls(network.ca, network.cert, network.key, names=TlsOptions(*network.where))
         config = EmulatorConfig(
             listen=args.listen, key=key, speed=args.speed,
-            specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel or [(0.0, 0.0, 0.0)]),
+            specimens=tuple(parse_body(b) for b in args.body), sensors=tuple(args.accel) if args.accel else None,
             table=table,
             actuators=ActuatorSettings() if args.leg_noise is None else ActuatorSettings(noise=args.leg_noise),
             dynamics=args.dynamics, accel_noise=args.accel_noise,
             loss=args.loss / 100.0, delay=args.delay * 1e-3, drive_fault_at=args.drive_fault_at,
-            stall_at=args.stall_at, leg_stall=args.leg_stall, door_open=args.door_open, seed=args.seed,
+            stall_at=args.stall_at, leg_stall=args.leg_stall, door_open=args.door_open,
+            accel_noisy=args.accel_noisy, seed=args.seed,
             watchdog=args.watchdog,
             buffer=args.buffer, security=LinkSecurity(tls, args.insecure_plain_tcp),
             replay_state=replay_state if signs else None)
@@ -669,7 +676,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"sim_table: WARNING: --insecure-plain-tcp: the link at {emulator.url} may be plain text off loopback "
               "(nothing encrypted)", file=sys.stderr, flush=True)
     print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
-          f"{len(config.sensors)} accelerometers)", file=sys.stderr, flush=True)
+          f"{len(emulator.accelerometers.places)} accelerometers)", file=sys.stderr, flush=True)
     try:
         emulator.run(stop)
     finally:

@@ -1,44 +1,21 @@
 """The physical specimens of the emulated table: bodies standing on the moving plate, and their overturns.
 
-:class:`SpecimenScene` runs the MuJoCo model of :mod:`sim_table.scene` with the plate following the
-achieved plate pose. Poses are ``(surge, sway, heave, roll, pitch, yaw)`` [m, rad] with
-``R = Rz(yaw) Ry(pitch) Rx(roll)`` (``analysis.table.model``); plate velocities are the pose rates
-[m/s, rad/s] in the same column order. Between two samples the plate follows the cubic Hermite curve
-through their poses and rates (exact for a constant acceleration). Each physics step puts the plate's
-joints on the curve at the step's start with the previous step's mean rate, and prescribes the acceleration
-that ends the step on the curve: this is MuJoCo's semi-implicit Euler run on the plate's own path, so a
-body that sticks to the plate rides with it exactly (resetting the plate's pose without it would slip every
-body by a·dt²/2 per step, 0.24 mm/s at 0.1 g). Feed the plate's true, smooth state, not noisy measurements:
-the bodies feel the curve's second difference.
+:class:`SpecimenScene` runs the MuJoCo model of :mod:`sim_table.scene` with the plate following the achieved plate
+pose. Poses are ``(surge, sway, heave, roll, pitch, yaw)`` [m, rad] with ``R = Rz(yaw) Ry(pitch) Rx(roll)``
+(``analysis.table.model``); plate velocities are the pose rates [m/s, rad/s] in the same column order. Between two
+samples the plate follows the cubic Hermite curve through their poses and rates; feed it the plate's true, smooth
+state, not noisy measurements (the bodies feel the curve's second difference).
 
-A body's **angle** θ [rad] is its rotation about the plate's y axis relative to the plate, read from its height
-axis expressed in the plate frame (components ``ex, ez``): ``θ = atan2(ex, ez)``, > 0 when its top has moved
-towards the plate's +x (downhill). A body has **overturned** when
-``|θ| ≥ min(α + overturn_margin, π/2 − 0.05)``, α its slenderness towards the side it leans to (α± of
-``analysis.body``: they differ when its centre of mass is off the middle): its centre of mass is
-``overturn_margin`` (default :data:`OVERTURN_MARGIN`, 0.8 rad) past its base corner on a level plate, and still
-0.62 rad past the point of no return (α + β, relative to the plate, towards the high side) at the table's 10°
-tilt: to bring it back the plate would need a horizontal acceleration above about g·tan 0.62 = 0.7 g, beyond
-Table IV's 0.6 g. The threshold is reached by a body that is falling, lies on its side, or leans on a fallen
-neighbour; it is passed a few tenths of a second before the body lands (the analytical models time the overturn
-at |θ| = π/2). The direction is ``sign(θ)``: +1 towards +x (the low side), −1 towards the high side. Each body
-is reported once per placement. Falls along the plate's y (sideways) are outside this measure: the paper's
-bodies are at least twice as deep as wide so that they do not happen.
+A body's **angle** θ [rad] is its rotation about the plate's y axis relative to the plate, > 0 when its top has
+moved towards the plate's +x (downhill). A body has **overturned** when ``|θ| ≥ min(α + overturn_margin, π/2 −
+0.05)`` (α its slenderness towards the side it leans to, ``overturn_margin`` default :data:`OVERTURN_MARGIN` rad),
+direction ``sign(θ)``: +1 towards +x (the low side), −1 towards the high side; reported once per placement. A body
+with a :attr:`~sim_table.scene.Specimen.restitution` e has every impact scaled to it (after a lean of at least
+:data:`IMPACT_LEAN` rad). :attr:`~SpecimenScene.sample_angles` holds θ of every body at each plate sample time
+given to :meth:`advance` or :meth:`~SpecimenScene.advance_many` (the tilt sensors).
 
-**Impacts** (the impact model). A body's rocking impacts are its contact's: MuJoCo's soft contact with damping
-ratio 1 dissipates about what Housner's rigid impact does (restitution 1 − 1.5 sin²α, within a few per cent:
-``rig specimens check``). A body whose :attr:`~sim_table.scene.Specimen.restitution` e is set (a value measured
-on the lab's block) has every impact scaled to it: when θ passes through 0 after the body has leaned at least
-:data:`IMPACT_LEAN` since its previous impact, its velocity relative to the plate (linear and angular: the
-rotation about its new pivot, rigidly) is multiplied by e / (1 − 1.5 sin²α) at the end of that physics step — by
-e over Housner's ratio of that impact direction (``Body.housner_restitutions``) for a body whose centre of mass
-is off the middle. The impact map is linear in the velocities, so the ratio of angular velocities across the
-impact becomes e times the contact's own ratio over Housner's. A body standing still (its contact jitter stays
-below 1e-5 rad) and a fallen body are left alone.
-
-The scene is also each body's **tilt sensor** (the overturn detector's channel): after every :meth:`advance`
-or :meth:`~SpecimenScene.advance_many`, :attr:`~SpecimenScene.sample_angles` holds θ of every body at each
-plate sample time given, fallen bodies included (the emulator sends them as tilt telemetry).
+How the plate's path is stepped, why the overturn threshold is where it is, the impact model: docs/specimens.md §The
+scene.
 """
 
 from __future__ import annotations

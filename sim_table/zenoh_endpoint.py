@@ -1,55 +1,18 @@
 """The emulator's zenoh side: the controller end of the table link (``protocols.zenoh.table``).
 
-``zenoh://HOST:PORT/TABLE`` opens a zenoh peer session listening on ``tls/HOST:PORT`` with a TLS identity (mutual
-TLS, the lab's certificates) or on ``tcp/HOST:PORT`` (loopback unless explicitly insecure; scouting off:
-``protocols.zenoh.session_config``; port 0: a free port, probed) and serves the keys
-``shaketable/TABLE/controller/...`` (``protocols.zenoh.keys``). The host side is ``drivers.zenoh``. It declares the
-liveliness token ``shaketable/TABLE/alive/table`` while it serves: a ``rig table list`` on the network finds it.
+``zenoh://HOST:PORT/TABLE`` opens a zenoh peer session listening on ``tls/HOST:PORT`` (mutual TLS) or
+``tcp/HOST:PORT`` (loopback unless explicitly insecure; port 0: a free port, probed) and serves the keys
+``shaketable/TABLE/controller/...``; while it serves it declares the liveliness token
+``shaketable/TABLE/alive/table``. zenoh's callback threads stamp every host message with its arrival time and queue
+it; the emulator's tick thread takes the queue in arrival order (:meth:`ZenohEndpoint.take`, each message an action
+on the :class:`ControllerCore` at its arrival time), checks signatures and sends. Commands are queries answered
+with an ANSWER; the last :data:`REMEMBERED_COMMANDS` are remembered by id, and a repeat is answered, not re-run.
+Motion commands and chunks need a valid, fresh signature; everything the controller sends is signed. One host owns
+the table at a time (``sim_table.ownership``); heartbeats every :data:`HEARTBEAT_PERIOD` s; ``loss`` and ``delay``
+inject faults.
 
-Threads: zenoh's callback threads stamp every host message with its arrival time and queue it (answering a clock
-query at once unless a delay is injected); the emulator's tick thread takes the queue in arrival order
-(:meth:`ZenohEndpoint.take`, each message an action on the :class:`ControllerCore` at its arrival time), checks
-signatures and does all the rest of the sending.
-
-Protocol decisions:
-
-- **Commands** are queries on ``command``; the reply is an ANSWER with the command's result and its arrival time
-  (controller time). HOME and SET_TILT answer ``in_progress``; their final answer (``accepted``, or ``cancelled``
-  when the motion was stopped first) is published on ``answer`` with the same command id. A payload that is no
-  COMMAND gets a zenoh error reply.
-- **Retries and de-duplication.** The host retries a query that ends without a reply (zenoh's route race, a lost
-  message) with the same command id. The last :data:`REMEMBERED_COMMANDS` commands are remembered by id with
-  their latest result; one that repeats a remembered command exactly (id, command, parameters) is answered with
-  that result and not executed again — if it needs a signature, only when it carries a valid, fresh one.
-- **Signatures** (``protocols.zenoh.auth``, the rig's key): ARM, HOME, SET_TILT, START_STREAM and setpoint
-  chunks without a valid, fresh signature are refused (``refused_commands``, answered ``denied``); STOP, DISARM
-  and EMERGENCY_STOP are accepted unsigned. The counters say why (``unsigned``, ``bad_signatures``,
-  ``stale_signatures``, ``future_signatures``). With a ``replay_state`` file (``sim_table.replay_store``) the
-  senders' stamps survive a restart, written before every signed motion command takes effect. Everything the
-  controller sends — replies, statuses, answers, batches, overturn events (each copy signed afresh), heartbeats —
-  is signed as one sender (random per start), its stamps following the current stamp; the host drops the rest.
-- **One host at a time** (``sim_table.ownership``): a host is its signing sender id. A signed ``claim`` makes it
-  the owner unless another sender owns the table and was heard (a signed heartbeat or command) within
-  :data:`~sim_table.ownership.OWNER_TIMEOUT` s: then the reply is an OWNER (who, since when, how long silent) in
-  place of the ANSWER. While a sender owns the table, another's signed ARM, HOME, SET_TILT and START_STREAM get the
-  same reply (``commands_other_host``) and its setpoint chunks are dropped (``chunks_other_host``); STOP, DISARM
-  and EMERGENCY_STOP are taken from anyone. A signed motion command while nobody owns the table claims it. The
-  owner's signed ``release`` ends its claim.
-- **Heartbeats** of the host are signed; only those of the table's owner keep its claim and feed the watchdog
-  (``heartbeats_refused``: without a valid, fresh signature; ``heartbeats_other_host``: another sender's).
-- **Clock**: a query on ``clock`` is answered with the controller time when it is answered.
-- **Telemetry**: status, accelerometer batches of :data:`~protocols.zenoh.table.ACCEL_PER_BATCH` samples (one key
-  per sensor), tilt batches of :data:`~protocols.zenoh.table.TILT_PER_BATCH` angles (every body's on one key),
-  overturn events (sent at once and again 3 times 100 ms apart, real time, with the same event id), heartbeats every
-  50 ms. zenoh's default congestion control (drop when no batch of the transmit queue comes free within 1 ms; the
-  queue is :data:`~protocols.zenoh.config.TX_QUEUE_BATCHES` deep): the controller never waits for its host —
-  except in virtual time (``--speed max``), where the accelerometer and tilt batches block instead (time waits, and
-  no sample is dropped however fast the emulator runs).
-- **Refused setpoints**: a signed chunk the core refuses for its values (``analysis.table.setpoints``) is answered
-  with a REFUSAL on ``refusal`` (the chunk, its arrival time, the reason), published reliably; the statuses carry
-  ``SETPOINT_REFUSED`` while the table stops.
-- **Fault injection**: ``loss`` drops each message in either direction with that probability (a dropped query
-  ends without a reply); ``delay`` [s] holds each one that long in either direction (seeded).
+Each protocol decision, its counters and its reasons: docs/transports.md §zenoh: the controller; the host side is
+``drivers.zenoh``.
 """
 
 from __future__ import annotations

@@ -1,66 +1,14 @@
 """The rig configuration file: its TOML reader and writer (`TableConfiguration`, the parts of a table model).
 
-The file (TOML; every section and every key of ``[table]`` and ``[limits.*]`` may be
-left out, which keeps Table IV and the default geometry). Every number has a physical range, given beside
-its key; a value outside it is refused with the range (``FILE:LINE: key: must be from … to …, got …``)::
+Sections ``[table]``, ``[limits.surge|lateral|heave|tilt]``, ``[hexapod]``, ``[dynamics]``, ``[controller]``,
+``[sensors.N]``, ``[limit_detectors.…]`` and ``[network]``; every one may be left out (Table IV and the default
+geometry). Keys carry their unit in their name (``_m``, ``_m_s``, ``_g``, ``_deg``, ``_rad``, ``_hz``, ``_s``);
+every number has a physical range. Only a regular file of at most 1 MiB is read. Errors raise
+`analysis.table.limits.TableModelError` ``FILE:LINE: dotted.key: problem``. :func:`configuration_dict` writes the
+same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit joints): reading it back gives an equal
+configuration exactly.
 
-    [table]
-    controller_rate_hz = 1000          # the rate setpoints are played at; 10 … 5000 Hz
-
-    [limits.surge]                     # also [limits.lateral] and [limits.heave]; read as ±
-    displacement_m = 0.25              # 0.001 … 2 m
-    velocity_m_s = 0.5                 # 0.001 … 5 m/s
-    acceleration_g = 0.6               # 0.001 … 10 g, or acceleration_m_s2 (0.00981 … 98.1 m/s²)
-
-    [limits.tilt]                      # each also in rad: angle_rad, rate_rad_s, ...
-    angle_deg = 10                     # largest |roll|, |pitch|; 0.1 … 45°
-    rate_deg_s = 2                     # 0.01 … 90 °/s
-    acceleration_deg_s2 = 2            # 0.01 … 360 °/s²
-    jerk_deg_s3 = 4                    # 0.01 … 3600 °/s³
-
-    [hexapod]                          # either the symmetric 6-6 layout (HexapodGeometry.symmetric) ...
-    base_radius_m = 1.6                # 0.05 … 20 m
-    platform_radius_m = 1.1            # 0.05 … 20 m
-    base_half_angle_deg = 10           # or base_half_angle_rad; in [0, 60) degrees
-    platform_half_angle_deg = 10
-    platform_joint_depth_m = 0.15      # optional, default 0: joint centres below the plate's top surface; 0 … 2 m
-    home_height_m = 2.1                # 0.05 … 20 m
-    leg_min_m = 1.6                    # 0.05 … 20 m
-    leg_max_m = 2.85                   # 0.05 … 20 m, above leg_min_m
-    leg_speed_m_s = 0.9                # 0.001 … 5 m/s
-    # ... or explicit joints instead of the five layout keys:
-    # base_joints_m = [[x, y, z], ...]       6 rows, base frame, each coordinate within ±20 m
-    # platform_joints_m = [[x, y, z], ...]   6 rows, platform frame, each coordinate within ±20 m
-    # with home_height_m, leg_min_m, leg_max_m, leg_speed_m_s
-
-    [dynamics]                         # the legs' servo-hydraulics (analysis/table/dynamics.py, docs/table-dynamics.md)
-    bore_m = 0.04                      # 0.005 … 1 m
-    bulk_modulus_pa = 1.0e9            # 1e7 … 1e10 Pa
-    line_volume_m3 = 0.002             # 0 … 1 m³
-    plate_mass_kg = 1500               # 1 … 1e5 kg
-    piston_mass_kg = 30                # 0.1 … 1e4 kg
-    damping_ratio = 0.3                # 0.001 … 0.999
-    valve_bandwidth_hz = 100           # 1 … 1e4 Hz
-    loop_gain_per_s = 12               # 0.01 … 1000 /s
-    velocity_feedforward = 1.0         # 0 … 1.5
-
-    [controller]                       # the host link (analysis/table/link.py): every key may be left out
-    lead_s = 1.0                       # setpoints sent this far ahead
-    buffer_s = 4.0                     # the controller's setpoint buffer
-    watchdog_s = 1.0                   # no host heartbeat (or chunk while streaming) this long: controlled stop
-    link_timeout_s = 0.5               # no status this long: the host declares the link lost
-
-    [sensors.0]                        # each accelerometer's calibration sheet (analysis/table/sensors.py)
-    [limit_detectors.accel.x]          # levels on measured channels (analysis/table/limit_detectors.py)
-    abort_high_g = 0.6
-
-    [network]                          # this machine's TLS identity on the lab network (analysis/table/network.py)
-    ca = "certs/ca.pem"                # the three paths relative to this file; not kept in a session file
-
-Only a regular file of at most 1 MiB is read (a FIFO, a device or a symlink to one is refused unread).
-Errors in a file raise `analysis.table.limits.TableModelError` with a message ``FILE:LINE: dotted.key: problem``.
-:func:`configuration_dict` writes the same layout in SI keys (``acceleration_m_s2``, ``angle_rad``, explicit
-joints), so that reading what it writes gives back an equal configuration exactly.
+The layout with every key and its range: docs/rig-configuration.md.
 """
 
 from __future__ import annotations

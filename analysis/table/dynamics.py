@@ -1,51 +1,16 @@
 """The table's servo-hydraulic parameters and rigid plate (the rig TOML's ``[dynamics]`` section), with their closed
 forms.
 
-**The legs.** Each of the six legs is a symmetric double-acting hydraulic cylinder of piston diameter ``bore`` [m]
-whose stroke is the hexapod's (``leg_max − leg_min``), fed by a servo-valve and closed by the controller's
-displacement loop (``sim_table.dynamics``, ``docs/table-dynamics.md``). The oil in both chambers is a spring: at
-mid-stroke, with the total oil volume ``V_t = A·stroke + line_volume`` (both chambers and the lines to the valve)
-and the effective bulk modulus β (oil with entrained air and hose compliance), the leg's hydraulic stiffness along
-its axis is
+Each leg is a symmetric double-acting cylinder of piston diameter ``bore`` [m] over the hexapod's stroke; its oil
+is a spring along the leg's axis of stiffness ``k_h = 4 β A² / V_t`` [N/m] (Merritt 1967, §6.3). The plate is a
+rigid body: ``plate_mass`` [kg], principal moments ``plate_inertia_{x,y,z}`` [kg·m²] about its centre of gravity
+along the plate's axes, the centre of gravity at ``plate_cg_{x,y,z}`` [m] in the platform frame (origin at the
+centre of the plate's top surface, z up: ``plate_cg_z`` ≤ 0); specimens on it are :class:`PlateLoad` rigid masses
+at their places. In pose coordinates (surge, sway, heave [m], roll, pitch, yaw [rad]) :func:`rigid_mass_matrix`
+gives M(q) and :func:`plate_modes` the six modes of ``Jᵀ K J φ = ω² (M + m_p JᵀJ) φ``.
 
-    k_h = 4 β A² / V_t                               (Merritt, *Hydraulic Control Systems*, 1967, §6.3, Eq. 6-28)
-
-— each chamber of volume ``V = V_t/2`` is a spring ``β A² / V`` and the two act in parallel.
-
-**The plate** is a rigid body: ``plate_mass`` [kg], principal moments of inertia ``plate_inertia_{x,y,z}``
-[kg·m²] about its centre of gravity along the plate's axes, the centre of gravity at ``plate_cg_{x,y,z}`` [m] in the
-platform frame (origin at the centre of the plate's top surface, z up: ``plate_cg_z`` ≤ 0). Specimens standing on
-it are :class:`PlateLoad` rigid masses at their places. In pose coordinates (``analysis.table.model``: surge, sway,
-heave [m], roll, pitch, yaw [rad]) the plate's kinetic energy is ``½ q̇ᵀ M(q) q̇`` with (:func:`rigid_mass_matrix`)
-
-    M = Tᵀ [[m I, −m S], [m S, R I_c Rᵀ − m S²]] T,   S = [R c]ₓ,   T = diag(I, E)
-
-(c the centre of gravity in the platform frame, R the plate's rotation, E the Euler-rate → angular-velocity map of
-``TableModel.leg_jacobian``). The six leg springs along the legs' axes give the plate's stiffness ``Jᵀ K J``
-(K = k_h I, J = ``TableModel.leg_jacobian``), each leg's piston and rod ``piston_mass`` moves along its leg
-(``m_p JᵀJ``), and the plate's six **modes** solve the generalised eigenproblem
-
-    Jᵀ K J φ = ω² (M + m_p JᵀJ) φ                                                      (:func:`plate_modes`)
-
-The TOML section (every key optional; the defaults are a Table IV rig of the paper's class, see
-``docs/table-dynamics.md`` for their sources)::
-
-    [dynamics]
-    bore_m = 0.04                  # piston diameter
-    bulk_modulus_pa = 1.0e9        # effective bulk modulus (oil + hoses + air)
-    line_volume_m3 = 0.002         # oil in the lines and valve manifold, both chambers together
-    plate_mass_kg = 1500           # the moving plate (without specimens)
-    plate_inertia_x_kg_m2 = 1136.25  # principal moments about the plate's centre of gravity, plate axes
-    plate_inertia_y_kg_m2 = 1136.25  # (a homogeneous 3.0 × 3.0 × 0.3 m plate of 1500 kg)
-    plate_inertia_z_kg_m2 = 2250
-    plate_cg_x_m = 0               # the plate's centre of gravity in the platform frame
-    plate_cg_y_m = 0
-    plate_cg_z_m = -0.15           # half the plate's depth below its top surface
-    piston_mass_kg = 30            # one leg's moving piston and rod
-    damping_ratio = 0.3            # every plate mode's, the oil columns with the controller's pressure feedback
-    valve_bandwidth_hz = 100       # the servo-valve as a first-order lag
-    loop_gain_per_s = 12           # the displacement loop's gain K_v (flow per position error)
-    velocity_feedforward = 1.0     # share of the reference's velocity fed forward to the valve
+The model, its equations and sources: docs/table-dynamics.md §The plate on its six legs; the ``[dynamics]`` keys,
+their defaults and where they come from: §Parameters.
 """
 
 from __future__ import annotations

@@ -104,6 +104,7 @@ class MasterBase(TableController):
         if not 0 <= count <= len(ACCELEROMETER_NODE_IDS):
             raise ValueError(f"accelerometers must be 0..{len(ACCELEROMETER_NODE_IDS)}, got {count}")
         self.table = table or TableModel()
+        self.feedback.mount(self.table.sensors)
         self.drive_settings = self.table.drives
         """The rig configuration's ``[drives]`` (units, node ids, EDS files, options: :mod:`analysis.table.drives`)."""
         counted = _flag(query.get("sync_counter"), url) if sync_counter is None else sync_counter

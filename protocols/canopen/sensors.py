@@ -1,8 +1,10 @@
 """The plate's sensor nodes on the leg drives' bus: accelerometers and the overturn detector.
 
 **Accelerometer** ``k`` (0, 1, …: the order of the plate's sensors) is node :data:`ACCELEROMETER_NODE_IDS`\\ ``[k]``
-(0x21 + k), described by ``accelerometer.eds``. It measures the specific force ``f = Rᵀ (a − g)`` [m/s²] in the
-plate frame (x along the fall line, +x downhill, z up; at rest on a level plate ``(0, 0, +9.81)``) and transmits
+(0x21 + k), described by ``accelerometer.eds``. It measures the specific force ``f = Rᵀ (a − g)`` [m/s²] in its
+own axes: the plate frame (x along the fall line, +x downhill, z up; at rest on a level plate ``(0, 0, +9.81)``)
+for a sensor mounted along the plate's axes, else as its calibration sheet's ``axes`` say (the host turns it into
+the plate frame: ``drivers.hub.Feedback.mount``). It transmits
 :data:`ACCEL_TPDO1` on every SYNC (transmission type 1): x, y, z as INTEGER16 of :data:`FORCE_INCREMENT` = 1 mm/s²
 (±32.767 m/s², beyond that the value saturates). The sample in the TPDO of a SYNC was taken :data:`SAMPLE_DELAY`
 (0x2101, µs) before that SYNC. With the SYNC counter on, a master maps :data:`ACCEL_TPDO1_COUNTED` instead: the

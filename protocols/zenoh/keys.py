@@ -16,9 +16,10 @@ key                                         zenoh entity     payload (:mod:`prot
 ==========================================  ===============  =============================================
 
 Commands: ``start``, ``pause``, ``resume``, ``abort``, ``estop``, ``state`` (only asks), ``queue`` (a session to
-start later), ``answer`` (an operator's prompt).
-Names (rig or table, sensor, role) are 1..32 characters from ``a-z``, ``0-9``, ``-`` and ``_``, starting with a letter
-or digit: safe in a key expression (no ``/``, ``*``, ``$``, ``?``, ``#``) and in file names.
+start later), ``answer`` (an operator's prompt). Names (rig or table, sensor, role) are 1..32 characters from
+``a-z``, ``0-9``, ``-`` and ``_``, starting with a letter or digit: safe in a key expression (no ``/``, ``*``, ``$``,
+``?``, ``#``) and in file names. In the table link, the queryables and the publications without "host's" are the
+controller's:
 
 ==============================================  ==================  ===========================================
 table link key                                  zenoh entity        payload (:mod:`protocols.zenoh.table`)
@@ -33,12 +34,9 @@ table link key                                  zenoh entity        payload (:mo
 ``shaketable/<t>/controller/accel/<s>``         publication         ACCEL (one key per accelerometer ``<s>``)
 ``shaketable/<t>/controller/overturn``          publication         OVERTURN
 ``shaketable/<t>/controller/refusal``           publication         REFUSAL (a setpoint chunk refused, and why)
-``shaketable/<t>/controller/limit-trip``        publication         LIMIT_TRIP (the controller's own level passed)
 ``shaketable/<t>/controller/tilt``              publication         TILT (every body's, the body in the payload)
 ``shaketable/<t>/controller/heartbeat``         publication         HEARTBEAT (controller time)
 ==============================================  ==================  ===========================================
-
-The queryables and the publications without "host's" are the controller's.
 """
 
 from __future__ import annotations

@@ -16,44 +16,10 @@ from the message :func:`protocols.zenoh.auth.split_signed` leaves once the signa
 integer ns (controller time unless said), poses ``(surge, sway, heave [m], roll, pitch, yaw [rad])``,
 accelerations [m/s², plate frame, specific force], a body's tilt [rad] its rotation about the plate's y axis
 relative to the plate, > 0 when its top has moved towards the plate's +x (the low side).
-Version 1 bodies:
 
-==============  ============================================================================================
-kind            body
-==============  ============================================================================================
-COMMAND         cmd_id u64 (the host's, unique per command: retries repeat it), command u8 (:data:`COMMANDS`),
-                param1, param2 f64 (SET_TILT: angle [rad], axis 0 pitch / 1 roll; START_STREAM: first chunk
-                number; SET_LIMIT: a level's code and value, ``analysis.table.controller_limits``); [signature]
-ANSWER          cmd_id u64, result u8 (:data:`RESULTS`), t_ns i64 (when the controller took the command, or
-                when the motion of an ``in_progress`` one ended)
-CLOCK_REQUEST   t_send i64 [ns, host monotonic]
-CLOCK_REPLY     t_send i64 (echoed), t_controller i64 (controller time when answered)
-SETPOINTS       seq u32, flags u8 (bit 0 END_OF_STREAM), t_start i64, spacing i64 (> 0), n u16 (1..
-                :data:`MAX_SAMPLES`), n × 6 f64 (the controller refuses what it must not play: REFUSAL);
-                [signature]
-STATUS          t_ns i64, state u8 (:data:`STATES`), buffer_depth, last_chunk_seq, underruns, faults (bit i =
-                :data:`FAULTS` [i]), refused_commands u32, pose 6 × f64 (achieved), buffer_capacity u32,
-                samples_late u32, virtual_watchdog_ms u32 (0: real time; may be absent, read as 0), inputs u32
-                (may be absent, read as 0), following_error 6 × f64 (each leg's commanded minus measured length
-                [m], legs 1…6; may be absent, read as not reported)
-ACCEL           sensor u16, seq u32 (the sensor's batch count), t_start i64, spacing i64, n u32, n × 3 f64
-OVERTURN        event_id u64, body_id u32, direction i8 (+1 low side, −1 high side), tilt f64 [rad], t_ns i64
-HEARTBEAT       t_ns i64 (the sender's clock: host monotonic, or controller time)
-TILT            body_id u32, seq u32 (the body's batch count), t_start i64, spacing i64, n u32, n × f64 (the body's
-                tilt [rad])
-BODIES          n u16, n × (b, h, depth, x, y) f64 [m]: the bodies on the plate in body-id order (the reply to a
-                query on ``bodies``; ``docs/table-controller.md``, Bodies on the plate)
-REFUSAL         t_ns i64 (when the chunk arrived), seq u32 (the chunk refused), n u16, n bytes of UTF-8 (the reason,
-                at most :data:`MAX_REASON` bytes): a signed SETPOINTS chunk refused for its values; the table stops
-OWNER           cmd_id u64, since_ms i64 (controller wall clock, ms since the Unix epoch), silent_ms u32, timeout_ms
-                u32, n u16, n bytes of UTF-8 (the owner, at most :data:`MAX_REASON` bytes): the reply, in place of an
-                ANSWER, to a signed ``claim`` or motion command refused because another host owns the table
-LIMIT_TRIP      t_ns i64 (the sample that completed the persistence), sensor u16, code u32 (the level's SET_LIMIT
-                code), value f64, level f64 [SI]: a downloaded level tripped and the controller started its stop
-==============  ============================================================================================
-
-A reader refuses another magic or version, an unknown kind or code, a kind other than the one it expects, and a
-length other than the layout's.
+The body of each kind, field by field: docs/transports.md §zenoh: the payloads of version 1. A reader refuses
+another magic or version, an unknown kind or code, a kind other than the one it expects, and a length other than
+the layout's.
 """
 
 from __future__ import annotations

@@ -28,6 +28,8 @@ from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import ec, ed25519, rsa
 
+from protocols.private_file import PrivateFileError, SharedPrivateFileError, read_private_file
+
 MAX_PEM_BYTES = 1 << 20
 """Largest certificate or key file read [bytes]."""
 
@@ -101,6 +103,26 @@ def _read(path: Path, option: str) -> bytes:
         data = path.read_bytes()
     except OSError as exc:
         raise TlsError(f"{option} {path}: {exc.strerror}") from None
+    return _pem(data, path, option)
+
+
+def _read_key(path: Path, option: str) -> bytes:
+    """The private key file's bytes, refused as :func:`_read` refuses a file and when others may read it."""
+    try:
+        data = read_private_file(path, f"{option} {path}", "the TLS key", MAX_PEM_BYTES)
+    except SharedPrivateFileError as exc:
+        raise TlsError(f"{option} {path}: readable by others (mode {exc.mode:04o}): chmod 600 {path}") from None
+    except PrivateFileError as exc:
+        if isinstance(exc.__cause__, FileNotFoundError):
+            raise TlsError(f"{option} {path}: no such file") from None
+        raise TlsError(str(exc)) from None
+    if len(data) > MAX_PEM_BYTES:
+        raise TlsError(f"{option} {path}: {path.stat().st_size} bytes, more than a PEM file's {MAX_PEM_BYTES}")
+    return _pem(data, path, option)
+
+
+def _pem(data: bytes, path: Path, option: str) -> bytes:
+    """``data`` read from ``path`` if it is a PEM file."""
     if b"-----BEGIN " not in data:
         raise TlsError(f"{option} {path}: not a PEM file (no -----BEGIN line)")
     return data
@@ -128,10 +150,7 @@ def _is_ca(certificate: x509.Certificate) -> bool:
 
 
 def _private_key(path: Path, option: str) -> ec.EllipticCurvePrivateKey | rsa.RSAPrivateKey | ed25519.Ed25519PrivateKey:
-    data = _read(path, option)
-    mode = path.stat().st_mode
-    if mode & (stat.S_IRWXG | stat.S_IRWXO):
-        raise TlsError(f"{option} {path}: readable by others (mode {stat.S_IMODE(mode):04o}): chmod 600 {path}")
+    data = _read_key(path, option)
     try:
         key = serialization.load_pem_private_key(data, password=None)
     except (ValueError, TypeError) as exc:

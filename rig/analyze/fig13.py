@@ -1,53 +1,20 @@
 """The paper's Fig. 13: controlled overturning rate per angle, analytical against experimental.
 
-**Cases.** One case is one body on the plate in one completed run: the analysis's predicted direction (per
-model) and the experiment's observed one (+1 low side, −1 high side, 0 did not overturn; docs/architecture.md §2).
-
-**COR** (controlled overturning rate, as the paper's EXPERIMENTAL RESULTS and docs/architecture.md §2 define it): among
-the cases that *overturned*, the fraction that overturned towards the low (desired) side::
+One case is one body on the plate in one completed run: the analysis's predicted direction (per model) and the
+experiment's observed one (+1 low side, −1 high side, 0 did not overturn; docs/architecture.md §2). Per side,
 
     COR = #(direction = +1) / #(direction ≠ 0)
 
-counted separately for the analysis (predicted directions) and for the experiment (observed directions). A case
-that did not overturn (direction 0) enters neither count of that side — the paper's rates hold "assuming that
-it will overturn" — so a body that overturned in the analysis but not on the table (or the reverse) counts
-in the analysis's COR only (or the experiment's only); the counts beside every rate show it. A COR with no
-overturn is undefined (NaN here, ``null`` in JSON), and so is a difference involving one.
+a case that did not overturn entering neither count of that side; NaN (``null`` in JSON) with no overturn. Rows per
+model, angle and body (``body_id`` ≥ 1) and an average row per model and angle (``body_id = 0``): counts, ``runs``,
+``records``, both CORs with their 95 % intervals (``*_low``, ``*_high``),
+``difference = cor_analysis − cor_experiment`` (a fraction, not percent) with its 90 % interval, the equivalence
+``verdict`` within ``margin`` (default 5 points) with its p-values and ``runs_to_resolve``, and McNemar's paired
+counts and p-values; ``max_difference`` per model. Cases are clustered by record (``Case.record``).
+:func:`rule_label` and :func:`side_by_side` put a model's impact rules together (``rig analyze --restitution all``).
 
-**Rows.** Per model, angle and body (``body_id`` ≥ 1): ``runs`` = completed runs with that body at that
-angle, ``records`` the distinct records among them; the counts; ``difference = cor_analysis − cor_experiment``
-(signed, fraction, not percent). Per model and angle an **average** row (``body_id = 0``, the paper's "average
-results for all the bodies"): counts and ``runs`` summed over the bodies (body-runs), ``cor_analysis`` and
-``cor_experiment`` the mean of the bodies' defined CORs, ``difference`` theirs.
-
-**Statistics** (`analysis.proportions`, `analysis.agreement`). Every body sees the same records, so the cases of
-one angle are clustered by record (``Case.record``: a record in both polarities and its repetitions are one
-cluster). Beside every COR its 95 % interval (``*_low``, ``*_high``): Wilson's for a body whose records enter
-once each, else the cluster bootstrap over records (seeded); the **average** row is one estimator — the mean of the
-bodies' defined CORs — with the cluster-bootstrap interval of that mean. Where every resample gives the same value,
-or there are fewer than ten records (`analysis.proportions.MIN_BOOTSTRAP_RECORDS`: the percentile bootstrap is too
-narrow there), each record counts as one case at the rate observed (Wilson's interval, the score test below) — the
-bound for records whose cases are perfectly dependent.
-
-Per row the **equivalence** of analysis and experiment within ``margin`` (default 5 points, the paper's bound):
-``verdict`` ``equivalent`` / ``different`` / ``not resolved`` (``runs_to_resolve``: the runs at this angle at which
-the same rates would resolve it, −1 if none would) / ``undefined``; ``difference_low``/``difference_high`` the 90 %
-interval of the difference (TOST at 5 % is that interval inside ±margin), ``p_equivalent`` the TOST p-value and
-``p_different`` that of "within the margin" on the observed side. A body row whose records enter once each uses the
-Miettinen–Nurminen score TOST; the average row and a body with repeated records the cluster bootstrap of the
-difference (p-values: the resamples' fractions beyond the margin).
-
-Per body row the **paired** cases (McNemar's exact test, `analysis.agreement.mcnemar_exact`): ``both_overturned``
-cases, of which ``low_high`` the analysis put to the low side and the specimen to the high side and ``high_low`` the
-reverse, ``p_direction`` McNemar's p on those two; ``analysis_only``/``experiment_only`` cases only one side
-overturned, ``p_overturn`` McNemar's p on those two. The average row sums the counts; its McNemar p-values are NaN
-(pairs of different bodies share records: not independent).
-**max_difference** per model: the largest |difference| over the per-body rows
-(the paper: "a maximum of 5 % difference … for a given angle and specific body"), None if none is defined.
-
-**Impact rules side by side** (``rig analyze --restitution all``): a model run under each impact rule is one
-analysis, its ``model`` the label ``model:rule`` (:func:`rule_label`: ``rocking:plastic``, ``rocking:housner``,
-``rocking:fit``); :func:`side_by_side` puts the rules' rows of one model, angle and body together.
+What each field means and which estimator gives it (Wilson, the cluster bootstrap, Miettinen–Nurminen TOST,
+McNemar's exact test): docs/fig13.md.
 """
 
 from __future__ import annotations

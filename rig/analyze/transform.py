@@ -1,47 +1,20 @@
 """Measured plate-frame specific force → the inputs of the paper's models (``analysis.simulate``).
 
-**What the accelerometers measure.** A sensor fixed on the plate measures the specific force in the plate frame
-(docs/architecture.md §2: x along the fall line, +x downhill, z normal to the plate, up)::
+A plate accelerometer reads the specific force ``f = Rᵀ (a − g)`` [m/s², plate frame: +x downhill, z normal to the
+plate, up; docs/architecture.md §2], ``R = Ry(β)``, ``g = (0, 0, −G)``. The models take the ground acceleration in
+the base frame, in g: ``acc_h`` horizontal, +downhill, ``acc_v`` vertical, +up. The transform inverts the reading
+at the run's nominal tilt β (its ``angle_deg``, not the logged ``pose``)::
 
-    f = Rᵀ (a − g),   g = (0, 0, −G) in the base frame,   R = Ry(β) (pitch = +β tilts +x down)
+    acc_h = ( fx cos β + fz sin β) / G
+    acc_v = (−fx sin β + fz cos β − G) / G
 
-with ``a`` the plate's acceleration in the base frame. At rest on a plate tilted by β: f = (−G sin β, 0, G cos β).
+so that the modelled block feels exactly the measured plate-frame specific force (``gx = −fx``, ``gz = fz``);
+``fy`` and the plate's rotation rates are not used. Several accelerometers are averaged on a common time grid (or
+one is chosen by name). Only samples from t = 0 (the drive's first sample) on are used; uniform samples (every
+spacing within 1 % of the median) go to the models as they are, others are interpolated linearly onto ``t0 + k·dt``
+(``dt`` the median spacing) and spacings beyond 1.5 dt reported as gaps. No filter.
 
-**What the models take.** ``simulate(body, acc_h, dt, beta, acc_v)`` takes the *ground* (table) acceleration in
-the base frame: ``acc_h`` horizontal, positive towards the downhill side, ``acc_v`` vertical, positive up, both
-in g; the models tilt it themselves into the plate frame (``analysis.equations.plate_gravity``): the block feels
-the effective gravity ``gx = −ax cos β + (G + ay) sin β`` along +x and ``gz = ax sin β + (G + ay) cos β`` into the
-plate — the paper's Eqs. 2–10 with its reactions ``R_x``, ``R_y`` (Eqs. 3–4), whose x axis points uphill.
-
-**The transform** inverts the measurement at the run's nominal tilt β (the run's ``angle_deg``)::
-
-    ax = fx cos β + fz sin β              (horizontal, +downhill)      acc_h = ax / G
-    ay = −fx sin β + fz cos β − G         (vertical, +up)              acc_v = ay / G
-
-i.e. ``a = R f + g`` with R = Ry(β): rotate the plate-frame reading back to the base frame, then remove the
-static gravity. Substituted into the model: ``gx = −fx`` and ``gz = fz`` *exactly*, whatever β is, so the modelled
-block feels precisely the measured plate-frame specific force. That is why the nominal β is used and the logged
-``pose`` is not: a tilt that differs from nominal by δ shows up in the reading as a static ``G sin δ`` along x,
-which the block on the real plate does feel (it sits on that plate), and the transform passes it on to the model
-unchanged. The plate's own rotation rates (the tilt is held during a run: ``pitch`` is constant in the command,
-the measured pose deviates by the actuators' lag only) are neglected: they would add ``ω × (ω × r) + ω̇ × r``
-for a sensor at ``r`` from the rotation centre, well below the sensor noise. The lateral reading ``fy`` is not
-used: the planar models see only the fall-line plane.
-
-**Sensors.** With several accelerometers the analysis uses their mean (each resampled to the common time grid;
-for a plate in translation they read the same, and the mean halves the noise power per doubling); one can be
-chosen by name instead.
-
-**Time base and resampling.** Only samples from t = 0 (the drive's first sample, also the time base of
-``commanded`` and ``detections``) on are used: the bodies stand at rest before it. When the samples are
-uniform (every spacing within 1 % of the median; several sensors on the same time stamps) they go to the models
-as they are, from the first sample at t ≥ −dt/2 on (``t0`` = its time: within half a step of the drive's start
-when the sensor clock is not aligned to the drive's ticks; no interpolation, so a measurement equal to the
-command reproduces ``simulate`` on the command to rounding). Otherwise (lost samples, jitter) they are
-interpolated linearly onto ``t0 + k·dt`` from ``t0`` = max(0, first sample), with ``dt`` the median spacing;
-spacings beyond 1.5 dt are counted as gaps and reported. No filter: the emulator's and a lab
-MEMS sensor's noise (σ ≈ 0.02 m/s² ≈ 0.002 g) is two orders below the uplift thresholds ``G tan(α ∓ β)``
-(> 0.1 g for the paper's bodies), and a low-pass would smear the pulses that decide an overturn.
+Why each choice (the nominal β, no rotation rates, no low-pass, the time base): docs/measured-input.md.
 """
 
 from __future__ import annotations

@@ -15,14 +15,17 @@ the emulator's one JSON object as it is; ``--counters FILE``: written there, not
 from __future__ import annotations
 
 import json
+import os
 import signal
 import subprocess
 import sys
+from pathlib import Path
 from typing import Any
 
 import typer
 
-from rig.cli._common import console
+from rig.cli._common import console, fail
+from rig.cli.passphrase import PASSPHRASE_ENV, PASSPHRASE_HELP, use_key_passphrase
 
 _EMULATOR = [sys.executable, "-m", "sim_table"]
 
@@ -44,7 +47,7 @@ def emulate_cmd(ctx: typer.Context) -> None:
         print_help()
         raise typer.Exit()
     as_json = "--json" in args
-    args = [a for a in args if a != "--json"]
+    args = take_key_passphrase([a for a in args if a != "--json"])
     sys.stdout.flush()
     sys.stderr.flush()
     proc = subprocess.Popen([*_EMULATOR, *args], stdout=subprocess.PIPE, text=True)  # stderr: the emulator's own
@@ -67,6 +70,28 @@ def emulate_cmd(ctx: typer.Context) -> None:
         sys.stdout.write(out)
         return
     print_counters(json.loads(out), console)
+
+
+def take_key_passphrase(args: list[str]) -> list[str]:
+    """``args`` without ``--key-passphrase TEXT`` (or ``--key-passphrase=TEXT``), whose key (else the one of
+    ``$SHAKETABLE_KEY_PASSPHRASE``) becomes ``$SHAKETABLE_MAVLINK_KEY``, where the emulator reads the rig's key
+    (``rig.cli.passphrase``); exits 2 when the option has no value, the passphrase is too weak or ``--key-file`` is
+    given too."""
+    rest: list[str] = []
+    passphrase = os.environ.get(PASSPHRASE_ENV) or None
+    words = iter(args)
+    for word in words:
+        if word == "--key-passphrase":
+            passphrase = next(words, None)
+            if passphrase is None or passphrase.startswith("--"):
+                fail("--key-passphrase: expected the passphrase after it")
+        elif word.startswith("--key-passphrase="):
+            passphrase = word.removeprefix("--key-passphrase=")
+        else:
+            rest.append(word)
+    key_files = [word for word in rest if word == "--key-file" or word.startswith("--key-file=")]
+    use_key_passphrase(passphrase, Path(key_files[0]) if key_files else None)
+    return rest
 
 
 def print_counters(counters: dict[str, Any], console: Any) -> None:
@@ -112,6 +137,9 @@ def print_help() -> None:
                                                              show_default=option["default"] is not None)))
     params.append(inspect.Parameter("as_json", inspect.Parameter.KEYWORD_ONLY, annotation=bool, default=typer.Option(
         False, "--json", help="print the counters as the emulator's one JSON object instead of a table")))
+    params.append(inspect.Parameter("key_passphrase", inspect.Parameter.KEYWORD_ONLY, annotation=str | None,
+                                    default=typer.Option(None, "--key-passphrase", metavar="TEXT",
+                                                         help=PASSPHRASE_HELP)))
 
     def command(**options: Any) -> None:
         """The emulator's options (never run: only its help is shown)."""

@@ -2,7 +2,8 @@
 ``--insecure-plain-tcp``; ``docs/lab-network.md``) and what they become: a ``protocols.zenoh.LinkSecurity`` for a
 zenoh session of this process, and the table driver's options for a ``zenoh://`` table. When none of the three
 files is given, the rig configuration's ``[network]`` (``analysis.table.network``) gives them
-(:func:`configured_security`)."""
+(:func:`configured_security`): the one of ``--rig-config FILE`` (:func:`network_of`; ``rig serve``, ``rig run`` with
+``--resume`` or ``--service``), else that of the sequence's ``[rig] config``."""
 
 from __future__ import annotations
 
@@ -24,6 +25,9 @@ TlsCert = Annotated[Path | None, typer.Option("--tls-cert", metavar="FILE",
                                               help="zenoh: this process's certificate, signed by the lab's CA")]
 TlsKey = Annotated[Path | None, typer.Option("--tls-key", metavar="FILE",
                                              help="zenoh: the private key of --tls-cert (mode 0600)")]
+NetworkConfig = Annotated[Path | None, typer.Option("--rig-config", metavar="FILE",
+                                                    help="this machine's rig configuration: its [network] is the "
+                                                         "zenoh TLS identity when --tls-* are not given")]
 Insecure = Annotated[bool, typer.Option("--insecure-plain-tcp",
                                         help="zenoh: allow plain tcp/ endpoints off loopback (nothing encrypted; "
                                              "said in the log and the session's events)")]
@@ -70,4 +74,18 @@ def configured_security(given: LinkSecurity, network: NetworkSettings) -> LinkSe
         return LinkSecurity(load_tls(network.ca, network.cert, network.key, names=TlsOptions(*network.where)),
                             given.insecure)
     except TlsError as exc:
+        fail(str(exc))
+
+
+def network_of(rig_config: Path | None) -> NetworkSettings | None:
+    """The ``[network]`` of the rig configuration ``rig_config`` (``--rig-config``; None when not given); exits 2
+    with ``FILE:LINE: network.KEY: problem`` when the file cannot be read or its ``[network]`` is bad."""
+    if rig_config is None:
+        return None
+    from analysis.table.configuration import read_configuration
+    from analysis.table.limits import TableModelError
+
+    try:
+        return read_configuration(rig_config).network
+    except TableModelError as exc:
         fail(str(exc))

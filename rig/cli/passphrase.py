@@ -20,10 +20,12 @@ from rig.cli._common import fail
 PASSPHRASE_ENV = "SHAKETABLE_KEY_PASSPHRASE"
 """Environment variable that may hold the passphrase instead of ``--key-passphrase``."""
 
-KeyPassphrase = Annotated[str | None, typer.Option(
-    "--key-passphrase", envvar=PASSPHRASE_ENV, metavar="TEXT", show_envvar=False,
-    help=f"the rig's key as a passphrase (key = SHA-256 of it, as MAVProxy's signing setup; ≥ 20 characters; "
-         f"or ${PASSPHRASE_ENV}); instead of --key-file")]
+PASSPHRASE_HELP = (f"the rig's key as a passphrase (key = SHA-256 of it, as MAVProxy's signing setup; ≥ 20 "
+                   f"characters; or ${PASSPHRASE_ENV}); instead of --key-file")
+"""The help of ``--key-passphrase``, on every command that takes ``--key-file``."""
+
+KeyPassphrase = Annotated[str | None, typer.Option("--key-passphrase", envvar=PASSPHRASE_ENV, metavar="TEXT",
+                                                   show_envvar=False, help=PASSPHRASE_HELP)]
 
 
 def use_key_passphrase(passphrase: str | None, key_file: Path | None) -> None:

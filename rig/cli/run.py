@@ -34,17 +34,22 @@ from rig.cli._common import EXIT_STOPPED, console, emit_json, err_console, fail,
 from rig.cli.network import (
     INSECURE_NOTE,
     Insecure,
+    NetworkConfig,
     TlsCa,
     TlsCert,
     TlsKey,
     configured_security,
     link_security,
+    network_of,
     table_options,
 )
 from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
+from rig.cli.web import HttpName, HttpsCert, HttpsDir, HttpsKey, TokensOption, web_access
 from rig.emulator import parse_speed
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load h5py, numpy, scipy, …)
+    from analysis.table.network import NetworkSettings
+    from protocols.zenoh import LinkSecurity
     from rig.orchestrator import Orchestrator, OrchestratorState
     from rig.orchestrator import Progress as RunProgress
     from rig.sequence import PlacedBody, PlannedRun, Sequence
@@ -289,6 +294,41 @@ def _paused_unattended(orchestrator: Orchestrator, interrupts: list[int], consol
             reading = False  # end of input: only Ctrl-C, the console or the service go on from here
 
 
+def _configured_network(network: NetworkSettings | None, sequence: Path | None) -> NetworkSettings | None:
+    """The ``[network]`` of ``--rig-config`` (``network``), else that of the sequence's ``[rig] config`` (None
+    without a sequence: ``--resume``); exits 2 naming ``FILE:LINE`` when the sequence or its ``[network]`` is
+    bad."""
+    if network is not None or sequence is None:
+        return network
+    from rig.sequence import SequenceError, load_sequence
+
+    try:
+        return load_sequence(sequence).table.network
+    except SequenceError as exc:
+        fail_with(exc)
+
+
+def _table_url(table: str | None, sequence: Path | None) -> str:
+    """``--table``, else the sequence's ``table_url`` (lower case; "" when neither names one)."""
+    if table is None and sequence is not None:
+        from rig.sequence import SequenceError, load_sequence
+
+        try:
+            table = load_sequence(sequence).table_url
+        except SequenceError as exc:
+            fail_with(exc)
+    return (table or "").lower()
+
+
+def _service_security(given: LinkSecurity, network: NetworkSettings | None, sequence: Path | None) -> LinkSecurity:
+    """The TLS identity for the link to a rig service on a ``tls/`` endpoint: ``given`` (``--tls-*``), else the
+    configured one (:func:`_configured_network`)."""
+    if given.tls is not None:
+        return given
+    configured = _configured_network(network, sequence)
+    return given if configured is None else configured_security(given, configured)
+
+
 def register(app: typer.Typer) -> None:
     """Add ``rig run``."""
 
@@ -322,6 +362,8 @@ def register(app: typer.Typer) -> None:
                                                   "on stdout, the progress on stderr; needs --yes")] = False,
             tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None,
             insecure_plain_tcp: Insecure = False, key_passphrase: KeyPassphrase = None,
+            http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
+            https_key: HttpsKey = None, https_dir: HttpsDir = None, rig_config: NetworkConfig = None,
             ) -> None:
         """Run a test sequence on the table, logging every run to a session file. With --resume the session
         continues on the table it ran on (its URL, or the emulated table at its speed) unless --table or --emulate
@@ -335,12 +377,24 @@ def register(app: typer.Typer) -> None:
         speed_given = speed
         speed = 1.0 if speed is None else speed
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
+        network = network_of(rig_config)
+        if service is not None and service.lower().startswith("tls/"):
+            security = _service_security(security, network, sequence_file)
+        web = (http_name, tokens, https_cert, https_key, https_dir)
         if console_at is not None:
             from rig.cli.with_console import run_with_console
 
+            configured = _configured_network(network, sequence_file)
+            access = web_access(*web, None if configured is None else configured.console)
+            if service is None and configured is not None and _table_url(table, sequence_file).startswith("zenoh://"):
+                security = configured_security(security, configured)  # for the in-process service's table
             raise typer.Exit(run_with_console(console_at, sequence_file, table=table, emulate=emulate, output=output,
                                               resume=resume, yes=yes, console=console, key_file=key_file,
-                                              speed=speed, service=service, linger_s=console_linger))
+                                              speed=speed, service=service, linger_s=console_linger,
+                                              security=security, access=access))
+        if any(web):
+            fail("--http-name, --tokens, --https-cert, --https-key and --https-dir are the console's: give --console "
+                 "HOST:PORT too")
 
         from rig.emulator import EmulatorError
         from rig.orchestrator.bodies import BodiesMismatchError
@@ -381,7 +435,7 @@ def register(app: typer.Typer) -> None:
             choice = choose_table(sequence, table, emulate, speed_given, stored)
             url_given = choice.url or sequence.table_url
             if url_given is not None and url_given.lower().startswith("zenoh://"):  # else [network] does not apply
-                security = configured_security(security, sequence.table.network)
+                security = configured_security(security, sequence.table.network if network is None else network)
             link = {} if choice.emulate else table_options(url_given, security)
             with table_for(sequence, choice.url, choice.emulate, key_file, choice.speed, link) as (url, options,
                                                                                                   counters):

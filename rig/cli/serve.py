@@ -23,8 +23,18 @@ from rich.prompt import Confirm
 from rich.text import Text
 
 from rig.cli._common import EXIT_STOPPED, EXIT_USAGE, console, emit_json, fail, handle_sigint, print_error
-from rig.cli.network import Insecure, TlsCa, TlsCert, TlsKey, link_security
+from rig.cli.network import (
+    Insecure,
+    NetworkConfig,
+    TlsCa,
+    TlsCert,
+    TlsKey,
+    configured_security,
+    link_security,
+    network_of,
+)
 from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
+from rig.cli.web import HttpName, HttpsCert, HttpsDir, HttpsKey, TokensOption, web_access
 
 if TYPE_CHECKING:  # imported where used (ISSUE 16: `rig --help` must not load zenoh, h5py, …)
     from protocols.zenoh import LinkSecurity
@@ -35,18 +45,7 @@ DEFAULT_ENDPOINT = "tcp/127.0.0.1:7447"
 
 ConnectOption = Annotated[str, typer.Option("--connect", help="the rig service's zenoh endpoint")]
 KeyOption = Annotated[Path | None, typer.Option(help="the rig's key file (default: $SHAKETABLE_MAVLINK_KEY)")]
-HttpName = Annotated[list[str] | None, typer.Option("--http-name", metavar="NAME",
-                                                    help="console: a DNS name or address browsers reach it at "
-                                                         "(repeatable; the Host/Origin checks accept it)")]
-TokensOption = Annotated[Path | None, typer.Option("--tokens", metavar="FILE",
-                                                   help="console: the tokens file of operators and viewers "
-                                                        "(docs/console.md), re-read when it changes")]
-HttpsCert = Annotated[Path | None, typer.Option("--https-cert", metavar="FILE",
-                                                help="console: its HTTPS certificate (PEM, e.g. rig certs make)")]
-HttpsKey = Annotated[Path | None, typer.Option("--https-key", metavar="FILE", help="console: the key of --https-cert")]
-HttpsDir = Annotated[Path | None, typer.Option("--https-dir", metavar="DIR",
-                                               help="console: serve HTTPS with DIR/console.pem, made on first use "
-                                                    "(its fingerprint printed)")]
+
 
 
 # ----- rig run --service -------------------------------------------------------------------------------------
@@ -324,14 +323,17 @@ def register(app: typer.Typer) -> None:
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
         https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
+        rig_config: NetworkConfig = None,
     ) -> None:
         """Run the orchestrator as a service controlled over zenoh, until Ctrl-C or SIGTERM."""
-        from rig.console import WebAccess
-
         use_key_passphrase(key_passphrase, key_file)
-        serve(listen, sessions_dir, key_file, no_auth, fail, http,
-              link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp),
-              WebAccess(tuple(http_name or ()), tokens, https_cert, https_key, https_dir))
+        network = network_of(rig_config)
+        security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
+        if network is not None and listen.lower().startswith("tls/"):  # a tls/ endpoint needs an identity
+            security = configured_security(security, network)
+        serve(listen, sessions_dir, key_file, no_auth, fail, http, security,
+              web_access(http_name, tokens, https_cert, https_key, https_dir,
+                         None if network is None else network.console))
 
     @app.command("console")
     def console_cmd(
@@ -340,13 +342,18 @@ def register(app: typer.Typer) -> None:
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         http_name: HttpName = None, tokens: TokensOption = None, https_cert: HttpsCert = None,
         https_key: HttpsKey = None, https_dir: HttpsDir = None, key_passphrase: KeyPassphrase = None,
+        rig_config: NetworkConfig = None,
     ) -> None:
         """Serve the operator's console (live web page and controls) for a running `rig serve`."""
-        from rig.console import ConsoleError, WebAccess, serve_console
+        from rig.console import ConsoleError, serve_console
 
         use_key_passphrase(key_passphrase, key_file)
+        network = network_of(rig_config)
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
-        access = WebAccess(tuple(http_name or ()), tokens, https_cert, https_key, https_dir)
+        if network is not None and connect.lower().startswith("tls/"):
+            security = configured_security(security, network)
+        access = web_access(http_name, tokens, https_cert, https_key, https_dir,
+                            None if network is None else network.console)
         try:
             serve_console(connect, http, key_file=key_file, security=security, access=access,
                           say=lambda message: print(f"rig console: {message}", file=sys.stderr, flush=True))

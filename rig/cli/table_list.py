@@ -16,6 +16,7 @@ import typer
 
 from rig.cli._common import console, emit_json, fail
 from rig.cli.network import Insecure, TlsCa, TlsCert, TlsKey, link_security
+from rig.cli.passphrase import KeyPassphrase, use_key_passphrase
 
 LISTEN_S = 1.5
 """How long ``rig table list`` waits for the tokens and each one's state [s]."""
@@ -31,14 +32,16 @@ def add_list(table_app: typer.Typer) -> None:
         key_file: Annotated[Path | None, typer.Option(help="the rig's key: verify the tables' statuses")] = None,
         tls_ca: TlsCa = None, tls_cert: TlsCert = None, tls_key: TlsKey = None, insecure_plain_tcp: Insecure = False,
         as_json: Annotated[bool, typer.Option("--json", help="print the list as JSON")] = False,
+        key_passphrase: KeyPassphrase = None,
     ) -> None:
         """List the table controllers and rig services reachable through the endpoints (their liveliness tokens)."""
         from protocols.signing_key import SigningKeyError
         from protocols.zenoh import EndpointError
 
+        use_key_passphrase(key_passphrase, key_file)
         security = link_security(tls_ca, tls_cert, tls_key, insecure_plain_tcp)
         try:
-            found = discover(connect, security, key_file)
+            found = discover(connect, security, key_file, verify=key_file is not None or key_passphrase is not None)
         except (EndpointError, SigningKeyError) as exc:
             fail(str(exc))
         if as_json:
@@ -54,8 +57,10 @@ def add_list(table_app: typer.Typer) -> None:
         console.print(table)
 
 
-def discover(connect: list[str], security: Any, key_file: Path | None) -> list[dict[str, str]]:
-    """The liveliness tokens seen through ``connect`` and each one's state (module docstring), sorted by name."""
+def discover(connect: list[str], security: Any, key_file: Path | None, verify: bool) -> list[dict[str, str]]:
+    """The liveliness tokens seen through ``connect`` and each one's state (module docstring), sorted by name; with
+    ``verify`` the tables' statuses are verified with the rig's key (``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``,
+    where ``--key-passphrase`` puts it)."""
     import functools
     import threading
 
@@ -67,7 +72,7 @@ def discover(connect: list[str], security: Any, key_file: Path | None) -> list[d
     from protocols.zenoh.payloads import Kind, PayloadError, decode_json
     from protocols.zenoh.table import decode_status
 
-    verifier = Verifier(load_signing_key(key_file)) if key_file is not None else None
+    verifier = Verifier(load_signing_key(key_file)) if verify else None
     transport = f"zenoh {'mutual TLS' if security.tls is not None else 'plain tcp'} via {', '.join(connect)}"
     session = zenoh.open(session_config(connect=connect, security=security))
     try:
@@ -93,8 +98,8 @@ def discover(connect: list[str], security: Any, key_file: Path | None) -> list[d
                 return
             with lock:
                 verdict = verifier.verify(str(sample.key_expr), received) if verifier is not None else None
-                mark = "" if verdict is Verdict.SIGNED else " (unverified: no --key-file)" if verdict is None else \
-                    " (signature does not verify with --key-file)"
+                mark = ("" if verdict is Verdict.SIGNED else " (unverified: no --key-file or --key-passphrase)"
+                        if verdict is None else " (signature does not verify with the rig's key)")
                 found[(name, "table")]["state"] = status.state + mark
 
         def on_service(name: str, sample: zenoh.Sample) -> None:

@@ -22,10 +22,14 @@ import socket
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from protocols.signing_key import write_signing_key
 from rig.cli._common import EXIT_USAGE, handle_sigint, print_error
+
+if TYPE_CHECKING:  # imported where used (rig --help loads no web server)
+    from protocols.zenoh import LinkSecurity
+    from rig.console import WebAccess
 
 
 def _free_endpoint() -> str:
@@ -57,10 +61,13 @@ def linger(url: str | None, seconds: float | None, console: Any) -> None:
 
 def run_with_console(http: str, sequence: Path | None, *, table: str | None, emulate: bool, output: Path | None,
                      resume: Path | None, yes: bool, console: Any, key_file: Path | None, speed: float,
-                     service: str | None = None, linger_s: float | None = None) -> int:
+                     service: str | None = None, linger_s: float | None = None, security: LinkSecurity | None = None,
+                     access: WebAccess | None = None) -> int:
     """Play the session through an in-process rig service (or the one at ``service``) with the console at ``http``,
     which stays up after it for ``linger_s`` s (None: until Ctrl-C) (module docstring); the exit code of ``rig run
-    --service`` (0 all runs done, 1 stopped early, 2 refused)."""
+    --service`` (0 all runs done, 1 stopped early, 2 refused). ``access``: the console's names, tokens file and HTTPS
+    certificate (``rig serve --http``'s options; None: loopback, plain HTTP); ``security``: the zenoh link's TLS
+    identity to the service at ``service``, or (the in-process service listens on loopback) to a zenoh table."""
     from protocols.signing_key import KEY_ENV
     from rig.cli.serve import drive_service
     from rig.console.server import ConsoleError, ConsoleProcess
@@ -70,16 +77,19 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
     def say(message: str) -> None:
         console.print(f"[dim]{message}[/]", highlight=False)
 
+    web: dict[str, Any] = {} if access is None else {"access": access}
+    link: dict[str, Any] = {} if security is None else {"security": security}
+
     if service is not None:  # a rig serve elsewhere: only the console is started here
         try:
-            page = ConsoleProcess(service, http, key_file=key_file, say=say)
+            page = ConsoleProcess(service, http, key_file=key_file, say=say, **link, **web)
         except ConsoleError as exc:
             print_error(console, "error", str(exc))
             return EXIT_USAGE
         with page:
             console.print(f"operator console: {page.url}", highlight=False)
             code = drive_service(service, sequence, table=table, emulate=emulate, output=output, resume=resume,
-                                 yes=yes, console=console, key_file=key_file, speed=speed)
+                                 yes=yes, console=console, key_file=key_file, speed=speed, security=security)
             linger(page.url, linger_s, console)
             return code
 
@@ -91,13 +101,13 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
         endpoint = _free_endpoint()
         try:
             service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),
-                                          say=lambda m: say(f"rig service: {m}"))
+                                          say=lambda m: say(f"rig service: {m}"), table_security=security)
         except ServiceError as exc:
             print_error(console, "error", str(exc))
             return EXIT_USAGE
         try:
             try:
-                page = ConsoleProcess(endpoint, http, key_file=key_file, say=say)
+                page = ConsoleProcess(endpoint, http, key_file=key_file, say=say, **web)
             except ConsoleError as exc:
                 print_error(console, "error", str(exc))
                 return EXIT_USAGE

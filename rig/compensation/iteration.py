@@ -1,53 +1,22 @@
 """Drive iteration: ramp up, play, measure, correct the drive with the table's inverse response, repeat — never
 playing a drive whose predicted response leaves the table.
 
-With the identified response H (``rig.compensation.laws``: per axis or the full matrix), play i of drive d_i at
-level s_i (a factor ≤ 1 on its translations) measured the plate's base-frame acceleration y_i; the error against
-the target x (the drive as prepared: what the record asks of the table), brought to full level, is
-e_i = (s_i x − y_i)/s_i, and the next drive's acceleration is
+With the identified response H (``rig.compensation.laws``), play i of drive d_i at level s_i (a factor ≤ 1 on its
+translations) measured the plate's base-frame acceleration y_i [m/s²]; against the target x (the drive as prepared)
+the error brought to full level is e_i = (s_i x − y_i)/s_i, and the next drive's acceleration is
 
     D_{i+1}(f) = D_b(f) + G(f) · H⁺(f) · E_b(f)
 
-from the best play b so far (the lowest fall-line RMS error), with the law's gain G(f) and inverse H⁺. The
-correction is confined to the record's motion (a Tukey window) and to the band above the larger of the drive's
-high-pass corner and the identified band's lower edge, up to ``band_high``; its displacement is the exact double
-integral in the frequency domain (−ΔA/ω²), its velocity and acceleration the drive's plus the correction's
-derivatives.
+from the best play b so far (the lowest fall-line RMS error), with the law's gain G(f) and inverse H⁺. Every play
+is checked first, as a command against the table (``TableModel.check_command``) and as a predicted response
+against Table IV and the legs (``rig.compensation.safety``): the first play is refused with
+:class:`~rig.compensation.safety.PredictedLimitError`, a correction narrowed to :data:`NARROW_BANDS_HZ` and its
+gain halved, else iteration stops. The plays ramp up (``levels_db``); near the accelerometer's noise floor the
+gain is scaled by the Wiener factor (:func:`noise_gain`, :func:`pooled_floor`, :data:`NOISE_GAIN_MIN`); a play that
+does not improve rolls back (``max_rollbacks``). The result is the best drive played at full level.
 
-**Every play is checked first**: the drive at its level as a *command* against what the table enforces on its
-setpoints (the per-axis displacement envelope, the tilt, the legs' stroke and speed: ``TableModel.check_command``)
-and the plate's response *predicted* by the current H against all of Table IV (displacement, velocity,
-acceleration) and the legs (``rig.compensation.safety``). The command's acceleration is not held to Table IV's:
-above the 4.2 Hz surge mode the table attenuates (on the coupled plate the identified surge gain is 0.22 at 10 Hz,
-0.09 at 15 Hz, 0.05 at 20 Hz), so the inverse asks several times the acceleration it wants there — measured on
-CAPEMEND/CPM_350 at 5°, the first correction's surge command peaked at 1.2 g (0.52 g of it from 15–20 Hz, 0.29 g
-from 20–30 Hz) for a predicted response of 0.52 g. Those commands are millimetres at those frequencies; what they
-cost is valve flow, checked as the legs' speed.
-The first play (the drive as prepared) is refused with
-:class:`~rig.compensation.safety.PredictedLimitError` when its prediction leaves the table; a correction that does
-is narrowed to :data:`NARROW_BANDS_HZ`, then its gain halved twice, else iteration stops there. A correction
-played during the ramp must fit at full level too (its level only previews it): the full-level plays then start
-from a drive that may be played.
-
-**Level ramp.** The first plays ramp up (``levels_db``, −12, −6, 0 dB by default): the drive as prepared at the
-lowest level, each following play corrected from the previous and played at the next level, then every further
-play at full level — so the first full-level play is already corrected, and each level's play also feeds the
-response estimate (``law.update``).
-
-**Near the noise floor.** The error measured includes the accelerometer's noise (``measures``: the noise floor N,
-measured while the plate is still before the motion), and a correction plays whatever it corrects — the noise too.
-With a best play's measured error M, the table's own error is about √(M² − N²), and the gain that leaves the least
-error after the next play is the Wiener factor w = 1 − N²/M² (a correction of gain g leaves (1 − g)² (M² − N²) + g²
-N² of the table's error²): the next correction's gain is scaled by w (:func:`noise_gain`; N pooled over every play
-so far, :func:`pooled_floor`). Where w falls below :data:`NOISE_GAIN_MIN` at full level the error is the sensor's
-and iteration stops (``converged``). Measured (2026-11-28, offline, 5°): on CAPEMEND/CPM_260 the accelerometer's
-noise alone is 2.0 % of the target's RMS, and with the full gain the error stalled at 2.3–2.6 % — white from 0.5 to
-40 Hz, the noise played back.
-
-**Roll-back.** A play whose fall-line RMS error is not below the best so far does not become the next base: the
-next correction starts again from the best play with the gain halved; after ``max_rollbacks`` such plays in a row
-iteration stops. It also stops when a full-level play's error reaches ``tolerance`` or after ``iterations``
-full-level plays; the result is the best drive played at full level.
+The update, the band and window, the noise floor and the roll-back: docs/compensation.md §3; the checks of every
+play and the level ramp: §4; measurements: §7 and docs/notes/2026-11-27-compensation.md.
 """
 
 from __future__ import annotations

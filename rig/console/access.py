@@ -30,16 +30,15 @@ from __future__ import annotations
 
 import hashlib
 import hmac
-import os
 import re
-import shlex
-import stat
 import threading
 import tomllib
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
+
+from protocols.private_file import PrivateFileError, read_private_file
 
 ROLES = ("operator", "viewer")
 """The roles a token may have: an operator watches and commands, a viewer watches only."""
@@ -87,17 +86,9 @@ def read_tokens(path: Path) -> dict[str, Grant]:
     """The tokens of the tokens file ``path`` (module docstring), keyed by the SHA-256 of the token (hex);
     :class:`AccessError` naming the file, the entry and the field when it is not one."""
     try:
-        with path.open("rb") as file:
-            info = os.fstat(file.fileno())
-            if not stat.S_ISREG(info.st_mode):
-                raise AccessError(f"tokens file {path}: not a regular file")
-            mode = stat.S_IMODE(info.st_mode)
-            if os.name == "posix" and mode & 0o077:
-                raise AccessError(f"tokens file {path}: mode {mode:04o} lets other users read the tokens; run: "
-                                  f"chmod 600 {shlex.quote(str(path))}")
-            data = file.read(_MAX_FILE + 1)
-    except OSError as exc:
-        raise AccessError(f"tokens file {path}: {exc.strerror or exc}") from None
+        data = read_private_file(path, f"tokens file {path}", "the tokens", _MAX_FILE)
+    except PrivateFileError as exc:
+        raise AccessError(str(exc)) from None
     if len(data) > _MAX_FILE:
         raise AccessError(f"tokens file {path}: larger than {_MAX_FILE} bytes")
     try:

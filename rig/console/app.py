@@ -86,6 +86,10 @@ class Controls(Protocol):
 
     def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]: ...
 
+    def refused(self, command: str, source: str, reason: str) -> None:
+        """Have ``command`` from ``source``, refused by the console for ``reason``, logged in the session's events
+        (never acted on); raises ``rig.service.ServiceError`` when it could not be passed on."""
+
 
 class Console:
     """The console's state shared by the routes: what is known of the test, the browsers, the controls."""
@@ -299,6 +303,7 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
         source, grant = who
         if not grant.may_command:
             console.say(f"control {command} from {source}: refused (a viewer may watch only)")
+            await _pass_refusal_on(console, command, source, "a viewer may watch only")
             return refused(403, f"refused: {grant.name!r} is a viewer: a viewer may watch, not command")
         args = await _json_args(request)
         if isinstance(args, str):
@@ -414,6 +419,18 @@ async def _json_args(request: Request) -> dict[str, Any] | str:
     except ValueError:
         return "the request body is not JSON"
     return args if isinstance(args, dict) else "the request body is not a JSON object"
+
+
+async def _pass_refusal_on(console: Console, command: str, source: str, reason: str) -> None:
+    """A control the console refused, passed on to be logged in the session's events (:meth:`Controls.refused`);
+    when that fails, said on the console's log."""
+    from rig.service import ServiceError
+
+    assert console.controls is not None
+    try:
+        await run_in_threadpool(console.controls.refused, command, source, reason)
+    except ServiceError as exc:
+        console.say(f"control {command} from {source}: the refusal is not in the session's events: {exc}")
 
 
 async def _until_closed(websocket: WebSocket) -> None:

@@ -110,6 +110,10 @@ class ServiceControls:
                       "estop": self.client.emergency_stop}[command]
             return method(source=source)
 
+    def refused(self, command: str, source: str, reason: str) -> None:
+        with self._lock:
+            self.client.refused(command, source, reason)
+
 
 def console_server(console: Console, host: str, port: int, *, say: Callable[[str], None] = lambda message: None,
                    on_startup: Callable[[Any], None] | None = None, on_shutdown: Callable[[], None] | None = None,

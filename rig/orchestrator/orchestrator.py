@@ -56,6 +56,8 @@ from drivers.controller import (
 )
 from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap, commanded_fall_line
+from rig.orchestrator.noise import WINDOW_S as NOISE_WINDOW_S
+from rig.orchestrator.noise import NoiseWatch
 from rig.orchestrator.recorder import RunRecorder
 from rig.orchestrator.sinks import RunSink, SessionSink
 from rig.orchestrator.states import (
@@ -67,7 +69,7 @@ from rig.orchestrator.states import (
     check_transition,
 )
 from rig.orchestrator.suspenders import POLL_SECONDS as SUSPEND_POLL
-from rig.orchestrator.suspenders import suspensions
+from rig.orchestrator.suspenders import conditions, suspensions
 from rig.sequence import PlannedRun, Sequence, SequenceError
 from rig.session import SessionError, check_room, is_disk_full, run_needs
 
@@ -101,13 +103,14 @@ class Orchestrator:
     :class:`~rig.orchestrator.sinks.SessionSink`); ``table_options`` go to
     :func:`drivers.controller.open_table` (e.g. ``key_file``; ``table``, the table model every trajectory is checked
     against before it is streamed, is the sequence's rig unless given); ``sensors`` the accelerometer ids the table
-    reports (logged as ``accel/<id>``); ``operator`` answers the operator's steps (default: unattended);
+    reports (logged as ``accel/<id>``; default: 0 and every one with a calibration sheet in the sequence's rig);
+    ``operator`` answers the operator's steps (default: unattended);
     ``on_update(progress)`` is called from the orchestrator's threads whenever the state or the progress changes
     (at most about ten times a second while streaming).
     """
 
     def __init__(self, sequence: Sequence, table_url: str, log: SessionSink, *,
-                 table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] = (0,),
+                 table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] | None = None,
                  operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None,
                  controller_limits: bool = True) -> None:
         self.sequence = sequence
@@ -118,6 +121,8 @@ class Orchestrator:
         self.table_url = table_url
         self.log = log
         self.table_options = table_options or {}
+        if sensors is None:
+            sensors = tuple(sorted({0, *(int(name) for name in sequence.table.sensors.sheets)}))
         self.sensors = {sensor: str(sensor) for sensor in sensors}
         self.operator: Operator = operator or Unattended()
         self.progress = Progress(runs_total=len(sequence.plan()))
@@ -480,27 +485,35 @@ class Orchestrator:
         self._check_table("while paused")
 
     def _wait_while_suspended(self, table: TableController) -> None:
-        """Hold the sequence while a suspender's condition holds (``rig.orchestrator.suspenders``); each hold and
-        its end are lines in the next run's events, and the status says why it waits."""
+        """Hold the sequence while a suspender's condition holds (``rig.orchestrator.suspenders``; the
+        accelerometers' noise at rest: ``rig.orchestrator.noise``); each hold, each change of what holds it and its
+        end are lines in the next run's events, and the status says why it waits."""
         timeout = self.sequence.table.link.link_timeout_s
-        reasons = suspensions(table.status(), time.monotonic_ns(), timeout)
-        if not reasons:
-            return
-        why = "; ".join(reasons)
-        self.log_event(f"suspended: {why}")
-        held = f"suspended: {why}; the sequence goes on when it clears"
-        self._note(held) if self.state is State.PAUSED else self._set(State.PAUSED, held)
-        while reasons:
-            with self._lock:
-                if self._stop_requested is not None:
-                    break
-                self._lock.wait(SUSPEND_POLL)
-            table.check_link()  # a link lost while suspended ends the session at once
-            now = suspensions(table.status(), time.monotonic_ns(), timeout)
-            if now and now != reasons:
-                self.log_event(f"suspended: {'; '.join(now)}")
-                self._note(f"suspended: {'; '.join(now)}; the sequence goes on when it clears")
-            reasons = now
+        with NoiseWatch(table, self.sequence.table.sensors) as noise:
+            def now() -> list[str]:
+                return suspensions(table.status(), time.monotonic_ns(), timeout) + noise.reasons()
+
+            reasons = now()
+            if noise.silent:
+                self.log_event(f"noise floor not checked: accelerometer(s) {', '.join(map(str, noise.silent))} sent "
+                               f"no {NOISE_WINDOW_S:g} s of samples at rest")
+            if not reasons:
+                return
+            why = "; ".join(reasons)
+            self.log_event(f"suspended: {why}")
+            held = f"suspended: {why}; the sequence goes on when it clears"
+            self._note(held) if self.state is State.PAUSED else self._set(State.PAUSED, held)
+            while reasons:
+                with self._lock:
+                    if self._stop_requested is not None:
+                        break
+                    self._lock.wait(SUSPEND_POLL)
+                table.check_link()  # a link lost while suspended ends the session at once
+                latest = now()
+                if latest and conditions(latest) != conditions(reasons):
+                    self.log_event(f"suspended: {'; '.join(latest)}")
+                    self._note(f"suspended: {'; '.join(latest)}; the sequence goes on when it clears")
+                reasons = latest
         self._check_stop()
         self.log_event(f"resumed: cleared ({why})")
         self._note(f"resumed: cleared ({why})")

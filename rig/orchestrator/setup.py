@@ -105,8 +105,8 @@ def load_checked(path: Path) -> Sequence:
 
 
 def check_sensors(sequence: Sequence, today: date | None = None) -> None:
-    """A warning for each accelerometer of the sequence's rig whose calibration was due on or before ``today``
-    (default: the local date); SequenceError instead when the rig configuration refuses overdue sensors
+    """A warning for each sensor (accelerometer, tilt sensor) of the sequence's rig whose calibration was due on or
+    before ``today`` (default: the local date); SequenceError instead when the rig configuration refuses overdue sensors
     (``[sensors] overdue = "refuse"``, ``analysis.table.sensors``)."""
     sheets = sequence.table.sensors
     late = overdue(sheets, today or date.today())

@@ -1,67 +1,16 @@
 """Reader for COSMOS strong-motion files (format v01.20): V1 uncorrected and V2 corrected acceleration.
 
-The files CESMD (strongmotioncenter.org) and the USGS distribute (``.V1``, ``.V2``, ``.V1C``, ``.V2C``)
-are a sequence of blocks, one per channel and quantity; each repeats the full header set::
+:func:`read_cosmos` walks a ``.V1``/``.V2``/``.V1C``/``.V2C`` file block by block by the counts its headers
+announce (text lines, header values, comment lines, data values; header numbers 1-based as in the COSMOS tables),
+reads the values from the fixed-width fields of each block's Fortran format and keeps the acceleration blocks
+(velocity and displacement checked and skipped). Units: the data header's code (02 = g, 04 = cm/s², 10 = gal;
+others refused), returned in g; dt is real-header value 62 [ms], returned in s. Channels by integer-header value
+54: one channel → ``acc_h``; two horizontal (and a vertical) → ``acc_h``, ``acc_h2`` (``acc_v``); a ``Down``
+channel is negated so that it reads positive up. The older CSMIP/DMG format is refused naming it. Every problem
+raises `RecordError` naming the file, the line and what was expected.
 
-    Corrected acceleration    (Format v01.20 with 13 text lines)       <- text header: the count of its
-    Record of Synthetic Earthquake of ...                                 lines is given on its line 1
-    ...
-    Values used when parameter or data value is unknown/unspecified:   -999, -999.00
-     100 Integer-header values follow on  10 lines, Format= (10I8)
-           2       1       4     120 ...                               <- value 2: quantity, 3: unit code,
-     100 Real-header values follow on  20 lines, Format= (5F15.6)         50: channel, 54: orientation
-          60.967700    -144.605100 ...                                 <- value 62: sampling interval [ms]
-       2 Comment line(s) follow, each starting with a "|":
-    | Sensor: ...
-       42000 acceleration pts, approx  210 secs, units=cm/sec2(04),Format=(1E15.6)
-       3.437285e-04                                                    <- the values in fixed-width fields
-       ...
-    End-of-data for Chan  1 acceleration
-
-CSMIP-processed files end each block with ``/&  ----------  End of data for channel  1  ----------``
-instead; both are end lines (the data ends where the data header said it would).
-
-Files in the older CSMIP/DMG format (first line ``CORRECTED ACCELEROGRAM``, ``UNCORRECTED ACCELEROGRAM
-DATA`` or, V3, ``RESPONSE AND FOURIER AMPLITUDE SPECTRA``; no ``(Format v…)``) are refused with an error
-naming that format and pointing to the COSMOS ``.V1C``/``.V2C`` files CESMD distributes for the same record.
-
-Header numbers are 1-based, as in the COSMOS tables. The reader walks the blocks by their announced
-counts (text lines, header values and lines, comment lines, data values) and needs an ``End-of-data``
-line after each block's values, so any count that disagrees with the lines is an error, never a silently
-shorter record. Values are read from **fixed-width fields** as the block's Fortran format lays them out
-(``(8F10.5)``, ``(10F8.3)``, ``(1E15.6)``, ``(10I8)``): fields may touch (``-123.456-234.567``); every line
-holds the format's count of fields except the last line of a block, which holds the rest. A field written
-by an ``F``/``E`` format must carry its decimal point (Fortran would otherwise imply one).
-
-Only acceleration blocks are kept: the velocity and displacement blocks of V2 files are checked and
-skipped. The unit comes from the code in parentheses in the data header (integer-header value 3 must
-agree): 02 = g, 04 = cm/s², 10 = gal; other codes (in/s², counts, …) are refused. dt is real-header
-value 62 in milliseconds; unknown (the file's ``-999`` marker) or <= 0 is an error.
-
-Channels (integer-header value 54: azimuth 1-360° for a horizontal sensor, north = 360, or a COSMOS code:
-400 Up, 401 Down, 402 vertical of unstated sense, 500/501 radial/transverse, 600/601
-longitudinal/tangential, 700/701 horizontal of unknown azimuth, 2000 other; 0, other numbers and the
-unknown marker are "unknown orientation"):
-
-* one acceleration channel → ``acc_h``; ``provenance["component"]`` says whether it is horizontal, vertical
-  or unknown (`component`): a lone vertical is refused by `load_record` unless accepted. For an unknown
-  orientation the file name's SEED channel code is read (``NP.7010.HNZ.V2``, ``….HN1.10.V2C``, see
-  `component`), else the record is read with a `RecordWarning`; a name that contradicts a known orientation
-  is refused;
-* two horizontal, or two horizontal and one vertical (CESMD free-field files) → one bidirectional record:
-  the first horizontal in file order → ``acc_h``, the second → ``acc_h2``, the vertical → ``acc_v``. They
-  must share dt and the number of samples;
-* any other combination is refused, naming what was found.
-
-A ``Down`` channel is negated so that it reads positive up; a vertical of unstated sense is taken as up
-(the provenance says so). Every problem raises `RecordError` naming the file, the line and what was
-expected.
-
-Memory: an ASCII file is kept as its bytes and where each line starts (`source.ByteLines`), each line decoded when
-it is read, and each block's values go into an ``array("d")``: no Python object kept per value or line
-(``benchmarks/record_memory.py`` measures the peak per sample). The values are still parsed one field at a time
-(seconds per million). A data header announcing more than `source.MAX_SAMPLES` values is refused before one is
-parsed.
+The block layout, the fields, the channel codes and the memory it takes: docs/records.md §COSMOS files, block by
+block.
 """
 
 from __future__ import annotations

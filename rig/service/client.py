@@ -199,6 +199,18 @@ class ServiceClient:
         """Brake the table now; the current run is logged ``aborted``."""
         return self._command("estop", _source(source))
 
+    def refused(self, command: str, source: str, reason: str) -> None:
+        """Have the service log that ``command``, asked by ``source``, was refused here for ``reason`` (the console:
+        a viewer's control): it goes into the running session's events like every control (signed, so that the
+        service writes ``source``); the service does nothing else with it."""
+        try:
+            self._command(command, {"source": source, "refused": reason}, retries=0)
+        except ServiceUnavailableError:
+            raise
+        except ServiceError:  # the answer expected: refused
+            return
+        raise ServiceError(f"the rig service at {self.endpoint} accepted a {command} refused here ({reason})")
+
     def state(self) -> dict[str, Any]:
         """The service's status: ``state``, ``message``, ``session``, ``active``, ``progress``."""
         return self._command("state")

@@ -1,49 +1,22 @@
 """``rig serve``: the orchestrator as a service whose control plane is zenoh.
 
 :class:`OrchestratorService` opens a zenoh session that listens on a loopback endpoint (scouting off,
-:func:`protocols.zenoh.session_config`) and declares the queryables of :mod:`rig.service.keys`. Each query is
-handled in a thread of its own (zenoh's threads are never blocked); requests and replies are those of
-:mod:`rig.service.wire`:
+:func:`protocols.zenoh.session_config`) and declares the queryables of :mod:`rig.service.keys`: ``start``,
+``pause``, ``resume``, ``abort``, ``estop``, ``state``, ``queue`` and ``answer``. Each query is handled in a thread
+of its own (zenoh's threads are never blocked); requests and replies are those of :mod:`rig.service.wire`. One
+session at a time, played by :class:`~rig.service.session.ServiceSession` in a worker thread; its progress is
+published as telemetry (:mod:`rig.service.telemetry`); control requests are logged in the session's events with
+the source the transport vouches for (:mod:`rig.service.audit`).
 
-==========  =========================================================  =================================
-command     args                                                       reply (``ok`` true)
-==========  =========================================================  =================================
-``start``   :class:`~rig.service.session.StartRequest` (sequence file  ``session``: the session file;
-            or text, table URL or ``emulate``, output or ``resume``)   sent once the session runs
-``pause``   ``{}``                                                     pauses at the end of the record
-``resume``  ``{}``                                                     continues
-``abort``   ``{}``                                                     controlled stop now
-``estop``   ``{}``                                                     emergency stop (brake) now
-``state``   ``{}``                                                     the progress and session path
-``queue``   a :class:`~rig.service.session.StartRequest`'s args        ``queued``: its id; started later
-``start``   ``{"queued": id}``: the queued session ``id``              as ``start`` above
-``answer``  ``{"prompt": id, "reply": "done"|"decline", "fell": …}``   the attended session's prompt
-                                                                       answered (:mod:`rig.service.operator`)
-==========  =========================================================  =================================
+``start``, ``resume``, ``queue`` and ``answer`` are accepted only when signed with the rig's key (``key_file``, else
+``$SHAKETABLE_MAVLINK_KEY``; :mod:`protocols.zenoh.auth`); ``pause``, ``abort``, ``estop`` and ``state`` from anyone
+(stopping never waits for a key). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures.
 
-The control requests (``pause``, ``resume``, ``abort``, ``estop``, ``answer``) may carry a ``source`` (who asked,
-e.g. the console's browser session); every one is logged in the running session's events with the source the
-transport vouches for (:mod:`rig.service.audit`: a ``source`` is written only from a request signed with the rig's key).
+A request whose args carry ``refused`` (a reason: the console passing on a viewer's control) is answered refused
+and only logged, never acted on.
 
-Every reply (and STATUS publication) carries ``state``, ``message``, ``session``, ``active``, ``progress``, ``queue``
-(the queued sessions: ``id``, ``name``, ``emulate``, ``attended``), ``prompt`` (the attended session's waiting prompt,
-or null) and ``seq`` (the number of the
-last STATUS published before it: a status with a lower one is older than the reply). Refusals (``ok`` false):
-a malformed request, a bad sequence (its ``FILE:LINE: key: problem``), a session file that exists, a table or an
-emulator that cannot be reached, ``start`` while a session is prepared or played, and ``pause``/``resume``/
-``abort``/``estop`` with no session running. A payload that is no CONTROL_REQUEST gets a zenoh error reply.
-
-One session at a time, played by :class:`~rig.service.session.ServiceSession` in a worker thread; its progress is
-published as telemetry (:mod:`rig.service.telemetry`).
-
-**Authentication.** ``start``, ``resume``, ``queue`` and ``answer`` make the table move (or line up a session that
-will): they are accepted only when signed with the rig's key (the table link's HMAC-SHA256 scheme,
-:mod:`protocols.zenoh.auth`, with its replay stamps; the signature is the query's attachment). ``pause``,
-``abort``, ``estop`` and ``state`` are accepted from anyone on the zenoh network: stopping the table must never wait
-for a key, and the network is loopback only (a client with the key signs them too, to be named in the log). The key
-is ``key_file``, else ``$SHAKETABLE_MAVLINK_KEY``; the same key goes to the table's driver (and the emulator of
-``emulate`` sessions). ``require_auth=False`` (``rig serve --no-auth``) checks no signatures (``key_file`` then
-only goes to the table), for a bench without a table.
+Each command's arguments and reply, the reply's fields, the refusals and why the commands are split so:
+docs/service.md.
 """
 
 from __future__ import annotations
@@ -90,16 +63,19 @@ class OrchestratorService:
     ``sessions_dir`` holds the session files (created if missing; relative paths of requests are taken from it);
     ``key_file`` the rig's key (else ``$SHAKETABLE_MAVLINK_KEY``); ``rig`` the rig's name in the key space;
     ``say(message)`` reports what happens (e.g. to stderr); ``security`` the zenoh session's TLS identity (listen on
-    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``). Raises
+    ``tls/ADDRESS:PORT`` across hosts) or plain text off loopback allowed (``protocols.zenoh.config``), also used for
+    the zenoh tables of its sessions unless ``table_security`` is given (``rig run --console``: a service on
+    loopback, its table across hosts). Raises
     :class:`ServiceError` when it cannot listen or
     has no key while ``require_auth``. :meth:`close` aborts a running session and closes the zenoh session.
     """
 
     def __init__(self, listen: str, *, key_file: Path | None = None, sessions_dir: Path, rig: str = DEFAULT_RIG,
                  require_auth: bool = True, say: Callable[[str], None] = lambda message: None,
-                 security: LinkSecurity = PLAIN) -> None:
+                 security: LinkSecurity = PLAIN, table_security: LinkSecurity | None = None) -> None:
         self.listen = listen
         self.security = security
+        self.table_security = security if table_security is None else table_security
         self.keys = ServiceKeys.for_rig(rig)
         self.key_file = key_file
         self.sessions_dir = Path(sessions_dir).expanduser().resolve()
@@ -196,12 +172,14 @@ class OrchestratorService:
             verdict = self._verdict(command, payload, attachment)
             if asked != command:
                 ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
+            elif "refused" in args:  # refused by the client that passes it on (a console: a viewer's): logged only
+                ok, message, extra = False, f"refused by the console: {args['refused']}", {}
             elif command in SIGNED_COMMANDS and verdict not in (None, Verdict.SIGNED):
                 ok, message, extra = False, f"{command} refused: {REFUSALS[verdict]}", {}
             else:
                 handler = self._queue_session if command == "queue" else getattr(self, f"_{command}")
                 ok, message, extra = handler(args)
-            if command in LOGGED_CONTROLS and asked == command:
+            if (command in LOGGED_CONTROLS or "refused" in args) and asked == command:
                 self._log_control(command, request_source(args.get("source"), verdict, attachment), ok, message)
             if not ok:
                 self._say(f"{command}: {message}")
@@ -294,8 +272,8 @@ class OrchestratorService:
             with self._lock:
                 busy = self._starting or self._current
                 if busy is None or not busy.alive:
-                    link = ({} if self.security == PLAIN else
-                            {"tls": self.security.tls, "insecure_plain_tcp": self.security.insecure})
+                    table = self.table_security
+                    link = {} if table == PLAIN else {"tls": table.tls, "insecure_plain_tcp": table.insecure}
                     session = ServiceSession(request, sessions_dir=self.sessions_dir, key_file=self.key_file,
                                              on_update=self._telemetry.changed, say=self._say, link=link)
                     self._starting = session

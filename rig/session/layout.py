@@ -14,7 +14,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from analysis.table.sensors import SensorSheet
+from analysis.table.sensors import SensorSheet, TiltSheet
 
 from . import checksums, schema
 from .hdf5props import EST_RUN_LINKS, EST_RUNS, create_group
@@ -78,7 +78,8 @@ def _table(parent: h5py.Group, name: str, dtype: np.dtype, rows: np.ndarray | No
 
 def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, record: str, scale_factor: float,
                angle_deg: float, started: str, commanded: np.ndarray, bodies: np.ndarray, sensors: Sequence[str],
-               attrs: Mapping[str, Any], sheets: Mapping[str, SensorSheet] | None = None) -> None:
+               attrs: Mapping[str, Any], sheets: Mapping[str, SensorSheet] | None = None,
+               tilt_sheets: Mapping[str, TiltSheet] | None = None) -> None:
     """The run group ``runs/name`` with its attributes (status ``"running"``), all its datasets and its checksum
     table (`rig.session.checksums`) holding the checksums of the rows it is created with; ``sheets``: the
     calibration sheets (``analysis.table.sensors``) of the sensors that have one, stored as attributes of their
@@ -108,7 +109,10 @@ def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, re
             _sheet_attrs(dataset, sheets[sensor])
     tilt = create_group(group, "tilt")
     for body_id in bodies["body_id"]:
-        _columns(_growing(tilt, str(int(body_id)), 2, schema.TILT_CHUNK), schema.TILT_COLUMNS, schema.TILT_UNITS)
+        dataset = _growing(tilt, str(int(body_id)), 2, schema.TILT_CHUNK)
+        _columns(dataset, schema.TILT_COLUMNS, schema.TILT_UNITS)
+        if tilt_sheets and str(int(body_id)) in tilt_sheets:
+            _tilt_sheet_attrs(dataset, tilt_sheets[str(int(body_id))])
     for table, dtype, units, rows in (("detections", schema.DETECTION, schema.DETECTION_UNITS, None),
                                       ("faults", schema.FAULT, schema.FAULT_UNITS, None),
                                       ("events", schema.EVENT, schema.EVENT_UNITS, None),
@@ -128,6 +132,16 @@ def _sheet_attrs(dataset: h5py.Dataset, sheet: SensorSheet) -> None:
     dataset.attrs["range_m_s2"] = np.float64(sheet.range_m_s2)
     dataset.attrs["sensitivity"] = np.float64(sheet.sensitivity)
     dataset.attrs["sensitivity_unit"] = sheet.sensitivity_unit
+    dataset.attrs["model"] = sheet.model
+    dataset.attrs["serial"] = sheet.serial
+    dataset.attrs["calibrated"] = sheet.calibrated.isoformat()
+    dataset.attrs["due"] = sheet.due.isoformat()
+
+
+def _tilt_sheet_attrs(dataset: h5py.Dataset, sheet: TiltSheet) -> None:
+    """A tilt sensor's sheet as attributes of its body's dataset: ``range_rad`` (full scale [rad], ±), ``model``,
+    ``serial``, ``calibrated`` and ``due`` (ISO dates)."""
+    dataset.attrs["range_rad"] = np.float64(sheet.range_rad)
     dataset.attrs["model"] = sheet.model
     dataset.attrs["serial"] = sheet.serial
     dataset.attrs["calibrated"] = sheet.calibrated.isoformat()

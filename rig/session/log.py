@@ -215,7 +215,7 @@ class SessionLog:
         return self._root["table"]
 
     def sensor_sheets(self) -> SensorSheets:
-        """The accelerometers' calibration sheets of the stored rig configuration (``[sensors]``; none if it has
+        """The sensors' calibration sheets of the stored rig configuration (``[sensors]``; none if it has
         none); ValueError naming the file if they cannot be read."""
         stored = self.rig_config.get("sensors") if isinstance(self.rig_config, Mapping) else None
         if stored is None:
@@ -296,7 +296,10 @@ class SessionLog:
                 raise ValueError(f"scale_factor is {scale_factor!r}; expected a number (NaN if unknown)")
             angle = schema.finite(angle_deg, "angle_deg")
             plan = int(plan_index)
-            sheets = {name: sheet for name, sheet in self.sensor_sheets().sheets.items() if name in sensors}
+            stored_sheets = self.sensor_sheets()
+            sheets = {name: sheet for name, sheet in stored_sheets.sheets.items() if name in sensors}
+            body_ids = {str(int(body)) for body in body_rows["body_id"]}
+            tilt_sheets = {body: sheet for body, sheet in stored_sheets.tilts.items() if body in body_ids}
         except (ValueError, TypeError, KeyError) as exc:
             raise SessionError(f"{self.path}: begin_run: {exc}") from None
         extra = self.checked_run_attrs(attrs)
@@ -307,7 +310,8 @@ class SessionLog:
         with self._file.transaction() as h5:
             layout.create_run(h5["runs"], info.name, plan_index=plan, attempt=info.attempt, record=info.record,
                               scale_factor=scale, angle_deg=angle, started=info.started, commanded=commanded,
-                              bodies=body_rows, sensors=sensors, attrs=extra, sheets=sheets)
+                              bodies=body_rows, sensors=sensors, attrs=extra, sheets=sheets,
+                              tilt_sheets=tilt_sheets)
         self._runs.append(info)
         failpoints.hit("begin:committed")
         try:
@@ -327,7 +331,8 @@ class SessionLog:
             raise
         writer.start()
         self._active = RunLog(self, info, sensors, [int(b) for b in body_rows["body_id"]], h5, writer,
-                              {name: sheet.range_m_s2 for name, sheet in sheets.items()})
+                              {name: sheet.range_m_s2 for name, sheet in sheets.items()},
+                              {int(body): sheet.range_rad for body, sheet in tilt_sheets.items()})
         return self._active
 
     @staticmethod

@@ -5,6 +5,7 @@ attributes."""
 from __future__ import annotations
 
 import json
+import math
 import threading
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -56,7 +57,8 @@ class RunLog:
     the disk."""
 
     def __init__(self, session: RunOwner, info: RunInfo, sensors: Sequence[str], body_ids: Sequence[int],
-                 h5: h5py.File, writer: BlockWriter, ranges: Mapping[str, float] | None = None) -> None:
+                 h5: h5py.File, writer: BlockWriter, ranges: Mapping[str, float] | None = None,
+                 tilt_ranges: Mapping[int, float] | None = None) -> None:
         self._session = session
         self.info = info
         self.sensors = tuple(sensors)
@@ -70,6 +72,10 @@ class RunLog:
         self.clipped = dict.fromkeys(self._ranges, 0)
         """Samples (rows) per sensor with a sheet that reached its full scale on some axis (run attribute
         ``clipped``, JSON, at the end)."""
+        self._tilt_ranges = dict(tilt_ranges or {})
+        self.tilt_clipped = {body_id: 0 for body_id in self._tilt_ranges}
+        """Samples per body whose tilt sensor has a sheet that reached its full scale (run attribute
+        ``tilt_clipped``, JSON ``{"BODY_ID": samples}``, at the end)."""
 
     @property
     def name(self) -> str:
@@ -125,12 +131,26 @@ class RunLog:
 
     def append_tilt(self, body_id: int, t: np.ndarray, angle: np.ndarray) -> None:
         """A body's tilt-sensor samples: ``t`` (k,) [s], ``angle`` (k,) [rad, relative to the plate, > 0 towards
-        the low side]."""
+        the low side]. A sample at or beyond the sensor's full scale (its sheet's range, ±) is counted as clipped;
+        the first of the run adds the event ``clipped: …``."""
         key = self._tilt_keys.get(body_id)
         if key is None:
             raise SessionError(f"{self._session.path}: run {self.name}: body {body_id!r} is not on the plate; "
                                f"expected one of {list(self._tilt_keys)}")
-        self._put(key, _rows(t, np.reshape(angle, (-1, 1)), 1, f"tilt of body {body_id}"))
+        rows = _rows(t, np.reshape(angle, (-1, 1)), 1, f"tilt of body {body_id}")
+        self._put(key, rows)
+        full_scale = self._tilt_ranges.get(body_id)
+        if full_scale is None:
+            return
+        clipped = clipped_rows(rows[:, 1:], full_scale)
+        if not len(clipped):
+            return
+        if self.tilt_clipped[body_id] == 0:
+            row = int(clipped[0])
+            self.add_event(float(rows[row, 0]), f"clipped: tilt sensor of body {body_id} angle = "
+                                                f"{rows[row, 1]:.4g} rad at its full scale ±{full_scale:.4g} rad "
+                                                f"({math.degrees(full_scale):.4g}°)")
+        self.tilt_clipped[body_id] += len(clipped)
 
     def append_pose(self, t: np.ndarray, pose: np.ndarray) -> None:
         """Measured table pose: ``t`` (k,) [s], ``pose`` (k, 6): surge, sway, heave [m], roll, pitch, yaw [rad]."""
@@ -167,6 +187,8 @@ class RunLog:
         extra = self._session.checked_run_attrs(attrs)
         if self._ranges:
             extra["clipped"] = json.dumps(self.clipped)
+        if self._tilt_ranges:
+            extra["tilt_clipped"] = json.dumps({str(body): count for body, count in self.tilt_clipped.items()})
         with self._lock:
             if self._ended:
                 raise SessionError(f"{self._session.path}: run {self.name} has already ended ({self.info.status})")

@@ -1,53 +1,42 @@
 """Names, types and units of the session file, schema ``shaketable-rig/session/1`` (docs/architecture.md §7).
 
-Root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), ``rig_config`` and ``sequence``
-(JSON text), and ``table`` (JSON text, where ``rig run`` played it: ``{"url": …}`` or ``{"emulate": true, "speed":
-…}``, ``rig.orchestrator.setup.TableChoice``; absent in files written by tools that play on no table).
-``/runs/<NNNN>/``: one group per run *attempt*, numbered 0001, 0002, … in the order the runs began
-(a re-run of an interrupted plan entry is a new group; the old one stays, status ``interrupted``).
+Root attributes: ``schema``, ``software_version``, ``created`` (ISO 8601, UTC), ``rig_config`` and ``sequence`` (JSON
+text), and ``table`` (JSON text, where ``rig run`` played it: ``{"url": …}`` or ``{"emulate": true, "speed": …}``,
+``rig.orchestrator.setup.TableChoice``; absent in files written by tools that play on no table). ``/runs/<NNNN>/``:
+one group per run *attempt*, numbered 0001, 0002, … in the order the runs began (a re-run of an interrupted plan entry
+is a new group; the old one stays, status ``interrupted``).
 
-Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (float, degrees), ``plan_index``
-(int, index into the sequence's plan), ``attempt`` (int, 1 for the first run of that plan index),
-``started`` and ``ended`` (ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``,
-``sensors`` (JSON list of the accelerometer names), ``attribute_units`` (JSON: the units of the numeric run
-attributes present, `RUN_ATTR_UNITS`: ``rate`` in Hz, …), at the end ``clipped`` (JSON {sensor: samples at or
-beyond its full scale}, for the sensors with a calibration sheet), plus any extra attributes given by the caller.
+Run attributes: ``record`` (text), ``scale_factor`` (float), ``angle_deg`` (float, degrees), ``plan_index`` (int,
+index into the sequence's plan), ``attempt`` (int, 1 for the first run of that plan index), ``started`` and ``ended``
+(ISO 8601 UTC; ``ended`` is ``""`` while the run is in progress), ``status``, ``sensors`` (JSON list of the
+accelerometer names), ``attribute_units`` (JSON: the units of the numeric run attributes present, `RUN_ATTR_UNITS`:
+``rate`` in Hz, …), at the end ``clipped`` and ``tilt_clipped`` (JSON {sensor or body: samples at or beyond the full
+scale of its calibration sheet}), plus any extra attributes given by the caller.
 
-``status`` is one of `FINAL_STATUSES`, or the transient value ``"running"`` while the run is being
-recorded. ``degraded``: the drive played to its end, but something went wrong while the table moved (an underrun,
-late setpoints, lost accelerometer batches, a fault such as a clipped setpoint); its events (``degraded: …``) and
-the attribute ``degraded`` say what, and it is not done: a resumed session plays it again.
-A file whose writer died keeps ``"running"`` until `SessionLog.resume` turns it into
-``"interrupted"``. While ``"running"``, ``status`` and ``ended`` are stored as fixed-length UTF-8 strings
-(h5py reads them as ``bytes``); the final values are ordinary (variable-length) strings. This lets the final
-values replace them by changing one object-header page (see `rig.session.atomic`); `read_session` returns
-``str`` in both cases.
+``status``: one of `FINAL_STATUSES` (their meaning: docs/orchestrator.md §The session file), or ``"running"`` while
+recorded (until `SessionLog.resume` turns a dead writer's into ``"interrupted"``), stored with ``ended`` as
+fixed-length UTF-8 (``bytes`` in h5py) so that the final values, ordinary strings, replace them in one object-header
+page (`rig.session.atomic`); `read_session` returns ``str`` in both cases.
 
 Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock):
 
 * ``commanded`` (N, 7): t, surge, sway, heave [m], roll, pitch, yaw [rad];
 * ``accel/<sensor>`` (M, 4): t, ax, ay, az [m/s², plate frame];
-* ``tilt/<body_id>`` (L, 2): t, angle [rad]: the body's rocking angle from its tilt sensor, relative to the
-  plate, > 0 when its top has moved towards +x (the low side); one per body of ``bodies`` (empty when the
-  table sends no tilts: CANopen; files written before the tilt sensors have no ``tilt`` group);
+* ``tilt/<body_id>`` (L, 2): t, angle [rad]: the body's rocking angle from its tilt sensor, relative to the plate,
+  > 0 when its top has moved towards +x (the low side); one per body (empty over CANopen; absent in older files);
 * ``pose`` (K, 7): measured table pose from the controller's status feedback, columns as ``commanded``;
 * ``detections``: compound `DETECTION`: t [s], body_id, direction (+1 towards the low side, −1 towards the
   high side, 0 none), source (``"sensor"`` | ``"operator"``);
 * ``bodies``: compound `BODY`: body_id, b, h, depth [m], mass [kg], x, y [m, plate frame], name, b_cg, h_cg [m]:
-  the centre of gravity from the base's −x corner and above the base (``analysis.Body``), NaN where the sequence
-  did not give it (the middle; files written before have neither field);
+  the centre of gravity from the base's −x corner and above the base (``analysis.Body``; NaN: not given, the middle);
 * ``faults``: compound `FAULT`: t [s], name, detail; ``events``: compound `EVENT`: t [s], text;
-* ``checksums``: compound `rig.session.checksums.CHECKSUM`: dataset, first_row, rows, crc32: the CRC-32 of each
-  block of rows written to the datasets above (absent in files written before checksums: "not checksummed").
+* ``checksums``: compound `rig.session.checksums.CHECKSUM`: dataset, first_row, rows, crc32 of each block of rows
+  written to the datasets above (absent in files written before checksums: "not checksummed").
 
-Every dataset has attributes ``columns`` and ``units``: one entry per column (arrays) or field (compound datasets), in
-order, comma-separated; ``1`` is dimensionless, ``-`` (`NOT_A_QUANTITY`) text or an identifier. An
-``accel/<sensor>`` whose sensor has a calibration sheet (``analysis.table.sensors``) also has ``place_m`` (x, y, z
-[m], plate frame), ``axes`` (e.g. ``"+x,-y,+z"``), ``range_m_s2``, ``sensitivity``, ``sensitivity_unit``,
-``model``, ``serial``, ``calibrated`` and ``due`` (ISO dates).
-
-Text fields of the compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut at the field size
-(at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
+Every dataset has attributes ``columns`` and ``units``, one entry per column or field, in order, comma-separated
+(``1`` dimensionless, ``-`` `NOT_A_QUANTITY`); a calibrated sensor's ``accel/<sensor>`` and a body's ``tilt/<body_id>``
+carry their sheets (docs/sensors.md). Text fields of compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut
+at the field size (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
 """
 
 from __future__ import annotations
@@ -69,7 +58,7 @@ DETECTION_SOURCES = ("sensor", "operator")
 
 #: Attributes every run group has (extra caller attributes may not reuse these names).
 RUN_ATTRS = ("record", "scale_factor", "angle_deg", "status", "started", "ended", "plan_index", "attempt",
-             "sensors", "attribute_units", "clipped")
+             "sensors", "attribute_units", "clipped", "tilt_clipped")
 
 ACCEL_COLUMNS = ("t", "ax", "ay", "az")
 ACCEL_UNITS = ("s", "m/s^2", "m/s^2", "m/s^2")

@@ -1,102 +1,22 @@
 """The emulator's CANopen side: the six CiA 402 leg drives, the plate accelerometers and the overturn detector as
-``canopen.LocalNode``\\ s on one python-can bus (`sim_table.endpoint`; the master is ``drivers.canopen``).
+``canopen.LocalNode`` objects on one python-can bus (`sim_table.endpoint`; the master is ``drivers.canopen``).
 
 Listen URL ``canopen://CHANNEL?interface=NAME[&accelerometers=N][&target_delay=S]``: python-can's channel and
-interface — ``virtual`` within one process, ``udp_multicast`` (the channel a multicast group) between processes,
-and then **only inside a network namespace** with the group routed to ``lo``: elsewhere the datagrams leave through
-the default interface —, how many of the emulator's sensors are accelerometer nodes (default 1: a second one does
-not fit 1 Mbit/s at 500 Hz) and the drives' target delay (0x2010, default :data:`TARGET_DELAY`, within
-:data:`TARGET_DELAY_RANGE`): the longest stall of the master, or of this endpoint's own thread, that starves no
-drive. In Python, ``udp_multicast`` carries about 250 Hz between two processes on two
-shared cores (every datagram costs tens of µs at both ends, and each end receives its own as well).
+interface (``virtual`` within one process, ``udp_multicast`` between processes, only inside a network namespace),
+how many of the emulator's sensors are accelerometer nodes (default 1) and the drives' target delay [s] (0x2010,
+default :data:`TARGET_DELAY`, within :data:`TARGET_DELAY_RANGE`). Nodes (:mod:`protocols.canopen`): leg drive k =
+node k, accelerometer i = node 0x21 + i, the detector = node 0x30.
 
-Nodes (:mod:`protocols.canopen`): leg drive k = node k (``leg_drive.eds``), accelerometer i = node 0x21 + i
-(``accelerometer.eds``, one per emulated sensor), the detector = node 0x30 (``overturn_detector.eds``). The master
-configures them by SDO while they are pre-operational (PDO maps, heartbeat times, mode of operation, cycle
-period); a ``LocalNode`` does not pick up a PDO map written by SDO by itself, so each node reads its maps when NMT
-makes it operational, and a drive acts on SYNC itself (canopen's ``LocalNode`` does nothing on SYNC).
+:class:`CanopenEndpoint` turns cyclic synchronous position into the controller core's setpoint stream: SYNC n is
+placed at ``g_n = φ + n·T`` on the controller's clock (T the cycle period 0x1006), the six latched targets become
+one pose due at ``g_n +`` the target delay; the drives' CiA 402 states become ARM, START_STREAM, EMERGENCY_STOP and
+DISARM; the core's faults, refused targets and following errors become EMCYs and statusword bits; every SYNC is
+answered with each drive's TPDO1 (statusword, leg length [µm] at ``g_n −`` :data:`FEEDBACK_DELAY`) and each
+accelerometer's specific force [m/s², plate frame]. :meth:`CanopenEndpoint.take` first waits for the bus thread's
+backlog (at most :data:`BACKLOG_LIMIT` s). CAN has no authentication: every command counts as signed. It runs in
+real time (speed 1); ``loss`` and ``delay`` inject faults.
 
-**CSP on the controller core.** The core plays setpoint streams; cyclic synchronous position becomes one endless
-stream of one-sample chunks:
-
-- *SYNC clock.* A SYNC counts as arrived at its frame's time stamp: a drive answers a SYNC at once, while this
-  endpoint's bus thread may have had to wait its turn for the interpreter (counted: ``sync_handling_max_us``).
-  SYNC n of a series (a new series starts after a silence longer than :data:`SERIES_GAP`, or — with the SYNC
-  counter on — when the counter does not continue the last SYNC's; a pause of the master's cycle then keeps the
-  series, and the counter's step counts SYNCs lost on the way) is placed at
-  ``g_n = φ + n·T``: T the cycle period 0x1006, φ following the earliest arrivals (the least
-  delayed SYNC shows the master's cycle; a later one was held up and keeps its slot), as a drive's PLL does.
-  Counting is exact because the master never skips a SYNC (a late cycle goes out late).
-- *Setpoints.* At each SYNC every operational drive latches its last RPDO1: the controlword steps its CiA 402
-  state machine (:mod:`protocols.canopen.cia402`); while all six drives are *operation enabled* in CSP, the six
-  target positions → leg lengths → forward kinematics → one sample due at ``g_n + target delay`` (0x2010,
-  :data:`TARGET_DELAY`), which the core interpolates between at its 1 kHz tick. A CSP drive reaches its target at
-  the next SYNC; these declare 60 ms (what the MAVLink host's setpoints lead by): with the emulator's loop, both
-  ends of the bus and the master's cycle sharing one interpreter on two shared cores, a SYNC is handled up to tens
-  of ms late, and with a one-cycle delay the core would run dry at every late one. The master reads 0x2010 and
-  computes each target for its SYNC's time plus the delay, so the motion keeps its timing.
-- *Enable, disable, quick stop.* All six drives entering *operation enabled* at a SYNC → ARM + START_STREAM (the
-  core holds the achieved pose until the first sample is due). A drive entering *quick stop active* (the master's
-  emergency stop, or its reaction to a fault), or one enabled when NMT stops its PDOs → EMERGENCY_STOP (the legs
-  brake). Disable operation, shutdown or disable voltage (the master disarms only at rest) → the stream ends at the
-  last target and the core is DISARMed once it has played it.
-- *Faults of the core.* A drive fault (injected: leg 1's), no master heartbeat or no setpoints for 100 ms (the
-  core's watchdogs) → the drives concerned (leg 1; all) enter *fault reaction active* and send EMCY 0x5000, 0x8130
-  or 0x8700 while the core stops the table, then *fault* once the legs are braked. The core's STROKE and
-  SETPOINT_LIMIT set statusword bit 11 (internal limit active) on every drive.
-- *Refused targets.* The core checks every setpoint as on the other transports (``analysis.table.setpoints``: the
-  pose of the six targets inside the envelope, its step from the target before within the leg speed and tilt
-  rate); six targets with no pose to check — one beyond its leg's stroke (0x607D), or lengths no pose has — are
-  refused here before forward kinematics (``targets_refused``). Either refusal stops the table
-  (``SETPOINT_REFUSED``): every drive enters *fault reaction active* and sends EMCY 0x8612 (reference limit).
-- *Following error.* Each enabled drive watches its leg at every tick of the physics while the core streams (its
-  servo loop, not its SYNCs: a late SYNC does not let the error grow further): following error = commanded − actual
-  leg length [µm], reported in 0x60F4 at the instant of each TPDO1 (the command the physics gave the leg
-  at that instant, a real drive's position demand; with the legs braked, the leg's own length). Beyond the window
-  0x6065 (as the master set it, else the EDS default; 0xFFFFFFFF: off) the drive sets statusword bit 13 (until a
-  fault reset), enters *fault reaction active* and sends EMCY 0x8611 (error register: generic), and the core gets a
-  DRIVE fault: the table stops as for any drive fault (that drive's fault, not leg 1's). A leg that follows trails
-  its command by τ·v (the emulator's τ = 5 ms: at most 4.5 mm at the legs' 0.9 m/s); a seized one
-  (``--leg-stall``) falls behind until the window trips. Counted: ``following_errors``, ``following_error_max_um``
-  (the largest following error of a watched drive, at any tick).
-- *Feedback.* Every SYNC is answered by each operational drive's TPDO1 — its statusword at the SYNC and the
-  position actual value = the leg's length at ``g_n −`` the feedback delay (0x2011, :data:`FEEDBACK_DELAY`) — and
-  each accelerometer's TPDO with the specific force at ``g_n −`` its sample delay (0x2101, the same), both
-  interpolated in what the emulator loop gives :meth:`CanopenEndpoint.add_legs` and :meth:`~CanopenEndpoint.add_accel`
-  every tick. When the physics (10 ms batches) has not computed that instant yet, the answer waits until it has
-  (counted: ``feedback_deferred``); the TPDOs carry the SYNC's time stamp, which python-can's ``virtual`` bus passes
-  on (``preserve_timestamps``), so the master dates them right. A bus that stamps frames when they are received
-  (``udp_multicast``, as a CAN interface does) leaves the master to date an answer by the last SYNC it sent before
-  it: right while both ends answer within the cycle, as real drives do; two Python processes on a busy machine do
-  not always (an answer taken for a later SYNC's would be dated that much late). So where the bus has room for it
-  the master turns the SYNC counter on (0x1019) and maps the answered SYNC's counter into the TPDOs
-  (``TPDO1_COUNTED``, ``ACCEL_TPDO1_COUNTED`` in :mod:`protocols.canopen`): every answer here then carries the
-  counter of the SYNC it answers, and the master dates it by that. One accelerometer sample per SYNC: a sensor's
-  count is duration × SYNC rate.
-- *Overturns.* The detector sends each event at once and :data:`~protocols.canopen.sensors.EVENT_REPEATS` times
-  100 ms apart (real time), each copy with its age.
-- *Heartbeats.* Every node produces them as the master set 0x1017 (canopen's ``NmtSlave``); the master's own
-  (COB-ID 0x77F) are the core's host heartbeats.
-- *The tick thread waits for the bus thread.* Frames are handled by python-can's receive thread, the physics by
-  the emulator's tick thread; on a busy host the first can fall behind the second by more than a second (measured:
-  1.24 s) with the master's heartbeats and setpoints unread in the socket, and the core would judge the link
-  silent. :meth:`CanopenEndpoint.take` therefore first waits until the receive thread has handled every frame
-  received (:class:`~protocols.canopen.receive_buffer.ReceiveBacklog`, at most :data:`BACKLOG_LIMIT`; counted:
-  ``backlog_waits``, ``backlog_wait_max_us``, ``backlog_limit_reached``): the core judges the bus by what was sent
-  on it, not by what this process found time to read.
-
-**No authentication.** CAN has none: the CANopen transport relies on the bus being a private cable between the
-lab host and the table (nothing else attached, not bridged to a network). The emulator therefore takes every
-command and setpoint on this transport as signed; ``refused_commands`` stays 0.
-
-**Time.** The master's SYNC is the drives' clock, in real time: the emulator runs at speed 1 on this transport.
-Its fault injection times (``--drive-fault-at``, ``--stall-at``, ``--leg-stall``) count from the first time all
-six drives were enabled (the core's stream starts then).
-
-**Fault injection.** ``loss`` drops each RPDO a drive latches (it keeps its previous target) and each frame this
-side sends (TPDOs, EMCY, events) with that probability; SYNC, NMT, SDO and heartbeats are never dropped (a lost
-SYNC would shift every drive's cycle count). ``delay`` holds each SYNC (with the RPDOs latched when it arrived),
-each master heartbeat and each frame sent that long; :meth:`CanopenEndpoint.service` releases them.
+Every rule with its objects, EMCY codes, counters and measurements: docs/canopen.md §The emulated nodes.
 """
 
 from __future__ import annotations

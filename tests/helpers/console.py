@@ -17,6 +17,7 @@ class RecordingControls:
 
     def __init__(self, refuse: tuple[str, ...] = ()) -> None:
         self.calls: list[tuple[str, str]] = []
+        self.refusals: list[tuple[str, str, str]] = []
         self.args: list[dict[str, Any]] = []
         self.refuse = refuse
 
@@ -26,6 +27,9 @@ class RecordingControls:
         if command in self.refuse:
             raise ServiceError(f"cannot {command}: no session is running")
         return {"ok": True, "state": "running", "message": f"{command} requested"}
+
+    def refused(self, command: str, source: str, reason: str) -> None:
+        self.refusals.append((command, source, reason))
 
 
 CHROMIUM = Path("/usr/bin/chromium")

@@ -80,6 +80,10 @@ def test_a_viewer_watches_and_its_command_is_refused_and_logged(lab: dict[str, A
     refusals = [line for line in lab["said"] if line.startswith("control ")]
     assert len(refusals) == 2 and "refused (a viewer may watch only)" in refusals[0]
     assert "'tablet'" in refusals[0] and "control estop" in refusals[1]
+    # passed on to the service, to be logged in the session's events with who was refused
+    assert [(command, reason) for command, _, reason in controls.refusals] == [
+        ("pause", "a viewer may watch only"), ("estop", "a viewer may watch only")]
+    assert all("'tablet'" in source for _, source, _ in controls.refusals), controls.refusals
 
 
 def test_with_a_tokens_file_nothing_is_shown_without_a_token(lab: dict[str, Any]) -> None:

@@ -17,6 +17,7 @@ import pytest
 
 from rig.orchestrator.setup import CountersNotWrittenError, write_emulator_counters
 from rig.session import read_session
+from tests.helpers.sequences import TINY_ONE_RUN
 
 COUNTERS = {"underruns": 0, "refused_commands": 0, "overturns": []}
 
@@ -59,23 +60,6 @@ def test_another_write_error_says_so(tmp_path: Path) -> None:
 
 # ----- rig run: the disk ends the session, then the counters find no room either ------------------------------
 
-SEQUENCE = """\
-name = "tiny"
-angles_deg = [0]
-records = [{ record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] }]
-
-[drive]
-corner_hz = 1.0
-settle_s = 0.3
-
-[operator]
-confirm_before_run = false
-
-[[bodies]]
-table5 = 5
-x = 0.0
-y = 0.0
-"""
 
 RIG_WITHOUT_ROOM = textwrap.dedent("""
     import errno, os, pathlib, runpy, sys
@@ -103,7 +87,7 @@ def test_rig_run_ends_in_order_when_the_counters_find_no_room_after_a_disk_full_
         resource.setrlimit(resource.RLIMIT_FSIZE, (FILE_LIMIT, FILE_LIMIT))
         signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
 
-    (tmp_path / "tiny.toml").write_text(SEQUENCE)
+    (tmp_path / "tiny.toml").write_text(TINY_ONE_RUN)
     session = tmp_path / "s.h5"
     done = subprocess.run([sys.executable, "-c", RIG_WITHOUT_ROOM, "run", "tiny.toml", "--emulate", "--speed", "max",
                            "--yes", "-o", str(session)], cwd=tmp_path, capture_output=True, text=True, timeout=300,

@@ -7,7 +7,6 @@ on the host ignores shorter excursions and trips on the N-th sample in a row."""
 
 from __future__ import annotations
 
-import threading
 from pathlib import Path
 from typing import Any
 
@@ -15,71 +14,33 @@ import numpy as np
 import pytest
 
 from drivers.chunked import AHEAD_NS
-from protocols.signing_key import write_signing_key
-from rig.emulator import EmulatorProcess, specimen_flags
-from rig.orchestrator import Orchestrator, OrchestratorState
+from rig.orchestrator import OrchestratorState
 from rig.sequence import Sequence, load_sequence
-from rig.session import SessionLog, read_session
+from rig.session import read_session
 from sim_table.process import STATUS_PERIOD_NS
+from tests.helpers.sequences import TINY_ONE_RUN, new_log, play
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
-
-SEQUENCE = """\
-name = "limits"
-angles_deg = [0]
-records = [{{ record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] }}]
-
-[drive]
-corner_hz = 1.0
-settle_s = 0.3
-
-[operator]
-confirm_before_run = false
-
-[[bodies]]
-table5 = 5
-x = 0.0
-y = 0.0
-
-[limit_detectors.{channel}]
-{levels}
-"""
-
-
-@pytest.fixture(scope="module")
-def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("key") / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 def sequence(tmp_path: Path, levels: str, channel: str = "accel.x") -> Sequence:
     path = tmp_path / "limits.toml"
-    path.write_text(SEQUENCE.format(channel=channel, levels=levels))
+    path.write_text(f"{TINY_ONE_RUN}\n[limit_detectors.{channel}]\n{levels}\n")
     return load_sequence(path)
 
 
-def play(sequence: Sequence, path: Path, key_file: Path, *flags: str, controller_limits: bool = True,
-         listen: str = "mavlink://127.0.0.1:0") -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
+def play_into(sequence: Sequence, path: Path, key_file: Path, *flags: str, controller_limits: bool = True,
+              listen: str = "mavlink://127.0.0.1:0") -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
     """The sequence played on a fresh emulator listening on ``listen`` (with ``flags``) into ``path``: the final
     state, the emulator's counters, the run (``controller_limits`` False: the host's detectors act alone)."""
-    log = SessionLog.create(path, rig_config=sequence.table.to_dict(), sequence=sequence.to_dict(),
-                            software_version="test")
-    emulator = EmulatorProcess.start(listen, *specimen_flags(sequence.bodies), "--speed", "max", *flags,
-                                     key_file=key_file)
+    log = new_log(sequence, path)
     try:
-        orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
-                                    controller_limits=controller_limits)
-        result: list[OrchestratorState] = []
-        worker = threading.Thread(target=lambda: result.append(orchestrator.run()), daemon=True)
-        worker.start()
-        worker.join(120)
-        assert not worker.is_alive()
+        state, counters = play(sequence, log, key_file, emulator_flags=flags, listen=listen,
+                               orchestrator_options={"controller_limits": controller_limits})
     finally:
-        counters = emulator.stop()
         log.close()
     [run] = read_session(path)["runs"]
-    return result[0], counters, run
+    return state, counters, run
 
 
 def crossing(run: dict[str, Any], level: float) -> float:
@@ -99,7 +60,7 @@ def stop_latency_ms(run: dict[str, Any], source: str) -> float:
 @pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
 def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path: Path, key_file: Path,
                                                                        listen: str) -> None:
-    state, counters, run = play(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", key_file,
+    state, counters, run = play_into(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", key_file,
                                 listen=listen)
     assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit accel.0.x: ")
@@ -116,7 +77,7 @@ def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path:
 
 
 def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: Path, key_file: Path) -> None:
-    state, _, run = play(sequence(tmp_path, "abort_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
+    state, _, run = play_into(sequence(tmp_path, "abort_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
     assert state is OrchestratorState.DONE and run["status"] == "aborted"
     accel = run["accel"]["0"]
     past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
@@ -132,7 +93,7 @@ def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: P
 
 def test_the_host_alone_stops_the_table_and_keeps_the_data(tmp_path: Path, key_file: Path) -> None:
     limited = sequence(tmp_path, "abort_high_g = 0.05")
-    state, counters, run = play(limited, tmp_path / "s.h5", key_file, controller_limits=False)
+    state, counters, run = play_into(limited, tmp_path / "s.h5", key_file, controller_limits=False)
     assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
     assert run["status"] == "aborted"
     assert run["attrs"]["reason"].startswith("limit accel.0.x: ")
@@ -157,7 +118,7 @@ def test_the_host_alone_stops_the_table_and_keeps_the_data(tmp_path: Path, key_f
 
 
 def test_a_warning_level_only_records(tmp_path: Path, key_file: Path) -> None:
-    state, counters, run = play(sequence(tmp_path, "warn_high_g = 0.05\nwarn_low_g = -0.05"), tmp_path / "s.h5",
+    state, counters, run = play_into(sequence(tmp_path, "warn_high_g = 0.05\nwarn_low_g = -0.05"), tmp_path / "s.h5",
                                 key_file)
     assert state is OrchestratorState.DONE
     assert run["status"] == "completed"
@@ -172,7 +133,7 @@ def test_a_warning_level_only_records(tmp_path: Path, key_file: Path) -> None:
 
 
 def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file: Path) -> None:
-    state, _, run = play(sequence(tmp_path, "warn_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
+    state, _, run = play_into(sequence(tmp_path, "warn_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
     assert state is OrchestratorState.DONE and run["status"] == "completed"
     accel = run["accel"]["0"]
     past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
@@ -188,7 +149,7 @@ def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file:
 @pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
 def test_a_stalled_leg_trips_its_following_error(tmp_path: Path, key_file: Path, listen: str) -> None:
     limited = sequence(tmp_path, "abort_high_mm = 5\nabort_low_mm = -5\npersistence = 2", "leg.following_error")
-    state, _, run = play(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
+    state, _, run = play_into(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit leg.2.following_error: ")
     assert state is OrchestratorState.DONE
     [trip] = [event for event in run["events"] if event["text"].startswith("limit leg.2.following_error: ")

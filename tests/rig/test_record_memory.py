@@ -7,12 +7,14 @@ from __future__ import annotations
 
 import tracemalloc
 import warnings
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from rig.records import RecordError, RecordWarning
+from rig.records import GroundMotion, RecordError, RecordWarning
 from rig.records import cosmos as cosmos_reader
 from rig.records import csvfile as csv_reader
 from rig.records import peer as peer_reader
@@ -30,22 +32,6 @@ def _one_sample_a_line(path: Path, n: int) -> np.ndarray:
     values = np.round(np.random.default_rng(7).normal(0.0, 0.02, n), 3)
     path.write_text("# dt = 0.0005 s\n# units = g\n" + "\n".join(f"{v:g}" for v in values) + "\n")
     return values
-
-
-def test_peak_memory_per_sample_of_a_long_record(tmp_path: Path) -> None:
-    n = 200_000
-    path = tmp_path / "long.txt"
-    values = _one_sample_a_line(path, n)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RecordWarning)  # the file name says no component
-        tracemalloc.start()
-        try:
-            motion = read_text(path)
-            _, peak = tracemalloc.get_traced_memory()
-        finally:
-            tracemalloc.stop()
-    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.0005
-    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
 
 
 def test_a_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -75,22 +61,6 @@ def _at2(path: Path, n: int, eol: str = "\n") -> np.ndarray:
     return np.array([float(f"{v:15.7E}") for v in values])
 
 
-@pytest.mark.parametrize("eol", ["\n", "\r\n"])
-def test_peak_memory_per_sample_of_a_long_at2_record(tmp_path: Path, eol: str) -> None:
-    n = 1_000_000
-    path = tmp_path / "long.AT2"
-    values = _at2(path, n, eol)
-    tracemalloc.start()
-    try:
-        motion = read_at2(path)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.005
-    assert motion.provenance["lines"] == 4 + n // 5
-    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
-
-
 def test_an_at2_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setattr(peer_reader, "MAX_SAMPLES", 1000)
 
@@ -117,24 +87,6 @@ def _csv(path: Path, n: int, time_column: bool) -> np.ndarray:
     else:
         path.write_text("# dt = 0.005 s\nacc_g\n" + "".join(f"{v:g}\n" for v in values))
     return values
-
-
-@pytest.mark.parametrize("time_column", [False, True], ids=["acc", "time-acc"])
-def test_peak_memory_per_sample_of_a_long_csv_record(tmp_path: Path, time_column: bool) -> None:
-    n = 1_000_000
-    path = tmp_path / "long-HNE.csv"
-    values = _csv(path, n, time_column)
-    tracemalloc.start()
-    try:
-        motion = read_csv(path)
-        _, peak = tracemalloc.get_traced_memory()
-    finally:
-        tracemalloc.stop()
-    assert np.array_equal(motion.acc_h, values) and motion.npts == n and motion.dt == 0.005
-    # The file's bytes are held while its rows are parsed into one float64 array per column: with a time column
-    # (16 bytes a row here) that alone is 32 bytes a sample; the bound says nothing else is kept per sample.
-    goal = GOAL_BYTES_PER_SAMPLE if not time_column else path.stat().st_size / n + 8 * 2 + 1
-    assert peak / n <= goal, f"{peak / n:.1f} bytes per sample"
 
 
 def test_a_csv_record_too_long_is_refused_before_it_is_parsed(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -183,18 +135,57 @@ def _cosmos(path: Path, n: int) -> np.ndarray:
     return np.array([float(f"{v:15.6e}") for v in values]) * (0.01 / 9.81)
 
 
-def test_peak_memory_per_sample_of_a_long_cosmos_record(tmp_path: Path) -> None:
-    n = 100_000  # its values are still parsed one field at a time: 1 M takes too long for the fast tier
-    path = tmp_path / "long.V2"
-    values = _cosmos(path, n)
+@dataclass(frozen=True)
+class LongRecord:
+    """A long record in one format: its file name, how many samples, how it is written (returning the values the
+    reader must give, in g) and read, the line count the reader reports (None: not reported), its ``dt`` [s] (None:
+    the file's own) and the goal [bytes a sample] given the file and its samples."""
+
+    file_name: str
+    samples: int
+    write: Callable[[Path, int], np.ndarray]
+    read: Callable[[Path], GroundMotion]
+    lines: Callable[[int], int] | None = None
+    dt: float | None = None
+    goal: Callable[[Path, int], float] = lambda path, n: GOAL_BYTES_PER_SAMPLE
+
+
+def _csv_time_acc_goal(path: Path, n: int) -> float:
+    """The file's bytes are held while its rows are parsed into one float64 array per column: with a time column
+    (16 bytes a row here) that alone is 32 bytes a sample; the bound says nothing else is kept per sample."""
+    return path.stat().st_size / n + 8 * 2 + 1
+
+
+LONG_RECORDS = {
+    "text": LongRecord("long.txt", 200_000, _one_sample_a_line, read_text, dt=0.0005),
+    "at2": LongRecord("long.AT2", 1_000_000, _at2, read_at2, lines=lambda n: 4 + n // 5, dt=0.005),
+    "at2-crlf": LongRecord("long.AT2", 1_000_000, lambda path, n: _at2(path, n, "\r\n"), read_at2,
+                           lines=lambda n: 4 + n // 5, dt=0.005),
+    "csv-acc": LongRecord("long-HNE.csv", 1_000_000, lambda path, n: _csv(path, n, time_column=False), read_csv,
+                          dt=0.005),
+    "csv-time-acc": LongRecord("long-HNE.csv", 1_000_000, lambda path, n: _csv(path, n, time_column=True), read_csv,
+                               dt=0.005, goal=_csv_time_acc_goal),
+    # its values are still parsed one field at a time: 1 M takes too long for the fast tier
+    "cosmos": LongRecord("long.V2", 100_000, _cosmos, read_cosmos, lines=lambda n: 48 + 1 + n // 5 + 1),
+}
+
+
+@pytest.mark.parametrize("case", LONG_RECORDS.values(), ids=LONG_RECORDS.keys())
+def test_peak_memory_per_sample_of_a_long_record(tmp_path: Path, case: LongRecord) -> None:
+    n = case.samples
+    path = tmp_path / case.file_name
+    values = case.write(path, n)
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RecordWarning)
+        warnings.simplefilter("ignore", RecordWarning)  # a file name that says no component
         tracemalloc.start()
         try:
-            motion = read_cosmos(path)
+            motion = case.read(path)
             _, peak = tracemalloc.get_traced_memory()
         finally:
             tracemalloc.stop()
     assert np.array_equal(motion.acc_h, values) and motion.npts == n
-    assert motion.provenance["lines"] == 48 + 1 + n // 5 + 1
-    assert peak / n <= GOAL_BYTES_PER_SAMPLE, f"{peak / n:.1f} bytes per sample"
+    if case.dt is not None:
+        assert motion.dt == case.dt
+    if case.lines is not None:
+        assert motion.provenance["lines"] == case.lines(n)
+    assert peak / n <= case.goal(path, n), f"{peak / n:.1f} bytes per sample"

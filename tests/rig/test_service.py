@@ -211,6 +211,25 @@ def test_abort_during_a_run_logs_it_aborted(client: ServiceClient, tiny: Path, t
     assert "abort" in runs[0]["attrs"]["reason"]
 
 
+def test_a_control_a_client_refused_is_logged_and_never_acted_on(client: ServiceClient, tiny: Path,
+                                                                 tmp_path: Path) -> None:
+    """The console refuses a viewer's abort and passes it on (``refused``): the service answers it refused, the
+    session plays on to its end, and the run's events name the viewer, signed."""
+    output = tmp_path / "watched.h5"
+    with client.telemetry() as feed:
+        client.start(tiny, emulate=True, output=output)
+        wait_status(feed, lambda s: s["state"] == "running" and s["progress"]["samples_sent"] > 300)
+        client.refused("abort", "console browser session 2 with the viewer token of 'tablet'",
+                       "a viewer may watch only")
+        final = wait_status(feed, lambda s: s["state"] in ("done", "faulted") and not s["active"], 120)
+    assert final["state"] == "done" and final["progress"]["runs_done"] == 2, final
+    runs = read_session(output)["runs"]
+    assert [r["status"] for r in runs] == ["completed", "completed"]
+    (logged,) = [e["text"] for r in runs for e in r["events"] if " control " in e["text"]]
+    assert " control abort from console browser session 2 with the viewer token of 'tablet' (signed: " in logged
+    assert logged.endswith(": refused: refused by the console: a viewer may watch only"), logged
+
+
 def test_shutdown_aborts_the_running_session(tmp_path: Path, tiny: Path) -> None:
     own = Service(tmp_path)
     try:

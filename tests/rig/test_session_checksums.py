@@ -15,31 +15,15 @@ import pytest
 from typer.testing import CliRunner
 
 from rig.cli import app
-from rig.session import DamagedFileError, SessionLog, read_session
+from rig.session import DamagedFileError, read_session
 from rig.session import checksums as crc
-
-BODIES = [{"body_id": 1, "b": 0.10, "h": 0.50, "depth": 0.10, "mass": 4.0, "x": 0.0, "y": 0.0}]
-SEQUENCE = {"name": "checksums", "angles_deg": [5.0], "repetitions": 1}
+from tests.helpers.small_session import write_small_session
 
 
 @pytest.fixture(scope="module")
 def good(tmp_path_factory: pytest.TempPathFactory) -> bytes:
-    """The bytes of a real session file: two completed runs of 3 s of 1 kHz plate acceleration, tilts, events."""
-    path = tmp_path_factory.mktemp("good") / "session.h5"
-    log = SessionLog.create(path, {"table": {}}, SEQUENCE, "0.1.0+test")
-    for plan in range(2):
-        commanded = np.zeros((100, 7))
-        commanded[:, 0] = np.arange(100) / 1000.0
-        run = log.begin_run(plan, record="suite:a", scale_factor=0.5, angle_deg=5.0, commanded=commanded,
-                            bodies=BODIES, sensors=["plate"])
-        k = np.arange(3000)
-        run.append_accel("plate", k / 1000.0, np.sin(np.column_stack([k, 2 * k, 3 * k]) / 100.0))
-        run.append_tilt(1, k / 1000.0, 0.01 * np.sin(k / 50.0))
-        run.add_detection(0.2, 1, +1, "sensor")
-        run.add_event(0.0, "started")
-        run.end("completed")
-    log.close()
-    return path.read_bytes()
+    """The bytes of a real small session file (``tests/helpers/small_session.py``)."""
+    return write_small_session(tmp_path_factory.mktemp("good") / "session.h5", "checksums")
 
 
 def _copy(good: bytes, tmp_path: Path) -> Path:

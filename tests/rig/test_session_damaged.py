@@ -12,38 +12,24 @@ import random
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
 import pytest
 from typer.testing import CliRunner
 
 from rig.cli import app
 from rig.report.data import _open_any
-from rig.session import DamagedFileError, SessionLog, open_session, read_session, reader
+from rig.session import DamagedFileError, open_session, read_session, reader
 from rig.session.check import check_session
 from rig.session.hdf5props import READ_ATTEMPTS, read_attempts
 from rig.session.superblock import SIZE, parse
+from tests.helpers.small_session import write_small_session
 
-BODIES = [{"body_id": 1, "b": 0.10, "h": 0.50, "depth": 0.10, "mass": 4.0, "x": 0.0, "y": 0.0}]
-SEQUENCE = {"name": "damaged", "angles_deg": [5.0], "records": ["suite:a"], "repetitions": 1}
 GIB = 1 << 30
 
 
 @pytest.fixture(scope="module")
 def good(tmp_path_factory: pytest.TempPathFactory) -> bytes:
-    """The bytes of a real session file: two completed runs of 3 s of 1 kHz plate acceleration."""
-    path = tmp_path_factory.mktemp("good") / "session.h5"
-    log = SessionLog.create(path, {"table": {}}, SEQUENCE, "0.1.0+test")
-    for plan in range(2):
-        commanded = np.zeros((100, 7))
-        commanded[:, 0] = np.arange(100) / 1000.0
-        run = log.begin_run(plan, record="suite:a", scale_factor=0.5, angle_deg=5.0, commanded=commanded,
-                            bodies=BODIES, sensors=["plate"])
-        k = np.arange(3000)
-        run.append_accel("plate", k / 1000.0, np.sin(np.column_stack([k, 2 * k, 3 * k]) / 100.0))
-        run.add_detection(0.2, 1, +1, "sensor")
-        run.end("completed")
-    log.close()
-    return path.read_bytes()
+    """The bytes of a real small session file (``tests/helpers/small_session.py``)."""
+    return write_small_session(tmp_path_factory.mktemp("good") / "session.h5", "damaged")
 
 
 def _truncated(at: float) -> Callable[[bytes, Path], None]:

@@ -13,17 +13,20 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+import tomli_w
 
 from analysis.body import G
 from analysis.table.configuration import configuration_dict, read_configuration
 from analysis.table.model import TableModel
 from rig.analyze import analyze_session
+from rig.orchestrator import OrchestratorState
 from rig.orchestrator.setup import check_sensors
 from rig.report.data import read_header
 from rig.report.sensors import sensors_table
 from rig.report.session_report import session_body
 from rig.sequence import SequenceError, load_sequence
-from rig.session import SessionLog
+from rig.session import SessionLog, read_session
+from tests.helpers.sequences import TINY, new_log, play
 
 SHEET = """\
 [sensors.0]
@@ -165,3 +168,112 @@ def test_the_report_prints_the_sheets_and_the_clipped_samples(tmp_path: Path) ->
     assert cells == ["0", "PCB 356A16", "LW231455", "100 mV/g", f"±{2 * G:.4g} (±2 g)", "2026-01-15", "2027-01-15",
                      "0.3, -0.2, 0.05", "+x, -y, +z", "1"]
     assert "LW231455" in session_body(str(path))[1]
+
+
+TILT_SHEET = """\
+[sensors.tilt.1]
+model = "Jewell A602"
+serial = "T-0423"
+range = 45.0
+range_unit = "deg"
+calibrated = 2026-02-01
+due = 2027-02-01
+"""
+
+
+def _tilt_session(tmp_path: Path, angles: list[float]) -> Path:
+    """A session of one completed run whose body 1 (its tilt sensor ±45°) reads ``angles`` [rad] at `RATE`."""
+    rig_path = _rig(tmp_path, TILT_SHEET)
+    rig = TableModel(*read_configuration(rig_path))
+    path = tmp_path / "tilt.h5"
+    with SessionLog.create(path, rig.to_dict(), {"name": "sheets"}, "9.9.9") as log:
+        run = log.begin_run(0, record="test:rock", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)),
+                            bodies=[BODY], sensors=["0"], attrs={"rate": RATE, "record_start": 0.0})
+        run.append_tilt(1, np.arange(len(angles)) / RATE, np.array(angles))
+        run.end("completed")
+    return path
+
+
+def test_a_tilt_reading_at_its_range_is_flagged_and_the_sheet_stored_and_printed(tmp_path: Path) -> None:
+    limit = np.radians(45.0)
+    path = _tilt_session(tmp_path, [0.0, 0.2, np.nextafter(limit, 0.0), limit, -limit - 0.1, 0.3])
+    with h5py.File(path, "r") as h5:
+        run = h5["runs/0001"]
+        assert json.loads(run.attrs["tilt_clipped"]) == {"1": 2}
+        events = [text.decode() for text in run["events"]["text"]]
+        assert (f"clipped: tilt sensor of body 1 angle = {limit:.4g} rad at its full scale ±{limit:.4g} rad "
+                "(45°)") in events
+        tilt = run["tilt/1"]
+        assert tilt.attrs["range_rad"] == pytest.approx(limit) and tilt.attrs["serial"] == "T-0423"
+        assert (tilt.attrs["calibrated"], tilt.attrs["due"]) == ("2026-02-01", "2027-02-01")
+        assert json.loads(h5.attrs["rig_config"])["sensors"]["tilt"]["1"]["range_unit"] == "rad"
+    html = sensors_table(read_header(path).rig_config, read_header(path).runs)
+    row = re.search(r"<tr>(?:(?!</tr>).)*T-0423.*?</tr>", html, re.S)
+    assert row is not None, html
+    cells = re.findall(r"<td[^>]*>(.*?)</td>", row.group(0), re.S)
+    assert cells == ["1", "Jewell A602", "T-0423", f"±{limit:.4g} (±45°)", "2026-02-01", "2027-02-01", "2"]
+    assert "LW231455" in html  # the accelerometer's table too
+
+
+def test_an_overdue_tilt_sensor_warns_at_start(tmp_path: Path) -> None:
+    sequence = load_sequence(_sequence(tmp_path, TILT_SHEET))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        check_sensors(sequence, date(2027, 2, 1))  # the accelerometer was due on 2027-01-15, the tilt sensor now
+    texts = [str(w.message) for w in caught]
+    assert len(texts) == 2 and "sensors.0.due: accelerometer 0" in texts[0]
+    assert texts[1] == (f"{tmp_path / 'rig.toml'}:7: sensors.tilt.1.due: the tilt sensor of body 1 (Jewell A602, "
+                        "serial T-0423) was due for calibration on 2027-02-01: recalibrate it (docs/sensors.md)")
+
+
+PLACED = """\
+[sensors.0]
+model = "PCB 356A16"
+serial = "LW231455"
+sensitivity = 100.0
+sensitivity_unit = "mV/g"
+range = 5.0
+range_unit = "g"
+calibrated = 2026-01-15
+due = 2099-01-15
+place_m = [0.30, -0.20, 0.05]
+axes = ["-y", "+x", "+z"]
+
+[sensors.1]
+model = "PCB 356A16"
+serial = "LW231456"
+sensitivity = 100.0
+sensitivity_unit = "mV/g"
+range = 5.0
+range_unit = "g"
+calibrated = 2026-01-15
+due = 2099-01-15
+place_m = [-0.40, 0.30, 0.0]
+axes = ["+x", "-y", "-z"]
+"""
+
+
+@pytest.mark.integration  # starts the emulator
+def test_the_emulated_sensors_sit_where_their_sheets_say_and_are_recorded_in_the_plate_frame(
+        tmp_path: Path, key_file: Path) -> None:
+    (tmp_path / "rig.toml").write_text(PLACED)
+    path = tmp_path / "placed.toml"
+    path.write_text(TINY.replace('    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },\n', "")
+                    + '\n[rig]\nconfig = "rig.toml"\n')
+    sequence = load_sequence(path)
+    rig = tmp_path / "emulated-rig.toml"
+    rig.write_text(tomli_w.dumps(sequence.table.to_dict()))
+    log = new_log(sequence, tmp_path / "s.h5")
+    try:
+        state, _ = play(sequence, log, key_file, emulator_flags=("--rig-config", str(rig)))
+    finally:
+        log.close()
+    assert state is OrchestratorState.DONE
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    assert run["status"] == "completed" and set(run["accel"]) == {"0", "1"}
+    assert not [e for e in run["events"] if "not declared" in e["text"]]
+    for sensor in ("0", "1"):  # each mounted off the plate's axes (z down for 1), at rest: the plate frame's (0, 0, g)
+        rows = run["accel"][sensor]
+        rest = rows[rows[:, 0] < 0.2, 1:]
+        assert len(rest) > 100
+        np.testing.assert_allclose(rest.mean(axis=0), [0.0, 0.0, G], atol=0.02)

@@ -186,9 +186,44 @@ def test_the_rig_toml_names_the_tls_identity_relative_to_its_folder(lab: Path) -
     ('[network]\nca = "certs/ca.pem"\ncert = "certs/rig.pem"\nkey = 3\n',
      r"rig\.toml:7: network\.key: expected the path of its private key \(a string\), got 3$"),
     ('[network]\nca = "certs/ca.pem"\ncertificate = "certs/rig.pem"\n',
-     r"rig\.toml:6: network\.certificate: unknown key.*expected one of ca, cert, key$"),
+     r"rig\.toml:6: network\.certificate: unknown key.*expected one of ca, cert, key, console$"),
 ])
 def test_a_bad_network_table_is_refused_with_file_line_and_field(lab: Path, body: str, expected: str) -> None:
+    with pytest.raises(TableModelError, match=expected) as raised:
+        TableModel.from_toml(_rig_toml(lab.parent, body))
+    assert "\n" not in str(raised.value)
+
+
+def test_the_rig_toml_names_the_consoles_certificate_names_and_tokens(lab: Path) -> None:
+    folder = lab.parent
+    (folder / "tokens.toml").write_text("")
+    path = _rig_toml(folder, '[network.console]\nhttps_cert = "certs/rig.pem"\nhttps_key = "certs/rig.key"\n'
+                             'names = ["rig.lab", "10.231.0.5"]\ntokens = "tokens.toml"\n')
+    network = TableModel.from_toml(path).network
+    assert not network.given  # a console without a zenoh identity
+    console = network.console
+    assert (console.https_cert, console.https_key, console.https_dir) == (lab / "rig.pem", lab / "rig.key", None)
+    assert console.names == ("rig.lab", "10.231.0.5") and console.tokens == folder / "tokens.toml"
+    made = TableModel.from_toml(_rig_toml(folder, '[network.console]\nhttps_dir = "web"\n')).network.console
+    assert made.https_dir == folder / "web" and made.https_cert is None  # made on first use: need not exist
+
+
+@pytest.mark.parametrize(("body", "expected"), [
+    ('[network.console]\nhttps_cert = "certs/rig.pem"\n',
+     r"rig\.toml:5: network\.console\.https_cert: network\.console\.https_cert given without "
+     r"network\.console\.https_key: the console's certificate and its key go together$"),
+    ('[network.console]\nhttps_cert = "certs/rig.pem"\nhttps_key = "certs/rig.key"\nhttps_dir = "web"\n',
+     r"rig\.toml:7: network\.console\.https_dir: .* give the certificate, or the folder one is made in, not both$"),
+    ('[network.console]\nnames = "rig.lab"\n',
+     r"rig\.toml:5: network\.console\.names: expected a list of DNS names or addresses .*, got 'rig\.lab'$"),
+    ('[network.console]\ntokens = "nope.toml"\n',
+     r"rig\.toml:5: network\.console\.tokens: the tokens file of operators and viewers '.*nope\.toml': no such "
+     r"file$"),
+    ('[network.console]\ntoken = "t.toml"\n',
+     r"rig\.toml:5: network\.console\.token: unknown key.*expected one of https_cert, https_key, https_dir, names, "
+     r"tokens$"),
+])
+def test_a_bad_console_table_is_refused_with_file_line_and_field(lab: Path, body: str, expected: str) -> None:
     with pytest.raises(TableModelError, match=expected) as raised:
         TableModel.from_toml(_rig_toml(lab.parent, body))
     assert "\n" not in str(raised.value)

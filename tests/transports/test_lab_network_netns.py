@@ -16,7 +16,6 @@ import errno
 import json
 import os
 import shlex
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -30,6 +29,7 @@ from rig.certs import make_identity
 from rig.emulator import specimen_flags
 from rig.sequence import load_sequence
 from rig.session import read_session
+from tests.helpers.netns import NO_NAMESPACES, can_make_namespaces
 
 pytestmark = pytest.mark.integration  # starts processes and opens sockets (tests/conftest.py)
 
@@ -55,18 +55,10 @@ y = -0.15
 """
 
 
-def _can_make_namespaces() -> bool:
-    if shutil.which("unshare") is None or shutil.which("ip") is None:
-        return False
-    probe = subprocess.run(["unshare", "--net", "sh", "-c", "ip link add va type veth peer name vb"],
-                           capture_output=True, timeout=30)
-    return probe.returncode == 0
-
-
 @pytest.fixture(scope="module")
 def namespaces() -> None:
-    if not _can_make_namespaces():
-        pytest.skip("cannot create network namespaces and a veth pair here (needs unshare, ip, CAP_NET_ADMIN)")
+    if not can_make_namespaces():
+        pytest.skip(NO_NAMESPACES)
 
 
 def _two_hosts(table_command: list[str], table_log: Path, rig_command: list[str], timeout: float = 240.0,

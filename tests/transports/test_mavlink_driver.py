@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 from drivers.controller import (
+    CommandRejectedError,
     StreamAbortedError,
     TableError,
     TableLinkLostError,
@@ -297,6 +298,25 @@ def test_heartbeats_of_other_processes_do_not_keep_an_armed_table_armed(plain: E
     finally:
         for host in (armer, intruder, observer):
             host.close()
+
+
+@pytest.mark.integration
+def test_an_arm_without_the_heartbeat_kept_up_is_refused_with_the_controllers_reason(
+        plain: EmulatorProcess, key_file: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A host whose heartbeat comes once a second (a ground station's default) arms: the controller refuses with a
+    STATUSTEXT saying why, then TEMPORARILY_REJECTED; the driver's error carries that reason, not a generic
+    refusal, and the table stays unarmed."""
+    import drivers.mavlink
+
+    monkeypatch.setattr(drivers.mavlink, "HEARTBEAT_RATE", 1.0)
+    with open_table(plain.url, key_file=str(key_file)) as table:
+        at_rest(table)
+        time.sleep(1.2)  # two beats 1 s apart: beats, but too far apart for the 1 s watchdog
+        with pytest.raises(CommandRejectedError) as refused:
+            table.arm()
+        assert table.status().state != "armed"
+    assert re.fullmatch(r"ARM refused: gap \d+\.\d\ds; HEARTBEAT <=0\.50s apart \(table \w+\)",
+                        str(refused.value)), str(refused.value)
 
 
 def captured_commands(key: bytes, unix_time: float, *commands: tuple[str, float]) -> list[bytes]:

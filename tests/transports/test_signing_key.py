@@ -6,8 +6,10 @@ from __future__ import annotations
 import os
 import stat
 from pathlib import Path
+from typing import Any
 
 import pytest
+import typer
 
 from protocols.signing_key import KEY_ENV, SigningKeyError, key_from_passphrase, load_signing_key, write_signing_key
 
@@ -123,3 +125,59 @@ def test_key_passphrase_on_the_command_line(monkeypatch: pytest.MonkeyPatch, tmp
     assert both.exit_code == 2 and "give the rig's key one way" in both.output
     weak = CliRunner().invoke(app, ["service", "token", "--key-passphrase", "tablekey"])
     assert weak.exit_code == 2 and "too weak" in weak.output
+
+
+def _commands(group: Any, prefix: str = "rig") -> list[tuple[str, Any]]:
+    """Every command under the command group ``group``, with its full name."""
+    found: list[tuple[str, Any]] = []
+    for name, command in group.commands.items():
+        if hasattr(command, "commands"):
+            found += _commands(command, f"{prefix} {name}")
+        else:
+            found.append((f"{prefix} {name}", command))
+    return found
+
+
+def test_every_command_with_key_file_takes_key_passphrase() -> None:
+    import typer.main
+
+    from rig.cli import app
+
+    commands = _commands(typer.main.get_command(app))
+    with_key = [name for name, command in commands
+                if any("--key-file" in param.opts for param in command.params)]
+    without = [name for name, command in commands if name in with_key and not any(
+        "--key-passphrase" in param.opts for param in command.params)]
+    assert {"rig run", "rig serve", "rig table list", "rig table check", "rig console"} <= set(with_key)
+    assert without == []
+
+
+def test_rig_emulate_passes_the_passphrase_on_as_the_key(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rig emulate`` hands its options to ``python -m sim_table``: ``--key-passphrase`` is taken out of them and
+    its key put where the emulator reads the rig's key."""
+    from rig.cli.emulate import take_key_passphrase
+
+    monkeypatch.delenv(KEY_ENV, raising=False)
+    monkeypatch.delenv("SHAKETABLE_KEY_PASSPHRASE", raising=False)
+    passphrase = "correct horse battery staple"
+    rest = take_key_passphrase(["--listen", "mavlink://127.0.0.1:14600", "--key-passphrase", passphrase,
+                                "--replay-state", "r.json"])
+    assert rest == ["--listen", "mavlink://127.0.0.1:14600", "--replay-state", "r.json"]
+    assert os.environ[KEY_ENV] == key_from_passphrase(passphrase).hex()
+    assert take_key_passphrase([f"--key-passphrase={passphrase}"]) == []
+    monkeypatch.delenv(KEY_ENV)
+    assert take_key_passphrase(["--listen", "x"]) == ["--listen", "x"] and KEY_ENV not in os.environ
+    with pytest.raises(typer.Exit):
+        take_key_passphrase(["--key-passphrase", passphrase, "--key-file", "rig.key"])
+    with pytest.raises(typer.Exit):
+        take_key_passphrase(["--key-passphrase"])
+
+
+def test_rig_table_list_refuses_a_weak_passphrase_before_any_link() -> None:
+    from typer.testing import CliRunner
+
+    from rig.cli import app
+
+    weak = CliRunner().invoke(app, ["table", "list", "--connect", "tls/10.231.0.2:7447", "--key-passphrase",
+                                    "tablekey"])
+    assert weak.exit_code == 2 and "too weak" in weak.output, weak.output
