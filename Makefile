@@ -26,10 +26,11 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/rig demo
 
-# ruff on everything; mypy on the packages ([tool.mypy] in pyproject.toml: the modules not yet clean listed there)
+# ruff on everything; mypy on the packages ([tool.mypy] in pyproject.toml), every `type: ignore` there with its reason
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/mypy
+	$(PYTEST) tests/test_type_ignores.py
 
 # the README's test command: lint and the fast tier (every test not marked integration or slow), in parallel;
 # a test over its time budget fails with its stack (pytest-timeout), one near it is listed (tests/conftest.py)

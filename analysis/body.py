@@ -61,18 +61,18 @@ class Body:
         for field, value in (("b", self.b), ("h", self.h)):
             if not (isinstance(value, int | float) and math.isfinite(value) and value > 0):
                 raise AnalysisInputError(f"Body: {field} must be a finite length > 0 m, got {value!r}")
-        for field, value in (("depth", self.depth), ("mass", self.mass)):
-            if value is not None and not (math.isfinite(value) and value > 0):
-                raise AnalysisInputError(f"Body: {field} must be > 0 when given, got {value!r}")
-        for field, value, side, what in (("b_cg", self.b_cg, "b", "from the base's -x corner along +x"),
-                                         ("h_cg", self.h_cg, "h", "above the base")):
-            if value is None:
+        for field, given in (("depth", self.depth), ("mass", self.mass)):
+            if given is not None and not (math.isfinite(given) and given > 0):
+                raise AnalysisInputError(f"Body: {field} must be > 0 when given, got {given!r}")
+        for field, offset, side, what in (("b_cg", self.b_cg, "b", "from the base's -x corner along +x"),
+                                          ("h_cg", self.h_cg, "h", "above the base")):
+            if offset is None:
                 continue
             size = getattr(self, side)
-            if not (isinstance(value, int | float) and math.isfinite(value) and 0 < value < size):
+            if not (isinstance(offset, int | float) and math.isfinite(offset) and 0 < offset < size):
                 raise AnalysisInputError(
                     f"Body: {field} (the centre of mass {what}) must be inside the block, 0 < {field} < "
-                    f"{side} = {size!r} m, got {value!r}")
+                    f"{side} = {size!r} m, got {offset!r}")
 
     # ---------------------------------------------------------------- the centre of mass and each side
 

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Protocol
+from typing import Literal, Protocol, runtime_checkable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -359,7 +359,7 @@ def fit_gcor(
                    rms=res.rms, n=int(y.size), c2_fixed=fix_c2 is not None)
 
 
-def _scor_rows(rows: ArrayLike | Iterable[Sequence[float]]) -> NDArray[np.float64]:
+def _scor_rows(rows: NDArray[np.floating] | Iterable[Sequence[float]]) -> NDArray[np.float64]:
     table = np.asarray(list(rows) if not isinstance(rows, np.ndarray) else rows, dtype=float)
     if table.ndim != 2 or table.shape[1] not in (4, 5):
         raise AnalysisInputError(
@@ -370,7 +370,7 @@ def _scor_rows(rows: ArrayLike | Iterable[Sequence[float]]) -> NDArray[np.float6
     return table
 
 
-def fit_scor(rows: ArrayLike | Iterable[Sequence[float]], fix_c2: float | None = PAPER_C2) -> ScorFit:
+def fit_scor(rows: NDArray[np.floating] | Iterable[Sequence[float]], fix_c2: float | None = PAPER_C2) -> ScorFit:
     """Fit Eq. 13 to per-(body, angle) rows ``(b [m], h [m], β [rad], cor [fraction], count)``.
 
     Fits k1, k2, k3 of c1 = k1·(b/h) + k2·r + k3 with c2 fixed at ``fix_c2`` (default the paper's
@@ -426,6 +426,7 @@ def fit_scor(rows: ArrayLike | Iterable[Sequence[float]], fix_c2: float | None =
 # The design inverse
 
 
+@runtime_checkable
 class _HasCoeffs(Protocol):
     @property
     def coeffs(self) -> tuple[float, ...]: ...
@@ -440,7 +441,7 @@ def design_coefficients(
     ignored. SCOR: ``coeffs`` = (k1, k2, k3), (k1, k2, k3, c2) or a :class:`ScorFit` (default
     :data:`PAPER_SCOR` with c2 = 0.48); c1 from Eq. 13 for the body. No range checks here.
     """
-    if hasattr(coeffs, "coeffs"):
+    if isinstance(coeffs, _HasCoeffs):
         values: tuple[float, ...] | None = tuple(coeffs.coeffs)
     else:
         values = None if coeffs is None else tuple(coeffs)

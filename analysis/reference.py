@@ -16,9 +16,12 @@ ones for the −x corner; ``analysis.body``).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Generic, TypeVar
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy.integrate import solve_ivp
 
 from analysis.equations import (
@@ -30,6 +33,28 @@ from analysis.equations import (
 
 RTOL = 1e-11
 ATOL = 1e-13
+
+EventRoot = Callable[[float, NDArray[np.float64]], float]
+"""``root(t [s], y)``: zero where the event happens."""
+
+
+@dataclass(frozen=True)
+class SolverEvent:
+    """An event for ``solve_ivp``, which reads ``terminal`` and ``direction`` off each event it is given:
+    ``terminal`` stops the integration at the first root; ``direction`` +1 counts only roots where ``root``
+    goes from negative to positive, −1 only the opposite, 0 both."""
+
+    root: EventRoot
+    terminal: bool
+    direction: int
+
+    def __call__(self, t: float, y: NDArray[np.float64]) -> float:
+        return self.root(t, y)
+
+
+def solver_event(*, terminal: bool, direction: int) -> Callable[[EventRoot], SolverEvent]:
+    """Decorator: the function below as a :class:`SolverEvent` (``terminal``, ``direction`` as there)."""
+    return lambda root: SolverEvent(root, terminal, direction)
 
 
 @dataclass
@@ -45,14 +70,17 @@ class Trace:
     """When the body last came to rest [s] (0 if it never moved)."""
 
 
-@dataclass
-class ReferenceOutcome:
+TraceT = TypeVar("TraceT", bound=Trace, covariant=True)
+
+
+@dataclass(frozen=True)
+class ReferenceOutcome(Generic[TraceT]):
     direction: int
     t_overturn: float | None
     theta_max: float
     t_end: float
     status: str
-    trace: Trace
+    trace: TraceT
 
 
 class _Input:
@@ -89,7 +117,7 @@ def simulate_rocking_reference(
     alpha_minus: float | None = None,
     k_minus: float | None = None,
     restitution_minus: float | None = None,
-) -> ReferenceOutcome:
+) -> ReferenceOutcome[Trace]:
     """One scene of the rocking model (Eq. 2), or of its linearisation (Housner's linear model).
 
     ``alpha``, ``k``, ``restitution``: slenderness, k = R/(i_g² + R²) and the impact's angular-velocity ratio
@@ -118,7 +146,7 @@ def simulate_rocking_reference(
     i = 0
     # margins are linear in time inside an interval: the uplift condition is exact
     uplift_tan = (math.tan(alpha), math.tan(alpha_m)) if not linearised else (alpha, alpha_m)
-    gx_all, gz_all = plate_gravity(ax, ay, cb, sb)
+    gx_all, gz_all = plate_gravity(ax, ay, cb, sb)  # type: ignore[arg-type]  # numba compiles it for arrays too
     mp_all, mm_all = uplift_margins(gx_all, gz_all, *uplift_tan)
     positive = np.flatnonzero((mp_all > 0) | (mm_all > 0))
 
@@ -177,25 +205,19 @@ def simulate_rocking_reference(
             gx, gz = gravity_py(a0x + sx * (tt - t_a), a0y + sy * (tt - t_a), cb, sb)
             return [y[1], acc_py(y[0], side, gx, gz, alpha_s, k_s)]
 
+        @solver_event(terminal=True, direction=-1)
         def ev_impact(tt: float, y: np.ndarray, side: float = side, t0: float = now) -> float:
             # θ = 0 at a restart is where the flight begins, not a return: count it as just
             # outside, so that a return inside the first step is located at its own root
             return side * y[0] if tt > t0 else max(side * y[0], ATOL)
 
-        ev_impact.terminal = True
-        ev_impact.direction = -1
-
+        @solver_event(terminal=True, direction=1)
         def ev_fall(tt: float, y: np.ndarray, side: float = side, fall: float = fall) -> float:
             return side * y[0] - fall
 
-        ev_fall.terminal = True
-        ev_fall.direction = 1
-
+        @solver_event(terminal=False, direction=0)
         def ev_turn(tt: float, y: np.ndarray) -> float:
             return y[1]
-
-        ev_turn.terminal = False
-        ev_turn.direction = 0
 
         t_end = min(t_b, t_stop)
         sol = solve_ivp(rhs, (now, t_end), [theta, omega], method="DOP853", rtol=RTOL, atol=ATOL,

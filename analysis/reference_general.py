@@ -18,6 +18,7 @@ Conventions as in :mod:`analysis.equations`; inputs in m/s² on an explicit time
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -56,7 +57,7 @@ from analysis.general_stages import (
     rock_margin,
     rs_denominator,
 )
-from analysis.reference import ATOL, RTOL, ReferenceOutcome, Trace, _Input
+from analysis.reference import ATOL, RTOL, ReferenceOutcome, Trace, _Input, solver_event
 
 __all__ = ["STAGE_NAMES", "GeneralTrace", "simulate_general_reference"]
 
@@ -115,7 +116,7 @@ def simulate_general_reference(
     alpha_minus: float | None = None,
     r_minus: float | None = None,
     restitution_minus: float | None = None,
-) -> ReferenceOutcome:
+) -> ReferenceOutcome[GeneralTrace]:
     """One scene of the general model. ``alpha``, ``r`` [m]: the slenderness and the distance to the centre of
     mass of the +x corner (the half-diagonal of a centred block), ``alpha_minus``, ``r_minus`` the −x corner's
     (None: the same); ``restitution`` (``restitution_minus``): the angular-velocity ratio at an impact that ends
@@ -166,7 +167,7 @@ class _Scene:
         alpha, r, k, _, _ = corner(self.geo, s)
         return alpha, r, k, (self.e if s > 0 else self.e_m)
 
-    def run(self, theta0: float, omega0: float) -> ReferenceOutcome:
+    def run(self, theta0: float, omega0: float) -> ReferenceOutcome[GeneralTrace]:
         ig2, mu, geo = self.ig2, self.mu, self.geo
         alpha_p, r_p, alpha_m, r_m = self.alpha, self.r, self.alpha_m, self.r_m
         cb, sb = self.cb, self.sb
@@ -188,7 +189,7 @@ class _Scene:
         tips_p, tips_m = friction_tips(mu, geo[3]), friction_tips(mu, geo[8])
         psi_ref, r_ref = alpha_p, r_p
 
-        def done(direction: int, t_o: float | None, status: str, t_end: float) -> ReferenceOutcome:
+        def done(direction: int, t_o: float | None, status: str, t_end: float) -> ReferenceOutcome[GeneralTrace]:
             return ReferenceOutcome(direction, t_o, theta_max, t_end, status, trace)
 
         while True:
@@ -272,16 +273,15 @@ class _Scene:
                     gx, gz = grav(tt)
                     return [sliding_acceleration(sl, gx, gz, mu), y[0]]
 
+                @solver_event(terminal=True, direction=-1)
                 def ev_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
                     return sl * y[0] if tt != t0 else _AT_START
 
-                ev_stop.terminal, ev_stop.direction = True, -1
-
+                @solver_event(terminal=True, direction=-1)
                 def ev_lift(tt: float, y: np.ndarray) -> float:
                     gz = grav(tt)[1]  # lifts off when g_z < 0: at g_z = 0 the weightless block slides
                     return gz if gz != 0.0 else _AT_START
 
-                ev_lift.terminal, ev_lift.direction = True, -1
                 sol = solve_ivp(rhs_slide, (now, t_end), [v, u], method="DOP853", rtol=RTOL, atol=ATOL,
                                 events=[ev_stop, ev_lift])
                 n_pts = sol.t.size
@@ -312,6 +312,7 @@ class _Scene:
                     gx, gz = grav(tt)
                     return [y[1], 0.0, gx, y[4], -gz, y[2]]
 
+                @solver_event(terminal=True, direction=-1)
                 def ev_land(tt: float, y: np.ndarray, psi_ref: float = psi_ref, r_ref: float = r_ref,
                             t0: float = now) -> float:
                     # gap of the lowest corner (sign θ), ζ − r (cos ψ − cos ψ_ref): no cancellation at lift-off;
@@ -324,16 +325,14 @@ class _Scene:
                         return y[3] + 2.0 * r * math.sin(0.5 * (psi + psi_ref)) * math.sin(0.5 * (psi - psi_ref))
                     return y[3] - (r * math.cos(psi) - r_ref * math.cos(psi_ref))
 
-                ev_land.terminal, ev_land.direction = True, -1
-
+                @solver_event(terminal=True, direction=1)
                 def ev_fp(tt: float, y: np.ndarray, fp: float = fp) -> float:
                     return y[0] - fp
 
+                @solver_event(terminal=True, direction=1)
                 def ev_fm(tt: float, y: np.ndarray, fm: float = fm) -> float:
                     return -y[0] - fm
 
-                ev_fp.terminal, ev_fp.direction = True, 1
-                ev_fm.terminal, ev_fm.direction = True, 1
                 def lean(th: float) -> float:
                     return lean_offset(th, alpha_p, r_p, alpha_m, r_m)
 
@@ -387,60 +386,61 @@ class _Scene:
             t_seg = min(t_end, now + HOLD) if hold_now else t_end
             hold = False
 
+            rhs: Callable[[float, np.ndarray], list[float]]
             if rs:
-                def rhs(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
-                        r: float = r) -> list[float]:
+                def rhs_rockslide(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
+                                  r: float = r) -> list[float]:
                     gx, gz = grav(tt)
                     th_dd, x_dd, _ = rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)
                     return [y[1], th_dd, x_dd, y[2]]
+                rhs = rhs_rockslide
             else:
-                def rhs(tt: float, y: np.ndarray, side: float = side, alpha: float = alpha,
-                        k: float = k) -> list[float]:
+                def rhs_rock(tt: float, y: np.ndarray, side: float = side, alpha: float = alpha,
+                             k: float = k) -> list[float]:
                     gx, gz = grav(tt)
                     return [y[1], rocking_acceleration(y[0], side, gx, gz, alpha, k)]
+                rhs = rhs_rock
 
+            @solver_event(terminal=True, direction=-1)
             def ev_impact(tt: float, y: np.ndarray, side: float = side, t0: float = now) -> float:
                 return side * y[0] if tt != t0 else _AT_START
 
-            ev_impact.terminal, ev_impact.direction = True, -1
-
+            @solver_event(terminal=True, direction=1)
             def ev_fall(tt: float, y: np.ndarray, side: float = side, fall: float = fall) -> float:
                 return side * y[0] - fall
 
-            ev_fall.terminal, ev_fall.direction = True, 1
-
+            @solver_event(terminal=False, direction=0)
             def ev_turn(tt: float, y: np.ndarray) -> float:
                 return y[1]
 
-            ev_turn.terminal, ev_turn.direction = False, 0
             events = [ev_impact, ev_fall, ev_turn]
             if rs:
-                def ev_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
+                @solver_event(terminal=True, direction=-1)
+                def ev_pivot_stop(tt: float, y: np.ndarray, sl: float = sl, t0: float = now) -> float:
                     return sl * y[2] if tt != t0 else _AT_START
 
-                def ev_lift(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
-                            r: float = r) -> float:
+                @solver_event(terminal=True, direction=1)
+                def ev_pivot_lift(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
+                                  r: float = r) -> float:  # R_n < 0
                     gx, gz = grav(tt)
                     return -rocking_sliding_acceleration(y[0], y[1], side, sl, gx, gz, alpha, r, ig2, mu)[2]
 
+                @solver_event(terminal=True, direction=-1)
                 def ev_painleve(tt: float, y: np.ndarray, side: float = side, sl: float = sl, alpha: float = alpha,
                                 r: float = r) -> float:
                     return rs_denominator(y[0], side, sl, alpha, r, ig2, mu) - DEN_MIN * (ig2 + r * r)
 
-                ev_stop.terminal, ev_stop.direction = True, -1
-                ev_lift.terminal, ev_lift.direction = True, 1
-                ev_painleve.terminal, ev_painleve.direction = True, -1
-                events += [ev_stop, ev_lift, ev_painleve]
+                events += [ev_pivot_stop, ev_pivot_lift, ev_painleve]
                 y0 = [theta, omega, v, u]
             else:
                 if not hold_now:
+                    @solver_event(terminal=True, direction=1)
                     def ev_react(tt: float, y: np.ndarray, side: float = side, jam_now: bool = jam_now,
                                  alpha: float = alpha, r: float = r, k: float = k) -> float:
                         gx, gz = grav(tt)
                         f, _, rn = rock_margin(y[0], y[1], side, gx, gz, alpha, r, k, mu)
                         return -rn if jam_now else f
 
-                    ev_react.terminal, ev_react.direction = True, 1
                     events.append(ev_react)
                 y0 = [theta, omega]
 
@@ -448,7 +448,7 @@ class _Scene:
             evs = [(float(sol.t_events[j][0]), j) for j in range(len(events))
                    if j != 2 and sol.t_events[j].size]
             first = min(evs) if evs else None
-            stops = rs and first is not None and first[1] == 3  # the sliding pivot stops (ev_stop)
+            stops = rs and first is not None and first[1] == 3  # the sliding pivot stops (ev_pivot_stop)
             vv = sol.y[2].copy() if rs else np.zeros(sol.t.size)
             if stops:  # as in SLIDE: the point recorded where v = 0 holds 0, not the root's rounding
                 vv[-1] = 0.0

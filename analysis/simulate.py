@@ -129,7 +129,7 @@ def check_record(acc: ArrayLike, name: str) -> np.ndarray:
     return arr
 
 
-def check_dt(dt: float) -> float:
+def check_dt(dt: float | None) -> float:
     if dt is None or not math.isfinite(dt) or dt <= 0:
         raise AnalysisInputError(f"dt must be a finite time step > 0 s, got {dt}")
     return float(dt)
@@ -242,12 +242,12 @@ def _fast(body: Body, model: str, ax: np.ndarray, ay: np.ndarray, dt: float, bet
     else:
         from analysis.fast_general import simulate_general
 
-        d, t_o, th_max, imp, t_end, status, _, pre, *slide = simulate_general(
+        d, t_o, th_max, imp, t_end, status, _, pre, u_peak, u_end, t_slid = simulate_general(
             ax, ay, env, dt, body.alpha_plus, body.r_plus, body.alpha_minus, body.r_minus, body.i_g**2, beta, e[0],
             e[1], friction, n_sub, t_after, fall_plus, fall_minus, theta0, omega0, has_vertical)
+        slide = (float(u_peak), float(u_end), float(t_slid))
     return SimulationResult(int(d), None if math.isnan(t_o) else float(t_o), float(th_max),
-                            _status_name(status), float(t_end), int(imp), model, "fast", bool(pre),
-                            *(float(x) for x in slide))
+                            _status_name(status), float(t_end), int(imp), model, "fast", bool(pre), *slide)
 
 
 def _reference(body: Body, model: str, t: np.ndarray, ax: np.ndarray, ay: np.ndarray, beta: float,
@@ -261,6 +261,7 @@ def _reference(body: Body, model: str, t: np.ndarray, ax: np.ndarray, ay: np.nda
             t_after=t_after, fall_plus=fall_plus, fall_minus=fall_minus, theta0=theta0, omega0=omega0,
             linearised=linearised, history=history, alpha_minus=body.alpha_minus, k_minus=body.k_minus,
             restitution_minus=e[1])
+        slide = (0.0, 0.0, 0.0)
     else:
         from analysis.reference_general import simulate_general_reference
 
@@ -269,7 +270,6 @@ def _reference(body: Body, model: str, t: np.ndarray, ax: np.ndarray, ay: np.nda
             friction=friction, t_after=t_after, fall_plus=fall_plus, fall_minus=fall_minus,
             theta0=theta0, omega0=omega0, history=history, alpha_minus=body.alpha_minus, r_minus=body.r_minus,
             restitution_minus=e[1])
-    tr = out.trace
-    slide = (tr.slide_peak, tr.slide_residual, tr.slide_time) if model == "general" else (0.0, 0.0, 0.0)
+        slide = (out.trace.slide_peak, out.trace.slide_residual, out.trace.slide_time)
     return SimulationResult(out.direction, out.t_overturn, out.theta_max, out.status, out.t_end,
-                            len(tr.impacts), model, "reference", False, *slide, trace=tr)
+                            len(out.trace.impacts), model, "reference", False, *slide, trace=out.trace)

@@ -129,17 +129,17 @@ def uniform(t: ArrayLike, values: ArrayLike) -> tuple[NDArray[np.float64], float
     """Samples ``values`` at times ``t`` [s] on a uniform grid from their first time at the median spacing
     (linear interpolation; non-finite samples dropped): (resampled values, dt [s]). Fewer than 2 samples give an
     empty array and dt = 1."""
-    t = np.asarray(t, dtype=float)
+    times = np.asarray(t, dtype=float)
     v = np.asarray(values, dtype=float)
-    keep = np.isfinite(t) & np.isfinite(v)
-    t, v = t[keep], v[keep]
-    if t.size < 2:
+    keep = np.isfinite(times) & np.isfinite(v)
+    times, v = times[keep], v[keep]
+    if times.size < 2:
         return np.zeros(0), 1.0
-    order = np.argsort(t, kind="stable")
-    t, v = t[order], v[order]
-    steps = np.diff(t)
+    order = np.argsort(times, kind="stable")
+    times, v = times[order], v[order]
+    steps = np.diff(times)
     dt = float(np.median(steps[steps > 0])) if np.any(steps > 0) else 1.0
     if np.allclose(steps, dt, rtol=1e-3, atol=0.0):
         return v, dt
-    grid = t[0] + dt * np.arange(math.floor((t[-1] - t[0]) / dt + 1e-9) + 1)
-    return np.interp(grid, t, v), dt
+    grid = times[0] + dt * np.arange(math.floor((times[-1] - times[0]) / dt + 1e-9) + 1)
+    return np.interp(grid, times, v), dt

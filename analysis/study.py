@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Protocol
 
 import numpy as np
+from numpy.typing import NDArray
 
 from analysis import design
 from analysis.body import Body, G
@@ -32,12 +33,17 @@ from analysis.simulate import (
 
 
 class RecordLike(Protocol):
-    """What a study needs of a record (``rig.records.GroundMotion`` is one): accelerations in g."""
+    """What a study needs of a record (``rig.records.GroundMotion`` is one): its sample step ``dt`` [s] and
+    accelerations in g (read only)."""
 
-    name: str
-    dt: float
-    acc_h: np.ndarray
-    acc_v: np.ndarray | None
+    @property
+    def name(self) -> str: ...
+    @property
+    def dt(self) -> float: ...
+    @property
+    def acc_h(self) -> np.ndarray: ...
+    @property
+    def acc_v(self) -> np.ndarray | None: ...
 
 
 STATUS = ("rest", "overturned", "undecided")
@@ -213,7 +219,7 @@ def checked_records(records: Sequence[RecordLike], use_vertical: bool
 def study(
     bodies: Sequence[Body],
     records: Sequence[RecordLike],
-    angles: Sequence[float],
+    angles: Sequence[float] | NDArray[np.float64],
     model: Model = "rocking",
     *,
     signs: Sequence[int] = (1, -1),

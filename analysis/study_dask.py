@@ -90,7 +90,8 @@ def run_block(records: list[ShippedRecord], bodies: list[Body], angles: np.ndarr
     (``SCENE_FIELDS``) and ``seconds`` (the kernel's wall time [s])."""
     import numba
 
-    threads = max(1, min(_worker_threads(), int(numba.config.NUMBA_NUM_THREADS)))
+    most = numba.config.NUMBA_NUM_THREADS  # type: ignore[attr-defined]  # numba.config sets its names at run time
+    threads = max(1, min(_worker_threads(), int(most)))
     with _KERNEL_LOCK:
         before = numba.get_num_threads()
         numba.set_num_threads(threads)

@@ -9,15 +9,16 @@ from __future__ import annotations
 
 import math
 import os
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
 from analysis.body import Body
-from analysis.simulate import SimulationResult, simulate
-from analysis.study import RecordLike, StudyResult, cor_counts, study
+from analysis.simulate import Model, SimulationResult, simulate
+from analysis.study import RecordLike, cor_counts, study
 
 PERTURBATION = 1e-6
 
@@ -82,7 +83,7 @@ def compare_with_reference(
     bodies: Sequence[Body],
     records: Sequence[RecordLike],
     angles: Sequence[float],
-    model: str = "rocking",
+    model: Model = "rocking",
     *,
     processes: int | None = None,
     **kwargs: object,
@@ -91,7 +92,8 @@ def compare_with_reference(
     worker processes, default all cores); check every disagreement for chaos."""
     import time
 
-    fast: StudyResult = study(bodies, records, angles, model=model, **kwargs)  # type: ignore[arg-type]
+    fast = study(bodies, records, angles, model=model,
+                 **kwargs)  # type: ignore[arg-type]  # kwargs: study's own options, checked there
     sim_kwargs = {k: v for k, v in kwargs.items() if k in ("restitution", "friction", "criterion", "t_after")}
 
     def scene_args(i: int, scale: float = 1.0) -> tuple:
@@ -108,7 +110,7 @@ def compare_with_reference(
         ref_theta = np.array([r[2] for r in ref])
         ref_seconds = time.perf_counter() - t0
         diff_idx = np.flatnonzero(ref_dir != fast.direction)
-        perturbed = list(pool.map(_reference_scene, [scene_args(i, s) for i in diff_idx
+        perturbed = list(pool.map(_reference_scene, [scene_args(int(i), s) for i in diff_idx
                                                     for s in (1 + PERTURBATION, 1 - PERTURBATION)]))
     differences = []
     for n, i in enumerate(diff_idx):
@@ -199,12 +201,27 @@ class StressedAgreement:
     reference_seconds: float
 
 
-def _stressed_reference(args: tuple) -> tuple[int, str, float, float, float, float]:
+class _StressedOutcome(NamedTuple):
+    """What the stressed agreement compares of one scene (t_overturn NaN when the body did not overturn)."""
+
+    direction: int
+    status: str
+    t_overturn: float
+    slide_peak: float
+    slide_residual: float
+    slide_time: float
+
+    @classmethod
+    def of(cls, res: SimulationResult) -> _StressedOutcome:
+        return cls(res.direction, res.status, math.nan if res.t_overturn is None else res.t_overturn, res.slide_peak,
+                   res.slide_residual, res.slide_time)
+
+
+def _stressed_reference(args: tuple[StressedScene, float]) -> _StressedOutcome:
     sc, scale = args
     res = simulate(sc.body, scale * sc.acc_h, sc.dt, beta=sc.beta, acc_v=None if sc.acc_v is None else scale * sc.acc_v,
                    model="general", solver="reference", friction=sc.friction)
-    return (res.direction, res.status, math.nan if res.t_overturn is None else res.t_overturn, res.slide_peak,
-            res.slide_residual, res.slide_time)
+    return _StressedOutcome.of(res)
 
 
 def compare_stressed(scenes: Sequence[StressedScene], *, processes: int | None = None) -> StressedAgreement:
@@ -212,11 +229,10 @@ def compare_stressed(scenes: Sequence[StressedScene], *, processes: int | None =
     is checked for chaos as :func:`compare_with_reference` does."""
     import time
 
-    fast = []
+    fast: list[_StressedOutcome] = []
     for sc in scenes:
         res = simulate(sc.body, sc.acc_h, sc.dt, beta=sc.beta, acc_v=sc.acc_v, model="general", friction=sc.friction)
-        fast.append((res.direction, res.status, math.nan if res.t_overturn is None else res.t_overturn,
-                     res.slide_peak, res.slide_residual, res.slide_time))
+        fast.append(_StressedOutcome.of(res))
     t0 = time.perf_counter()
     with ProcessPoolExecutor(max_workers=processes or os.cpu_count() or 1) as pool:
         ref = list(pool.map(_stressed_reference, [(sc, 1.0) for sc in scenes], chunksize=4))
@@ -235,22 +251,24 @@ def compare_stressed(scenes: Sequence[StressedScene], *, processes: int | None =
     rest = [i for i in same if ref[i][1] == "rest"]
     over = [i for i in same if ref[i][0] != 0]
 
-    def worst(idx: list[int], k: int) -> float:
-        return max((abs(fast[i][k] - ref[i][k]) for i in idx), default=0.0)
+    def worst(idx: list[int], value: Callable[[_StressedOutcome], float]) -> float:
+        return max((abs(value(fast[i]) - value(ref[i])) for i in idx), default=0.0)
 
     return StressedAgreement(
         scenes=len(scenes), same_outcome=len(same), overturned=sum(r[0] != 0 for r in ref),
-        sliding=sum(r[5] > 0.0 for r in ref), with_vertical=sum(sc.acc_v is not None for sc in scenes),
+        sliding=sum(r.slide_time > 0.0 for r in ref), with_vertical=sum(sc.acc_v is not None for sc in scenes),
         unexplained=unexplained, chaotic=len(diff) - len(unexplained),
-        slide_residual_max_error_m=worst(rest, 4), slide_peak_max_error_m=worst(rest, 3),
-        slide_time_max_error_s=worst(rest, 5), t_overturn_max_error_s=worst(over, 2), reference_seconds=ref_seconds)
+        slide_residual_max_error_m=worst(rest, lambda o: o.slide_residual),
+        slide_peak_max_error_m=worst(rest, lambda o: o.slide_peak),
+        slide_time_max_error_s=worst(rest, lambda o: o.slide_time),
+        t_overturn_max_error_s=worst(over, lambda o: o.t_overturn), reference_seconds=ref_seconds)
 
 
 # --------------------------------------------------------------------------------------------------
 # free rocking with e = 1: how much energy the fast engine's RK4 adds
 
 
-def free_rocking_energy_growth(body: Body, amplitude: float, *, step: float, model: str = "general",
+def free_rocking_energy_growth(body: Body, amplitude: float, *, step: float, model: Model = "general",
                                t_free: float = 60.0) -> float:
     """Relative energy gained in ``t_free`` seconds of free rocking with e = 1 (no loss at impact) on
     a level plate, released from rest at θ0 = ``amplitude`` [rad], fast engine at ``step`` (p·h). For a body whose

@@ -66,7 +66,7 @@ class Subscription(Generic[T]):
 
     def drain(self) -> list[T]:
         """Every item queued now, without waiting."""
-        items = []
+        items: list[T] = []
         while True:
             try:
                 item = self._queue.get_nowait()

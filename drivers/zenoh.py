@@ -200,12 +200,12 @@ class ZenohTable(ChunkedStreamController):
         self._closing.clear()
         try:
             keys = self._keys
-            for key, handler in ((keys["status"], self._on_status), (keys["answer"], self._on_answer),
-                                 (keys["overturn"], self._on_overturn), (keys["heartbeat"], self._on_heartbeat),
-                                 (keys["tilt"], self._on_tilt), (keys["refusal"], self._on_refusal),
-                                 (keys["limit-trip"], self._on_limit_trip),
-                                 (table_accel_selector(self.address.table), self._on_accel)):
-                session.declare_subscriber(key, self._receiver(handler))
+            for key_expr, handler in ((keys["status"], self._on_status), (keys["answer"], self._on_answer),
+                                      (keys["overturn"], self._on_overturn), (keys["heartbeat"], self._on_heartbeat),
+                                      (keys["tilt"], self._on_tilt), (keys["refusal"], self._on_refusal),
+                                      (keys["limit-trip"], self._on_limit_trip),
+                                      (table_accel_selector(self.address.table), self._on_accel)):
+                session.declare_subscriber(key_expr, self._receiver(handler))
             self._setpoints = session.declare_publisher(keys["setpoints"], express=True,
                                                         congestion_control=zenoh.CongestionControl.BLOCK)
             self._heartbeat = session.declare_publisher(keys["host-heartbeat"], express=True)
@@ -421,10 +421,11 @@ class ZenohTable(ChunkedStreamController):
     def _first_answer(self, replies: zenoh.Handler[zenoh.Reply], cmd_id: int, errors: list[str]) -> Answer | None:
         """The answer among ``replies`` (iteration ends when the query does: answered, or its timeout)."""
         for reply in replies:
-            if reply.ok is None:
-                errors.append(reply.err.payload.to_string())
+            result = reply.result
+            if isinstance(result, zenoh.ReplyError):
+                errors.append(result.payload.to_string())
                 continue
-            received = split_signed(reply.ok.payload.to_bytes())
+            received = split_signed(result.payload.to_bytes())
             if not self._verified(self._keys["command"], received, reply=True):
                 errors.append("an answer without a valid signature")
                 continue

@@ -16,6 +16,7 @@ import json
 import math
 import os
 import re
+import select
 import signal
 import subprocess
 import sys
@@ -119,6 +120,21 @@ class EmulatorProcess:
         if self.proc.returncode != 0:
             raise EmulatorError(f"the emulator exited with {self.proc.returncode}: {err.strip()}")
         return json.loads(out)
+
+    def rest(self, timeout: float = 20.0) -> dict[str, Any]:
+        """Bring the table back to its power-up state (SIGUSR1: at home, idle, no owner, every counter zero;
+        ``sim_table.process.Emulator.rest``, MAVLink and zenoh) and return the counters up to then, as
+        :meth:`stop` would have; waits at most ``timeout`` [s]. For tests sharing one emulator."""
+        assert self.proc.stdout is not None
+        if self.proc.poll() is not None:
+            raise EmulatorError(f"the emulator has exited ({self.proc.returncode}): nothing to bring to rest")
+        self.proc.send_signal(signal.SIGUSR1)
+        ready, _, _ = select.select([self.proc.stdout], [], [], timeout)
+        line = self.proc.stdout.readline() if ready else ""
+        if not line:
+            raise EmulatorError(f"the emulator did not come back to rest within {timeout:g} s "
+                                f"(exit {self.proc.poll()})")
+        return json.loads(line)
 
     def __enter__(self) -> EmulatorProcess:
         return self

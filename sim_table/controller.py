@@ -228,6 +228,19 @@ class ControllerCore:
     ``buffer_capacity`` the setpoint samples the buffer holds; ``underrun_stops`` (below).
     """
 
+    # the stream's state, set by _reset_stream (at power-up, a stream's start and its end); times [ns, controller]
+    _buffer: deque[tuple[int, np.ndarray]]  # (time, pose (6,)) of each setpoint sample buffered
+    _anchor: tuple[int, np.ndarray] | None
+    _seen: set[int]
+    _seen_order: deque[int]
+    _expected: int
+    _gaps: dict[int, int]  # chunk number skipped → time after which it is missing
+    _end_seq: int | None
+    _end_ns: int | None
+    _last_chunk: int | None
+    _received_any: bool
+    _dry: bool
+
     def __init__(self, table: TableModel, *, tick_ns: int = 1_000_000, watchdog_ns: int = 100_000_000,
                  pose: np.ndarray | None = None, link_clock: Callable[[], int] | None = None,
                  buffer_capacity: int = DEFAULT_BUFFER_CAPACITY, underrun_stops: bool = True) -> None:
@@ -557,15 +570,15 @@ class ControllerCore:
     # ----- internals ------------------------------------------------------------------------------------
 
     def _reset_stream(self) -> None:
-        self._buffer: deque[tuple[int, np.ndarray]] = deque()
-        self._anchor: tuple[int, np.ndarray] | None = None
-        self._seen: set[int] = set()
-        self._seen_order: deque[int] = deque()
+        self._buffer = deque()
+        self._anchor = None
+        self._seen = set()
+        self._seen_order = deque()
         self._expected = 0
-        self._gaps: dict[int, int] = {}  # chunk number skipped → controller time [ns] after which it is missing
-        self._end_seq: int | None = None
-        self._end_ns: int | None = None
-        self._last_chunk: int | None = None
+        self._gaps = {}
+        self._end_seq = None
+        self._end_ns = None
+        self._last_chunk = None
         self._received_any = False
         self._dry = False
 

@@ -31,8 +31,8 @@ from analysis.table.model import TableModel
 from protocols.zenoh.config import PLAIN, LinkSecurity
 from sim_table.controller import ControllerCore, Done, Refused, Snapshot, State
 
-Action = Callable[[ControllerCore], None]
-"""A host message as an effect on the controller core."""
+Action = Callable[[ControllerCore], object]
+"""A host message as an effect on the controller core (what it returns is not used)."""
 
 #: Listen-URL scheme → module providing ``open_endpoint(url, options)``.
 ENDPOINT_MODULES: dict[str, str] = {
@@ -202,6 +202,15 @@ class HeldAnswers(Protocol):
     the status showing what a command did before its answer, and a status taken after it next."""
 
     def send_answers(self) -> bool: ...
+
+
+@runtime_checkable
+class Rests(Protocol):
+    """An endpoint that can forget its hosts (MAVLink, zenoh): no owner, no peer, no command in progress or
+    remembered, every counter zero; the signatures' replay guard kept. What ``sim_table.process.Emulator.rest``
+    needs of it (CANopen's drives keep their own state machines: not offered there)."""
+
+    def rest(self) -> None: ...
 
 
 def listen_scheme(url: str) -> str:

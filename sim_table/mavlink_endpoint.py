@@ -593,6 +593,20 @@ class MavlinkEndpoint(BatchedTelemetry):
         if self._store is not None:
             self._store.close()
 
+    def rest(self) -> None:
+        """Forget every host (`sim_table.endpoint.Rests`): no owner, peer, remembered command, answer or event
+        waiting to be sent, no message waiting in the inbox, the samples short of a batch dropped, every counter
+        zero; the signatures' replay guard kept."""
+        with self._receive_lock, self._send_lock, self._inbox_lock:
+            self.counters = LinkCounters()
+            self._ownership = Ownership(round(PEER_TIMEOUT * 1e9))
+            for kept in (self._inbox, self._outbox, self._peers, self._beats, self._last, self._requesters,
+                         self._answers, self._resends, self._refusals):
+                kept.clear()
+            self._accel = Batcher(ACCEL_PER_BATCH)
+            self._tilt = Batcher(TILT_PER_BATCH)
+            self._next_bodies = 0
+
     def counters_dict(self) -> dict[str, int]:
         ownership = self._ownership
         return {**asdict(self.counters), "claims_granted": ownership.claims_granted,

@@ -15,7 +15,10 @@ drive fault, ``--stall-at S`` drops every setpoint chunk and ``--leg-stall LEG@S
 brakes to rest and stops following its command: on CANopen its drive's following-error supervision trips) from
 S seconds (controller time) after the first START_STREAM; ``--door-open S:D`` sets the enclosure door input and
 ``--accel-noisy ID@S:D`` makes accelerometer ID noisy for D s from S s after it. At exit (SIGINT, SIGTERM) the
-counters are written as one JSON object to stdout, or to ``--counters FILE``.
+counters are written as one JSON object to stdout, or to ``--counters FILE``. SIGUSR1 brings the table back to its
+power-up state (at home, idle, no owner, counters zero: :meth:`Emulator.rest`; MAVLink and zenoh) and writes the
+counters up to then as one JSON line to stdout, what tests sharing one emulator do between two tests; only the
+emulator's own user can send it.
 
 Signing key (``--key-file``, else ``$SHAKETABLE_MAVLINK_KEY``): needed on the transports that sign, mavlink and
 zenoh; not on canopen, which has no authentication (the bus is a private cable). On those two the signatures' last
@@ -37,6 +40,7 @@ import sys
 import threading
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -58,6 +62,7 @@ from sim_table.endpoint import (
     HeldAnswers,
     LegFeedback,
     LimitReports,
+    Rests,
     listen_scheme,
     open_endpoint,
 )
@@ -234,14 +239,8 @@ class Emulator:
         self.virtual = math.isinf(config.speed)
         """Virtual time (``--speed max``, module docstring)."""
         capacity = math.ceil((table.link.buffer_s if config.buffer is None else config.buffer) * table.controller_rate)
-        csp = listen_scheme(config.listen) == "canopen"  # the master plays the drive: its drives hold on a gap
-        if self.virtual:
-            self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9),
-                                       link_clock=time.monotonic_ns, buffer_capacity=capacity)
-        else:
-            watchdog = table.link.watchdog_s if config.watchdog is None else config.watchdog
-            self.core = ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(watchdog * config.speed * 1e9),
-                                       buffer_capacity=capacity, underrun_stops=not csp)
+        self._capacity = capacity
+        self.core = self._new_core()
         self.wake_period_ns = CANOPEN_WAKE_PERIOD_NS if listen_scheme(config.listen) == "canopen" else WAKE_PERIOD_NS
         """The real-time loop's wake-up period [ns] (module docstring)."""
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
@@ -283,6 +282,53 @@ class Emulator:
         self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
         self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
         self._last_following = np.zeros(6)  # each leg's commanded minus true length at the last tick [m]
+        self.rest_requested = threading.Event()
+        """Set (from a signal handler or another thread) to have the loop :meth:`rest` the table."""
+        self._on_rest: Callable[[dict[str, Any]], None] | None = None
+
+    def _new_core(self) -> ControllerCore:
+        """The controller as at power-up: idle at home, no fault, every counter zero."""
+        config, table = self.config, self.config.table
+        if self.virtual:
+            return ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(VIRTUAL_WATCHDOG_SECONDS * 1e9),
+                                  link_clock=time.monotonic_ns, buffer_capacity=self._capacity)
+        watchdog = table.link.watchdog_s if config.watchdog is None else config.watchdog
+        csp = listen_scheme(config.listen) == "canopen"  # the master plays the drive: its drives hold on a gap
+        return ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(watchdog * config.speed * 1e9),
+                              buffer_capacity=self._capacity, underrun_stops=not csp)
+
+    def rest(self) -> dict[str, Any]:
+        """Bring the table back to its state at power-up, between two tests that share one emulator (SIGUSR1,
+        :func:`main`): returns the counters up to now, then the controller is idle at home with no fault, the legs
+        at home and at rest, the specimens re-seated upright, nobody owns the table, every counter (the link's, the
+        timing, the overturns) is zero and no fault injection has happened yet. Controller time runs on (it never
+        goes back: the hosts' clocks stay valid) and the signatures' replay guard is kept (a message signed before
+        the reset is still refused as a replay after it). Runs on the loop's thread, between two iterations.
+        ValueError on an endpoint that cannot forget its hosts (CANopen: :class:`~sim_table.endpoint.Rests`)."""
+        if not isinstance(self.endpoint, Rests):
+            raise ValueError(f"{listen_scheme(self.config.listen)}: the emulator cannot be brought back to rest on "
+                             "this transport (only mavlink and zenoh)")
+        counters = self.counters()
+        config, table = self.config, self.config.table
+        self.core = self._new_core()
+        self.actuators = make_actuators(config.dynamics, table, self.tick_ns * 1e-9, config.actuators,
+                                        seed=config.seed, loads=specimen_loads(config.specimens))
+        self.track = PlateTrack(self.tick_ns * 1e-9)
+        self._last_legs = (self.actuators.lengths, self.actuators.pose)
+        self._last_centre = np.zeros(6)
+        self._last_following = np.zeros(6)
+        if self.scene is not None:
+            self.scene.place(self._last_centre)
+        self.endpoint.rest()
+        self._pending.clear()
+        self._drive_fault_done = self._leg_stalled = False
+        with self._batches_lock:
+            self._batches.clear()
+        self._ticks = self._busy_ns = self._cpu_ns = self._lag_max_ns = 0
+        self.profile.clear()
+        self._overturns = []
+        self._held_status = None
+        return counters
 
     def controller_time(self, host_ns: int) -> int:
         """Controller time [ns] at host monotonic time ``host_ns`` (virtual time: the last tick's, whatever
@@ -291,16 +337,19 @@ class Emulator:
             return self._clock
         return int((host_ns - self._start) * self.config.speed)
 
-    def run(self, stop: threading.Event) -> None:
+    def run(self, stop: threading.Event, on_rest: Callable[[dict[str, Any]], None] | None = None) -> None:
         """Start the clock and the endpoint, tick in real time (× speed) or virtual time until ``stop`` is set;
-        then send the last accelerometer and tilt samples."""
+        then send the last accelerometer and tilt samples. Between two iterations, when :attr:`rest_requested` is
+        set: :meth:`rest`, its counters to ``on_rest``."""
         self._start = deadline = time.monotonic_ns()
         self.endpoint.start()
+        self._on_rest = on_rest
         if self.virtual:
             self._run_virtual(stop)
             self._flush()
             return
         while not stop.is_set():
+            self._rest_if_requested()
             deadline += self.wake_period_ns
             now = time.monotonic_ns()
             if deadline > now:
@@ -309,6 +358,13 @@ class Emulator:
                 deadline = now  # late: run what is due now, do not burst to catch up missed wakes
             self.step(time.monotonic_ns())
         self._flush()
+
+    def _rest_if_requested(self) -> None:
+        if self.rest_requested.is_set():
+            self.rest_requested.clear()
+            counters = self.rest()
+            if self._on_rest is not None:
+                self._on_rest(counters)
 
     def _flush(self) -> None:
         """Send the samples the endpoint holds short of a full batch."""
@@ -349,6 +405,7 @@ class Emulator:
         time."""
         last = time.monotonic_ns()
         while not stop.is_set():
+            self._rest_if_requested()
             now = time.monotonic_ns()
             self._rest_credit += now - last
             last = now
@@ -669,6 +726,8 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # bodies that overlap or do not fit the scene
         print(f"sim_table: {exc}", file=sys.stderr)
         return 2
+    if isinstance(emulator.endpoint, Rests):  # before "listening": whoever reads that may send it at once
+        signal.signal(signal.SIGUSR1, lambda *_: emulator.rest_requested.set())
     gc.collect()
     gc.freeze()  # the set-up out of reach of the collector: its full passes stay short while serving (drivers/heap)
     speed = "max" if emulator.virtual else f"{config.speed:g}"
@@ -678,7 +737,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"sim_table: listening on {emulator.url} (speed {speed}, {len(config.specimens)} bodies, "
           f"{len(emulator.accelerometers.places)} accelerometers)", file=sys.stderr, flush=True)
     try:
-        emulator.run(stop)
+        emulator.run(stop, on_rest=lambda counters: print(json.dumps(counters), flush=True))
     finally:
         emulator.close()
     text = json.dumps(emulator.counters())

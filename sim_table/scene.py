@@ -211,8 +211,8 @@ def parse_body(text: str) -> Specimen:
                         h_cg=h_cg)
         except AnalysisInputError as exc:
             raise SpecimenError(f"--body {text!r}: {exc}") from None
-    options = {"friction": extra["mu"]} if "mu" in extra else {}
-    return Specimen(body, x=x, y=y, restitution=extra.get("restitution"), **options)
+    friction = {"friction": extra["mu"]} if "mu" in extra else {}
+    return Specimen(body, x=x, y=y, restitution=extra.get("restitution"), **friction)
 
 
 def plate_half_size(specimens: Sequence[Specimen]) -> tuple[float, float]:

@@ -27,10 +27,14 @@ from typing import NamedTuple
 import mujoco
 import numpy as np
 from mujoco import rollout
+from numpy.typing import NDArray
 
 from analysis.table.model import rotation_matrices
 from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, Specimen, SpecimenError, build_model
 from sim_table.tick_profile import TickProfile
+
+Pose = Sequence[float] | NDArray[np.float64]
+"""A plate pose (surge, sway, heave [m], roll, pitch, yaw [rad]) or its velocity [m/s, rad/s], (6,)."""
 
 OVERTURN_MARGIN = 0.8
 """Default rotation past the slenderness angle α at which a body counts as overturned [rad]."""
@@ -62,7 +66,7 @@ class SpecimenScene:
     ``specimens``: ``sim_table.tick_profile``), if given.
     """
 
-    def __init__(self, specimens: Sequence[Specimen], *, plate_pose: Sequence[float] | None = None,
+    def __init__(self, specimens: Sequence[Specimen], *, plate_pose: Pose | None = None,
                  contact: ContactSettings | None = None, overturn_margin: float = OVERTURN_MARGIN,
                  profile: TickProfile | None = None) -> None:
         if not (math.isfinite(overturn_margin) and overturn_margin > 0):
@@ -99,7 +103,7 @@ class SpecimenScene:
         """The scene's clock [s]: the end of the last physics step."""
         return self.data.time
 
-    def place(self, plate_pose: Sequence[float] | None = None, leans: Sequence[float] | None = None) -> None:
+    def place(self, plate_pose: Pose | None = None, leans: Sequence[float] | None = None) -> None:
         """Put every specimen back at its place, at rest, and re-arm overturn detection.
 
         This is the operator placing the bodies: the plate is held still at ``plate_pose`` (6,) (default:
@@ -133,7 +137,7 @@ class SpecimenScene:
         self._impacts.reset(self._theta)
         self.sample_angles = np.zeros((0, n))
 
-    def advance(self, t: float, plate_pose: Sequence[float], plate_velocity: Sequence[float]) -> list[Overturn]:
+    def advance(self, t: float, plate_pose: Pose, plate_velocity: Pose) -> list[Overturn]:
         """Step the physics to time ``t`` [s], where the plate has ``plate_pose`` and ``plate_velocity`` (6,).
 
         Returns the overturns detected in this interval (also kept for :meth:`detections`); the bodies' angles at
@@ -398,7 +402,7 @@ def _evaluate(coefficients: Sequence[np.ndarray], u: float | np.ndarray) -> np.n
     return ((c3 * u + c2) * u + c1) * u + c0
 
 
-def _as_pose(values: Sequence[float], name: str) -> np.ndarray:
+def _as_pose(values: Pose, name: str) -> np.ndarray:
     """A finite (6,) float array, or :class:`SpecimenError`."""
     array = np.asarray(values, dtype=float)
     if array.shape != (6,) or not np.all(np.isfinite(array)):

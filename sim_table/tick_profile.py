@@ -49,6 +49,10 @@ class TickProfile:
         for stage, ns in self._held.items():
             self.ns[stage] += ns
 
+    def clear(self) -> None:
+        """Forget the CPU time accumulated so far (:attr:`ns` all zero)."""
+        self.ns = dict.fromkeys(STAGES, 0)
+
     def per_tick_us(self, ticks: int) -> dict[str, float]:
         """Each stage's CPU time per tick [µs] over ``ticks`` ticks, and their ``total``."""
         scale = 1e-3 / max(ticks, 1)

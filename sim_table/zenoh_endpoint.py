@@ -158,7 +158,7 @@ class ZenohEndpoint(BatchedTelemetry):
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
                                    "heartbeat", "tilt", "bodies", "refusal", "limit-trip")}
-        self._bodies_payload = encode_bodies([tuple(b) for b in bodies])
+        self._bodies_payload = encode_bodies(list(bodies))
         declare = self._session.declare_publisher
         self._status = declare(self._keys["status"], express=True)
         self._answer = declare(self._keys["answer"], express=True)
@@ -330,7 +330,7 @@ class ZenohEndpoint(BatchedTelemetry):
         if signed and command in SIGNED_COMMANDS and not self._saved_replay_state():
             self._reply_answer(query, Answer(request.cmd_id, core.refuse().value, arrival))
             return
-        if signed and command in SIGNED_COMMANDS:
+        if signed and who is not None and command in SIGNED_COMMANDS:  # a signed payload names its sender
             held = self._ownership.claim(who, _describe(who), heard, time.time())
             if held is not None:
                 self._count("commands_other_host")
@@ -348,11 +348,12 @@ class ZenohEndpoint(BatchedTelemetry):
             self._requesters[command] = request.cmd_id
         self._reply_answer(query, Answer(request.cmd_id, result.value, arrival))
 
-    def _ownership_command(self, core: ControllerCore, query: zenoh.Query, cmd_id: int, name: str, who: int,
+    def _ownership_command(self, core: ControllerCore, query: zenoh.Query, cmd_id: int, name: str, who: int | None,
                            signed: bool, arrival: int, heard: int) -> None:
-        """``claim`` or ``release`` (``sim_table.ownership``): refused unsigned (``denied``); a refused claim is
-        answered with an OWNER; a release from another sender than the owner leaves the claim (``rejected``)."""
-        if not signed or not self._saved_replay_state():
+        """``claim`` or ``release`` (``sim_table.ownership``) from sender ``who`` (None: none in the trailer): refused
+        unsigned (``denied``); a refused claim is answered with an OWNER; a release from another sender than the
+        owner leaves the claim (``rejected``)."""
+        if not signed or who is None or not self._saved_replay_state():
             self._reply_answer(query, Answer(cmd_id, core.refuse().value, arrival))
             return
         if name == "release":
@@ -520,6 +521,24 @@ class ZenohEndpoint(BatchedTelemetry):
             self._session.close()
         if self._store is not None:
             self._store.close()
+
+    def rest(self) -> None:
+        """Forget every host (`sim_table.endpoint.Rests`): no owner, remembered command, event waiting to be sent,
+        no message waiting in the inbox (a query among them ended without a reply), the samples short of a batch
+        dropped, every counter zero; the signatures' replay guard kept."""
+        with self._lock:
+            queries = [query for _, _, query, _ in self._inbox if query is not None]
+            discards = [discard for _, _, _, discard in self._outbox if discard is not None]
+            self.counters = LinkCounters()
+            self._ownership = Ownership(round(OWNER_TIMEOUT * 1e9))
+            for kept in (self._inbox, self._outbox, self._answers, self._requesters, self._resends):
+                kept.clear()
+            self._accel = Batcher(ACCEL_PER_BATCH)
+            self._tilt = Batcher(TILT_PER_BATCH)
+        for query in queries:
+            query.drop()
+        for discard in discards:
+            discard()
 
     def counters_dict(self) -> dict[str, int]:
         ownership = self._ownership

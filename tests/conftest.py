@@ -15,6 +15,7 @@ import subprocess
 import sys
 from collections.abc import Iterator
 from pathlib import Path
+from typing import Any
 
 import pytest
 import typer
@@ -22,6 +23,7 @@ import typer
 from analysis import Body
 from protocols.signing_key import write_signing_key
 from rig.cli.records import register as register_records
+from rig.emulator import EmulatorProcess
 
 # the helpers' asserts say what they compared, as a test's own do (before any test module imports them)
 pytest.register_assert_rewrite("tests.helpers")
@@ -52,6 +54,25 @@ def app() -> typer.Typer:
 
     register_records(app)
     return app
+
+
+_emulator_starts = [0]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _count_emulator_starts() -> Iterator[None]:
+    """Count the emulator processes the tests start (``EmulatorProcess.start`` in this process; those ``rig run
+    --emulate`` starts in a process of its own are not seen), named in the run's summary: a shared table
+    (``tests/helpers/tables.py``) is one start for all the tests it serves."""
+    start = EmulatorProcess.start.__func__
+
+    def counted(cls: type[EmulatorProcess], *args: Any, **kwargs: Any) -> EmulatorProcess:
+        _emulator_starts[0] += 1
+        return start(cls, *args, **kwargs)  # type: ignore[no-any-return]
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(EmulatorProcess, "start", classmethod(counted))
+        yield
 
 
 def _importing() -> bool:
@@ -110,6 +131,9 @@ def pytest_runtest_logreport(report: pytest.TestReport) -> None:
 
 
 def pytest_terminal_summary(terminalreporter: pytest.TerminalReporter) -> None:
+    if _emulator_starts[0]:
+        terminalreporter.write_line(f"emulator processes started by the tests (EmulatorProcess.start): "
+                                    f"{_emulator_starts[0]}")
     if not _over_budget:
         return
     terminalreporter.section(f"fast-tier tests over their {FAST_BUDGET_S:.0f} s budget: make them cheaper or mark slow")

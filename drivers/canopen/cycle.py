@@ -63,7 +63,7 @@ class SyncCycle(MasterBase):
             self._status_owed |= self._state != self._published_state  # until a SYNC all six answered shows it
         send = self._network.send_message
         for link, setpoint in zip(self._drives, setpoints, strict=True):
-            send(RPDO1.cob_id(link.node.id), RPDO1.encode(setpoint))
+            send(RPDO1.cob_id(link.node_id), RPDO1.encode(setpoint))
         with self._lock:
             self._syncs.append((time.time(), index, deadline))
         send(SYNC_COB_ID, bytes([self._sync_counter(index)]) if self.sync_counter else b"")

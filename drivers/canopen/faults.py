@@ -4,7 +4,7 @@ once all six are enabled, faulted once a stopping fault's reaction is over, a mo
 
 from __future__ import annotations
 
-from typing import Any
+import canopen
 
 from analysis.table.moves import Move
 from drivers.canopen.master import DRIVING_STATES, MasterBase
@@ -27,12 +27,12 @@ _FAULTY = frozenset({State.FAULT, State.FAULT_REACTION_ACTIVE})
 class FaultSupervision(MasterBase):
     """Latches faults and moves the master's state on what the drives report."""
 
-    def _on_emcy(self, link: DriveLink, error: Any) -> None:
+    def _on_emcy(self, link: DriveLink, error: canopen.emcy.EmcyError) -> None:
         if error.code & 0xFF00 == 0:
             return  # error reset
         with self._lock:
             link.emcy.append((error.code, self.clock.now_ns()))
-            self._sources.append(FaultSource(link.node.id, error.code))
+            self._sources.append(FaultSource(link.node_id, error.code))
             self._fault(_EMCY_FAULTS.get(error.code, "DRIVE"))
 
     def silent(self, link: NodeLink, now: int) -> bool:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import threading
+from abc import abstractmethod
 from collections import deque
 from urllib.parse import parse_qs, urlsplit
 
@@ -20,7 +21,7 @@ from drivers.canopen.clock import Clock, WallClock
 from drivers.canopen.nodes import DriveLink, NodeLink, SensorLink
 from drivers.canopen.survey import DriveReport
 from drivers.canopen.trajectory import Trajectory
-from drivers.controller import FaultSource, TableController, TableError
+from drivers.controller import FaultSource, TableController, TableError, TableStatus
 from protocols.canopen import (
     DEFAULT_LIMIT,
     DEFAULT_RATE_HZ,
@@ -231,3 +232,53 @@ class MasterBase(TableController):
         """The deadline [ns] of SYNC ``index`` (None once forgotten: 512 cycles back)."""
         with self._lock:
             return next((d for _, i, d in reversed(self._syncs) if i == index), None)
+
+    # --- what one part calls on another (CanopenTable combines them)
+
+    @abstractmethod
+    def _run(self) -> None:
+        """The cycle thread (:mod:`~drivers.canopen.cycle`)."""
+
+    @abstractmethod
+    def _supervise(self, now: int, deadline: int) -> None:
+        """Faults and state changes at the cycle of ``deadline`` [ns] (:mod:`~drivers.canopen.faults`)."""
+
+    @abstractmethod
+    def silent(self, link: NodeLink, now: int) -> bool:
+        """Whether ``link``'s node has fallen silent at ``now`` [ns] (:mod:`~drivers.canopen.faults`)."""
+
+    @abstractmethod
+    def _on_emcy(self, link: DriveLink, error: canopen.emcy.EmcyError) -> None:
+        """An EMCY from ``link``'s drive (:mod:`~drivers.canopen.faults`)."""
+
+    @abstractmethod
+    def _on_drive(self, link: DriveLink, data: bytes, stamp: float) -> None:
+        """A drive's TPDO1 stamped ``stamp`` [s, the bus's clock] (:mod:`~drivers.canopen.feedback`)."""
+
+    @abstractmethod
+    def _on_accel(self, sensor: SensorLink, data: bytes, stamp: float) -> None:
+        """An accelerometer's TPDO1 (:mod:`~drivers.canopen.feedback`)."""
+
+    @abstractmethod
+    def _on_event(self, data: bytes, stamp: float) -> None:
+        """The overturn detector's event TPDO (:mod:`~drivers.canopen.feedback`)."""
+
+    @abstractmethod
+    def _frame_pose(self, frame: dict[int, int]) -> np.ndarray:
+        """The pose of one SYNC's frame (:mod:`~drivers.canopen.feedback`)."""
+
+    @abstractmethod
+    def _measured_pose(self) -> np.ndarray:
+        """The newest measured pose (:mod:`~drivers.canopen.feedback`)."""
+
+    @abstractmethod
+    def _statuses(self, now: int, every: int) -> list[TableStatus]:
+        """The statuses owed at this cycle (:mod:`~drivers.canopen.feedback`)."""
+
+    @abstractmethod
+    def _reference(self, tau: int) -> np.ndarray | None:
+        """The pose to reach at ``tau`` [ns] (None: hold) (:mod:`~drivers.canopen.motion`)."""
+
+    @abstractmethod
+    def _nmt_states(self) -> str:
+        """Each node's NMT state, for a message (:mod:`~drivers.canopen.setup`)."""

@@ -20,7 +20,11 @@ class NodeLink:
     time stamp [s, the bus's clock: ``time.time()`` at reception]), the NMT state that heartbeat reported, and EMCYs."""
 
     def __init__(self, node: canopen.RemoteNode, clock: Clock) -> None:
+        if node.id is None:
+            raise ValueError("a node of the master's network needs a node-ID; this one has none")
         self.node = node
+        self.node_id: int = node.id
+        """The node's id (1..127)."""
         self.clock = clock
         self.heartbeat_ns: int | None = None
         self.heartbeat_stamp = 0.0

@@ -102,7 +102,7 @@ class SetUp(MasterBase):
 
     def nmt_states(self) -> dict[int, str]:
         """Each node's NMT state as its last heartbeat reported it (node id → name; "silent" before one)."""
-        return {link.node.id: "silent" if link.nmt_state is None
+        return {link.node_id: "silent" if link.nmt_state is None
                 else canopen.nmt.NMT_STATES.get(link.nmt_state, hex(link.nmt_state)).lower()
                 for link in self._links()}
 
@@ -119,7 +119,7 @@ class SetUp(MasterBase):
         for leg, (link, settings) in enumerate(zip(self._drives, self.drive_settings.legs, strict=True), start=1):
             sdo = self._answering(NodeSdo(self.url, link.node, f"leg {leg} (node {link.node.id})", SDO_TIMEOUT),
                                   deadline)
-            eds = eds_objects(settings.eds, link.node.id, settings.where or "[drives]") if settings.eds else None
+            eds = eds_objects(settings.eds, link.node_id, settings.where or "[drives]") if settings.eds else None
             report = inspect_drive(sdo, leg, eds)
             require_drivable(report, self.url)
             link.scaling = leg_scaling(self.url, report, settings, geometry)
@@ -155,7 +155,7 @@ class SetUp(MasterBase):
             for leg, settings in enumerate(self.drive_settings.legs, start=1):
                 node = network.add_node(settings.node_id, canopen.ObjectDictionary())
                 sdo = self._answering(NodeSdo(self.url, node, f"leg {leg} (node {node.id})", SDO_TIMEOUT), deadline)
-                eds = eds_objects(settings.eds, node.id, settings.where or "[drives]") if settings.eds else None
+                eds = eds_objects(settings.eds, sdo.node_id, settings.where or "[drives]") if settings.eds else None
                 report = inspect_drive(sdo, leg, eds)
                 if not report.problems:
                     try:
@@ -230,9 +230,9 @@ class SetUp(MasterBase):
         sdo.map_pdo(self.drive_tpdo)
         node = link.node
         assert self._network is not None
-        self._network.subscribe(self.drive_tpdo.cob_id(node.id),
-                                lambda _, data, stamp, link=link: self._on_drive(link, bytes(data), stamp))
-        node.emcy.add_callback(lambda error, link=link: self._on_emcy(link, error))
+        self._network.subscribe(self.drive_tpdo.cob_id(link.node_id),
+                                lambda _, data, stamp: self._on_drive(link, bytes(data), stamp))
+        node.emcy.add_callback(lambda error: self._on_emcy(link, error))
         if not report.consumes_heartbeat:
             node.nmt.start_node_guarding(HEARTBEAT_PERIOD)
 
@@ -265,8 +265,11 @@ class SetUp(MasterBase):
             sdo.map_pdo(self.accel_tpdo)
             sample_delays.add(sdo.read(SAMPLE_DELAY, 0, U32, "sample delay"))
             assert self._network is not None
-            self._network.subscribe(self.accel_tpdo.cob_id(sensor.node.id),
-                                    lambda _, data, stamp, sensor=sensor: self._on_accel(sensor, bytes(data), stamp))
+
+            def on_accel(_: int, data: bytearray, stamp: float, sensor: SensorLink = sensor) -> None:
+                self._on_accel(sensor, bytes(data), stamp)
+
+            self._network.subscribe(self.accel_tpdo.cob_id(sensor.node_id), on_accel)
         if len(sample_delays) > 1:
             raise DriveSetupError(f"{self.url}: the accelerometers declare different sample delays "
                                   f"{sorted(sample_delays)}")
@@ -278,8 +281,8 @@ class SetUp(MasterBase):
             sdo.write(drive_od.PRODUCER_HEARTBEAT_TIME, 0, U16, heartbeat_ms, "producer heartbeat time")
             sdo.map_pdo(EVENT_TPDO1)
             assert self._network is not None
-            self._network.subscribe(EVENT_TPDO1.cob_id(node.id), lambda _, data, stamp: self._on_event(bytes(data),
-                                                                                                       stamp))
+            self._network.subscribe(EVENT_TPDO1.cob_id(self._detector.node_id),
+                                    lambda _, data, stamp: self._on_event(bytes(data), stamp))
 
     def _answering(self, sdo: NodeSdo, deadline: float) -> NodeSdo:
         """``sdo`` once its node answers (asked until ``deadline`` [s, monotonic]: a node may still be booting)."""

@@ -42,7 +42,8 @@ class PdoError(ValueError):
     """A PDO payload or value that does not fit its map."""
 
 
-class MappedObject(NamedTuple):
+@dataclass(frozen=True)
+class MappedObject:
     """One object in a PDO map: index, sub-index, size [bits] and whether it is a signed integer."""
 
     index: int
@@ -79,7 +80,7 @@ class CountedFeedback(NamedTuple):
     sync_counter: int
 
 
-R = TypeVar("R", bound=tuple)  # the NamedTuple a PDO decodes to
+R = TypeVar("R", bound=NamedTuple)  # the NamedTuple a PDO decodes to
 
 _FORMATS = {(8, False): "B", (8, True): "b", (16, False): "H", (16, True): "h", (32, False): "I", (32, True): "i"}
 
@@ -105,9 +106,9 @@ class PdoSpec(Generic[R]):
         if len(self.objects) != len(self.record._fields):
             raise PdoError(f"{self.name}: {len(self.objects)} objects for the {len(self.record._fields)} fields "
                            f"of {self.record.__name__}")
-        formats = [_FORMATS.get((obj.bits, obj.signed)) for obj in self.objects]
-        if None in formats:
+        if any((obj.bits, obj.signed) not in _FORMATS for obj in self.objects):
             raise PdoError(f"{self.name}: mapped objects must be 8, 16 or 32-bit integers")
+        formats = [_FORMATS[obj.bits, obj.signed] for obj in self.objects]
         if sum(obj.bits for obj in self.objects) > 64:
             raise PdoError(f"{self.name}: {sum(obj.bits for obj in self.objects)} bits do not fit the 64 of a frame")
         object.__setattr__(self, "_struct", struct.Struct("<" + "".join(formats)))
@@ -143,7 +144,7 @@ class PdoSpec(Generic[R]):
             raise PdoError(f"{self.name} carries {len(self.objects)} values, got {len(values)}")
         for name, obj, value in zip(self.record._fields, self.objects, values, strict=True):
             low, high = (-(1 << (obj.bits - 1)), (1 << (obj.bits - 1)) - 1) if obj.signed else (0, (1 << obj.bits) - 1)
-            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= value <= high:
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or not low <= int(value) <= high:
                 raise PdoError(f"{self.name}: {name} must be an integer in {low}..{high}, got {value!r}")
         return self._struct.pack(*(int(value) for value in values))
 
@@ -151,7 +152,7 @@ class PdoSpec(Generic[R]):
         """The values a payload carries; :class:`PdoError` unless it has exactly :attr:`size` bytes."""
         if len(data) != self.size:
             raise PdoError(f"{self.name} payload is {len(data)} bytes, expected {self.size}")
-        return self.record(*self._struct.unpack(data))
+        return self.record._make(self._struct.unpack(data))
 
 
 RPDO1: PdoSpec[Setpoint] = PdoSpec(

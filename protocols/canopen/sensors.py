@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import math
 import numbers
-from collections.abc import Sequence
+from collections.abc import Collection
 from pathlib import Path
 from typing import NamedTuple
 
@@ -145,7 +145,7 @@ def _saturated(value: float, low: int, high: int) -> int:
     return min(max(round(value), low), high)
 
 
-def encode_force(force: Sequence[float]) -> ForceSample:
+def encode_force(force: Collection[float]) -> ForceSample:
     """The sample of a specific force (x, y, z) [m/s²], each axis rounded to 1 mm/s² and saturated at ±32.767."""
     if len(force) != 3:
         raise PdoError(f"a specific force has 3 axes, got {len(force)}")

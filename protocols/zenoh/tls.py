@@ -27,6 +27,7 @@ from cryptography import x509
 from cryptography.exceptions import InvalidSignature
 from cryptography.hazmat.primitives import serialization
 from cryptography.hazmat.primitives.asymmetric import ec, ed25519, rsa
+from cryptography.hazmat.primitives.asymmetric.types import CertificatePublicKeyTypes
 
 from protocols.private_file import PrivateFileError, SharedPrivateFileError, read_private_file
 
@@ -66,12 +67,12 @@ def load_tls(ca: Path | str | None, certificate: Path | str | None, key: Path | 
     given = {"ca": ca, "certificate": certificate, "key": key}
     if all(value is None for value in given.values()):
         return None
-    missing = [getattr(names, field) for field, value in given.items() if value is None]
-    if missing:
+    if ca is None or certificate is None or key is None:
+        missing = [getattr(names, field) for field, value in given.items() if value is None]
         have = ", ".join(getattr(names, field) for field, value in given.items() if value is not None)
         raise TlsError(f"{have} given without {' and '.join(missing)}: a TLS identity is the CA, the certificate "
                        "and its key together")
-    files = TlsFiles(Path(ca).expanduser(), Path(certificate).expanduser(), Path(key).expanduser())  # type: ignore[arg-type]
+    files = TlsFiles(Path(ca).expanduser(), Path(certificate).expanduser(), Path(key).expanduser())
     when = now or dt.datetime.now(dt.UTC)
     authority = _certificate(files.ca, names.ca, when)
     if not _is_ca(authority):
@@ -160,9 +161,8 @@ def _private_key(path: Path, option: str) -> ec.EllipticCurvePrivateKey | rsa.RS
     return key
 
 
-def _public_bytes(key: object) -> bytes:
-    return key.public_bytes(serialization.Encoding.DER,  # type: ignore[attr-defined]
-                            serialization.PublicFormat.SubjectPublicKeyInfo)
+def _public_bytes(key: CertificatePublicKeyTypes) -> bytes:
+    return key.public_bytes(serialization.Encoding.DER, serialization.PublicFormat.SubjectPublicKeyInfo)
 
 
 def why_no_link(endpoint: str, files: TlsFiles, timeout: float = 2.0) -> str:

@@ -332,9 +332,11 @@ def verdict_counts(rows: Iterable[Fig13Row]) -> dict[str, dict[str, int]]:
 def to_array(rows: list[Fig13Row]) -> np.ndarray:
     """The rows as a `FIG13_DTYPE` array (for the session file)."""
     out = np.zeros(len(rows), dtype=FIG13_DTYPE)
+    names = FIG13_DTYPE.names
+    assert names is not None  # a structured dtype
     for i, row in enumerate(rows):
         values = asdict(row)
         values["model"] = row.model.encode("utf-8")
         values["verdict"] = row.verdict.encode("utf-8")
-        out[i] = tuple(values[name] for name in FIG13_DTYPE.names)
+        out[i] = tuple(values[name] for name in names)
     return out

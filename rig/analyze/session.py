@@ -95,8 +95,9 @@ def analyze_run(run: dict[str, Any], models: Sequence[str], solver: str, sensor:
             body = body_of(row)
             impact = restitution.get(body_id, "housner") if isinstance(restitution, Mapping) else restitution
             for model in models:
-                res = simulate(body, inp.acc_h, inp.dt, beta=beta, acc_v=inp.acc_v, model=model,  # type: ignore[arg-type]
-                               solver=solver, restitution=impact)  # type: ignore[arg-type]
+                res = simulate(body, inp.acc_h, inp.dt, beta=beta, acc_v=inp.acc_v, restitution=impact,
+                               model=model,  # type: ignore[arg-type]  # a str: simulate refuses a bad one
+                               solver=solver)  # type: ignore[arg-type]  # a str: simulate refuses a bad one
                 t_over = math.nan if res.t_overturn is None else inp.t0 + res.t_overturn
                 predictions.append(Prediction(run["name"], body_id, body.name, model, res.direction, t_over,
                                               res.theta_max, res.status, seen, t_seen))
@@ -113,7 +114,8 @@ def _analyze(session: dict[str, Any], path: Path, models: tuple[str, ...], solve
     fitted: dict[int, BodyRestitution] = {}
     if restitution in ("fit", ALL_RULES):
         fitted = fitted_restitution(session["runs"])
-    rule_of = {"plastic": 0.0, "housner": "housner", "fit": {body_id: body.value for body_id, body in fitted.items()}}
+    rule_of: dict[str, float | str | dict[int, float]] = {
+        "plastic": 0.0, "housner": "housner", "fit": {body_id: body.value for body_id, body in fitted.items()}}
     rules: dict[str, float | str | dict[int, float]] = (
         {rule: rule_of[rule] for rule in IMPACT_RULES} if restitution == ALL_RULES
         else {"": rule_of["fit"] if restitution == "fit" else restitution})

@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Annotated, Any
 
 import typer
 from rich import box
-from rich.console import RenderableType
+from rich.console import JustifyMethod, RenderableType
 from rich.table import Table
 from rich.text import Text
 
@@ -39,9 +39,10 @@ def _seconds(t: float) -> str:
 def predictions_table(result: SessionAnalysis) -> Table:
     """One row per run and body: observed, then each model's prediction (``*`` where it differs)."""
     table = Table(box=box.SIMPLE_HEAD, title="Predicted (from the measured motion) beside observed overturns")
-    for name, justify in (("run", "left"), ("record", "left"), ("β°", "right"), ("body", "left"),
-                          ("observed", "left")):
-        table.add_column(name, justify=justify)  # type: ignore[arg-type]  # rich wants its Literal; these are its values
+    columns: tuple[tuple[str, JustifyMethod], ...] = (
+        ("run", "left"), ("record", "left"), ("β°", "right"), ("body", "left"), ("observed", "left"))
+    for name, justify in columns:
+        table.add_column(name, justify=justify)
     for model in result.models:
         table.add_column(model, justify="left")
     for run in result.runs:

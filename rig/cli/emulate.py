@@ -144,7 +144,7 @@ def print_help() -> None:
     def command(**options: Any) -> None:
         """The emulator's options (never run: only its help is shown)."""
 
-    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]
+    command.__signature__ = inspect.Signature(params)  # type: ignore[attr-defined]  # typer reads it; typeshed has none
     description = described["description"].replace(", then prints its counters as JSON", "")
     helper = typer.Typer(add_completion=False, rich_markup_mode=None if not sys.stderr.isatty() else "rich")
     helper.command(help=f"{HELP}\n\n{description} Its options are passed on unchanged (it is its own program, "

@@ -134,10 +134,10 @@ def register(app: typer.Typer) -> None:
         except PredictedLimitError as exc:
             print_error(err_console, "error", str(exc))
             if exc.fits_at_db is not None:
-                levels = [exc.fits_at_db]
-                while levels[-1] + LEVEL_STEP_DB < 0.0:
-                    levels.append(levels[-1] + LEVEL_STEP_DB)
-                ramp = ",".join(f"{level:g}" for level in [*levels, 0.0])
+                steps = [exc.fits_at_db]
+                while steps[-1] + LEVEL_STEP_DB < 0.0:
+                    steps.append(steps[-1] + LEVEL_STEP_DB)
+                ramp = ",".join(f"{level:g}" for level in [*steps, 0.0])
                 again = f"--levels={ramp}" + (" and a new -o file" if output is not None else "")
                 print_error(err_console, "hint", f"run it again with {again} ({session.name} keeps this "
                                                  "identification and no play)")

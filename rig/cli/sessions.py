@@ -65,6 +65,7 @@ def session_summary(path: Path) -> dict[str, Any]:
 def print_session(path: Path, console: Any) -> None:
     """The session's header and a table of its runs (and, if its writer was killed, a warning on stderr)."""
     from rich import box
+    from rich.console import JustifyMethod
     from rich.table import Table
 
     from rig.session import read_session
@@ -77,10 +78,11 @@ def print_session(path: Path, console: Any) -> None:
     console.print(f"[bold]{path}[/]  sequence {sequence.get('name', '?')!r}, created {session['created']}, "
                   f"software {session['software_version']}")
     table = Table(box=box.SIMPLE_HEAD)
-    for name, justify in (("run", "left"), ("plan", "right"), ("record", "left"), ("β [°]", "right"),
-                          ("scale", "right"), ("status", "left"), ("accel samples", "right"), ("span [s]", "right"),
-                          ("overturns body:dir", "left")):
-        table.add_column(name, justify=justify)  # type: ignore[arg-type]
+    columns: tuple[tuple[str, JustifyMethod], ...] = (
+        ("run", "left"), ("plan", "right"), ("record", "left"), ("β [°]", "right"), ("scale", "right"),
+        ("status", "left"), ("accel samples", "right"), ("span [s]", "right"), ("overturns body:dir", "left"))
+    for name, justify in columns:
+        table.add_column(name, justify=justify)
     for row in run_rows(session):
         scale = row["scale_factor"]
         table.add_row(row["run"], str(row["plan"]), row["record"], f"{row['angle_deg']:g}",

@@ -90,8 +90,11 @@ def simulate_cmd(
         b = Body.parse(body)
         if sign not in (1, -1):
             fail("--sign must be 1 or -1")
-        res = simulate(b, sign * rec.acc_h, rec.dt, beta=math.radians(angle), acc_v=rec.acc_v, model=model,
-                       solver=solver, restitution=restitution, friction=friction, criterion=criterion)
+        res = simulate(b, sign * rec.acc_h, rec.dt, beta=math.radians(angle), acc_v=rec.acc_v,
+                       model=model,  # type: ignore[arg-type]  # typer gives a str; simulate refuses a bad one
+                       solver=solver,  # type: ignore[arg-type]  # as model
+                       restitution=restitution, friction=friction,
+                       criterion=criterion)  # type: ignore[arg-type]  # as model
     except (RecordError, AnalysisInputError) as exc:
         fail(str(exc))
     out = {**res.to_dict(), "record": rec.name,
@@ -133,10 +136,11 @@ def study_cmd(
         if dask:
             from analysis.study_dask import study_dask
 
-            res = study_dask(*scenes, model=model, restitution=restitution, friction=friction,  # type: ignore[arg-type]
-                             scheduler=dask)
+            res = study_dask(*scenes, model=model,  # type: ignore[arg-type]  # typer gives a str; study refuses a bad one
+                             restitution=restitution, friction=friction, scheduler=dask)
         else:
-            res = study(*scenes, model=model, restitution=restitution, friction=friction)  # type: ignore[arg-type]
+            res = study(*scenes, model=model,  # type: ignore[arg-type]  # typer gives a str; study refuses a bad one
+                        restitution=restitution, friction=friction)
         summary = study_summary(res)
         if output is not None:
             summary["output"] = str(write_study(res, summary, output))

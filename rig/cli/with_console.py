@@ -100,8 +100,8 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
             write_signing_key(key_file)
         endpoint = _free_endpoint()
         try:
-            service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),
-                                          say=lambda m: say(f"rig service: {m}"), table_security=security)
+            own_service = OrchestratorService(endpoint, key_file=key_file, sessions_dir=Path.cwd(),
+                                              say=lambda m: say(f"rig service: {m}"), table_security=security)
         except ServiceError as exc:
             print_error(console, "error", str(exc))
             return EXIT_USAGE
@@ -120,4 +120,4 @@ def run_with_console(http: str, sequence: Path | None, *, table: str | None, emu
                 linger(page.url, linger_s, console)
                 return code
         finally:
-            service.close()
+            own_service.close()

@@ -19,6 +19,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import NDArray
 from scipy import signal
 from scipy.fft import irfft, next_fast_len, rfftfreq
 
@@ -114,7 +115,7 @@ def identification_drive(table: TableModel, angle: float, *, duration: float = 6
     rng = np.random.default_rng(seed)
     fade = signal.windows.tukey(n_motion, alpha=min(1.0, 2 * 4.0 / duration))
     n = 2 * n_settle + n_motion + 1
-    poses = np.zeros((n, 6))
+    poses: NDArray[np.float64] = np.zeros((n, 6))  # (n, 6) [m, rad]
     poses[:, 4] = angle
     for axis in axes:
         column = AXES.index(axis)

@@ -73,8 +73,11 @@ TAPER_SECONDS = 0.5
 class Law(Protocol):
     """An update law (``rig.compensation.laws``)."""
 
-    name: str
-    response: Response
+    @property
+    def name(self) -> str: ...
+
+    @property
+    def response(self) -> Response: ...
 
     def correction(self, freqs: np.ndarray, error: np.ndarray, scale: float) -> np.ndarray: ...
 
@@ -105,7 +108,7 @@ class Iteration:
 
     @property
     def peak_error_pct(self) -> float:
-        return float(self.measures.fall_line["peak_error_pct"])  # type: ignore[arg-type]
+        return float(self.measures.fall_line["peak_error_pct"])  # type: ignore[arg-type]  # measured: never None
 
     def to_json(self) -> dict[str, object]:
         return {"index": self.index, "level_db": self.level_db, "rms_error_pct": self.rms_error_pct,
@@ -290,15 +293,16 @@ def compensate(drive: Drive, law: Law, play: Play, *, iterations: int = 4, level
                                       f"noise back"), True
                 break
             wiener = max(wiener, NOISE_GAIN_MIN)
-            candidate, step, notes = _next_drive(base, error, law, gain_scale * wiener, level_db, band_high)
+            corrected, step, notes = _next_drive(base, error, law, gain_scale * wiener, level_db, band_high)
             if wiener < 1.0 - 1e-3:
                 notes.insert(0, f"gain ×{wiener:.2f} near the noise floor ({floor:.2f} % of "
                                 f"{best_play.rms_error_pct:.2f} %)")
             note = "; ".join(notes)
-            if candidate is None:
+            if corrected is None:
                 stopped = (f"every correction would leave the table (more headroom would give the corrections room: "
                            f"rig prepare --headroom): {note}")
                 break
+            candidate = corrected
         scaled = at_level(candidate, level_db)
         predicted = predicted_peak_ratio(scaled, law.response)  # what the play was checked on
         force = play(scaled, index)

@@ -42,7 +42,8 @@ class Response(Protocol):
     """An identified response over its ``band`` [Hz]: the predicted output spectrum (n, 3) of an input spectrum
     (n, 3) at ``freqs``."""
 
-    band: tuple[float, float]
+    @property
+    def band(self) -> tuple[float, float]: ...
 
     def apply(self, freqs: np.ndarray, spectrum: np.ndarray) -> np.ndarray: ...
 

@@ -110,11 +110,13 @@ def make_law(name: str, commanded: np.ndarray, measured: np.ndarray, rate: float
     from the identification play's commanded and measured base-frame accelerations (n, 3) [m/s²]; ``gain`` its
     gain (None: the law's default)."""
     if name == "mimo":
-        scaled = {} if gain is None else {"gain": gain, "gain_high": gain * MimoLaw.gain_high / MimoLaw.gain}
-        return MimoLaw(estimate(commanded, measured, rate, band=band), band_high=band_high, **scaled)
+        mimo = estimate(commanded, measured, rate, band=band)
+        if gain is None:
+            return MimoLaw(mimo, band_high=band_high)
+        return MimoLaw(mimo, band_high=band_high, gain=gain, gain_high=gain * MimoLaw.gain_high / MimoLaw.gain)
     if name == "diagonal":
-        return DiagonalLaw(frequency_response(commanded, measured, rate, band=band),
-                           **({} if gain is None else {"gain": gain}))
+        diagonal = frequency_response(commanded, measured, rate, band=band)
+        return DiagonalLaw(diagonal) if gain is None else DiagonalLaw(diagonal, gain=gain)
     raise ValueError(f"law {name!r}: expected one of {', '.join(LAWS)}")
 
 

@@ -93,7 +93,7 @@ def write(path: Path, *, record: str, angle_deg: float, identification_run: str,
     from rig.analyze.store import locked
 
     motion, response = result.motion, result.response
-    if response is None:
+    if not isinstance(response, FrequencyResponse | MimoResponse):
         raise ValueError("the compensation carries no response to store")
     with locked(Path(path)) as file, file.transaction() as h5:
         if GROUP in h5:

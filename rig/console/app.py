@@ -35,7 +35,7 @@ import asyncio
 import contextlib
 import json
 import re
-from collections.abc import Callable
+from collections.abc import AsyncIterator, Callable
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -164,7 +164,11 @@ class Console:
 
     def deliver_from(self, loop: asyncio.AbstractEventLoop) -> Callable[[str, dict[str, Any]], None]:
         """``deliver`` for another thread (zenoh's): handed to ``loop`` without waiting."""
-        return lambda kind, body: loop.call_soon_threadsafe(self.deliver, kind, body)
+
+        def deliver(kind: str, body: dict[str, Any]) -> None:
+            loop.call_soon_threadsafe(self.deliver, kind, body)
+
+        return deliver
 
     # ----- checks ---------------------------------------------------------------------------------------
 
@@ -361,7 +365,7 @@ def create_app(console: Console, *, on_startup: Callable[[asyncio.AbstractEventL
             console.hub.disconnect(browser)
 
     @contextlib.asynccontextmanager
-    async def lifespan(app: Starlette):  # type: ignore[no-untyped-def]
+    async def lifespan(app: Starlette) -> AsyncIterator[None]:
         if on_startup is not None:
             on_startup(asyncio.get_running_loop())
         try:

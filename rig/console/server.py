@@ -101,11 +101,13 @@ class ServiceControls:
     def command(self, command: str, source: str, args: dict[str, Any]) -> dict[str, Any]:
         with self._lock:
             if command == "start":
-                session = self.client.start_queued(args.get("queued"))  # type: ignore[arg-type]
+                queued = args.get("queued")  # the browser's, passed on: the service checks it
+                session = self.client.start_queued(queued)  # type: ignore[arg-type]  # as the browser sent it
                 return {"ok": True, "message": f"session started: {session}", "state": "starting"}
             if command == "answer":
-                return self.client.answer(args.get("prompt"), args.get("reply"), args.get("fell"),  # type: ignore[arg-type]
-                                          source=source)
+                return self.client.answer(args.get("prompt"),  # type: ignore[arg-type]  # the service checks it
+                                          args.get("reply"),  # type: ignore[arg-type]  # as prompt
+                                          args.get("fell"), source=source)
             method = {"pause": self.client.pause, "resume": self.client.resume, "abort": self.client.abort,
                       "estop": self.client.emergency_stop}[command]
             return method(source=source)

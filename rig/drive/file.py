@@ -94,10 +94,11 @@ def load_drive(path: str | os.PathLike[str], table: TableModel | None = None, *,
         raise DriveFileError(f"{path}: the drive was iterated at β = {math.degrees(float(attrs['angle_rad'])):g}°, "
                              f"not {math.degrees(angle):g}°")
     gov = json.loads(attrs["governing"])
-    drive = Drive(record=str(attrs["record"]), angle=float(attrs["angle_rad"]), rate=rate, **data,
+    drive = Drive(record=str(attrs["record"]), angle=float(attrs["angle_rad"]), rate=rate, t=data["t"],
+                  poses=data["poses"], velocities=data["velocities"], accelerations=data["accelerations"],
                   scale_factor=float(attrs["scale_factor"]), governing=Governing(**gov),
                   corner_frequency=float(attrs["corner_frequency_hz"]), record_start=float(attrs["record_start"]),
-                  motion=tuple(float(x) for x in attrs["motion"]), peaks=json.loads(attrs["peaks"]),
+                  motion=(float(attrs["motion"][0]), float(attrs["motion"][1])), peaks=json.loads(attrs["peaks"]),
                   highpass_pga_ratio={}, components=tuple(json.loads(attrs["components"])), table=table)
     violation = table.check_command(drive.t, drive.poses, drive.velocities, drive.accelerations)
     if violation is None and not _played_inside_table_iv(json.loads(attrs["compensation"])):

@@ -35,7 +35,7 @@ def ramp(start: float, end: float, duration: float, rate: float) -> tuple[np.nda
         return np.empty(0), np.empty(0), np.empty(0)
     tau = np.arange(n) / n
     change = end - start
-    angle = start + change * quintic(tau)
+    angle = start + change * np.asarray(quintic(tau))
     speed = change * 30.0 * tau**2 * (1.0 - tau) ** 2 / duration
     accel = change * 60.0 * tau * (1.0 - tau) * (1.0 - 2.0 * tau) / duration**2
     return angle, speed, accel

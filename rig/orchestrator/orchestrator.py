@@ -32,6 +32,7 @@ plan entries with a completed (or refused) run are skipped, the rest run in orde
 from __future__ import annotations
 
 import contextlib
+import functools
 import itertools
 import math
 import threading
@@ -281,10 +282,10 @@ class Orchestrator:
             angle_deg = self.sequence.angles_deg[angle_index]
             self._check_stop()
             self._set(State.TILTING, f"tilting the plate to {angle_deg:g}°")
-            self._motion(lambda a=angle_deg: table.set_tilt(math.radians(a), timeout=COMMAND_TIMEOUT))
+            self._motion(functools.partial(table.set_tilt, math.radians(angle_deg), timeout=COMMAND_TIMEOUT))
             self._set(State.WAITING, "place the bodies")
             prompt = self.sequence.operator.place_prompt(angle_deg, self.sequence.bodies, self.sequence.name)
-            self._ask(lambda p=prompt: self.operator.place_bodies(p))
+            self._ask(functools.partial(self.operator.place_bodies, prompt))
             for run in runs:
                 self._wait_while_paused()
                 self._wait_while_suspended(table)

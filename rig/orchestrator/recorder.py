@@ -84,8 +84,10 @@ class RunRecorder:
         self.trips: list[Trip] = []
         """The limit trips of the run, in the order they were found."""
         self.stop_latency: float | None = None
-        """Table time from the crossing of the first trip that stops the table to the first status showing it
-        stopped [s] (None: no such trip, or no such status yet)."""
+        """Table time from the crossing of the first trip that stops the table (the controller's, when it tripped)
+        to the first status showing it stopped [s] (None: no such trip, or no such status yet)."""
+        self._first_stop: dict[str, tuple[float, str]] = {}  # stopping action -> the first status showing it
+        self._timed: set[str] = set()  # the sources whose stopping trip was timed
         self.table = table
         self.live = live
         self.write_error: Exception | None = None
@@ -269,21 +271,35 @@ class RunRecorder:
             self.run_log.add_event(trip.t, trip.text())
             if self.live is not None:
                 self.live.put("fault", trip.t, f"limit {trip.channel}", trip.text())
+        if trips:
+            self._time_stops()
 
     def _stopped_after_trip(self, t: np.ndarray, statuses: list[TableStatus]) -> None:
-        """After a trip that stops the table: the first status that shows it stopped gives the latency in table
-        time (:attr:`stop_latency`), written as an event."""
-        stopping = [trip for trip in self.trips if trip.action in _STOPPING]
-        trip = next((trip for trip in stopping if trip.source == "controller"), stopping[0] if stopping else None)
-        if trip is None or self.stop_latency is not None:
-            return
-        shown = next((k for k, status in enumerate(statuses) if status.state in _STOPPING[trip.action]), None)
-        if shown is None:
-            return
-        self.stop_latency = float(t[shown]) - trip.t
-        self.run_log.add_event(float(t[shown]), f"limit {trip.channel}: the table was {statuses[shown].state} "
-                                                f"{self.stop_latency * 1e3:.1f} ms after the crossing (table time; "
-                                                f"tripped by the {trip.source})")
+        """Keep the first status that shows the table stopped, for each stopping action; then time the trips."""
+        for action, states in _STOPPING.items():
+            if action not in self._first_stop:
+                shown = next((k for k, status in enumerate(statuses) if status.state in states), None)
+                if shown is not None:
+                    self._first_stop[action] = (float(t[shown]), statuses[shown].state)
+        self._time_stops()
+
+    def _time_stops(self) -> None:
+        """The first trip that stops the table of each source (host, controller) with the first status showing
+        the table stopped: the latency in table time, written as an event (the two sources' trips and the
+        status may come in any order: zenoh's keys are not ordered between them); :attr:`stop_latency` is the
+        controller's when it tripped."""
+        for trip in self.trips:
+            if trip.action not in _STOPPING or trip.source in self._timed or trip.action not in self._first_stop:
+                continue
+            self._timed.add(trip.source)
+            when, state = self._first_stop[trip.action]
+            latency = when - trip.t
+            if latency < 0:  # the table was stopping before this crossing (an abort, another trip): not its stop
+                continue
+            if self.stop_latency is None or trip.source == "controller":
+                self.stop_latency = latency
+            self.run_log.add_event(when, f"limit {trip.channel}: the table was {state} {latency * 1e3:.1f} ms after "
+                                         f"the crossing (table time; tripped by the {trip.source})")
 
     def _write_detection(self, detection: Detection) -> None:
         t = float(self._seconds(detection.t_ns))

@@ -89,7 +89,8 @@ def compensation_section(path: Any) -> str:
         return ""
     attrs, response, rows = stored["attrs"], stored["response"], stored["iterations"]
     t, target, achieved = stored["t"], stored["target"], stored["achieved"]
-    band = tuple(float(x) for x in attrs.get("band_hz", (0.0, math.inf)))
+    low, high = (float(x) for x in attrs.get("band_hz", (0.0, math.inf)))
+    band = (low, high)
     best = int(attrs.get("best", 0))
     parts = ["<h2>Drive compensation</h2>", key_values([
         ("record", esc(attrs.get("record"))), ("plate angle", f"{num(attrs.get('angle_deg'), 'g')}°"),

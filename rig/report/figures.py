@@ -18,13 +18,16 @@ import math
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from matplotlib import rc_context
+from matplotlib.artist import Artist
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.typing import RcKeyType
 from numpy.typing import NDArray
 from PIL import Image
 
@@ -39,17 +42,19 @@ MAX_POINTS = 4000
 COMMANDED_COLOR = "#1f3a93"
 """The commanded traces' colour (dark blue), drawn over the measured ones (red)."""
 
-_STYLE = {"font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "legend.fontsize": 7, "xtick.labelsize": 7,
-          "ytick.labelsize": 7, "lines.linewidth": 0.9, "axes.grid": True, "grid.alpha": 0.3,
-          "savefig.facecolor": "white", "figure.facecolor": "white"}
+_STYLE: dict[RcKeyType, Any] = {
+    "font.size": 8, "axes.titlesize": 8, "axes.labelsize": 8, "legend.fontsize": 7, "xtick.labelsize": 7,
+    "ytick.labelsize": 7, "lines.linewidth": 0.9, "axes.grid": True, "grid.alpha": 0.3,
+    "savefig.facecolor": "white", "figure.facecolor": "white"}
 
 
 @contextmanager
-def _figure(height_in: float, ncols: int = 1, nrows: int = 1, **kw: object) -> Iterator[tuple[Figure, np.ndarray]]:
+def _figure(height_in: float, ncols: int = 1, nrows: int = 1, *, sharex: bool = False, sharey: bool = False,
+            gridspec_kw: dict[str, Any] | None = None) -> Iterator[tuple[Figure, np.ndarray]]:
     with rc_context(_STYLE):
         fig = Figure(figsize=(WIDTH_IN, height_in), dpi=DPI)
         FigureCanvasAgg(fig)
-        axes = fig.subplots(nrows, ncols, squeeze=False, **kw)
+        axes = fig.subplots(nrows, ncols, squeeze=False, sharex=sharex, sharey=sharey, gridspec_kw=gridspec_kw)
         yield fig, axes
 
 
@@ -124,7 +129,7 @@ class RunFigure:
             self.ax.legend(handles=[self.cmd, self.meas], loc="lower right", bbox_to_anchor=(1.0, 1.0), ncols=2,
                            frameon=False, borderaxespad=0.1)
             self.fig.subplots_adjust(left=0.08, right=0.99, bottom=0.16, top=0.9, wspace=0.28)
-        self._marks: list[object] = []
+        self._marks: list[Artist] = []
 
     def render(self, t_cmd: NDArray[np.float64], a_cmd: NDArray[np.float64], t_meas: NDArray[np.float64],
                a_meas: NDArray[np.float64], psa_cmd: NDArray[np.float64] | None,
@@ -132,7 +137,7 @@ class RunFigure:
         """The PNG of one run (spectra at the periods given to the constructor; None: not drawn)."""
         with rc_context(_STYLE):
             for artist in self._marks:
-                artist.remove()  # type: ignore[attr-defined]
+                artist.remove()
             self._marks = []
             self.cmd.set_data(*envelope(t_cmd, a_cmd))
             self.meas.set_data(*envelope(t_meas, a_meas))

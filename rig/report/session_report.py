@@ -122,12 +122,12 @@ def _predictions_table(run: RunData, names: dict[int, str]) -> str:
         row = by_body[body_id]
         cells = [f"{body_id} {names.get(body_id, '')}".strip(), _direction(row["observed"])]
         for model in models:
-            p = row.get(model)
-            if p is None:
+            predicted = row.get(model)
+            if predicted is None:
                 cells.append("–")
                 continue
-            when = f", t = {num(p['t_overturn'], '.2f')} s" if int(p["direction"]) != 0 else ""
-            cells.append(f"{_direction(p['direction'])}{when}, θmax = {num(p['theta_max'], '.3f')} rad")
+            when = f", t = {num(predicted['t_overturn'], '.2f')} s" if int(predicted["direction"]) != 0 else ""
+            cells.append(f"{_direction(predicted['direction'])}{when}, θmax = {num(predicted['theta_max'], '.3f')} rad")
         rows.append(cells)
     return table(["body", "observed", *[esc(m) for m in models]], rows, left=2 + len(models),
                  caption="Analysis (rig analyze): predicted against observed overturn direction")

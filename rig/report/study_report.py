@@ -69,11 +69,11 @@ def gcor_coefficients(study: StudyView) -> tuple[float, float] | None:
 
 def scor_coefficients(study: StudyView) -> tuple[float, float, float, float] | None:
     """The fitted Eq. 13 (k1, k2, k3, c2), None if the study has none (c2 defaults to the paper's 0.48)."""
-    ks = [_f(study.scor, k) for k in ("k1", "k2", "k3")]
-    if any(k is None for k in ks):
+    k1, k2, k3 = (_f(study.scor, k) for k in ("k1", "k2", "k3"))
+    if k1 is None or k2 is None or k3 is None:
         return None
     c2 = _f(study.scor, "c2")
-    return (ks[0], ks[1], ks[2], PAPER_C2 if c2 is None else c2)  # type: ignore[return-value]
+    return (k1, k2, k3, PAPER_C2 if c2 is None else c2)
 
 
 def _rows(study: StudyView, body_index: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

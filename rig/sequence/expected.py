@@ -95,8 +95,9 @@ class SequencePlan:
         angles = []
         for angle, rows in by_angle.items():
             needed = [r.runs_needed for r in rows if r.cor is not None]
+            known = [n for n in needed if n is not None]
             angles.append({"angle_deg": angle, "runs": rows[0].runs,
-                           "runs_needed_for_every_body": None if not needed or None in needed else max(needed),
+                           "runs_needed_for_every_body": max(known) if needed and len(known) == len(needed) else None,
                            "bodies_without_overturn": [r.body_id for r in rows if r.cor is None]})
         return {"sequence": self.sequence, "model": self.model, "restitution": self.restitution,
                 "margin": self.margin, "power": self.power, "records": self.records,
@@ -131,7 +132,8 @@ def plan_sequence(sequence: Sequence, *, margin: float = MARGIN, power: float = 
         if problem:
             raise problem
         motions = [played_motion(sequence, run) for run in first_pass if run.angle_index == a]
-        result = study(bodies, motions, [math.radians(angle_deg)], model,  # type: ignore[arg-type]
+        result = study(bodies, motions, [math.radians(angle_deg)],
+                       model,  # type: ignore[arg-type]  # a str: study refuses a bad one
                        signs=(1,), restitution=restitution)
         for j, placed in enumerate(sequence.bodies):
             outcome = result.direction[result.body == j]

@@ -253,7 +253,8 @@ class _Reader(TomlChecker):
                 raise self.error((*path, given[0]), "give either table5 = N or the dimensions b, h, depth, mass, "
                                  "not both")
             paper = TABLE_V[self.integer(table["table5"], (*path, "table5"), 1, len(TABLE_V)) - 1]
-            dims = {"b": paper.b, "h": paper.h, "depth": paper.depth, "mass": paper.mass}
+            dims = {key: value for key, value in (("b", paper.b), ("h", paper.h), ("depth", paper.depth),
+                                                  ("mass", paper.mass)) if value is not None}
             cg = {"b_cg": paper.b_cg, "h_cg": paper.h_cg}
             name = name or paper.name
         else:
@@ -280,8 +281,8 @@ class _Reader(TomlChecker):
         if "restitution" in table:
             restitution = self.number(table["restitution"], (*path, "restitution"), low=0.0, high=1.0,
                                       what="the body's measured coefficient of restitution, in (0, 1]")
-        body = Body(b=dims["b"], h=dims["h"], depth=dims["depth"], mass=dims["mass"], name=name or f"body {body_id}",
-                    **cg)
+        body = Body(b=dims["b"], h=dims["h"], depth=dims.get("depth"), mass=dims.get("mass"),
+                    name=name or f"body {body_id}", **cg)
         return PlacedBody(body_id=body_id, body=body, x=place["x"], y=place["y"], friction=friction,
                           restitution=restitution)
 
@@ -362,10 +363,10 @@ class _Reader(TomlChecker):
 
     def record(self, value: Any, path: KeyPath) -> list[RecordEntry]:
         """The entry, twice with polarity \"both\" (as recorded, then negated)."""
-        where = {"key": dotted_path(path), "line": self.line(path)}
+        key, line = dotted_path(path), self.line(path)
         if isinstance(value, str):
             spec = self.string(value, path)
-            entry = RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **where)
+            entry = RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), key=key, line=line)
             return self.with_polarity(entry, self.default_polarity, path)
         table = self.table(value, path, RECORD_KEYS)
         spec = self.string(self.require(table, path, "record", '"SUITE:NAME", "library:NAME" or a record file'),
@@ -392,7 +393,7 @@ class _Reader(TomlChecker):
         polarity = self.default_polarity
         if "polarity" in table:
             polarity = self.polarity(table["polarity"], (*path, "polarity"))
-        entry = RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), **options, **where)
+        entry = RecordEntry(spec=spec, resolved=resolve_spec(spec, self.base_dir), key=key, line=line, **options)
         return self.with_polarity(entry, polarity, (*path, "polarity") if "polarity" in table else path)
 
     def records_from(self, value: Any) -> list[RecordEntry]:

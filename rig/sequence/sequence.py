@@ -126,7 +126,7 @@ class Sequence:
         entry = self.records[run.record_index]
         motion = self.motion(run.record_index)
         if entry.drive is not None:
-            return self._compensated(entry, run)
+            return self._compensated(entry, entry.drive, run)
         corner = entry.corner if entry.corner is not None else self.drive.corner
         try:
             return prepare_drive(motion, angle=run.angle, table=self.table, scale=entry.scale, corner=corner,
@@ -138,12 +138,13 @@ class Sequence:
             policy = "the fixed scale" if entry.scale is not None else "the drive"
             raise self.record_error(entry, f"at β = {run.angle_deg:g}° {policy} is refused: {exc}") from None
 
-    def _compensated(self, entry: RecordEntry, run: PlannedRun) -> Drive:
-        """The entry's drive file (``rig iterate``), checked against the sequence's table and the run's angle."""
+    def _compensated(self, entry: RecordEntry, drive_file: str, run: PlannedRun) -> Drive:
+        """The entry's drive file ``drive_file`` (``rig iterate``), checked against the sequence's table and the
+        run's angle."""
         from rig.drive.file import DriveFileError, load_drive
 
         try:
-            return load_drive(entry.drive, self.table, angle=run.angle)
+            return load_drive(drive_file, self.table, angle=run.angle)
         except DriveFileError as exc:
             raise self.record_error(entry, f"drive: {exc}") from None
         except DriveRefusedError as exc:

@@ -138,7 +138,8 @@ class ServiceClient:
         queriers = [self._session.declare_querier(key) for key in self.keys.commands.values()]
         deadline = time.monotonic() + timeout
         try:
-            while not all(q.matching_status.matching for q in queriers):
+            while not all(q.matching_status.matching  # type: ignore[attr-defined]  # stub: bool; run time: MatchingStatus
+                          for q in queriers):
                 if time.monotonic() > deadline:
                     why = (f": {why_no_link(self.endpoint, self.security.tls)}" if self.security.tls is not None
                            else f": is `rig serve --listen {self.endpoint}` running?")
@@ -233,11 +234,12 @@ class ServiceClient:
             except zenoh.ZError as exc:
                 raise ServiceUnavailableError(f"rig service at {self.endpoint}: {exc}") from None
             for reply in replies:
-                if reply.ok is None:
-                    errors.append(reply.err.payload.to_string())
+                result = reply.result
+                if isinstance(result, zenoh.ReplyError):
+                    errors.append(result.payload.to_string())
                     continue
                 try:
-                    body = decode_reply(reply.ok.payload.to_bytes())
+                    body = decode_reply(result.payload.to_bytes())
                 except PayloadError as exc:
                     errors.append(str(exc))
                     continue

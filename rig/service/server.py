@@ -22,6 +22,7 @@ docs/service.md.
 from __future__ import annotations
 
 import contextlib
+import functools
 import math
 import threading
 import time
@@ -100,7 +101,7 @@ class OrchestratorService:
         self._telemetry = TelemetryPublisher(self._zenoh, self.keys, self.snapshot)
         self._live = LivePublisher(self._zenoh, self.keys, self._live_tap)
         self._queryables = [self._zenoh.declare_queryable(self.keys.commands[command],
-                                                          lambda query, c=command: self._arrived(c, query))
+                                                          functools.partial(self._arrived, command))
                             for command in COMMANDS]
         self._token = self._zenoh.liveliness().declare_token(self.keys.alive)
         self._closed = False
@@ -170,6 +171,7 @@ class OrchestratorService:
                 query.reply_err(f"{command}: {exc}".encode())
                 return
             verdict = self._verdict(command, payload, attachment)
+            extra: dict[str, Any]
             if asked != command:
                 ok, message, extra = False, f"a {asked!r} request on the {command!r} key", {}
             elif "refused" in args:  # refused by the client that passes it on (a console: a viewer's): logged only

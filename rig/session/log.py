@@ -84,8 +84,8 @@ def _read_file(path: Path) -> tuple[dict[str, Any], list[RunInfo]]:
                 raise SessionError(f"{path}: schema attribute is {found!r}; expected {schema.SCHEMA!r}")
             if "runs" not in h5:
                 raise SessionError(f"{path}: no /runs group; expected a {schema.SCHEMA} session file")
-            root = {key: text(h5.attrs.get(key, "")) for key in ("software_version", "created", "rig_config",
-                                                                  "sequence", "table")}
+            root: dict[str, Any] = {key: text(h5.attrs.get(key, "")) for key in ("software_version", "created",
+                                                                                 "rig_config", "sequence", "table")}
             for key in ("rig_config", "sequence"):
                 root[key] = json.loads(root[key]) if root[key] else {}
             root["table"] = json.loads(root["table"]) if root["table"] else None

@@ -80,12 +80,12 @@ class Overlay(io.RawIOBase):
                 yield done, at, k, None
             done += k
 
-    def readinto(self, buffer: memoryview | bytearray) -> int:  # type: ignore[override]
+    def readinto(self, buffer: memoryview | bytearray) -> int:  # type: ignore[override]  # what h5py hands in
         view = memoryview(buffer).cast("B")
         n = len(view)
         for done, at, k, index in self._spans(n):
             page = None if index is None else self._pages.get(index)
-            if page is None:
+            if index is None or page is None:
                 view[done : done + k] = self._disk(at, k)
             else:
                 offset = at - index * PAGE
@@ -93,7 +93,7 @@ class Overlay(io.RawIOBase):
         self._pos += n
         return n
 
-    def write(self, data: bytes | memoryview) -> int:  # type: ignore[override]
+    def write(self, data: bytes | memoryview) -> int:  # type: ignore[override]  # what h5py hands in
         view = memoryview(data).cast("B")
         n = len(view)
         for done, at, k, index in self._spans(n):

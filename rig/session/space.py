@@ -78,14 +78,15 @@ def check_room(path: str | os.PathLike[str], needed: int, what: str) -> None:
 def is_disk_full(exc: BaseException) -> bool:
     """Whether ``exc`` (or what caused it) is a write that found no room (:data:`DISK_FULL_ERRNOS`)."""
     seen: set[int] = set()
-    while exc is not None and id(exc) not in seen:
-        seen.add(id(exc))
-        if isinstance(exc, DiskFullError) or (isinstance(exc, OSError) and exc.errno in DISK_FULL_ERRNOS):
+    link: BaseException | None = exc
+    while link is not None and id(link) not in seen:
+        seen.add(id(link))
+        if isinstance(link, DiskFullError) or (isinstance(link, OSError) and link.errno in DISK_FULL_ERRNOS):
             return True
-        text = str(exc)
+        text = str(link)
         if any(f"[Errno {n}]" in text or f"errno = {n}," in text for n in DISK_FULL_ERRNOS):
             return True  # h5py re-raises the C library's error as text
-        exc = exc.__cause__ or exc.__context__  # type: ignore[assignment]
+        link = link.__cause__ or link.__context__
     return False
 
 

@@ -125,7 +125,7 @@ class CanopenEndpoint:
         self.network = canopen.Network(bus)
         self.network.NOTIFIER_CYCLE = 0.05  # disconnect() waits up to one cycle
         self._backlog = ReceiveBacklog(bus, canopen.network.MessageListener(self.network))
-        self.network.listeners = [self._backlog]
+        self.network.listeners = [self._backlog]  # type: ignore[list-item]  # a Notifier takes any can.Listener
         self.drives = [_Drive(self.network.create_node(leg, drive_od.load_od(leg)), target_delay)
                        for leg in LEG_NODE_IDS]
         self.sensors = [_Sensor(self.network.create_node(node_id, load_accelerometer_od(node_id)))
@@ -231,8 +231,8 @@ class CanopenEndpoint:
     def _sync_grid(self) -> SyncGrid:
         """The grid of the cycle period and SYNC counter the master set (0x1006 [µs], 0x1019; a new grid when
         either changes)."""
-        node = self.drives[0].node
-        period, overflow = (node.object_dictionary[index].decode_raw(node.get_data(index, 0))
+        drive = self.drives[0]
+        period, overflow = (drive.written(index)
                             for index in (drive_od.COMMUNICATION_CYCLE_PERIOD, drive_od.SYNC_COUNTER_OVERFLOW))
         if self._grid is None or (self._grid.period_ns, self._grid.overflow) != (period * 1000, overflow):
             self._grid = SyncGrid(period * 1000, _ns(SERIES_GAP), overflow)
@@ -261,8 +261,9 @@ class CanopenEndpoint:
         targets = [d.target for d in self.drives]
         if targets != self._targets:  # held targets (an armed table at rest) need no forward kinematics
             self._targets = targets
-            pose, problem = self._target_pose(np.array(self.scaling.lengths(targets)))
-            if problem is not None:  # the core refuses it and stops; the pose stays the last one played
+            pose = self._target_pose(np.array(self.scaling.lengths(targets)))
+            if isinstance(pose, str):  # the core refuses it and stops; the pose stays the last one played
+                problem = pose
                 seq = self._next_seq
                 self._next_seq = (seq + 1) % 2**32
                 self.counters.targets_refused += 1
@@ -276,21 +277,21 @@ class CanopenEndpoint:
         period = self._sync_grid().period_ns
         self._post(host_ns, arrival, lambda core: core.chunk(seq, due, period, pose[None, :], False, True, arrival))
 
-    def _target_pose(self, lengths: np.ndarray) -> tuple[np.ndarray, None] | tuple[None, str]:
+    def _target_pose(self, lengths: np.ndarray) -> np.ndarray | str:
         """The pose of the six drives' targets, as leg ``lengths`` (6,) [m] (forward kinematics from the last one;
-        the core then checks it as any setpoint), or why they have none: a target outside its leg's stroke (0x607D,
-        with ``analysis.table.setpoints.POSITION_ALLOWANCE``), or lengths no pose has."""
+        the core then checks it as any setpoint), or why they have none (a text): a target outside its leg's stroke
+        (0x607D, with ``analysis.table.setpoints.POSITION_ALLOWANCE``), or lengths no pose has."""
         g = self.table.geometry
         low, high = g.leg_min - POSITION_ALLOWANCE, g.leg_max + POSITION_ALLOWANCE
         outside = np.flatnonzero((lengths < low) | (lengths > high))
         if len(outside):
             leg = int(outside[0])
-            return None, (f"leg {leg + 1} target {lengths[leg]:.6f} m outside its stroke [{g.leg_min:.4f}, "
-                          f"{g.leg_max:.4f}] m")
+            return (f"leg {leg + 1} target {lengths[leg]:.6f} m outside its stroke [{g.leg_min:.4f}, "
+                    f"{g.leg_max:.4f}] m")
         try:
-            return self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7), None
+            return self.table.pose_from_leg_lengths(lengths, guess=self._pose, tol=1e-7)
         except TableModelError as exc:
-            return None, f"leg targets {', '.join(f'{v:.6f}' for v in lengths)} m: no pose ({exc})"
+            return f"leg targets {', '.join(f'{v:.6f}' for v in lengths)} m: no pose ({exc})"
 
     def _end_stream(self, host_ns: int, arrival: int) -> None:
         """The drives were disabled (at rest): end the stream at the last target; once the core played it,
@@ -564,7 +565,10 @@ class CanopenEndpoint:
 
     def _put(self, frame: can.Message) -> None:
         with self.network.send_lock:
-            self.network.bus.send(frame)
+            bus = self.network.bus
+            if bus is None:
+                raise can.CanOperationError("the emulated table's CANopen network is closed: no frame is sent")
+            bus.send(frame)
         self.counters.frames_sent += 1
 
     def counters_dict(self) -> dict[str, Any]:

@@ -75,6 +75,13 @@ class _Node:
         """The live value of an object the device computes (None: the object dictionary's)."""
         return None
 
+    def written(self, index: int) -> int:
+        """The integer object ``index`` (sub 0) holds: as the master wrote it, else the EDS default."""
+        entry = self.node.object_dictionary[index]
+        if not isinstance(entry, canopen.objectdictionary.ODVariable):
+            raise TypeError(f"0x{index:04X} of node {self.node.id} is a record or an array, not one value")
+        return int(entry.decode_raw(self.node.get_data(index, 0)))
+
     @property
     def operational(self) -> bool:
         return self.node.nmt.state == "OPERATIONAL"
@@ -87,7 +94,7 @@ class _Node:
         if not self.mapped:
             self.node.pdo.read()
             self.mapped = True
-            rpdo, tpdo = self.node.rpdo.map.get(1), self.node.tpdo.map.get(1)
+            rpdo, tpdo = _first_map(self.node.rpdo), _first_map(self.node.tpdo)
             self.transmits = next((spec for spec in self.transmit_maps if _maps(tpdo, spec)), None)
             self.supported = (self.receives is None or _maps(rpdo, self.receives)) and (
                 not self.transmit_maps or self.transmits is not None)
@@ -96,6 +103,11 @@ class _Node:
     def counted(self) -> bool:
         """Whether the TPDO1 the master mapped carries the answered SYNC's counter (last object, UNSIGNED8)."""
         return self.transmits in _COUNTED
+
+
+def _first_map(pdos: canopen.pdo.PdoBase) -> canopen.pdo.PdoMap | None:
+    """PDO 1 of a node's RPDOs or TPDOs (None: its object dictionary has none)."""
+    return None if pdos.map is None else pdos.map.get(1)
 
 
 def _maps(pdo_map: Any, spec: PdoSpec) -> bool:
@@ -147,15 +159,13 @@ class _Drive(_Node):
     @property
     def mode(self) -> int:
         """Modes of operation 0x6060 as the master set it."""
-        od = self.node.object_dictionary[drive_od.MODES_OF_OPERATION]
-        return od.decode_raw(self.node.get_data(drive_od.MODES_OF_OPERATION, 0))
+        return self.written(drive_od.MODES_OF_OPERATION)
 
     @property
     def following_error_window(self) -> int | None:
         """Following error window 0x6065 [µm] as the master set it (else the EDS default); None when off."""
         if not self._window_read:
-            od = self.node.object_dictionary[drive_od.FOLLOWING_ERROR_WINDOW]
-            window = od.decode_raw(self.node.get_data(drive_od.FOLLOWING_ERROR_WINDOW, 0))
+            window = self.written(drive_od.FOLLOWING_ERROR_WINDOW)
             self._window, self._window_read = (None if window == _WINDOW_OFF else window), True
         return self._window
 

@@ -29,6 +29,7 @@ from rig.emulator import EmulatorProcess, specimen_flags
 from rig.orchestrator.bodies import mismatch
 from rig.sequence import load_sequence
 from rig.session import read_session
+from tests.helpers.cli import rig as rig_in_process
 from tests.helpers.processes import HEAVY, start_tiny
 from tests.helpers.sequences import TINY
 
@@ -212,12 +213,12 @@ def test_a_missing_file_is_said_before_anything_heavy_is_imported(tmp_path: Path
     assert seen["loaded"] == [], seen["loaded"]
 
 
-@pytest.mark.integration
+@pytest.mark.integration  # opens a socket
 def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key_file: Path) -> None:
     (tmp_path / "tiny.toml").write_text(TINY)
-    done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--key-file", str(key_file), "--yes",
-               "-o", "s.h5", cwd=tmp_path)
-    assert done.returncode == 2, done.stderr + done.stdout
+    done = rig_in_process("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--key-file", str(key_file),
+                          "--yes", "-o", "s.h5", cwd=tmp_path)
+    assert done.exit_code == 2, done.stderr + done.stdout
     assert "mavlink://127.0.0.1:9 did not answer" in done.stderr
     assert not list(tmp_path.glob("*.h5"))
 
@@ -229,7 +230,7 @@ def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key
 def test_version_and_shell_completion() -> None:
     from rig import __version__
 
-    assert rig("--version", cwd=ROOT).stdout == f"rig {__version__}\n"
+    assert rig_in_process("--version", cwd=ROOT).stdout == f"rig {__version__}\n"
     assert {"--install-completion", "--show-completion", "--version"} <= options_of()
     script = subprocess.run([*RIG, "--show-completion", "bash"], capture_output=True, text=True, cwd=ROOT,
                             env={**os.environ, "_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION": "1"}, timeout=120)
@@ -248,26 +249,24 @@ def test_json_options_print_one_object(tmp_path: Path) -> None:
     assert run["resume"] == (None if run["complete"] else "rig run --resume s.h5 --yes")
     if run["complete"]:
         assert run["runs_done"] == 2 and run["state"] == "done"
-    shown = json.loads(rig("sessions", "show", "s.h5", "--json", cwd=tmp_path).stdout)
+    shown = json.loads(rig_in_process("sessions", "show", "s.h5", "--json", cwd=tmp_path).stdout)
     assert [r["status"] for r in shown["runs"]] == [r["status"] for r in read_session(tmp_path / "s.h5")["runs"]]
     assert shown["table"] == {"emulate": True, "speed": "max"} and shown["sequence"] == "tiny"
-    listed = json.loads(rig("sessions", "list", ".", "--json", cwd=tmp_path).stdout)
+    listed = json.loads(rig_in_process("sessions", "list", ".", "--json", cwd=tmp_path).stdout)
     assert [Path(s["path"]).name for s in listed["sessions"]] == ["s.h5"]
 
 
-@pytest.mark.integration
 def test_iterate_takes_speed_max() -> None:
     from rig.cli.iterate import _Table
 
     assert _Table(None, True, None, None, "lag", [], math.inf).flags[-2:] == ["--speed", "max"]
-    refused = rig("iterate", "fema:NORTHR/MUL009", "--emulate", "--speed", "fast", cwd=ROOT)
-    assert refused.returncode == 2 and "expected a factor > 0 or max" in refused.stderr
+    refused = rig_in_process("iterate", "fema:NORTHR/MUL009", "--emulate", "--speed", "fast", cwd=ROOT)
+    assert refused.exit_code == 2 and "expected a factor > 0 or max" in refused.stderr
 
 
-@pytest.mark.integration
 def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_path: Path) -> None:
-    done = rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5", cwd=tmp_path)
-    assert done.returncode == 0, done.stderr
+    done = rig_in_process("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5", cwd=tmp_path)
+    assert done.exit_code == 0, done.stderr
     for header in ("displacement [m]", "velocity [m/s]", "acceleration [g]"):
         assert header in done.stdout, done.stdout
     assert "drive file: " in done.stdout
@@ -278,15 +277,17 @@ def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_pa
     sequence = load_sequence(tmp_path / "seq.toml")
     (planned,) = sequence.plan()
     played = sequence.prepare(planned)
-    fresh = json.loads(rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "--json", cwd=tmp_path).stdout)
+    fresh = json.loads(rig_in_process("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "--json",
+                                      cwd=tmp_path).stdout)
     assert played.scale_factor == pytest.approx(fresh["scale_factor"]) and len(played.t) == fresh["samples"]
-    again = rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5", cwd=tmp_path)
-    assert again.returncode == 2 and "never overwritten" in again.stderr
+    again = rig_in_process("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5",
+                           cwd=tmp_path)
+    assert again.exit_code == 2 and "never overwritten" in again.stderr
 
 
 @pytest.mark.integration
 def test_emulate_help_and_counters_table(tmp_path: Path, key_file: Path) -> None:
-    help_text = rig("emulate", "--help", cwd=ROOT).stdout
+    help_text = rig_in_process("emulate", "--help", cwd=ROOT).stdout
     assert help_text.startswith("Usage: rig emulate [OPTIONS]")
     for option in ("--listen URL", "--body", "--speed FACTOR|max", "--json", "--counters FILE"):
         assert option in help_text, option

@@ -120,3 +120,32 @@ def test_the_controller_s_own_trips_limits_and_warnings_are_recorded_marked_cont
                 "controlled_stop (controller)"),
         (0.009, "limit leg.2.following_error: past the controller's limit (EMCY 0x8611 following error): "
                 "controlled_stop (controller)")]
+
+
+def test_a_controller_trip_that_comes_after_the_stopping_status_is_still_timed(tmp_path: Path) -> None:
+    """zenoh does not order its keys: the host's trip and the status showing the stop may come before the
+    controller's trip of the same crossing (published last here; the recorder may drain the three together): each
+    source's trip is timed once, and the controller's is the latency."""
+    table = FeedbackTable()
+    log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
+                            software_version="test")
+    run_log = log.begin_run(0, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)), bodies=[],
+                            sensors=["0"])
+    recorder = RunRecorder(table, run_log, {0: "0"}, [], Progress(runs_total=1),  # type: ignore[arg-type]
+                           limits=LimitWatch(LimitDetectors((Detector("accel.x", abort_high=4.0),))))
+    recorder.start(0)
+    x = np.array([0.0, 0.0, 5.0, 6.0])
+    table.feedback.publish_accel(AccelBatch(0, 0, 0, SPACING_NS, np.column_stack([x, 0 * x, 0 * x + 9.81])))
+    table.feedback.publish_status(status(6_000_000, "stopping"))
+    level = ControllerLevel("accel.x", "abort_high", 4.0, 1, "controlled_stop")
+    table.feedback.publish_limit_trip(ControllerTrip(2_000_000, 0, 5.0, level))
+    recorder.finish(0.2)
+    run_log.end("aborted", reason="limit accel.0.x")
+    log.close()
+    assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.004) < 1e-9
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    timed = sorted(event["text"] for event in run["events"] if "after the crossing" in event["text"])
+    assert timed == ["limit accel.0.x: the table was stopping 4.0 ms after the crossing (table time; tripped by the "
+                     "controller)",
+                     "limit accel.0.x: the table was stopping 4.0 ms after the crossing (table time; tripped by the "
+                     "host)"]

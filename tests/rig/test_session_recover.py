@@ -10,8 +10,6 @@ from __future__ import annotations
 
 import json
 import random
-import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -30,9 +28,8 @@ from rig.session import (
     writer_flags,
     writer_state,
 )
+from tests.helpers.cli import rig
 from tests.helpers.session_writer import WriterChild, final_resume_and_run, writer_config
-
-REPO = Path(__file__).resolve().parents[2]
 
 
 def _samples(path: Path, swmr: bool) -> dict[str, bytes]:
@@ -50,11 +47,6 @@ def _samples(path: Path, swmr: bool) -> dict[str, bytes]:
 
 def _statuses(path: Path) -> dict[str, str]:
     return {run["name"]: run["status"] for run in read_session(path, data=False)["runs"]}
-
-
-def _rig(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([sys.executable, "-m", "rig.cli", *args], capture_output=True, text=True, cwd=REPO,
-                          timeout=300)
 
 
 def _recover_after_kills(tmp_path: Path, kills: int, seed: int) -> int:
@@ -119,33 +111,33 @@ def test_a_live_writer_is_told_apart_and_the_cli_names_the_recover_command(tmp_p
         with pytest.raises(SessionError, match=r"a live session log .* is writing this file; .* nothing was changed"):
             recover(path)
         assert writer_flags(path) != 0  # untouched
-        listed = _rig("sessions", "list", str(tmp_path))
+        listed = rig("sessions", "list", str(tmp_path))
         assert "writing" in listed.stdout and "CRASHED" not in listed.stdout
     finally:
         child.kill()
     assert writer_state(path) == CRASHED
     assert [s["state"] for s in list_sessions(tmp_path)] == [CRASHED]
     command = f"rig sessions recover {path}"
-    listed = _rig("sessions", "list", str(tmp_path))
+    listed = rig("sessions", "list", str(tmp_path))
     assert "CRASHED: rig sessions recover" in listed.stdout
-    shown = _rig("sessions", "show", str(path))
-    assert shown.returncode == 0 and command in shown.stderr and "running" in shown.stdout
-    analysed = _rig("analyze", str(path))
-    assert analysed.returncode == 2 and command in analysed.stderr
+    shown = rig("sessions", "show", str(path))
+    assert shown.exit_code == 0 and command in shown.stderr and "running" in shown.stdout
+    analysed = rig("analyze", str(path))
+    assert analysed.exit_code == 2 and command in analysed.stderr
     assert len(analysed.stderr.splitlines()) == 1
-    reported = _rig("report", str(path), "-o", str(tmp_path / "r.html"), "--json")
+    reported = rig("report", str(path), "-o", str(tmp_path / "r.html"), "--json")
     assert command in reported.stderr
-    recovered = _rig("sessions", "recover", str(path), "--json")
-    assert recovered.returncode == 0, recovered.stderr
+    recovered = rig("sessions", "recover", str(path), "--json")
+    assert recovered.exit_code == 0, recovered.stderr
     result = json.loads(recovered.stdout)
     assert result["state"] == CRASHED and result["changed"] and len(result["interrupted"]) == 1
     assert _statuses(path)[result["interrupted"][0]] == "interrupted"
-    listed = _rig("sessions", "list", str(tmp_path))
+    listed = rig("sessions", "list", str(tmp_path))
     assert "CRASHED" not in listed.stdout and "writing" not in listed.stdout
-    shown = _rig("sessions", "show", str(path))
+    shown = rig("sessions", "show", str(path))
     assert shown.stderr == ""
-    again = _rig("sessions", "recover", str(path))
-    assert again.returncode == 0 and "nothing to recover" in again.stdout
+    again = rig("sessions", "recover", str(path))
+    assert again.exit_code == 0 and "nothing to recover" in again.stdout
 
 
 def test_recover_refuses_what_is_not_a_session_file(tmp_path: Path) -> None:

@@ -18,7 +18,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -47,11 +47,13 @@ from protocols.mavlink import (
     tilt_batches,
 )
 from protocols.mavlink.signing import signing_timestamp
+from protocols.signing_key import write_signing_key
 from rig.drive import prepare_drive
 from rig.emulator import EmulatorProcess
 from rig.records import load_record
 from tests.helpers import table_checks
 from tests.helpers.streams import drive_excerpt, stream_and_check, surge
+from tests.helpers.tables import SharedTable
 
 D = dialect()
 LISTEN = "mavlink://127.0.0.1:0"
@@ -72,16 +74,15 @@ def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess
 
 
 @pytest.fixture(scope="module")
-def plain(key_file: Path) -> Iterator[EmulatorProcess]:
-    """One emulator without bodies for the tests that leave it at rest."""
-    emulator = start_emulator(key_file=key_file)
-    yield emulator
-    emulator.stop()
+def key_file(shared_key_file: Path) -> Path:
+    """The shared tables' signing key, also for this module's tests that start an emulator of their own."""
+    return shared_key_file
 
 
-def at_rest(table: MavlinkTable) -> TableStatus:
-    """Wait until an earlier test's motion (a stop after its host left) is over."""
-    return table.wait_for_status(lambda s: s.state not in ("stopping", "homing", "tilting", "streaming"), 15)
+@pytest.fixture
+def plain(shared_mavlink_table: SharedTable) -> EmulatorProcess:
+    """The session's emulator without bodies, at rest and checked so before each test (``tests/helpers/tables.py``)."""
+    return shared_mavlink_table.emulator
 
 
 # ----- a hand-driven host -------------------------------------------------------------------------------------
@@ -211,7 +212,7 @@ def test_stream_the_whole_prepared_fema_drive(key_file: Path) -> None:
 @pytest.mark.integration
 def test_unsigned_or_forged_motion_is_refused_stopping_is_not(plain: EmulatorProcess, key_file: Path) -> None:
     with open_table(plain.url, key_file=str(key_file)) as table:
-        before = at_rest(table)
+        before = table.status()
         unsigned = RawHost(mavlink_address(plain), system=255)
         forged = RawHost(mavlink_address(plain), secrets.token_bytes(32), system=255,  # the driver's own ids and link,
                          timestamp=signing_timestamp(time.time() + 3600))  # a timestamp an hour ahead
@@ -250,7 +251,6 @@ def test_telemetry_forged_by_a_local_process_is_dropped_and_counted(plain: Emula
     None reaches the feedback (the record); each is counted once."""
     with open_table(plain.url, key_file=str(key_file)) as table:
         assert isinstance(table, MavlinkTable) and table._link is not None
-        at_rest(table)
         detections, accelerations, statuses = table.detections(), table.accelerations(), table.statuses()
         forger = UdpLink.open(peer=table._link.local_address, source_system=1, source_component=1)
         if forger_key == "wrong":
@@ -309,8 +309,7 @@ def test_an_arm_without_the_heartbeat_kept_up_is_refused_with_the_controllers_re
     import drivers.mavlink
 
     monkeypatch.setattr(drivers.mavlink, "HEARTBEAT_RATE", 1.0)
-    with open_table(plain.url, key_file=str(key_file)) as table:
-        at_rest(table)
+    with open_table(plain.url, key_file=str(key_file)) as table:  # the shared table: at rest, checked so
         time.sleep(1.2)  # two beats 1 s apart: beats, but too far apart for the 1 s watchdog
         with pytest.raises(CommandRejectedError) as refused:
             table.arm()
@@ -329,9 +328,12 @@ def captured_commands(key: bytes, unix_time: float, *commands: tuple[str, float]
 
 
 @pytest.mark.integration
-def test_a_signed_arm_and_tilt_captured_before_a_restart_are_refused(key_file: Path) -> None:
+def test_a_signed_arm_and_tilt_captured_before_a_restart_are_refused(tmp_path: Path) -> None:
     """Captured signed ARM and SET_TILT (a stream stamped 36 s ago, as in issue 25) replayed to a controller that
-    has just started: refused as unsigned; a host stamping from the wall clock arms."""
+    has just started: refused as unsigned; a host stamping from the wall clock arms. A key of its own: no replay
+    state kept beside it yet (the shared key's holds the shared table's stamps, which a restart would take up)."""
+    key_file = tmp_path / "rig.key"
+    write_signing_key(key_file)
     key = bytes.fromhex(key_file.read_text())
     emulator = start_emulator(key_file=key_file)
     try:

@@ -1,8 +1,9 @@
 """Issue 42, item 1, per transport: a setpoint the table must not play (NaN, inf, 3.4e38, outside the envelope or a
 leg's stroke, a step beyond the leg speed) sent straight to the emulator — signed, past the host's own checks — is
 refused with a reason the host receives, the table stops and the emulator lives on and answers; and the host refuses
-to stream such a trajectory. MAVLink and zenoh: the emulator a separate process, real sockets. CANopen: master and
-emulator in this process on python-can's ``virtual`` bus."""
+to stream such a trajectory. MAVLink and zenoh: the emulator a separate process (the session's shared one:
+``tests/helpers/tables.py``), real sockets. CANopen: master and emulator in this process on python-can's ``virtual``
+bus."""
 
 from __future__ import annotations
 
@@ -13,7 +14,6 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,13 +24,11 @@ from drivers.canopen import CanopenTable
 from drivers.controller import FaultSource, SetpointError, TableController, TableError, open_table
 from protocols.canopen import od as drive_od
 from protocols.mavlink import dialect
-from protocols.signing_key import write_signing_key
 from protocols.zenoh.table import SetpointChunk, encode_setpoints
-from rig.emulator import EmulatorProcess
 from sim_table.process import Emulator, EmulatorConfig
+from tests.helpers.tables import SharedTable
 
 MS = 1_000_000
-LISTEN = {"mavlink": "mavlink://127.0.0.1:0", "zenoh": "zenoh://127.0.0.1:0/table"}
 WAIT = 10.0
 """The longest wait [s] for the table to show what it did (a loaded machine; it normally takes milliseconds)."""
 
@@ -71,10 +69,8 @@ def send_raw(table: Any, transport: str, seq: int, t_start_ns: int, samples: np.
 @pytest.mark.integration  # starts the emulator's process, opens sockets
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
 def test_a_signed_hostile_chunk_is_refused_with_a_reason_the_table_stops_and_the_emulator_answers(
-        transport: str, tmp_path: Path) -> None:
-    key_file = tmp_path / "rig.key"
-    write_signing_key(key_file)
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+        transport: str, shared_table: SharedTable) -> None:
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             for k, (case, detail) in enumerate(CASES.items()):
@@ -98,10 +94,8 @@ def test_a_signed_hostile_chunk_is_refused_with_a_reason_the_table_stops_and_the
             with pytest.raises(SetpointError, match=r"trajectory not sent: sample 3 \(t = 0\.003 s\): heave nan"):
                 table.stream(t, hostile("nan"))
             assert table.status().state == "armed" and len(table.refusals) == len(CASES)  # nothing was sent
-        counters = emulator.stop()
     finally:
-        if emulator.exit_code is None:
-            emulator.proc.kill()
+        counters = shared_table.counters()  # the emulator lives on: it answers
     assert counters["chunks_refused"] == len(CASES) and counters["streams_started"] == len(CASES)
     assert counters["link"]["refusals_sent"] == len(CASES)
 

@@ -1,5 +1,7 @@
 """Issue 4's fault checks across the table transports: the host killed mid-stream, packet loss during a stream,
-a replayed signed MAVLink message. Real sockets, the emulator and the killed host separate processes; no mocks.
+a replayed signed MAVLink message. Real sockets, the emulator and the killed host separate processes (the emulator
+the session's shared one, at rest before each test, unless the test needs options of its own:
+``tests/helpers/tables.py``); no mocks.
 (zenoh's replay check is ``test_zenoh_table.py::test_unsigned_forged_or_replayed_motion_is_refused…``.)"""
 
 from __future__ import annotations
@@ -22,6 +24,7 @@ from drivers.controller import StreamAbortedError, TableStatus, open_table
 from protocols.mavlink import UdpLink, dialect, enable_signing, setpoint_chunks
 from rig.emulator import EmulatorProcess
 from tests.helpers.streams import drive_excerpt
+from tests.helpers.tables import SharedTable
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -65,8 +68,8 @@ def home_distance(status: TableStatus) -> float:
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
 def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
-        transport: str, key_file: Path, record_property: Any) -> None:
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+        transport: str, shared_table: SharedTable, record_property: Any) -> None:
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     host: subprocess.Popen[str] | None = None
     try:
         # a second host that only listens (observe: it claims nothing, so the other host may own the table):
@@ -93,7 +96,7 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
         if host is not None and host.poll() is None:
             host.kill()
             host.wait()
-        counters = emulator.stop()
+        counters = shared_table.counters()
 
     states = [s.state for s in after]
     changes = [a for a, b in zip(states, [*states[1:], None], strict=True) if a != b]
@@ -123,13 +126,13 @@ def test_killing_the_streaming_host_stops_the_table_and_brings_it_home(
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
-def test_a_stop_while_the_stream_holds_still_aborts_it(transport: str, key_file: Path) -> None:
+def test_a_stop_while_the_stream_holds_still_aborts_it(transport: str, shared_table: SharedTable) -> None:
     """STOP during the drive's leading hold: the plate is at rest, so the stop and its return home pass within a
     status period — the stream still ends as aborted (not as played), before its remaining chunks go out."""
     t = np.arange(4001) * 1e-3
     poses = np.zeros((len(t), 6))
     poses[:, 0] = 0.05 * np.clip(t - 2.0, 0.0, 1.0) ** 3
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as table:
             table.arm()
@@ -148,7 +151,7 @@ def test_a_stop_while_the_stream_holds_still_aborts_it(transport: str, key_file:
             table.stop()
             thread.join()
     finally:
-        counters = emulator.stop()
+        counters = shared_table.counters()
     assert "aborted" in outcome, outcome
     assert outcome["aborted"].report.chunks < 0.5 * len(t) / table.samples_per_chunk  # it stopped sending
     assert counters["stops"] == 1 and counters["streams_completed"] == 0
@@ -207,8 +210,8 @@ def first_ack(link: UdpLink, command: int, timeout: float = 5.0) -> str:
     raise AssertionError(f"no COMMAND_ACK for {command} within {timeout} s")
 
 
-def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(key_file: Path) -> None:
-    emulator = EmulatorProcess.start(LISTEN["mavlink"], key_file=key_file)
+def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(shared_mavlink_table: SharedTable) -> None:
+    emulator, key_file = shared_mavlink_table.emulator, shared_mavlink_table.key_file
     address = emulator.url.removeprefix("mavlink://").rsplit(":", 1)
     target = (address[0], int(address[1]))
     signer = UdpLink.open(("127.0.0.1", 0), target, source_system=250, source_component=190)
@@ -238,13 +241,14 @@ def test_a_replayed_signed_mavlink_command_is_refused_and_not_run_again(key_file
     finally:
         replayer.close()
         signer.close()
-        counters = emulator.stop()
+        counters = shared_mavlink_table.counters()
     assert counters["commands_accepted"] >= 2 and counters["refused_commands"] == 1
     assert counters["link"]["commands_other_host"] == 0  # refused for its stamp, before ownership is looked at
 
 
-def test_a_signed_motion_command_or_chunk_of_another_host_is_refused_with_the_owner(key_file: Path) -> None:
-    emulator = EmulatorProcess.start(LISTEN["mavlink"], key_file=key_file)
+def test_a_signed_motion_command_or_chunk_of_another_host_is_refused_with_the_owner(
+        shared_mavlink_table: SharedTable) -> None:
+    emulator, key_file = shared_mavlink_table.emulator, shared_mavlink_table.key_file
     address = emulator.url.removeprefix("mavlink://").rsplit(":", 1)
     other = UdpLink.open(("127.0.0.1", 0), (address[0], int(address[1])), source_system=250, source_component=190)
     enable_signing(other.mav, bytes.fromhex(key_file.read_text()), link_id=0)
@@ -267,6 +271,6 @@ def test_a_signed_motion_command_or_chunk_of_another_host_is_refused_with_the_ow
             table.disarm()
     finally:
         other.close()
-        counters = emulator.stop()
+        counters = shared_mavlink_table.counters()
     assert counters["link"]["commands_other_host"] == 1 and counters["link"]["chunks_other_host"] == 1
     assert counters["stops"] == 1 and counters["chunks_not_streaming"] == 0

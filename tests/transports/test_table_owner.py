@@ -3,7 +3,8 @@
 Two hosts (two driver instances, the same key) against one emulator per transport: the second is refused at
 connect with "table in use by … since …" while the first streams, and the first never notices (its stream and its
 next run play in full); once the first closes (RELEASE) or falls silent (killed), the second claims the table.
-Real emulator processes and sockets; no mocks.
+Real emulator processes (the session's shared one per transport, at rest before each test:
+``tests/helpers/tables.py``) and sockets; no mocks.
 """
 
 from __future__ import annotations
@@ -15,28 +16,18 @@ import sys
 import textwrap
 import threading
 import time
-from pathlib import Path
 from typing import Any
 
 import pytest
 
 from drivers.controller import StreamReport, TableInUseError, open_table
-from protocols.signing_key import write_signing_key
-from rig.emulator import EmulatorProcess
 from sim_table.ownership import OWNER_TIMEOUT
 from tests.helpers.streams import smooth_ramp, surge
+from tests.helpers.tables import SharedTable
 
 pytestmark = pytest.mark.integration  # starts processes and opens sockets (tests/conftest.py)
 
-LISTEN = {"mavlink": "mavlink://127.0.0.1:0", "zenoh": "zenoh://127.0.0.1:0/table"}
 IN_USE = r"table in use by .+ since \d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC"
-
-
-@pytest.fixture(scope="module")
-def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    path = tmp_path_factory.mktemp("key") / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 def there_and_back(duration: float) -> tuple[Any, Any]:
@@ -46,8 +37,8 @@ def there_and_back(duration: float) -> tuple[Any, Any]:
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
-def test_a_second_host_is_refused_and_the_first_never_notices(transport: str, key_file: Path) -> None:
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+def test_a_second_host_is_refused_and_the_first_never_notices(transport: str, shared_table: SharedTable) -> None:
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as first:
             first.arm()
@@ -77,7 +68,7 @@ def test_a_second_host_is_refused_and_the_first_never_notices(transport: str, ke
             assert again.underruns == 0 and again.final is not None and again.final.state == "armed"
             first.disarm()
     finally:
-        counters = emulator.stop()
+        counters = shared_table.counters()
     message = str(refused.value)
     assert message.startswith(emulator.url) and "last heard" in message
     if transport == "mavlink":
@@ -87,8 +78,8 @@ def test_a_second_host_is_refused_and_the_first_never_notices(transport: str, ke
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
-def test_the_table_is_free_once_its_owner_releases_it(transport: str, key_file: Path) -> None:
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+def test_the_table_is_free_once_its_owner_releases_it(transport: str, shared_table: SharedTable) -> None:
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as first:
             first.arm()
@@ -97,7 +88,7 @@ def test_the_table_is_free_once_its_owner_releases_it(transport: str, key_file: 
             second.arm()
             second.disarm()
     finally:
-        counters = emulator.stop()
+        counters = shared_table.counters()
     assert counters["link"]["claims_granted"] == 2 and counters["link"]["claims_refused"] == 0
 
 
@@ -113,8 +104,8 @@ HOST_SCRIPT = textwrap.dedent("""
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
-def test_a_silent_owner_loses_its_claim(transport: str, key_file: Path) -> None:
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+def test_a_silent_owner_loses_its_claim(transport: str, shared_table: SharedTable) -> None:
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     host = subprocess.Popen([sys.executable, "-c", HOST_SCRIPT, emulator.url, str(key_file)],
                             stdout=subprocess.PIPE, text=True)
     try:
@@ -132,7 +123,7 @@ def test_a_silent_owner_loses_its_claim(transport: str, key_file: Path) -> None:
         if host.poll() is None:
             host.kill()
             host.wait(10)
-        counters = emulator.stop()
+        counters = shared_table.counters()
     assert counters["link"]["claim_takeovers"] == 1
 
 
@@ -153,8 +144,8 @@ FROZEN_SCRIPT = textwrap.dedent("""
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
 def test_a_host_frozen_past_the_timeout_finds_the_table_taken_and_is_told_by_whom(
-        transport: str, key_file: Path) -> None:
-    emulator = EmulatorProcess.start(LISTEN[transport], key_file=key_file)
+        transport: str, shared_table: SharedTable) -> None:
+    emulator, key_file = shared_table.emulator, shared_table.key_file
     host = subprocess.Popen([sys.executable, "-c", FROZEN_SCRIPT, emulator.url, str(key_file)],
                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     try:
@@ -176,6 +167,6 @@ def test_a_host_frozen_past_the_timeout_finds_the_table_taken_and_is_told_by_who
             host.send_signal(signal.SIGCONT)
             host.kill()
             host.wait(10)
-        counters = emulator.stop()
+        counters = shared_table.counters()
     assert re.fullmatch(r"ARM refused: " + IN_USE + r".*", answer), answer
     assert counters["link"]["claim_takeovers"] == 1 and counters["link"]["commands_other_host"] == 1

@@ -13,7 +13,6 @@ import secrets
 import struct
 import threading
 import time
-from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -85,6 +84,7 @@ from rig.records import load_record
 from sim_table.controller import Command, Fault, Result, State
 from tests.helpers import table_checks
 from tests.helpers.streams import drive_excerpt, stream_and_check
+from tests.helpers.tables import SharedTable
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -268,11 +268,15 @@ def start_emulator(*flags: str, key_file: Path | None = None) -> EmulatorProcess
 
 
 @pytest.fixture(scope="module")
-def plain(key_file: Path) -> Iterator[EmulatorProcess]:
-    """One emulator without bodies for the tests that leave it at rest."""
-    emulator = start_emulator(key_file=key_file)
-    yield emulator
-    emulator.stop()
+def key_file(shared_key_file: Path) -> Path:
+    """The shared tables' signing key, also for this module's tests that start an emulator of their own."""
+    return shared_key_file
+
+
+@pytest.fixture
+def plain(shared_zenoh_table: SharedTable) -> EmulatorProcess:
+    """The session's emulator without bodies, at rest and checked so before each test (``tests/helpers/tables.py``)."""
+    return shared_zenoh_table.emulator
 
 
 # ----- a hand-driven host -------------------------------------------------------------------------------------
