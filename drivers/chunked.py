@@ -27,6 +27,7 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from analysis.table.controller_limits import CLEAR_CODE, ControllerLevel
 from analysis.table.model import TableModel
 from drivers.clock import ClockSync
 from drivers.controller import (
@@ -254,6 +255,18 @@ class ChunkedStreamController(TableController):
 
     def emergency_stop(self) -> None:
         self._command("emergency_stop")
+
+    def download_limits(self, levels: tuple[ControllerLevel, ...]) -> str | None:
+        """SET_LIMIT (signed, MAVLink MAV_CMD_SHAKETABLE_SET_LIMIT or zenoh ``set_limit``): clear, then one command
+        per level; a controller that refuses the first (UNSUPPORTED, FAILED: one without the levels) does not
+        take them."""
+        try:
+            self._command("set_limit", (float(CLEAR_CODE), 0.0))
+        except (CommandFailedError, CommandRejectedError) as exc:
+            return f"the controller refused SET_LIMIT: {exc}"
+        for level in levels:
+            self._command("set_limit", level.params())
+        return None
 
     def _command(self, name: str, params: tuple[float, float] = (0.0, 0.0)) -> CommandAnswer:
         """Send ``name`` (:meth:`_request`); unless it is in progress, return once a status shows what it did

@@ -40,6 +40,7 @@ from drivers.errors import (
 )
 from drivers.feedback import (
     AccelBatch,
+    ControllerText,
     Detection,
     FaultEvent,
     FaultSource,
@@ -76,6 +77,7 @@ __all__ = [
     "CommandFailedError",
     "CommandRefusedError",
     "CommandRejectedError",
+    "ControllerText",
     "Detection",
     "Factory",
     "FaultEvent",

@@ -29,7 +29,8 @@ class TableStatus:
     arrived after they were due and were skipped, since power-up; ``virtual_watchdog_s`` 0 when the controller
     keeps real time, else it runs in virtual time (an emulator at ``--speed max``) and this is its own link
     watchdog [s, host time], the silence :meth:`TableController.check_link` allows it; ``inputs`` the interlock
-    inputs set now (``"door_open"``: the enclosure door; empty where the controller reports none).
+    inputs set now (``"door_open"``: the enclosure door; empty where the controller reports none);
+    ``following_error`` (6,) each leg's commanded minus measured length [m], legs 1…6 (None: not reported).
     """
 
     t_ns: int
@@ -45,6 +46,7 @@ class TableStatus:
     samples_late: int = 0
     virtual_watchdog_s: float = 0.0
     inputs: tuple[str, ...] = ()
+    following_error: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,6 +114,16 @@ class SetpointRefusal:
     t_ns: int
     seq: int
     reason: str
+
+
+@dataclass(frozen=True)
+class ControllerText:
+    """A text the controller sent (MAVLink STATUSTEXT): its ``severity`` (``EMERGENCY`` … ``DEBUG``, MAV_SEVERITY's
+    names) and ``text``, received at ``host_ns`` [ns, host monotonic] (the message carries no controller time)."""
+
+    host_ns: int
+    severity: str
+    text: str
 
 
 @dataclass(frozen=True)

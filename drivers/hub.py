@@ -17,9 +17,18 @@ from typing import Any, Generic, TypeVar
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
 from analysis.table.sensors import PLATE_AXES, SensorSheets
 from drivers.errors import TableError
-from drivers.feedback import AccelBatch, Detection, FaultEvent, FaultSource, TableStatus, TiltBatch
+from drivers.feedback import (
+    AccelBatch,
+    ControllerText,
+    Detection,
+    FaultEvent,
+    FaultSource,
+    TableStatus,
+    TiltBatch,
+)
 
 T = TypeVar("T")
 
@@ -97,13 +106,14 @@ class Feedback:
     of this object (one connection).
     """
 
-    _TOPICS = ("status", "accel", "tilt", "detection", "fault")
+    _TOPICS = ("status", "accel", "tilt", "detection", "fault", "limit_trip", "controller_text")
 
     def __init__(self) -> None:
         self._lock = threading.Condition()
         self._subscribers: dict[str, list[Subscription[Any]]] = {topic: [] for topic in self._TOPICS}
         self.latest: TableStatus | None = None
         self._events: set[int] = set()
+        self._trips: set[ControllerTrip] = set()
         self._mountings: dict[int, np.ndarray] = {}
         self.duplicate_detections = 0
         """Retransmitted overturn events dropped (the first copy of each event id was kept)."""
@@ -163,6 +173,17 @@ class Feedback:
             self._events.add(detection.event_id)
             self._publish("detection", detection)
             return True
+
+    def publish_limit_trip(self, trip: ControllerTrip) -> None:
+        """Publish a trip of the controller's own limit levels, each once (the controller repeats it)."""
+        with self._lock:
+            if trip not in self._trips:
+                self._trips.add(trip)
+                self._publish("limit_trip", trip)
+
+    def publish_controller_text(self, text: ControllerText) -> None:
+        with self._lock:
+            self._publish("controller_text", text)
 
     def notify(self) -> None:
         """Wake :meth:`wait_for` callers (e.g. when a command's answer arrived)."""

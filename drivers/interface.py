@@ -21,12 +21,21 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.link import LinkSettings
 from analysis.table.model import TableModel
 from analysis.table.setpoints import check_setpoints
 from drivers.bodies import TableBody
 from drivers.errors import SetpointError, TableError, TableLinkLostError, TableTimeoutError
-from drivers.feedback import AccelBatch, Detection, FaultEvent, StreamReport, TableStatus, TiltBatch
+from drivers.feedback import (
+    AccelBatch,
+    ControllerText,
+    Detection,
+    FaultEvent,
+    StreamReport,
+    TableStatus,
+    TiltBatch,
+)
 from drivers.heap import HeapHold
 from drivers.hub import Feedback, Subscription
 
@@ -234,6 +243,21 @@ class TableController(ABC):
     def faults(self) -> Subscription[FaultEvent]:
         """Every fault bit that becomes set from now on."""
         return self.feedback.subscribe("fault")
+
+    def limit_trips(self) -> Subscription[ControllerTrip]:
+        """Every trip of the controller's own limit levels from now on (:meth:`download_limits`), each once."""
+        return self.feedback.subscribe("limit_trip")
+
+    def controller_texts(self) -> Subscription[ControllerText]:
+        """Every text the controller sends from now on (MAVLink STATUSTEXT; none on the other transports)."""
+        return self.feedback.subscribe("controller_text")
+
+    def download_limits(self, levels: tuple[ControllerLevel, ...]) -> str | None:
+        """Give the controller ``levels`` for the next stream (``analysis.table.controller_limits``; the ones it
+        held before are cleared first): None once it took them all, else why it cannot (this transport or this
+        controller does not take levels: the host's detectors then act alone). Raises :class:`TableError` as
+        the commands do."""
+        return "this transport does not take limit levels"
 
 
 def sleep_until(deadline_ns: int) -> int:

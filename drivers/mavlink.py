@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.model import TableModel
 from drivers.bodies import BodyReports, TableBody
 from drivers.chunked import MOTION_STATES, ChunkedStreamController, CommandAnswer
@@ -39,6 +40,7 @@ from drivers.controller import (
     CommandDeniedError,
     CommandFailedError,
     CommandRejectedError,
+    ControllerText,
     Detection,
     SetpointRefusal,
     TableError,
@@ -267,6 +269,13 @@ class MavlinkTable(ChunkedStreamController):
         elif kind == "SHAKETABLE_BODY":
             self._body_reports.add(msg.count, TableBody(msg.body_id, msg.b, msg.h, msg.depth, msg.x, msg.y)
                                    if msg.count else None)
+        elif kind == "STATUSTEXT":
+            severity = self.d.enums["MAV_SEVERITY"][msg.severity].name if msg.severity in self.d.enums[
+                "MAV_SEVERITY"] else str(msg.severity)
+            self.feedback.publish_controller_text(ControllerText(now, severity.removeprefix("MAV_SEVERITY_"),
+                                                                 msg.text))
+        elif kind == "SHAKETABLE_LIMIT_TRIP":
+            self._limit_trip(msg)
         elif kind == "SHAKETABLE_CHUNK_REFUSED":
             self._publish_refusal(SetpointRefusal(msg.t_ns, msg.chunk_seq, msg.reason))
         elif kind == "SHAKETABLE_OVERTURN_EVENT":
@@ -310,7 +319,17 @@ class MavlinkTable(ChunkedStreamController):
         return TableStatus(msg.t_ns, state, msg.buffer_depth, msg.last_chunk_seq, msg.underruns, faults,
                            msg.refused_commands, np.array(msg.pose, dtype=np.float64), now, msg.buffer_capacity,
                            msg.samples_late, msg.virtual_watchdog_ms * 1e-3,
-                           tuple(name for bit, name in self._input_bits if msg.inputs & bit))
+                           tuple(name for bit, name in self._input_bits if msg.inputs & bit),
+                           np.array(msg.following_error, dtype=np.float64))
+
+    def _limit_trip(self, msg: Any) -> None:
+        """A SHAKETABLE_LIMIT_TRIP as a :class:`ControllerTrip` (one whose code packs no level is counted as junk)."""
+        try:
+            level = ControllerLevel.decode((float(msg.code), float(msg.level)))
+        except ValueError:
+            self.refused["junk_datagrams"] += 1
+            return
+        self.feedback.publish_limit_trip(ControllerTrip(msg.t_ns, msg.sensor, float(msg.value), level))
 
     def _accel(self, msg: Any) -> None:
         series = unpack_accel_batch(msg)

@@ -28,6 +28,7 @@ from typing import NoReturn, TypeVar
 import numpy as np
 import zenoh
 
+from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.model import TableModel
 from drivers.bodies import TableBody
 from drivers.chunked import ChunkedStreamController, CommandAnswer
@@ -60,6 +61,7 @@ from protocols.zenoh.table import (
     decode_bodies,
     decode_clock_reply,
     decode_heartbeat,
+    decode_limit_trip,
     decode_overturn,
     decode_owner,
     decode_refusal,
@@ -155,7 +157,7 @@ class ZenohTable(ChunkedStreamController):
         self._keys = {kind: table_key(self.address.table, kind) for kind in ("command", "clock", "setpoints",
                                                                             "host-heartbeat", "answer", "status",
                                                                             "overturn", "heartbeat", "tilt",
-                                                                            "bodies", "refusal")}
+                                                                            "bodies", "refusal", "limit-trip")}
         self._session: zenoh.Session | None = None
         self._signer: Signer | None = None
         self._command_lock = threading.Lock()  # command ids, signing and sending a command
@@ -201,6 +203,7 @@ class ZenohTable(ChunkedStreamController):
             for key_expr, handler in ((keys["status"], self._on_status), (keys["answer"], self._on_answer),
                                       (keys["overturn"], self._on_overturn), (keys["heartbeat"], self._on_heartbeat),
                                       (keys["tilt"], self._on_tilt), (keys["refusal"], self._on_refusal),
+                                      (keys["limit-trip"], self._on_limit_trip),
                                       (table_accel_selector(self.address.table), self._on_accel)):
                 session.declare_subscriber(key_expr, self._receiver(handler))
             self._setpoints = session.declare_publisher(keys["setpoints"], express=True,
@@ -306,7 +309,7 @@ class ZenohTable(ChunkedStreamController):
                                                  report.last_chunk_seq, report.underruns, fault_names(report.faults),
                                                  report.refused_commands, report.pose, now, report.buffer_capacity,
                                                  report.samples_late, report.virtual_watchdog_ms * 1e-3,
-                                                 input_names(report.inputs)))
+                                                 input_names(report.inputs), report.following_error))
 
     def _on_answer(self, payload: bytes, now: int) -> None:
         answer = decode_answer(payload)
@@ -323,6 +326,14 @@ class ZenohTable(ChunkedStreamController):
     def _on_refusal(self, payload: bytes, now: int) -> None:
         refusal = decode_refusal(payload)
         self._publish_refusal(SetpointRefusal(refusal.t_ns, refusal.seq, refusal.reason))
+
+    def _on_limit_trip(self, payload: bytes, now: int) -> None:
+        report = decode_limit_trip(payload)
+        try:
+            level = ControllerLevel.decode((float(report.code), report.level))
+        except ValueError as exc:
+            raise PayloadError(f"LIMIT_TRIP: {exc}") from None
+        self.feedback.publish_limit_trip(ControllerTrip(report.t_ns, report.sensor, report.value, level))
 
     def _on_heartbeat(self, payload: bytes, now: int) -> None:
         decode_heartbeat(payload)

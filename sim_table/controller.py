@@ -33,10 +33,12 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
+from analysis.table.controller_limits import CLEAR_CODE, ControllerLevel, ControllerTrip
 from analysis.table.model import TableModel
 from analysis.table.moves import Move, axis_limits, shortest_duration
 from analysis.table.setpoint_screen import SetpointScreen
 from analysis.table.setpoints import SetpointProblem, check_setpoints
+from sim_table.limit_levels import LimitLevels
 
 SEQ_MODULUS = 2**32
 """Chunk sequence numbers are uint32 and wrap."""
@@ -100,9 +102,10 @@ class Command(enum.Enum):
     START_STREAM = "start_stream"
     STOP = "stop"
     EMERGENCY_STOP = "emergency_stop"
+    SET_LIMIT = "set_limit"
 
 
-SIGNED_COMMANDS = frozenset({Command.ARM, Command.HOME, Command.SET_TILT, Command.START_STREAM})
+SIGNED_COMMANDS = frozenset({Command.ARM, Command.HOME, Command.SET_TILT, Command.START_STREAM, Command.SET_LIMIT})
 """Motion commands: refused unless signed. STOP, DISARM and EMERGENCY_STOP are accepted unsigned."""
 
 
@@ -173,6 +176,9 @@ class Snapshot:
     virtual_watchdog_ns: int = 0
     inputs: int = 0
     """The interlock inputs set now (bit 0: the enclosure door open)."""
+    following_error: np.ndarray | None = None
+    """Each leg's following error (6,) [m]: its commanded length minus its measured length, legs 1…6 (None: the
+    core does not know the legs; the emulator loop sets it)."""
 
 
 @dataclass
@@ -208,6 +214,8 @@ class Counters:
     """Sum of those margins (their mean is this / ``chunks_accepted``)."""
     faults_raised: dict[str, int] = field(default_factory=dict)
     """How often each fault bit went from clear to set."""
+    limit_trips: int = 0
+    """Streams the controller's own limit levels stopped (``sim_table.limit_levels``)."""
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self)
@@ -259,7 +267,10 @@ class ControllerCore:
         self.last_chunk_seq = 0
         self.first_stream_ns: int | None = None
         """Controller time of the first accepted START_STREAM (fault injection times count from it)."""
-        self._events: list[StateChange | Done | Refused] = []
+        self.limit_levels = LimitLevels()
+        """The abort levels downloaded for the next stream (SET_LIMIT), evaluated by the emulator loop on every
+        tick's accelerometer samples (:meth:`limit_trip`)."""
+        self._events: list[StateChange | Done | Refused | ControllerTrip] = []
         self._p = np.zeros(6) if pose is None else np.array(pose, dtype=float)
         self._p_before, self._dt = self._p, 0.0  # the reference a tick before and that tick [s]: its velocity
         self._achieved = self._p.copy()
@@ -414,6 +425,21 @@ class ControllerCore:
         if fault & _STOPPING_FAULTS and self.state not in BRAKED:
             self._begin_stop(t_ns, fault)
 
+    def limit_trip(self, trip: ControllerTrip, t_ns: int) -> bool:
+        """A downloaded level tripped on a sample at ``trip.t_ns``; the table acts at tick ``t_ns`` (the first tick
+        after the samples were evaluated): a controlled stop (decelerate, home, then ``armed``, as STOP) or an
+        emergency stop. A :class:`ControllerTrip` event reports it. Whether it acted (False: no stream was playing
+        any more)."""
+        if self.state is not State.STREAMING:
+            return False
+        self.counters.limit_trips += 1
+        self._events.append(trip)
+        if trip.level.action == "emergency_stop":
+            self._do_emergency_stop((), t_ns)
+        else:
+            self._begin_stop(t_ns, None)
+        return True
+
     # ----- the tick -------------------------------------------------------------------------------------
 
     def tick(self, t_ns: int) -> tuple[np.ndarray, bool]:
@@ -443,8 +469,8 @@ class ControllerCore:
         self._p = pose
         return pose, False
 
-    def take_events(self) -> list[StateChange | Done | Refused]:
-        """State changes, completed commands and refused chunks since the last call, in order."""
+    def take_events(self) -> list[StateChange | Done | Refused | ControllerTrip]:
+        """State changes, completed commands, refused chunks and limit trips since the last call, in order."""
         events, self._events = self._events, []
         return events
 
@@ -469,6 +495,7 @@ class ControllerCore:
         return Result.ACCEPTED
 
     def _do_disarm(self, params: tuple[float, ...], t_ns: int) -> Result:
+        self.limit_levels.clear()
         if self.state is State.IDLE:
             return Result.ACCEPTED
         if self.state not in (State.ARMED, State.FAULTED):
@@ -494,6 +521,7 @@ class ControllerCore:
         if self.state is not State.ARMED:
             return Result.REJECTED
         self._reset_stream()
+        self.limit_levels.restart()
         self._expected = int(first)
         self._last_chunk = self.link_time(t_ns)
         self._anchor = (t_ns, self._p.copy())
@@ -513,8 +541,24 @@ class ControllerCore:
         self.counters.emergency_stops += 1
         self._finish_motion(t_ns, Result.CANCELLED)
         self._reset_stream()
+        self.limit_levels.clear()
         self._move = None
         self._set_state(State.EMERGENCY_STOPPED, t_ns)
+        return Result.ACCEPTED
+
+    def _do_set_limit(self, params: tuple[float, ...], t_ns: int) -> Result:
+        """Download one abort level for the next stream (``analysis.table.controller_limits``; code 0 clears
+        them): not while a stream plays or stops (its levels are fixed), FAILED for parameters that pack no
+        level."""
+        if self.state in (State.STREAMING, State.STOPPING):
+            return Result.REJECTED
+        if (*params, 0.0)[0] == CLEAR_CODE:
+            self.limit_levels.clear()
+            return Result.ACCEPTED
+        try:
+            self.limit_levels.add(ControllerLevel.decode(params))
+        except ValueError:
+            return Result.FAILED
         return Result.ACCEPTED
 
     def _start_move(self, command: Command, target: np.ndarray, t_ns: int) -> Result:
@@ -594,6 +638,7 @@ class ControllerCore:
             self.counters.streams_completed += 1
             self._set_state(State.ARMED, t_ns)
             self._reset_stream()
+            self.limit_levels.clear()
             return pa if ta == end else self._p
         if ta == t_ns:
             return pa
@@ -655,6 +700,7 @@ class ControllerCore:
             return
         self._finish_motion(t_ns, Result.CANCELLED)
         self._reset_stream()
+        self.limit_levels.clear()
         self._move = None
         self._stop_reason = reason
         self._set_state(State.STOPPING, t_ns)

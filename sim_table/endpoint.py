@@ -26,6 +26,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
 from analysis.table.model import TableModel
 from protocols.zenoh.config import PLAIN, LinkSecurity
 from sim_table.controller import ControllerCore, Done, Refused, Snapshot, State
@@ -183,6 +184,15 @@ class LegFeedback(Protocol):
     error: the loop gives it the legs' true and commanded lengths of every tick."""
 
     def add_legs(self, t_start_ns: int, spacing_ns: int, lengths: np.ndarray, commanded: np.ndarray) -> None: ...
+
+
+@runtime_checkable
+class LimitReports(Protocol):
+    """An endpoint that takes the host's limit levels (SET_LIMIT) and reports the controller's trips of them: the
+    loop gives it each :class:`~analysis.table.controller_limits.ControllerTrip` as the table starts to act on
+    it. An endpoint without it refuses SET_LIMIT (the host's detectors then act alone)."""
+
+    def limit_tripped(self, trip: ControllerTrip) -> None: ...
 
 
 @runtime_checkable

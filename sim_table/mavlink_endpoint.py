@@ -34,6 +34,7 @@ from urllib.parse import urlsplit
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
 from protocols.mavlink import (
     ACCEL_PER_BATCH,
     END_OF_STREAM,
@@ -131,6 +132,7 @@ class LinkCounters:
     overturn_events: int = 0
     overturn_messages_sent: int = 0
     refusals_sent: int = 0
+    limit_trips_sent: int = 0
     status_sent: int = 0
 
 
@@ -481,7 +483,8 @@ class MavlinkEndpoint(BatchedTelemetry):
             snap.t_ns, getattr(self.d, f"SHAKETABLE_STATE_{snap.state.name}"), min(snap.buffer_depth, 65535),
             snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
             [float(v) for v in snap.pose], snap.buffer_capacity, min(snap.samples_late, 2**32 - 1),
-            min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs))
+            min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs,
+            [0.0] * 6 if snap.following_error is None else [float(v) for v in snap.following_error]))
         pending, self._refusals = self._refusals, []
         for message, left in pending:
             self._send(message)
@@ -493,6 +496,15 @@ class MavlinkEndpoint(BatchedTelemetry):
         self.counters.refusals_sent += 1
         reason = refused.reason.encode("ascii", "replace")[:REASON_BYTES]
         message = self.d.MAVLink_shaketable_chunk_refused_message(refused.t_ns, refused.seq, reason)
+        self._send(message)
+        self._refusals.append((message, REFUSAL_REPEATS))
+
+    def limit_tripped(self, trip: ControllerTrip) -> None:
+        """A SHAKETABLE_LIMIT_TRIP (the controller's own level passed), now and with the next
+        :data:`REFUSAL_REPEATS` statuses."""
+        self.counters.limit_trips_sent += 1
+        message = self.d.MAVLink_shaketable_limit_trip_message(trip.t_ns, trip.value, trip.level.threshold,
+                                                               trip.level.code(), trip.sensor)
         self._send(message)
         self._refusals.append((message, REFUSAL_REPEATS))
 

@@ -47,6 +47,7 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
 from analysis.table.model import TableModel
 from protocols.signing_key import KEY_ENV, load_signing_key
 from protocols.zenoh.config import PLAIN, LinkSecurity
@@ -60,6 +61,7 @@ from sim_table.endpoint import (
     EndpointOptions,
     HeldAnswers,
     LegFeedback,
+    LimitReports,
     Rests,
     listen_scheme,
     open_endpoint,
@@ -105,6 +107,12 @@ batch's wall time per tick (at least one tick). On a host that other work keeps 
 bodies in contact can take most of a second of wall time, and its statuses — sent at its end — then leave the
 host's link timeout (0.5 s) without a status: measured 2026-11-28, a compensation benchmark case through the
 emulator was stopped with "no status for 0.8 s" at a load average of 7–10."""
+
+LIMIT_BATCH = 10
+"""Most ticks a batch runs while the controller's own limit levels watch a stream (``sim_table.limit_levels``):
+the levels are evaluated on the batch's samples once its physics ran, and a trip's stop begins at the next tick,
+so the crossing-to-stop time in table time is at most this many ticks plus one (11 ms at 1 kHz), inside one
+status period (:data:`STATUS_PERIOD_NS`)."""
 
 HOLD_POLL_S = 0.0005
 """How long virtual time sleeps [s, real time] between looks at the network while it holds for setpoints."""
@@ -273,6 +281,7 @@ class Emulator:
         self._virtual_full = False  # virtual time: the last iteration ran as many ticks as its cap allowed
         self._last_legs = (self.actuators.lengths, self.actuators.pose)  # true leg lengths and pose, last tick
         self._last_centre = np.zeros(6)  # the true pose one tick late (where the specimens' plate is)
+        self._last_following = np.zeros(6)  # each leg's commanded minus true length at the last tick [m]
         self.rest_requested = threading.Event()
         """Set (from a signal handler or another thread) to have the loop :meth:`rest` the table."""
         self._on_rest: Callable[[dict[str, Any]], None] | None = None
@@ -307,6 +316,7 @@ class Emulator:
         self.track = PlateTrack(self.tick_ns * 1e-9)
         self._last_legs = (self.actuators.lengths, self.actuators.pose)
         self._last_centre = np.zeros(6)
+        self._last_following = np.zeros(6)
         if self.scene is not None:
             self.scene.place(self._last_centre)
         self.endpoint.rest()
@@ -372,7 +382,11 @@ class Emulator:
         if count:
             times = self._next_tick + self.tick_ns * np.arange(count, dtype=np.int64)
             self._next_tick = int(times[-1]) + self.tick_ns
-            self._batch(times)
+            done = 0
+            while done < count:  # in batches of at most LIMIT_BATCH ticks while the controller's levels watch
+                ticks = self._batch_ticks(count - done)
+                self._batch(times[done:done + ticks])
+                done += ticks
             busy = time.monotonic_ns() - now
             with self._batches_lock:
                 self._batches.append((count, busy))
@@ -415,16 +429,17 @@ class Emulator:
         for _, action in taken:  # stamped with the clock: due before the next tick
             action(core)
         moving = core.state not in _AT_REST
+        cap = 0
         if moving:
             self._rest_credit = 0
-            count = self._virtual_cap
+            cap = count = self._batch_ticks(self._virtual_cap)
             until = core.buffered_until
             if until is not None:
                 count = max(0, min(count, (until - self._next_tick) // self.tick_ns + 1))
         else:
             count = min(self._rest_credit // self.tick_ns, MAX_BATCH)
             self._rest_credit -= count * self.tick_ns
-        self._virtual_full = moving and count == self._virtual_cap
+        self._virtual_full = moving and count == cap
         if count:
             times = self._next_tick + self.tick_ns * np.arange(count, dtype=np.int64)
             self._next_tick = int(times[-1]) + self.tick_ns
@@ -460,6 +475,8 @@ class Emulator:
                 endpoint.command_done(event)
             elif isinstance(event, Refused):
                 endpoint.chunk_refused(event)
+            elif isinstance(event, ControllerTrip):
+                self._report_trip(event)
             else:
                 changed = True
                 if event.new is State.STREAMING and self.scene is not None:
@@ -467,9 +484,14 @@ class Emulator:
         held = self._held_status
         if changed or held is None or held[0] != self._clock or now - held[1] >= STATUS_PERIOD_NS:
             self._held_status = (self._clock, now)
-            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
+            endpoint.send_status(self._held_snapshot())
         if self._answers is not None and self._answers.send_answers():
-            endpoint.send_status(core.snapshot(self._clock, self.actuators.measure(*self._last_legs)))
+            endpoint.send_status(self._held_snapshot())
+
+    def _held_snapshot(self) -> Snapshot:
+        """The status while virtual time holds: the pose and the legs' following errors of the last tick."""
+        snap = self.core.snapshot(self._clock, self.actuators.measure(*self._last_legs))
+        return replace(snap, following_error=self._last_following)
 
     def _batch(self, times: np.ndarray) -> None:
         core, endpoint, profile = self.core, self.endpoint, self.profile
@@ -489,6 +511,8 @@ class Emulator:
                     endpoint.command_done(event)
                 elif isinstance(event, Refused):
                     endpoint.chunk_refused(event)
+                elif isinstance(event, ControllerTrip):
+                    self._report_trip(event)
                 else:
                     changed = True
                     if event.new is State.STREAMING:
@@ -508,12 +532,14 @@ class Emulator:
         if statuses:  # the batch's measured poses in one forward-kinematics call
             rows = [i for i, _ in statuses]
             measured = self.actuators.measure(step.lengths[rows], step.poses[rows])
-            for (_, snap), pose in zip(statuses, measured, strict=True):
-                endpoint.send_status(replace(snap, pose=pose))
+            following = step.commanded[rows] - step.lengths[rows]
+            for (_, snap), pose, error in zip(statuses, measured, following, strict=True):
+                endpoint.send_status(replace(snap, pose=pose, following_error=error))
         self._last_legs = step.lengths[-1], step.poses[-1]
+        self._last_following = step.commanded[-1] - step.lengths[-1]
         if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
             pose = self.actuators.measure(step.lengths[-1], step.poses[-1])
-            endpoint.send_status(core.snapshot(int(times[-1]), pose))
+            endpoint.send_status(replace(core.snapshot(int(times[-1]), pose), following_error=self._last_following))
         profile.lap("transport")
         centre, rates, window = self.track.advance(step.poses)
         self._last_centre = centre[-1]
@@ -522,8 +548,25 @@ class Emulator:
         for sensor in range(force.shape[1]):
             endpoint.add_accel(sensor, int(times[0]) - self.tick_ns, self.tick_ns, force[:, sensor])
         profile.lap("transport")
+        if core.state is State.STREAMING:  # the downloaded levels on every tick's samples; the stop at the next tick
+            trip = core.limit_levels.accel(times - self.tick_ns, force)
+            if trip is not None:
+                core.limit_trip(trip, int(times[-1]) + self.tick_ns)
         if self.scene is not None:
             self._specimens(times - self.tick_ns, centre, rates, placements)
+
+    def _report_trip(self, trip: ControllerTrip) -> None:
+        """A trip of the controller's own levels to the host, on an endpoint that reports them."""
+        if isinstance(self.endpoint, LimitReports):
+            self.endpoint.limit_tripped(trip)
+
+    def _batch_ticks(self, count: int) -> int:
+        """How many of ``count`` due ticks the next batch runs: at most :data:`LIMIT_BATCH` while the controller's
+        own limit levels watch a stream (its stop begins at the first tick after the batch that found the
+        crossing)."""
+        if self.core.limit_levels.levels:  # downloaded for the next stream, cleared at its end
+            return min(count, LIMIT_BATCH)
+        return count
 
     def _specimens(self, times: np.ndarray, poses: np.ndarray, rates: np.ndarray, placements: list[int]) -> None:
         """The specimens through the batch's ticks (``times`` [ns], the plate's ``poses`` and ``rates``), stepped in

@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 import zenoh
 
+from analysis.table.controller_limits import ControllerTrip
 from protocols.zenoh import EndpointError, LinkSecurity, alive_key, session_config, table_key
 from protocols.zenoh.auth import Signer, Verdict, Verifier, replay_guard, sender_of, split_signed
 from protocols.zenoh.config import PLAIN
@@ -43,6 +44,7 @@ from protocols.zenoh.table import (
     AccelSamples,
     Answer,
     ClockReply,
+    LimitTripReport,
     Overturn,
     OwnerReport,
     Refusal,
@@ -58,6 +60,7 @@ from protocols.zenoh.table import (
     encode_bodies,
     encode_clock_reply,
     encode_heartbeat,
+    encode_limit_trip,
     encode_overturn,
     encode_owner,
     encode_refusal,
@@ -117,6 +120,7 @@ class LinkCounters:
     overturn_events: int = 0
     overturn_messages_sent: int = 0
     refusals_sent: int = 0
+    limit_trips_sent: int = 0
     status_sent: int = 0
 
 
@@ -153,13 +157,14 @@ class ZenohEndpoint(BatchedTelemetry):
             self._store.keep(self._verifier.guard)
         self._keys = {kind: table_key(self.address.table, kind)
                       for kind in ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "overturn",
-                                   "heartbeat", "tilt", "bodies", "refusal")}
+                                   "heartbeat", "tilt", "bodies", "refusal", "limit-trip")}
         self._bodies_payload = encode_bodies(list(bodies))
         declare = self._session.declare_publisher
         self._status = declare(self._keys["status"], express=True)
         self._answer = declare(self._keys["answer"], express=True)
         self._overturn = declare(self._keys["overturn"])
         self._refusal = declare(self._keys["refusal"])
+        self._limit_trip = declare(self._keys["limit-trip"])
         self._heartbeat = declare(self._keys["heartbeat"], express=True)
         self._tilt_publisher = declare(self._keys["tilt"], congestion_control=self._batch_congestion)
         self._accel_publishers: dict[int, zenoh.Publisher] = {}
@@ -392,6 +397,12 @@ class ZenohEndpoint(BatchedTelemetry):
         self._publish(self._refusal, self._keys["refusal"], encode_refusal(Refusal(refused.t_ns, refused.seq,
                                                                                    refused.reason)))
 
+    def limit_tripped(self, trip: ControllerTrip) -> None:
+        """The controller's own level passed: a LIMIT_TRIP, published reliably on ``limit-trip``."""
+        self._count("limit_trips_sent")
+        self._publish(self._limit_trip, self._keys["limit-trip"], encode_limit_trip(LimitTripReport(
+            trip.t_ns, trip.sensor, trip.level.code(), trip.value, trip.level.threshold)))
+
     def send_status(self, snap: Snapshot) -> None:
         """One STATUS."""
         self._count("status_sent")
@@ -399,7 +410,7 @@ class ZenohEndpoint(BatchedTelemetry):
             snap.t_ns, snap.state.value, min(snap.buffer_depth, 2**32 - 1), snap.last_chunk_seq, snap.underruns,
             int(snap.faults), snap.refused_commands, snap.pose, snap.buffer_capacity,
             min(snap.samples_late, 2**32 - 1), min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1),
-            snap.inputs)))
+            snap.inputs, snap.following_error)))
 
     def _send_accel(self, batch: Batch) -> None:
         key = table_key(self.address.table, "accel", str(batch.source))

@@ -22,7 +22,9 @@ Channels (:data:`CHANNELS`) and the units their levels may be given in:
   (``deg``, ``rad``): the plate's pose as the controller's feedback reports it;
 - ``velocity.surge`` … ``velocity.yaw``: its rate between consecutive statuses (``m_s``, ``mm_s``; ``deg_s``,
   ``rad_s``);
-- ``tilt.angle``: each body's tilt sensor, relative to the plate, > 0 towards the low side (``deg``, ``rad``).
+- ``tilt.angle``: each body's tilt sensor, relative to the plate, > 0 towards the low side (``deg``, ``rad``);
+- ``leg.following_error``: each leg's following error as the controller's statuses report it, its commanded minus
+  its measured length (``m``, ``mm``).
 
 A **high** level is passed by a value above it, a **low** level by one below it; present levels must be ordered
 ``abort_low < warn_low < warn_high < abort_high``. A level trips when ``persistence`` consecutive samples are past
@@ -37,6 +39,8 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from analysis.table.toml_check import TomlChecker, shown
 
@@ -82,6 +86,7 @@ CHANNELS: dict[str, Quantity] = {
     **{f"pose.{axis}": _LENGTH if k < 3 else _ANGLE for k, axis in enumerate(POSE_AXES)},
     **{f"velocity.{axis}": _SPEED if k < 3 else _RATE for k, axis in enumerate(POSE_AXES)},
     "tilt.angle": _ANGLE,
+    "leg.following_error": _LENGTH,
 }
 """Every channel a detector may watch, with what it measures (module docstring)."""
 
@@ -194,3 +199,19 @@ def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: 
     where = f"{checker.source}:{line}" if line else checker.source
     return Detector(channel, levels.get("abort_low"), levels.get("warn_low"), levels.get("warn_high"),
                     levels.get("abort_high"), persistence, action, where)
+
+
+def first_trip(past: np.ndarray, carry: int, persistence: int) -> tuple[int | None, int]:
+    """Where ``persistence`` consecutive samples past a level are first complete in a batch.
+
+    ``past`` (n,) bool: each sample beyond the level; ``carry``: consecutive samples past it at the end of the
+    batches before. Returns (the index of the sample that completes the persistence, or None; the consecutive
+    count at the batch's end, the next batch's ``carry``)."""
+    n = len(past)
+    if n == 0:
+        return None, carry
+    index = np.arange(n)
+    last_clear = np.maximum.accumulate(np.where(past, -1, index))
+    run = index - last_clear + np.where(last_clear < 0, carry, 0)
+    hits = np.flatnonzero(run >= persistence)
+    return (int(hits[0]) if len(hits) else None), int(run[-1])

@@ -57,6 +57,9 @@ class SyncCycle(MasterBase):
             self._count_lateness(lateness)
             self._supervise(now, deadline)
             setpoints = self._setpoints(deadline + self.target_delay_ns)
+            if self._driven:  # the targets follow a reference: the position demand of the SYNC they are due at
+                self._demands[index + round(self.target_delay_ns / self.period_ns)] = [
+                    setpoint.target_position for setpoint in setpoints]
             self._status_owed |= self._state != self._published_state  # until a SYNC all six answered shows it
         send = self._network.send_message
         for link, setpoint in zip(self._drives, setpoints, strict=True):
@@ -93,6 +96,7 @@ class SyncCycle(MasterBase):
         """Each drive's controlword and target for the SYNC whose targets are reached at ``tau``."""
         reference = self._reference(tau)
         targets = [link.position for link in self._drives]
+        self._driven = reference is not None
         if reference is not None:
             targets = self._targets(reference)
         setpoints = []

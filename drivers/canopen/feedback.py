@@ -109,6 +109,8 @@ class FeedbackFrames(MasterBase):
                     if (deadline := self._deadline(index)) is not None]
         for old in [i for i in self._frames if i <= complete[-1]]:
             del self._frames[old]
+        for old in [i for i in self._demands if i <= complete[-1]]:
+            del self._demands[old]
         self._framed = complete[-1]
         self._status_owed = False
         return statuses
@@ -122,4 +124,16 @@ class FeedbackFrames(MasterBase):
         self._published_state = self._state
         faults = tuple(name for name in FAULT_ORDER if name in self._faults)
         return TableStatus(deadline - self.feedback_delay_ns, self._state, depth, self._cycle_index % 2**32,
-                           self._underruns, faults, 0, self._measured.copy(), now)
+                           self._underruns, faults, 0, self._measured.copy(), now,
+                           following_error=self._following_error(index))
+
+    def _following_error(self, index: int) -> np.ndarray | None:
+        """Each leg's following error at SYNC ``index`` [m]: the target due then (the position demand, as a CSP
+        drive's 0x60F4 counts it, which TPDO1 has no room for: ``protocols.canopen.pdo_maps``) minus the position
+        its TPDO reported; None without a target following a reference for it (the drives holding their own)."""
+        demand = self._demands.get(index)
+        if demand is None:
+            return None
+        frame = self._frames[index]
+        return np.array([link.scaling.length(demand[leg]) - link.scaling.length(frame[leg])
+                         for leg, link in enumerate(self._drives)])

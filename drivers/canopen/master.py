@@ -187,6 +187,8 @@ class MasterBase(TableController):
         # feedback (under _lock)
         self._syncs: deque[tuple[float, int, int]] = deque(maxlen=512)  # (wall time sent, index, deadline ns)
         self._frames: dict[int, dict[int, int]] = {}  # SYNC index -> {leg index: position}
+        self._demands: dict[int, list[int]] = {}  # SYNC index -> the targets [drive units] due then, legs in order
+        self._driven = False  # the last targets followed a reference (not the drives' own positions, held)
         self._framed = -1  # the newest SYNC whose frame made the statuses: older answers came too late
         self._measured = np.zeros(6)
         self._played: Trajectory | None = None  # the last trajectory streamed to its end

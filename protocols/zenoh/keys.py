@@ -54,7 +54,7 @@ TELEMETRY_KINDS = ("status", "accel", "detection", "run")
 """Telemetry publications (``accel`` has one more chunk: the sensor)."""
 
 TABLE_KINDS = ("command", "clock", "setpoints", "host-heartbeat", "answer", "status", "accel", "overturn",
-               "heartbeat", "tilt", "bodies", "refusal")
+               "heartbeat", "tilt", "bodies", "refusal", "limit-trip")
 """Keys of the table link (``accel`` has one more chunk: the sensor)."""
 
 PLANES = ("service", "telemetry", "alive", "controller")

@@ -43,7 +43,8 @@ VERSION = 1
 DEFAULT_TABLE = "table"
 """Table name of a URL without one."""
 
-COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop", "claim", "release")
+COMMANDS = ("arm", "disarm", "home", "set_tilt", "start_stream", "stop", "emergency_stop", "claim", "release",
+            "set_limit")
 """Command codes (index)."""
 
 RESULTS = ("accepted", "in_progress", "denied", "rejected", "failed", "cancelled")
@@ -81,7 +82,10 @@ _ANSWER = struct.Struct("<QBq")
 _CLOCK_REQUEST = struct.Struct("<q")
 _CLOCK_REPLY = struct.Struct("<qq")
 _SETPOINTS = struct.Struct("<IBqqH")
-_STATUS = struct.Struct("<qBIIIII6dIIII")
+_STATUS = struct.Struct("<qBIIIII6dIIII6d")
+_STATUS_NO_LEGS = struct.Struct("<qBIIIII6dIIII")
+"""A status without its last field (the legs' ``following_error``), as a controller that does not report it may
+send it."""
 _STATUS_REAL_TIME = struct.Struct("<qBIIIII6dII")
 """A status without its last two fields (``virtual_watchdog_ms``, ``inputs``), as a controller that keeps real time
 and has no interlock inputs may send it."""
@@ -95,6 +99,7 @@ _BODY = struct.Struct("<5d")
 _COUNT = struct.Struct("<H")
 _REFUSAL = struct.Struct("<qIH")
 _OWNER = struct.Struct("<QqIIH")
+_LIMIT_TRIP = struct.Struct("<qHIdd")
 
 
 class TableKind(IntEnum):
@@ -113,6 +118,7 @@ class TableKind(IntEnum):
     BODIES = 11
     REFUSAL = 12
     OWNER = 13
+    LIMIT_TRIP = 14
 
 
 class TableUrl(NamedTuple):
@@ -192,6 +198,8 @@ class StatusReport(NamedTuple):
     host time], the silence the host allows it instead of its link timeout (as SHAKETABLE_STATUS's field)."""
     inputs: int = 0
     """The interlock inputs set now (bit 0: the enclosure door open; :data:`INPUTS`)."""
+    following_error: np.ndarray | None = None
+    """Each leg's commanded minus measured length (6,) [m], legs 1…6 (None: not reported)."""
 
 
 class AccelSamples(NamedTuple):
@@ -221,6 +229,18 @@ class Refusal(NamedTuple):
     t_ns: int
     seq: int
     reason: str
+
+
+class LimitTripReport(NamedTuple):
+    """A level downloaded with ``set_limit`` tripped on accelerometer ``sensor``'s sample ``value`` [SI] at ``t_ns``
+    [ns, controller time]; ``code`` and ``level`` [SI] the level's ``set_limit`` parameters
+    (``analysis.table.controller_limits``)."""
+
+    t_ns: int
+    sensor: int
+    code: int
+    value: float
+    level: float
 
 
 class OwnerReport(NamedTuple):
@@ -427,19 +447,21 @@ def encode_status(status: StatusReport) -> bytes:
     return _header(TableKind.STATUS) + _STATUS.pack(
         status.t_ns, _code(STATES, status.state, "state"), status.buffer_depth, status.last_chunk_seq,
         status.underruns, status.faults, status.refused_commands, *np.asarray(status.pose, dtype=np.float64),
-        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms, status.inputs)
+        status.buffer_capacity, status.samples_late, status.virtual_watchdog_ms, status.inputs,
+        *(np.zeros(6) if status.following_error is None else np.asarray(status.following_error, dtype=np.float64)))
 
 
 def decode_status(payload: bytes) -> StatusReport:
-    """A STATUS; a shorter body without ``inputs`` (or also without ``virtual_watchdog_ms``: a real-time controller's
-    without inputs) reads as 0 there."""
+    """A STATUS; a shorter body without the legs' ``following_error`` reads None there, one also without ``inputs``
+    (or also without ``virtual_watchdog_ms``: a real-time controller's without inputs) 0 there."""
     size = len(_body(payload, TableKind.STATUS))
-    layout = next((s for s in (_STATUS_REAL_TIME, _STATUS_NO_INPUTS) if size == s.size), _STATUS)
+    layout = next((s for s in (_STATUS_REAL_TIME, _STATUS_NO_INPUTS, _STATUS_NO_LEGS) if size == s.size), _STATUS)
     fields = _fixed(payload, TableKind.STATUS, layout)
     t_ns, state, depth, last, underruns, faults, refused, *pose, capacity, late = fields[:15]
-    watchdog_ms, inputs = (*fields[15:], 0, 0)[:2]
+    watchdog_ms, inputs = (*fields[15:17], 0, 0)[:2]
+    following = np.array(fields[17:], dtype=np.float64) if layout is _STATUS else None
     return StatusReport(t_ns, _name(STATES, state, "state"), depth, last, underruns, faults, refused,
-                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms, inputs)
+                        np.array(pose, dtype=np.float64), capacity, late, watchdog_ms, inputs, following)
 
 
 def encode_accel(batch: AccelSamples) -> bytes:
@@ -494,6 +516,14 @@ def decode_overturn(payload: bytes) -> Overturn:
     if event.direction not in (-1, 1):
         raise PayloadError(f"OVERTURN direction must be +1 or -1, got {event.direction}")
     return event
+
+
+def encode_limit_trip(trip: LimitTripReport) -> bytes:
+    return _header(TableKind.LIMIT_TRIP) + _LIMIT_TRIP.pack(*trip)
+
+
+def decode_limit_trip(payload: bytes) -> LimitTripReport:
+    return LimitTripReport(*_fixed(payload, TableKind.LIMIT_TRIP, _LIMIT_TRIP))
 
 
 def encode_refusal(refusal: Refusal) -> bytes:

@@ -2,26 +2,33 @@
 table's feedback arrives: one numpy pass per batch, a few comparisons per sample.
 
 :class:`LimitWatch` takes what the run recorder receives — accelerometer batches, body tilt batches, the
-controller's statuses (pose; the velocity between consecutive statuses) — and returns the :class:`Trip` of every
-level passed for its detector's persistence. Each level of each channel instance (``accel.0.x``: accelerometer 0's
-x; ``tilt.2.angle``: body 2's tilt sensor; ``pose.heave``; ``velocity.roll``) trips at most once per run.
-Times are the run's [s]; values and levels SI (m/s², m, rad, m/s, rad/s).
+controller's statuses (pose; the velocity between consecutive statuses; the legs' following errors) — and returns
+the :class:`Trip` of every level passed for its detector's persistence. Each level of each channel instance
+(``accel.0.x``: accelerometer 0's x; ``tilt.2.angle``: body 2's tilt sensor; ``pose.heave``; ``velocity.roll``;
+``leg.3.following_error``: leg 3's) trips at most once per run. Times are the run's [s]; values and levels SI
+(m/s², m, rad, m/s, rad/s).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors
+from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors, first_trip
+from drivers.controller import FaultEvent
+from protocols.canopen.od import EMCY_FOLLOWING_ERROR, EMCY_REFERENCE_LIMIT
 
 
 @dataclass(frozen=True)
 class Trip:
     """A level passed: ``channel`` (the instance, e.g. ``accel.0.x``), ``level`` (``warn_high`` …), the sample's
     ``value`` and the level's ``threshold`` [``unit``, SI], its time ``t`` [s, run time] (the sample that completed
-    the persistence) and the ``action`` taken (``record`` for a warning; the detector's for an abort level)."""
+    the persistence) and the ``action`` taken (``record`` for a warning; the detector's for an abort level);
+    ``source`` who found it: ``host`` (:class:`LimitWatch`) or ``controller`` (its own levels, reported; or one of
+    its own limits, :func:`controller_limits`, whose ``value`` and ``threshold`` it does not report: NaN, and
+    ``detail`` says what it reported)."""
 
     channel: str
     level: str
@@ -30,27 +37,17 @@ class Trip:
     unit: str
     t: float
     action: str
+    source: str = "host"
+    detail: str = ""
 
     def text(self) -> str:
-        """The session event's line: ``limit accel.0.x: 6.02 m/s² past abort high 5.886 m/s²: controlled_stop``."""
+        """The session event's line: ``limit accel.0.x: 6.02 m/s² past abort high 5.886 m/s²: controlled_stop
+        (host)``; a controller's own limit: ``limit leg.stroke: past the controller's limit (a leg's command
+        reached its stroke): controlled_stop (controller)``."""
+        if math.isnan(self.value):
+            return f"limit {self.channel}: past the controller's limit ({self.detail}): {self.action} ({self.source})"
         return (f"limit {self.channel}: {self.value:.4g} {self.unit} past {self.level.replace('_', ' ')} "
-                f"{self.threshold:.4g} {self.unit}: {self.action}")
-
-
-def first_trip(past: np.ndarray, carry: int, persistence: int) -> tuple[int | None, int]:
-    """Where ``persistence`` consecutive samples past a level are first complete in a batch.
-
-    ``past`` (n,) bool: each sample beyond the level; ``carry``: consecutive samples past it at the end of the
-    batches before. Returns (the index of the sample that completes the persistence, or None; the consecutive
-    count at the batch's end, the next batch's ``carry``)."""
-    n = len(past)
-    if n == 0:
-        return None, carry
-    index = np.arange(n)
-    last_clear = np.maximum.accumulate(np.where(past, -1, index))
-    run = index - last_clear + np.where(last_clear < 0, carry, 0)
-    hits = np.flatnonzero(run >= persistence)
-    return (int(hits[0]) if len(hits) else None), int(run[-1])
+                f"{self.threshold:.4g} {self.unit}: {self.action} ({self.source})")
 
 
 class ChannelWatch:
@@ -109,6 +106,14 @@ class LimitWatch:
         """Body ``body_id``'s tilt sensor: ``t`` (k,) [s], ``angle`` (k,) [rad]."""
         return self._feed("tilt.angle", f"tilt.{body_id}.angle", t, angle)
 
+    def following_errors(self, t: np.ndarray, errors: np.ndarray) -> list[Trip]:
+        """The statuses' leg following errors: ``t`` (k,) [s], ``errors`` (k, 6) [m, commanded minus measured
+        length], legs 1…6 (``leg.1.following_error`` …)."""
+        trips = []
+        for leg in range(errors.shape[1]):
+            trips += self._feed("leg.following_error", f"leg.{leg + 1}.following_error", t, errors[:, leg])
+        return sorted(trips, key=lambda trip: trip.t)
+
     def poses(self, t: np.ndarray, pose: np.ndarray) -> list[Trip]:
         """The statuses' measured poses: ``t`` (k,) [s], ``pose`` (k, 6) (m, rad); the velocity is the difference
         of consecutive statuses over their time step (the first status of a run has none)."""
@@ -128,3 +133,37 @@ class LimitWatch:
             trips += self._feed(f"pose.{axis}", f"pose.{axis}", t, pose[:, k])
             trips += self._feed(f"velocity.{axis}", f"velocity.{axis}", t_velocity, velocity[:, k])
         return sorted(trips, key=lambda trip: trip.t)
+
+
+FAULT_LIMITS = {
+    "STROKE": ("leg.stroke", "a leg's command reached its stroke"),
+    "SETPOINT_LIMIT": ("setpoint.envelope", "a reference was clipped to the envelope or a leg's speed"),
+    "SETPOINT_REFUSED": ("setpoint.refused", "a setpoint chunk held a sample beyond the table's limits"),
+}
+"""The fault bits that are a controller's own limits: the channel they are recorded as, what the bit means."""
+
+EMCY_LIMITS = {
+    EMCY_FOLLOWING_ERROR: ("following_error", "EMCY 0x8611 following error", "DRIVE"),
+    EMCY_REFERENCE_LIMIT: ("reference", "EMCY 0x8612 reference limit", "SETPOINT_REFUSED"),
+}
+"""The CiA 402 drives' EMCY codes that are a limit of leg (node) N: the channel ``leg.N.<name>``, what it means,
+the fault bit the master latches for it."""
+
+_FAULT_ACTIONS = {"stopping": "controlled_stop", "faulted": "controlled_stop", "emergency_stopped": "emergency_stop"}
+"""What the controller did, by its state with the fault (otherwise the fault only latched: ``record``)."""
+
+
+def controller_limits(fault: FaultEvent, t: float) -> list[Trip]:
+    """The controller's own limits among the faults ``fault`` raised at ``t`` [s, run time], as trips marked
+    ``controller``: a drive's EMCY of a limit names its leg (CANopen: node N is leg N); the fault bits of
+    :data:`FAULT_LIMITS` otherwise."""
+    action = _FAULT_ACTIONS.get(fault.state, "record")
+    emcys = [(source.node, EMCY_LIMITS[source.code]) for source in fault.sources if source.code in EMCY_LIMITS]
+    trips = [Trip(f"leg.{node}.{name}", "limit", math.nan, math.nan, "", t, action, "controller", detail)
+             for node, (name, detail, _) in emcys]
+    named = {bit for _, (_, _, bit) in emcys}  # said by the drives, leg by leg
+    for bit in fault.raised:
+        if bit in FAULT_LIMITS and bit not in named:
+            channel, detail = FAULT_LIMITS[bit]
+            trips.append(Trip(channel, "limit", math.nan, math.nan, "", t, action, "controller", detail))
+    return trips

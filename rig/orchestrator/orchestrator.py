@@ -42,6 +42,8 @@ from typing import Any, NoReturn
 
 import numpy as np
 
+from analysis.table.controller_limits import controller_levels
+from analysis.table.limit_detectors import CHANNELS
 from analysis.table.link import BUFFER_MARGIN_S
 from drivers.controller import (
     DEFAULT_LEAD,
@@ -110,8 +112,13 @@ class Orchestrator:
 
     def __init__(self, sequence: Sequence, table_url: str, log: SessionSink, *,
                  table_options: dict[str, Any] | None = None, sensors: tuple[int, ...] | None = None,
-                 operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None) -> None:
+                 operator: Operator | None = None, on_update: Callable[[Progress], None] | None = None,
+                 controller_limits: bool = True) -> None:
         self.sequence = sequence
+        self.controller_limits = controller_limits
+        """Download the abort levels that stop the table to the controller before each run (``docs/limits.md``,
+        On the controller); False: the host's detectors act alone (``benchmarks/limits.py`` compares the two)."""
+        self._limits_said = False  # the fallback to the host's detectors was said (once a session)
         self.table_url = table_url
         self.log = log
         self.table_options = table_options or {}
@@ -189,6 +196,26 @@ class Orchestrator:
         else:
             self._request_stop("emergency stop" if trip.action == "emergency_stop" else "abort",
                                reason=f"limit {trip.channel}")
+
+    def _download_limits(self, table: TableController) -> str | None:
+        """Give the controller the run's abort levels that stop the table (``analysis.table.controller_limits``);
+        the run's event saying which. A controller that cannot take them (or :attr:`controller_limits` False): the
+        host's detectors act alone, said once a session on the status line and as the event (None otherwise)."""
+        levels = controller_levels(self.sequence.table.detectors)
+        if not levels:
+            return None
+        why = table.download_limits(levels) if self.controller_limits else "host only, as asked"
+        if why is None:
+            return "limit detectors on the controller: " + ", ".join(
+                f"{level.channel} {level.side.replace('_', ' ')} {level.threshold:.4g} "
+                f"{CHANNELS[level.channel].si}" for level in levels)
+        if self._limits_said:
+            return None
+        self._limits_said = True
+        text = (f"limit detectors on the host only ({why}): an abort level stops the table when the host sees the "
+                "crossing, up to a status batch and a command later")
+        self._note(text)
+        return text
 
     def _request_stop(self, kind: str, reason: str | None = None) -> None:
         """Stop the table now: ``kind`` ``abort`` (a controlled stop) or ``emergency stop``; ``reason`` what asked
@@ -303,6 +330,7 @@ class Orchestrator:
                                             len(self.sequence.bodies)),
                    f"run {run.plan_index + 1} ({drive.duration:.1f} s of drive, {len(self.sensors)} accelerometers, "
                    f"{len(self.sequence.bodies)} bodies)")
+        limits_said = self._download_limits(table)  # before the run begins: a table error here leaves no run open
         run_log = self.log.begin_run(
             run.plan_index, record=entry.label(), scale_factor=drive.scale_factor, angle_deg=run.angle_deg,
             commanded=np.column_stack([drive.t, drive.poses]), bodies=self._bodies(),
@@ -311,6 +339,8 @@ class Orchestrator:
                    "governing_quantity": drive.governing.quantity, "corner_frequency": drive.corner_frequency,
                    "record_start": drive.record_start, "rate": drive.rate, "table_url": self.table_url})
         self._write_pending_events(run_log)
+        if limits_said is not None:
+            run_log.add_event(float("nan"), limits_said)
         self.live.begin_run(self._live_header(run, entry.label(), drive))
         recorder = RunRecorder(table, run_log, self.sensors, [b.body_id for b in self.sequence.bodies],
                                self.progress, live=self.live, limits=LimitWatch(self.sequence.table.detectors),

@@ -20,6 +20,7 @@ the run and the session saying so; the rows the session file already committed s
 from __future__ import annotations
 
 import contextlib
+import math
 import threading
 import time
 from collections.abc import Callable
@@ -27,8 +28,11 @@ from typing import Any
 
 import numpy as np
 
+from analysis.table.controller_limits import ControllerTrip
+from analysis.table.limit_detectors import CHANNELS
 from drivers.controller import (
     AccelBatch,
+    ControllerText,
     Detection,
     FaultEvent,
     TableController,
@@ -36,7 +40,7 @@ from drivers.controller import (
     TableStatus,
     TiltBatch,
 )
-from rig.orchestrator.limits import LimitWatch, Trip
+from rig.orchestrator.limits import LimitWatch, Trip, controller_limits
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.sinks import RunSink
 from rig.orchestrator.states import Progress
@@ -54,6 +58,9 @@ FEEDBACK_WAIT = 5.0
 to reach the drive's end: the controller sends the last batch once it is full (MAVLink: 19 samples after the drive's
 last), and a busy host or controller can take longer than the linger over it (seen: a compensation play whose last
 4 ms were missing at a load average of 6–7). What has not come by then is missing (:meth:`RunRecorder.short_of`)."""
+
+SEVERE = ("EMERGENCY", "ALERT", "CRITICAL", "ERROR", "WARNING")
+"""The severities of a controller's text that are recorded as the run's events (MAV_SEVERITY's names)."""
 
 BASELINE_SAMPLES = 200
 """Samples per sensor that give the static plate-x reading (the tilt's gravity component) for the status line."""
@@ -77,8 +84,10 @@ class RunRecorder:
         self.trips: list[Trip] = []
         """The limit trips of the run, in the order they were found."""
         self.stop_latency: float | None = None
-        """Table time from the crossing of the first trip that stops the table to the first status showing it
-        stopped [s] (None: no such trip, or no such status yet)."""
+        """Table time from the crossing of the first trip that stops the table (the controller's, when it tripped)
+        to the first status showing it stopped [s] (None: no such trip, or no such status yet)."""
+        self._first_stop: dict[str, tuple[float, str]] = {}  # stopping action -> the first status showing it
+        self._timed: set[str] = set()  # the sources whose stopping trip was timed
         self.table = table
         self.live = live
         self.write_error: Exception | None = None
@@ -93,6 +102,9 @@ class RunRecorder:
         self._statuses = table.statuses()
         self._detections = table.detections()
         self._faults = table.faults()
+        self._controller_trips = table.limit_trips()
+        self._controller_texts = table.controller_texts()
+        self._last_status_t: float | None = None  # the run time of the latest status [s]
         self._t0_ns: int | None = None
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._loop, name="run-recorder", daemon=True)
@@ -119,7 +131,8 @@ class RunRecorder:
                 time.sleep(POLL_SECONDS)
             self._stop.set()
             self._thread.join()
-        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults):
+        for sub in (self._accel, self._tilts, self._statuses, self._detections, self._faults, self._controller_trips,
+                    self._controller_texts):
             sub.close()
 
     def short_of(self, until: float) -> dict[str, float | None]:
@@ -159,11 +172,15 @@ class RunRecorder:
             self._write_accel(batch)
         for tilt in self._tilts.drain():
             self._write_tilt(tilt)
+        for trip in self._controller_trips.drain():
+            self._write_controller_trip(trip)
         statuses = self._statuses.drain()
         if statuses:
             self._write_poses(statuses)
         for detection in self._detections.drain():
             self._write_detection(detection)
+        for text in self._controller_texts.drain():
+            self._write_controller_text(text)
         for fault in self._faults.drain():
             self._write_fault(fault)
 
@@ -191,6 +208,25 @@ class RunRecorder:
             if self.live is not None and batch.sensor_id == next(iter(self.sensors)):  # the display's sensor
                 self.live.accel(batch.sensor_id, times, fall_line)
 
+    def _write_controller_trip(self, trip: ControllerTrip) -> None:
+        """A trip of the controller's own levels (it has acted already): as the host's, marked ``controller``."""
+        level = trip.level
+        axis = level.channel.split(".")[1]
+        sensor = self.sensors.get(trip.sensor, str(trip.sensor))
+        self._tripped([Trip(f"accel.{sensor}.{axis}", level.side, trip.value, level.threshold,
+                            CHANNELS[level.channel].si, float(self._seconds(trip.t_ns)), level.action, "controller")])
+
+    def _write_controller_text(self, text: ControllerText) -> None:
+        """A text the controller sent (MAVLink STATUSTEXT) of severity WARNING or worse: an event marked
+        ``controller`` at the latest status's time (the text carries none; NaN before any status)."""
+        if text.severity not in SEVERE:
+            return
+        t = math.nan if self._last_status_t is None else self._last_status_t
+        line = f"controller {text.severity}: {text.text} (controller)"
+        self.run_log.add_event(t, line)
+        if self.live is not None:
+            self.live.put("fault", t, f"controller {text.severity}", line)
+
     def _write_tilt(self, batch: TiltBatch) -> None:
         if not 0 <= batch.body_id < len(self.body_ids):
             if batch.body_id not in self._undeclared_tilts:
@@ -209,6 +245,10 @@ class RunRecorder:
         poses = np.array([s.pose for s in statuses])
         if self.limits is not None:
             self._tripped(self.limits.poses(t, poses))
+            legs = [k for k, s in enumerate(statuses) if s.following_error is not None]
+            if legs:
+                errors = np.array([statuses[k].following_error for k in legs])
+                self._tripped(self.limits.following_errors(t[legs], errors))
         self.run_log.append_pose(t, poses)
         self._stopped_after_trip(t, statuses)
         for when, status in zip(t.tolist(), statuses, strict=True):
@@ -217,6 +257,7 @@ class RunRecorder:
                 self.run_log.add_event(when, f"interlock inputs: {', '.join(status.inputs) or 'none set'}")
         if self.live is not None:
             self.live.put("pose", t.tolist(), [list(s.pose) for s in statuses])
+        self._last_status_t = float(t[-1])
         self.progress.table_state = statuses[-1].state
         self.progress.buffer_depth = statuses[-1].buffer_depth
 
@@ -230,19 +271,35 @@ class RunRecorder:
             self.run_log.add_event(trip.t, trip.text())
             if self.live is not None:
                 self.live.put("fault", trip.t, f"limit {trip.channel}", trip.text())
+        if trips:
+            self._time_stops()
 
     def _stopped_after_trip(self, t: np.ndarray, statuses: list[TableStatus]) -> None:
-        """After a trip that stops the table: the first status that shows it stopped gives the latency in table
-        time (:attr:`stop_latency`), written as an event."""
-        trip = next((trip for trip in self.trips if trip.action in _STOPPING), None)
-        if trip is None or self.stop_latency is not None:
-            return
-        shown = next((k for k, status in enumerate(statuses) if status.state in _STOPPING[trip.action]), None)
-        if shown is None:
-            return
-        self.stop_latency = float(t[shown]) - trip.t
-        self.run_log.add_event(float(t[shown]), f"limit {trip.channel}: the table was {statuses[shown].state} "
-                                                f"{self.stop_latency * 1e3:.1f} ms after the crossing (table time)")
+        """Keep the first status that shows the table stopped, for each stopping action; then time the trips."""
+        for action, states in _STOPPING.items():
+            if action not in self._first_stop:
+                shown = next((k for k, status in enumerate(statuses) if status.state in states), None)
+                if shown is not None:
+                    self._first_stop[action] = (float(t[shown]), statuses[shown].state)
+        self._time_stops()
+
+    def _time_stops(self) -> None:
+        """The first trip that stops the table of each source (host, controller) with the first status showing
+        the table stopped: the latency in table time, written as an event (the two sources' trips and the
+        status may come in any order: zenoh's keys are not ordered between them); :attr:`stop_latency` is the
+        controller's when it tripped."""
+        for trip in self.trips:
+            if trip.action not in _STOPPING or trip.source in self._timed or trip.action not in self._first_stop:
+                continue
+            self._timed.add(trip.source)
+            when, state = self._first_stop[trip.action]
+            latency = when - trip.t
+            if latency < 0:  # the table was stopping before this crossing (an abort, another trip): not its stop
+                continue
+            if self.stop_latency is None or trip.source == "controller":
+                self.stop_latency = latency
+            self.run_log.add_event(when, f"limit {trip.channel}: the table was {state} {latency * 1e3:.1f} ms after "
+                                         f"the crossing (table time; tripped by the {trip.source})")
 
     def _write_detection(self, detection: Detection) -> None:
         t = float(self._seconds(detection.t_ns))
@@ -264,6 +321,10 @@ class RunRecorder:
 
     def _write_fault(self, fault: FaultEvent) -> None:
         t = float(self._seconds(fault.t_ns))
+        for trip in controller_limits(fault, t):  # the controller acted already: recorded beside the host's trips
+            self.run_log.add_event(trip.t, trip.text())
+            if self.live is not None:
+                self.live.put("fault", trip.t, f"limit {trip.channel}", trip.text())
         self._faults_raised.extend(fault.raised)
         for name in fault.raised:
             self.run_log.add_fault(t, name, f"table {fault.state}; latched: {', '.join(fault.faults)}")

@@ -45,6 +45,12 @@ def test_levels_are_read_in_si_and_written_back(tmp_path: Path) -> None:
     assert "limit_detectors" not in TableModel().to_dict()
 
 
+def test_a_leg_s_following_error_takes_levels_in_mm(tmp_path: Path) -> None:
+    model = TableModel.from_toml(write(tmp_path, "[limit_detectors.leg.following_error]\nabort_high_mm = 5\n"
+                                                 "abort_low_mm = -5\n"))
+    assert model.detectors.detectors == (Detector("leg.following_error", abort_low=-0.005, abort_high=0.005),)
+
+
 @pytest.mark.parametrize(("text", "message"), [
     ("[limit_detectors.accel.x]\nwarn_high_g = 0.6\nabort_high_g = 0.4\n",
      r":3: limit_detectors\.accel\.x\.abort_high_g: levels in the wrong order: abort_high \(3\.924 m/s²\) must be "
@@ -54,7 +60,11 @@ def test_levels_are_read_in_si_and_written_back(tmp_path: Path) -> None:
     ("[limit_detectors.accel.w]\nabort_high_g = 0.4\n",
      r":1: limit_detectors\.accel\.w: unknown key; expected one of x, y, z"),
     ("[limit_detectors.legs.x]\nabort_high_g = 0.4\n",
-     r":1: limit_detectors\.legs: unknown key; expected one of accel, pose, tilt, velocity"),
+     r":1: limit_detectors\.legs: unknown key \(did you mean 'leg'\?\); expected one of accel, leg, pose, tilt, "
+     r"velocity"),
+    ("[limit_detectors.leg.following_error]\nabort_high_deg = 2\n",
+     r":2: limit_detectors\.leg\.following_error\.abort_high_deg: unit 'deg' does not fit leg\.following_error, a "
+     r"length: expected abort_high_m or abort_high_mm"),
     ("[limit_detectors.accel.x]\nabort_high_m = 0.4\n",
      r":2: limit_detectors\.accel\.x\.abort_high_m: unit 'm' does not fit accel\.x, an acceleration: expected "
      r"abort_high_g or abort_high_m_s2"),

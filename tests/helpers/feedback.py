@@ -26,3 +26,9 @@ class FeedbackTable:
 
     def faults(self) -> Subscription[object]:
         return self.feedback.subscribe("fault")
+
+    def limit_trips(self) -> Subscription[object]:
+        return self.feedback.subscribe("limit_trip")
+
+    def controller_texts(self) -> Subscription[object]:
+        return self.feedback.subscribe("controller_text")

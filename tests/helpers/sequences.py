@@ -44,10 +44,11 @@ def new_log(sequence: Sequence, path: Path) -> SessionLog:
 
 
 def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None,
-         operator: Any = None, emulator_flags: tuple[str, ...] = ()) -> tuple[OrchestratorState, dict[str, Any]]:
-    """Run the orchestrator in a thread against a fresh emulator (with ``emulator_flags``);
-    ``during(orchestrator)`` from this thread."""
-    emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
+         operator: Any = None, emulator_flags: tuple[str, ...] = (), listen: str = "mavlink://127.0.0.1:0",
+         orchestrator_options: dict[str, Any] | None = None) -> tuple[OrchestratorState, dict[str, Any]]:
+    """Run the orchestrator (with ``orchestrator_options``) in a thread against a fresh emulator listening on
+    ``listen`` (with ``emulator_flags``); ``during(orchestrator)`` from this thread."""
+    emulator = EmulatorProcess.start(listen, *specimen_flags(sequence.bodies), "--speed", "max",
                                      *emulator_flags, key_file=key_file)  # virtual time: the same session as at 1x
     try:
         states = [OrchestratorState.IDLE]
@@ -57,7 +58,7 @@ def play(sequence: Sequence, log: SessionLog, key_file: Path, during: Any = None
                 states.append(progress.state)
 
         orchestrator = Orchestrator(sequence, emulator.url, log, table_options={"key_file": str(key_file)},
-                                    operator=operator, on_update=seen)
+                                    operator=operator, on_update=seen, **(orchestrator_options or {}))
         result: list[OrchestratorState] = []
         worker = threading.Thread(target=lambda: result.append(orchestrator.run()), daemon=True)
         worker.start()

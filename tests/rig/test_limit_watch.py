@@ -42,7 +42,7 @@ def test_warnings_only_record_and_each_level_trips_once_per_run() -> None:
         ("warn_high", 0.01, "record"), ("abort_high", 0.02, "pause"), ("warn_low", 0.03, "record")]
     assert watch.feed(t + 1, np.array([9.0, -9.0])) == [Trip("accel.1.x", "abort_low", -9.0, -8.0, "m/s²", 1.01,
                                                              "pause")]
-    assert trips[1].text() == "limit accel.1.x: 9 m/s² past abort high 8 m/s²: pause"
+    assert trips[1].text() == "limit accel.1.x: 9 m/s² past abort high 8 m/s²: pause (host)"
 
 
 def test_each_accelerometer_and_body_is_its_own_instance() -> None:
@@ -67,3 +67,14 @@ def test_the_velocity_is_the_difference_of_consecutive_statuses() -> None:
     assert (trip.channel, trip.value, trip.t) == ("velocity.heave", pytest.approx(0.6), 0.04)
     later[0, 2] = -0.2
     assert [trip.level for trip in watch.poses(np.array([0.06]), later)] == ["warn_low"]
+
+
+def test_each_leg_s_following_error_is_its_own_instance() -> None:
+    watch = LimitWatch(LimitDetectors((Detector("leg.following_error", abort_low=-0.002, abort_high=0.002,
+                                                persistence=2),)))
+    errors = np.zeros((4, 6))
+    errors[1:, 2] = 0.003  # leg 3: three statuses past the level, the second completes the persistence
+    errors[2, 5] = -0.004  # leg 6: a single status: ignored
+    trips = watch.following_errors(np.array([0.0, 0.02, 0.04, 0.06]), errors)
+    assert trips == [Trip("leg.3.following_error", "abort_high", 0.003, 0.002, "m", 0.04, "controlled_stop")]
+    assert trips[0].text() == "limit leg.3.following_error: 0.003 m past abort high 0.002 m: controlled_stop (host)"

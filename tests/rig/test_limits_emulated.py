@@ -1,7 +1,9 @@
 """Limit detectors on the emulated table (its own process, MAVLink over loopback UDP, ``--speed max``): an abort
-level on the plate's acceleration stops the table and ends the run ``aborted: limit accel.0.x`` with the trip
-event and the data up to it kept; a warning level only records; a persistence of N ignores shorter
-excursions and trips on the N-th sample in a row."""
+level on the plate's acceleration, downloaded to the controller (MAVLink and zenoh), stops the table within one
+status period of the crossing in the table's time and ends the run ``aborted: limit accel.0.x`` with the
+controller's trip event and the data up to it kept, and the controller's persistence of N ignores shorter spikes;
+the host's detectors alone (the fallback) also stop it, later; a warning level only records; a persistence of N
+on the host ignores shorter excursions and trips on the N-th sample in a row."""
 
 from __future__ import annotations
 
@@ -21,18 +23,20 @@ from tests.helpers.sequences import TINY_ONE_RUN, new_log, play
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
 
-def sequence(tmp_path: Path, levels: str) -> Sequence:
+def sequence(tmp_path: Path, levels: str, channel: str = "accel.x") -> Sequence:
     path = tmp_path / "limits.toml"
-    path.write_text(f"{TINY_ONE_RUN}\n[limit_detectors.accel.x]\n{levels}\n")
+    path.write_text(f"{TINY_ONE_RUN}\n[limit_detectors.{channel}]\n{levels}\n")
     return load_sequence(path)
 
 
-def play_into(sequence: Sequence, path: Path,
-              key_file: Path) -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
-    """The sequence played on a fresh emulator into ``path``: the final state, the emulator's counters, the run."""
+def play_into(sequence: Sequence, path: Path, key_file: Path, *flags: str, controller_limits: bool = True,
+              listen: str = "mavlink://127.0.0.1:0") -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
+    """The sequence played on a fresh emulator listening on ``listen`` (with ``flags``) into ``path``: the final
+    state, the emulator's counters, the run (``controller_limits`` False: the host's detectors act alone)."""
     log = new_log(sequence, path)
     try:
-        state, counters = play(sequence, log, key_file)
+        state, counters = play(sequence, log, key_file, emulator_flags=flags, listen=listen,
+                               orchestrator_options={"controller_limits": controller_limits})
     finally:
         log.close()
     [run] = read_session(path)["runs"]
@@ -45,10 +49,51 @@ def crossing(run: dict[str, Any], level: float) -> float:
     return float(accel[np.argmax(accel[:, 1] > level), 0])
 
 
-def test_an_abort_level_on_the_plate_acceleration_stops_the_table_and_keeps_the_data(tmp_path: Path,
-                                                                                   key_file: Path) -> None:
+def stop_latency_ms(run: dict[str, Any], source: str) -> float:
+    """The run's event timing the stop after a trip found by ``source`` [ms, table time]."""
+    [stopped] = [event["text"] for event in run["events"]
+                 if f"ms after the crossing (table time; tripped by the {source})" in event["text"]]
+    assert stopped.startswith("limit accel.0.x: the table was stopping ")
+    return float(stopped.split(" was stopping ")[1].split(" ms ")[0])
+
+
+@pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
+def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path: Path, key_file: Path,
+                                                                       listen: str) -> None:
+    state, counters, run = play_into(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", key_file,
+                                listen=listen)
+    assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
+    assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit accel.0.x: ")
+    assert counters["limit_trips"] == 1 and counters["emergency_stops"] == 0 and counters["streams_completed"] == 0
+    texts = [event["text"] for event in run["events"]]
+    assert "limit detectors on the controller: accel.x abort high 0.4905 m/s²" in texts
+    [trip] = [event for event in run["events"] if event["text"].endswith("controlled_stop (controller)")]
+    t_cross = crossing(run, 0.05 * 9.81)
+    assert trip["t"] == pytest.approx(t_cross)  # the first sample past the level, as the host has it
+    assert trip["text"].startswith("limit accel.0.x: ") and "past abort high 0.4905 m/s²" in trip["text"]
+    assert 0 < stop_latency_ms(run, "controller") <= STATUS_PERIOD_NS * 1e-6  # the goal, in the table's time
+    accel = run["accel"]["0"]
+    assert accel[0, 0] < t_cross < accel[-1, 0]  # the data up to the trip (and the stop after it) kept
+
+
+def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: Path, key_file: Path) -> None:
+    state, _, run = play_into(sequence(tmp_path, "abort_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
+    assert state is OrchestratorState.DONE and run["status"] == "aborted"
+    accel = run["accel"]["0"]
+    past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
+    starts = np.flatnonzero(~past[:-1] & past[1:])
+    ends = np.flatnonzero(past[:-1] & ~past[1:])
+    lengths = np.append(ends, len(accel))[:len(starts)] - starts
+    assert lengths[0] < 25  # the first excursions are short spikes: ignored
+    first_long = starts[np.argmax(lengths >= 25)]
+    [trip] = [event for event in run["events"] if event["text"].endswith("controlled_stop (controller)")]
+    assert trip["t"] == pytest.approx(float(accel[first_long + 24, 0]))  # the 25th sample in a row
+    assert 0 < stop_latency_ms(run, "controller") <= STATUS_PERIOD_NS * 1e-6
+
+
+def test_the_host_alone_stops_the_table_and_keeps_the_data(tmp_path: Path, key_file: Path) -> None:
     limited = sequence(tmp_path, "abort_high_g = 0.05")
-    state, counters, run = play_into(limited, tmp_path / "s.h5", key_file)
+    state, counters, run = play_into(limited, tmp_path / "s.h5", key_file, controller_limits=False)
     assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
     assert run["status"] == "aborted"
     assert run["attrs"]["reason"].startswith("limit accel.0.x: ")
@@ -58,10 +103,9 @@ def test_an_abort_level_on_the_plate_acceleration_stops_the_table_and_keeps_the_
               and "past abort high" in event["text"]]
     t_cross = crossing(run, 0.05 * 9.81)
     assert trip["t"] == pytest.approx(t_cross)  # the trip is the first sample past the level
-    assert trip["text"].endswith("past abort high 0.4905 m/s²: controlled_stop")
-    [stopped] = [text for text in texts if "ms after the crossing (table time)" in text]
-    assert stopped.startswith("limit accel.0.x: the table was stopping ")
-    latency_ms = float(stopped.split(" was stopping ")[1].split(" ms ")[0])
+    assert trip["text"].endswith("past abort high 0.4905 m/s²: controlled_stop (host)")
+    assert [text for text in texts if text.startswith("limit detectors on the host only (host only, as asked)")]
+    latency_ms = stop_latency_ms(run, "host")
     # In virtual time the emulator runs ahead of the host up to the setpoints it holds (the lead and the driver's
     # AHEAD_NS beyond its last status), and takes a host message at its next batch of ticks: that bounds how far
     # the table runs past the crossing before a host-side detector's stop. (The goal, one status period, is
@@ -79,10 +123,10 @@ def test_a_warning_level_only_records(tmp_path: Path, key_file: Path) -> None:
     assert state is OrchestratorState.DONE
     assert run["status"] == "completed"
     assert counters["stops"] == 0 and counters["streams_completed"] == 1
-    trips = {event["text"].split(" past ")[1].rsplit(" ", 2)[0]: event for event in run["events"]
+    trips = {event["text"].split(" past ")[1].rsplit(" ", 3)[0]: event for event in run["events"]
              if event["text"].startswith("limit accel.0.x: ")}
     assert sorted(trips) == ["warn high 0.4905", "warn low -0.4905"]
-    assert all(event["text"].endswith(": record") for event in trips.values())
+    assert all(event["text"].endswith(": record (host)") for event in trips.values())
     accel = run["accel"]["0"]
     assert trips["warn high 0.4905"]["t"] == pytest.approx(crossing(run, 0.05 * 9.81))
     assert trips["warn low -0.4905"]["t"] == pytest.approx(float(accel[np.argmax(accel[:, 1] < -0.05 * 9.81), 0]))
@@ -100,3 +144,17 @@ def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file:
     first_long = starts[np.argmax(lengths >= 25)]
     [trip] = [event for event in run["events"] if event["text"].startswith("limit accel.0.x: ")]
     assert trip["t"] == pytest.approx(float(accel[first_long + 24, 0]))  # the 25th sample in a row
+
+
+@pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
+def test_a_stalled_leg_trips_its_following_error(tmp_path: Path, key_file: Path, listen: str) -> None:
+    limited = sequence(tmp_path, "abort_high_mm = 5\nabort_low_mm = -5\npersistence = 2", "leg.following_error")
+    state, _, run = play_into(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
+    assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit leg.2.following_error: ")
+    assert state is OrchestratorState.DONE
+    [trip] = [event for event in run["events"] if event["text"].startswith("limit leg.2.following_error: ")
+              and " past abort " in event["text"]]
+    assert trip["text"].endswith(": controlled_stop (host)")
+    value = float(trip["text"].split(": ")[1].split(" m past")[0])
+    assert abs(value) > 0.005
+    assert 0.5 < trip["t"] < run["commanded"][-1, 0]  # after the leg seized (0.5 s of controller time), mid-run

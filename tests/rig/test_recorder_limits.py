@@ -5,13 +5,17 @@ run log a real session file."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pytest
 
+from analysis.table.controller_limits import ControllerLevel, ControllerTrip
 from analysis.table.limit_detectors import Detector, LimitDetectors
-from drivers.controller import AccelBatch, TableStatus
+from drivers.controller import AccelBatch, ControllerText, FaultSource, TableStatus
+from protocols.canopen.od import EMCY_FOLLOWING_ERROR
 from rig.orchestrator.limits import LimitWatch, Trip
 from rig.orchestrator.live import LiveTap
 from rig.orchestrator.recorder import RunRecorder
@@ -69,10 +73,79 @@ def test_a_trip_is_acted_on_written_shown_and_its_stop_timed(tmp_path: Path) -> 
     assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.012) < 1e-9
     (run,) = read_session(tmp_path / "s.h5")["runs"]
     assert [(event["t"], event["text"]) for event in run["events"]] == [
-        (0.002, "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record"),
-        (0.005, "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop"),
-        (0.017, "limit accel.0.x: the table was stopping 12.0 ms after the crossing (table time)")]
+        (0.002, "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record (host)"),
+        (0.005, "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop (host)"),
+        (0.017, "limit accel.0.x: the table was stopping 12.0 ms after the crossing (table time; tripped by the host)")]
     assert [item for item in live.drain() if item[0] == "fault"] == [
-        ("fault", 0.002, "limit accel.0.x", "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record"),
-        ("fault", 0.005, "limit accel.0.x", "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop")]
+        ("fault", 0.002, "limit accel.0.x", "limit accel.0.x: 5 m/s² past warn high 2 m/s²: record (host)"),
+        ("fault", 0.005, "limit accel.0.x", "limit accel.0.x: 6 m/s² past abort high 4 m/s²: controlled_stop (host)")]
 
+
+
+def test_the_controller_s_own_trips_limits_and_warnings_are_recorded_marked_controller(tmp_path: Path) -> None:
+    table = FeedbackTable()
+    log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
+                            software_version="test")
+    run_log = log.begin_run(0, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)), bodies=[],
+                            sensors=["front"])
+    acted: list[Trip] = []
+    limits = LimitWatch(LimitDetectors((Detector("accel.x", abort_high=4.0),)))
+    recorder = RunRecorder(table, run_log, {0: "front"}, [], Progress(runs_total=1),  # type: ignore[arg-type]
+                           limits=limits, on_trip=acted.append)
+    recorder.start(0)
+    level = ControllerLevel("accel.x", "abort_high", 4.0, 1, "controlled_stop")
+    trip = ControllerTrip(5_000_000, 0, 6.0, level)
+    table.feedback.publish_limit_trip(trip)
+    table.feedback.publish_limit_trip(trip)  # the controller repeats it: kept once
+    table.feedback.publish_status(status(1_000_000, "streaming"))
+    table.feedback.publish_status(replace(status(7_000_000, "stopping"), faults=("STROKE",)))
+    table.feedback.publish_status(replace(status(9_000_000, "faulted"), faults=("STROKE", "DRIVE")),
+                                  sources=(FaultSource(2, EMCY_FOLLOWING_ERROR),))
+    table.feedback.publish_controller_text(ControllerText(0, "ERROR", "leg 2 drive: following error"))
+    table.feedback.publish_controller_text(ControllerText(0, "INFO", "drives enabled"))  # not a warning: not kept
+    recorder.finish(0.2)
+    run_log.end("aborted", reason="limit accel.front.x")
+    log.close()
+    assert [(t.channel, t.source) for t in acted] == [("accel.front.x", "controller")]  # acted on as the host's
+    assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.002) < 1e-9
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    [said] = [event for event in run["events"] if event["text"].startswith("controller ")]
+    assert (said["t"], said["text"]) == (pytest.approx(0.009),
+                                         "controller ERROR: leg 2 drive: following error (controller)")
+    assert [(pytest.approx(event["t"]), event["text"]) for event in run["events"] if event is not said] == [
+        (0.005, "limit accel.front.x: 6 m/s² past abort high 4 m/s²: controlled_stop (controller)"),
+        (0.007, "limit accel.front.x: the table was stopping 2.0 ms after the crossing (table time; tripped by the "
+                "controller)"),
+        (0.007, "limit leg.stroke: past the controller's limit (a leg's command reached its stroke): "
+                "controlled_stop (controller)"),
+        (0.009, "limit leg.2.following_error: past the controller's limit (EMCY 0x8611 following error): "
+                "controlled_stop (controller)")]
+
+
+def test_a_controller_trip_that_comes_after_the_stopping_status_is_still_timed(tmp_path: Path) -> None:
+    """zenoh does not order its keys: the host's trip and the status showing the stop may come before the
+    controller's trip of the same crossing (published last here; the recorder may drain the three together): each
+    source's trip is timed once, and the controller's is the latency."""
+    table = FeedbackTable()
+    log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
+                            software_version="test")
+    run_log = log.begin_run(0, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)), bodies=[],
+                            sensors=["0"])
+    recorder = RunRecorder(table, run_log, {0: "0"}, [], Progress(runs_total=1),  # type: ignore[arg-type]
+                           limits=LimitWatch(LimitDetectors((Detector("accel.x", abort_high=4.0),))))
+    recorder.start(0)
+    x = np.array([0.0, 0.0, 5.0, 6.0])
+    table.feedback.publish_accel(AccelBatch(0, 0, 0, SPACING_NS, np.column_stack([x, 0 * x, 0 * x + 9.81])))
+    table.feedback.publish_status(status(6_000_000, "stopping"))
+    level = ControllerLevel("accel.x", "abort_high", 4.0, 1, "controlled_stop")
+    table.feedback.publish_limit_trip(ControllerTrip(2_000_000, 0, 5.0, level))
+    recorder.finish(0.2)
+    run_log.end("aborted", reason="limit accel.0.x")
+    log.close()
+    assert recorder.stop_latency is not None and abs(recorder.stop_latency - 0.004) < 1e-9
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    timed = sorted(event["text"] for event in run["events"] if "after the crossing" in event["text"])
+    assert timed == ["limit accel.0.x: the table was stopping 4.0 ms after the crossing (table time; tripped by the "
+                     "controller)",
+                     "limit accel.0.x: the table was stopping 4.0 ms after the crossing (table time; tripped by the "
+                     "host)"]

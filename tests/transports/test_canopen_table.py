@@ -561,10 +561,16 @@ def test_a_stalled_leg_trips_its_drives_following_error_and_faults_the_table() -
     t, poses = surge(4.0, lambda t: smooth_ramp(t, 0.12, 4.0))  # leg 3 lengthens by 53 mm, up to 25 mm/s
     with emulated(leg_stall=(3, 1.5)) as emulator, master(emulator) as table:
         assert isinstance(table, CanopenTable) and table.following_error_window == pytest.approx(0.009)
-        faults = table.faults()
+        faults, statuses = table.faults(), table.statuses()
         table.arm()
         with pytest.raises(StreamAbortedError, match="DRIVE") as aborted:
             table.stream(t, poses)
+        # the master's following error (the target due at the SYNC minus the position reported): leg 3's grows to
+        # the window, the others follow within a fraction of it
+        errors = np.array([s.following_error for s in statuses.drain()
+                           if s.state == "streaming" and s.following_error is not None])
+        assert len(errors) > 50 and 0.008 < np.abs(errors[:, 2]).max() < 0.0095
+        assert np.abs(np.delete(errors, 2, axis=1)).max() < 0.002
         final = table.wait_for_state("faulted", 5)
         assert final.faults == ("DRIVE",) and aborted.value.report.final.state in ("stopping", "faulted")
         event = faults.get(1)

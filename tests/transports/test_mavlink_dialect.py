@@ -64,6 +64,7 @@ PINNED = {  # name: (message id, CRC_EXTRA)
     "SHAKETABLE_BODY": (42505, 200),
     "SHAKETABLE_CHUNK_REFUSED": (42506, 33),
     "SHAKETABLE_OWNER": (42507, 168),
+    "SHAKETABLE_LIMIT_TRIP": (42508, 239),
 }
 COMMANDS = {
     "MAV_CMD_SHAKETABLE_ARM": 42550,
@@ -75,6 +76,7 @@ COMMANDS = {
     "MAV_CMD_SHAKETABLE_EMERGENCY_STOP": 42556,
     "MAV_CMD_SHAKETABLE_CLAIM": 42557,
     "MAV_CMD_SHAKETABLE_RELEASE": 42558,
+    "MAV_CMD_SHAKETABLE_SET_LIMIT": 42559,
 }
 KEY = bytes(range(1, 33))
 HOST = (255, 190)  # system, component of the lab host
@@ -334,7 +336,9 @@ def _examples(d):
         d.MAVLink_shaketable_status_message(t_ns=987_654_321, state=d.SHAKETABLE_STATE_STREAMING, buffer_depth=96,
                                             last_chunk_seq=41, underruns=3,
                                             faults=d.SHAKETABLE_FAULT_UNDERRUN | d.SHAKETABLE_FAULT_STROKE,
-                                            refused_commands=2, pose=[0.01, -0.02, 0.003, 0.0, 0.0873, -0.001]),
+                                            refused_commands=2, pose=[0.01, -0.02, 0.003, 0.0, 0.0873, -0.001],
+                                            following_error=[0.0004, -0.0006, 0.0, 0.0052, -0.0001, 0.0]),
+        d.MAVLink_shaketable_limit_trip_message(t_ns=2**63 + 7, value=6.02, level=5.886, code=98_307, sensor=3),
         *[d.MAVLink_command_long_message(TABLE[0], TABLE[1], value, 0, 0.0873 if name.endswith("TILT") else 0,
                                          d.SHAKETABLE_TILT_AXIS_ROLL if name.endswith("TILT") else 0, 0, 0, 0, 0, 0)
           for name, value in COMMANDS.items()],

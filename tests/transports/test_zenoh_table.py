@@ -96,7 +96,8 @@ WAIT = 5.0
 
 
 def test_the_wire_codes_are_the_controllers() -> None:
-    assert (*(c.value for c in Command), "claim", "release") == COMMANDS  # claim, release: the endpoint's
+    # claim, release: the endpoint's; set_limit came after them on the wire
+    assert (*(c.value for c in Command if c is not Command.SET_LIMIT), "claim", "release", "set_limit") == COMMANDS
     assert tuple(r.value for r in Result) == RESULTS
     assert tuple(s.value for s in State) == STATES
     assert [1 << i for i in range(len(FAULTS))] == [int(Fault[name]) for name in FAULTS] == [int(f) for f in Fault]
@@ -155,12 +156,16 @@ def test_payloads_round_trip() -> None:
     assert status[:7] == (1, "emergency_stopped", 2, 3, 4, 0b10001000, 6)
     np.testing.assert_array_equal(status.pose, samples[0])
     assert status.virtual_watchdog_ms == 0
-    virtual = StatusReport(1, "streaming", 2, 3, 4, 0, 6, samples[0], 7, 8, 1000, 1)
-    assert decode_status(encode_status(virtual))[8:] == (7, 8, 1000, 1)
-    # a controller's status without the interlock inputs (4 bytes shorter) reads as none set; a real-time
-    # controller's without the virtual-time watchdog either (8 bytes shorter) as real time
-    assert decode_status(encode_status(virtual)[:-4])[8:] == (7, 8, 1000, 0)
-    assert decode_status(encode_status(virtual)[:-8])[8:] == (7, 8, 0, 0)
+    virtual = StatusReport(1, "streaming", 2, 3, 4, 0, 6, samples[0], 7, 8, 1000, 1, samples[1])
+    full = decode_status(encode_status(virtual))
+    assert full[8:12] == (7, 8, 1000, 1)
+    np.testing.assert_array_equal(full.following_error, samples[1])
+    # a controller's status without the legs' following errors (48 bytes shorter) reads as not reported; one also
+    # without the interlock inputs (4 more) as none set; a real-time controller's without the virtual-time
+    # watchdog either (8 more) as real time
+    assert decode_status(encode_status(virtual)[:-48]).following_error is None
+    assert decode_status(encode_status(virtual)[:-52])[8:] == (7, 8, 1000, 0, None)
+    assert decode_status(encode_status(virtual)[:-56])[8:] == (7, 8, 0, 0, None)
     batch = decode_accel(encode_accel(AccelSamples(3, 9, -1, 250_000, samples[:7, :3])))
     assert batch[:4] == (3, 9, -1, 250_000)
     np.testing.assert_array_equal(batch.samples, samples[:7, :3])
@@ -183,8 +188,8 @@ def test_payloads_round_trip() -> None:
     (encode_answer(Answer(1, "accepted", 0))[:16] + b"\x09" + bytes(8), decode_answer, r"unknown result code 9"),
     (encode_command(CommandRequest(1, "arm", (0, 0))) + bytes(7), decode_command,
      r"COMMAND payload has 40 bytes, expected 33 \(unsigned\) or 81 \(signed\)"),
-    (encode_command(CommandRequest(1, "arm", (0, 0)))[:16] + b"\x09" + bytes(16), decode_command,
-     r"unknown command code 9"),
+    (encode_command(CommandRequest(1, "arm", (0, 0)))[:16] + b"\x0a" + bytes(16), decode_command,
+     r"unknown command code 10"),
     (encode_setpoints(SetpointChunk(0, 0, 1, np.zeros((2, 6)), False))[:-8], decode_setpoints,
      r"SETPOINTS payload has 119 bytes, expected 127 \(unsigned\)"),
     (encode_accel(AccelSamples(0, 0, 0, 1, np.zeros((2, 3))))[:-1], decode_accel,
