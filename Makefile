@@ -21,6 +21,7 @@ $(STAMP): pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e '.[dev]'
+	-git config core.hooksPath .githooks 2>/dev/null  # commit subjects ≤ 72 characters (.githooks/commit-msg)
 	touch $(STAMP)
 
 demo: $(STAMP)
