@@ -3,8 +3,10 @@
 CANopen (``canopen://…``): each leg drive read without configuring or enabling it (``drivers.canopen.survey``) —
 identity, device type, supported modes, position unit and factors, how it is watched, which optional objects and
 profile features are used and which are missing, and why it cannot be driven; exit 0 when all six can be driven,
-:data:`~rig.cli._common.EXIT_REFUSED` (3) when not. MAVLink and zenoh tables: connected, their status and link
-statistics as the controller reports them; exit 0, or 3 when it cannot be connected.
+:data:`~rig.cli._common.EXIT_REFUSED` (3) when not. MAVLink and zenoh tables: observed (``observe=True``: connected
+without claiming it, so a table another host owns is looked at, not taken, and its owner's run goes on), their
+status and link statistics as the controller reports them; exit 0 when the table can be driven (idle, or faulted:
+ARM clears the faults), 3 when it cannot be connected or is in use (armed, moving, stopping: :data:`IN_USE_STATES`).
 """
 
 from __future__ import annotations
@@ -52,10 +54,19 @@ def check_cmd(url: Annotated[str, typer.Argument(help="the table's URL (canopen:
             out["drives"] = [report.to_dict() for report in reports]
             drivable = not any(report.problems for report in reports)
         else:
-            with open_table(url, **({"key_file": str(key_file)} if key_file else {})) as table:
-                status = table.status()
-                out["status"] = {"state": status.state, "faults": list(status.faults)}
+            options: dict[str, Any] = {"observe": True, **({"key_file": str(key_file)} if key_file else {})}
+            with open_table(url, **options) as table:
+                status = table.wait_for_status(lambda _: True, STATUS_WAIT_S)
                 out["link"] = _plain(table.link_stats())
+            out["transport"] = url.split(":", 1)[0].lower()
+            out["claimed"] = False
+            out["status"] = {"state": status.state, "faults": list(status.faults),
+                             "pose": [float(v) for v in status.pose], "buffer_capacity": status.buffer_capacity,
+                             "virtual_watchdog_s": status.virtual_watchdog_s, "inputs": list(status.inputs)}
+            in_use = IN_USE_STATES.get(status.state)
+            if in_use is not None:
+                out["in_use"] = f"{status.state}: {in_use}"
+                drivable = False
     except (TableError, ValueError, OSError) as exc:
         if as_json:
             emit_json({**out, "drivable": False, "error": str(exc)})
@@ -69,6 +80,24 @@ def check_cmd(url: Annotated[str, typer.Argument(help="the table's URL (canopen:
         _show(out)
     if not drivable:
         raise typer.Exit(EXIT_REFUSED)
+
+
+AT_HOME = 1e-4
+"""A pose within this of zero [m, rad] is shown as "at home"."""
+
+STATUS_WAIT_S = 5.0
+"""How long [s] a connected MAVLink or zenoh table is given to send its first status."""
+
+IN_USE_STATES = {
+    "armed": "a host has armed it (arming claims the table)",
+    "tilting": "a host is tilting it",
+    "streaming": "a host is playing a run on it",
+    "homing": "a host is moving it home",
+    "stopping": "it is stopping (its host's STOP, a watchdog or a fault)",
+    "emergency_stopped": "it was emergency-stopped: ARM it only after the operator's check",
+}
+"""States in which a MAVLink or zenoh table cannot be driven by this host now, and why. ``idle`` and ``faulted``
+(ARM clears the latched faults) can be driven once this host claims the table, which ``rig run`` does at connect."""
 
 
 def _plain(value: Any) -> Any:
@@ -91,6 +120,21 @@ def _show(out: dict[str, Any]) -> None:
         for problem in drive["problems"]:
             console.print(f"  cannot be driven: {problem}", highlight=False, markup=False)
     if "status" in out:
-        console.print(f"status {out['status']}; link {out['link']}", highlight=False, markup=False)
-    console.print("the table can be driven" if out["drivable"] else "the table cannot be driven", highlight=False,
-                  markup=False)
+        status = out["status"]
+        pose = status["pose"]
+        at_home = max(abs(v) for v in pose) <= AT_HOME if pose else True
+        shown = "at home" if at_home else "[" + ", ".join(f"{v:.4g}" for v in pose) + "] (m, rad)"
+        console.print(f"{out['transport']} table {out['url']}: state {status['state']}, faults "
+                      f"{' '.join(status['faults']) or 'none'}, pose {shown}, buffer "
+                      f"capacity {status['buffer_capacity'] or 'not reported'}, "
+                      f"{'virtual time' if status['virtual_watchdog_s'] else 'real time'}, inputs "
+                      f"{' '.join(status['inputs']) or 'none'}", highlight=False, markup=False)
+        console.print("observed without claiming it (a monitor: nothing sent could move it or take it from its "
+                      "owner; rig run claims it at connect and names an owning host)", highlight=False, markup=False)
+        if "in_use" in out:
+            console.print(f"  in use: {out['in_use']}", highlight=False, markup=False)
+        console.print(f"link {out['link']}", highlight=False, markup=False)
+    console.print("the table can be driven" if out["drivable"] else
+                  "the table cannot be driven now" if "in_use" in out else "the table cannot be driven",
+                  highlight=False, markup=False)
+
