@@ -500,6 +500,7 @@ class Emulator:
         braked = np.empty(n, dtype=bool)
         statuses: list[tuple[int, Snapshot]] = []  # (tick index, status without the pose)
         placements: list[int] = []
+        streaming_statuses: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # for the status levels
         for i, t in enumerate(times.tolist()):
             while self._pending and self._pending[0][0] <= t:
                 self._pending.popleft()[1](core)
@@ -535,6 +536,10 @@ class Emulator:
             following = step.commanded[rows] - step.lengths[rows]
             for (_, snap), pose, error in zip(statuses, measured, following, strict=True):
                 endpoint.send_status(replace(snap, pose=pose, following_error=error))
+            streaming = [k for k, (_, snap) in enumerate(statuses) if snap.state is State.STREAMING]
+            if streaming:  # the status levels on what each status of the stream reports
+                streaming_statuses = (np.array([statuses[k][1].t_ns for k in streaming], dtype=np.int64),
+                                      measured[streaming], following[streaming])
         self._last_legs = step.lengths[-1], step.poses[-1]
         self._last_following = step.commanded[-1] - step.lengths[-1]
         if self._answers is not None and self._answers.send_answers():  # then a status taken after the answers
@@ -549,7 +554,7 @@ class Emulator:
             endpoint.add_accel(sensor, int(times[0]) - self.tick_ns, self.tick_ns, force[:, sensor])
         profile.lap("transport")
         if core.state is State.STREAMING:  # the downloaded levels on every tick's samples; the stop at the next tick
-            trip = core.limit_levels.accel(times - self.tick_ns, force)
+            trip = core.limit_levels.batch(times - self.tick_ns, force, *(streaming_statuses or ()))
             if trip is not None:
                 core.limit_trip(trip, int(times[-1]) + self.tick_ns)
         if self.scene is not None:

@@ -5,11 +5,15 @@ trip.
 
 A level travels as the two parameters every transport's command carries (MAVLink COMMAND_LONG's param1, param2 as
 float32; zenoh's as float64): ``param1`` a whole number packing what the level is (:meth:`ControllerLevel.code`:
-channel, side, action, persistence; < 2²¹, exact in a float32), ``param2`` the level [SI: m/s²]. ``param1 = 0``
-clears every level. On MAVLink the level is rounded to float32 (a relative change below 6e-8).
+channel, side, action, persistence; < 2²¹, exact in a float32), ``param2`` the level [SI: m/s², m, rad, m/s,
+rad/s]. ``param1 = 0`` clears every level. On MAVLink the level is rounded to float32 (a relative change below
+6e-8).
 
-Channels (:data:`CONTROLLER_CHANNELS`, codes from 1): ``accel.x``, ``accel.y``, ``accel.z`` — every plate
-accelerometer's axis, as the host's detectors of the same name (specific force, plate frame, m/s²).
+Channels (:data:`CONTROLLER_CHANNELS`, codes from 1), as the host's detectors of the same name: ``accel.x``,
+``accel.y``, ``accel.z`` (1–3: every plate accelerometer's axis, on every tick's sample); ``pose.surge`` …
+``pose.yaw`` (4–9) and ``velocity.surge`` … ``velocity.yaw`` (10–15: between consecutive statuses);
+``leg.following_error`` (16: every leg's) — these on the values of every status the controller sends, so a
+persistence counts statuses as on the host. A trip's ``sensor`` is the accelerometer, the leg (1–6) or 0.
 """
 
 from __future__ import annotations
@@ -18,9 +22,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.table.limit_detectors import CHANNELS, PERSISTENCE_MAX, LimitDetectors
+from analysis.table.limit_detectors import CHANNELS, PERSISTENCE_MAX, POSE_AXES, LimitDetectors
 
-CONTROLLER_CHANNELS = ("accel.x", "accel.y", "accel.z")
+ACCEL_CHANNELS = ("accel.x", "accel.y", "accel.z")
+"""The channels evaluated on every tick's accelerometer samples."""
+
+STATUS_CHANNELS = (*(f"pose.{axis}" for axis in POSE_AXES), *(f"velocity.{axis}" for axis in POSE_AXES),
+                   "leg.following_error")
+"""The channels evaluated on the values of every status (the plate's measured pose, its velocity between
+consecutive statuses, each leg's following error)."""
+
+CONTROLLER_CHANNELS = (*ACCEL_CHANNELS, *STATUS_CHANNELS)
 """The channels a controller evaluates, in code order (code = index + 1)."""
 
 STOPPING_ACTIONS = ("controlled_stop", "emergency_stop")
@@ -88,11 +100,21 @@ def controller_levels(detectors: LimitDetectors) -> tuple[ControllerLevel, ...]:
 
 @dataclass(frozen=True)
 class ControllerTrip:
-    """A controller's trip: ``level`` passed by accelerometer ``sensor``'s sample ``value`` [SI] at ``t_ns``
-    [ns, controller time: the sample that completed the persistence]; the controller then did the level's
-    action."""
+    """A controller's trip: ``level`` passed by ``sensor``'s sample ``value`` [SI] at ``t_ns`` [ns, controller
+    time: the sample (tick or status) that completed the persistence]; the controller then did the level's action.
+    ``sensor`` is the accelerometer (``accel.*``), the leg 1–6 (``leg.following_error``) or 0 (the plate's)."""
 
     t_ns: int
     sensor: int
     value: float
     level: ControllerLevel
+
+    def instance(self, sensors: dict[int, str] | None = None) -> str:
+        """The channel's instance as the host's detectors name it: ``accel.0.x`` (``sensors`` maps the
+        accelerometer's number to its name), ``leg.3.following_error``, ``pose.heave``."""
+        group, name = self.level.channel.split(".")
+        if group == "accel":
+            return f"accel.{(sensors or {}).get(self.sensor, str(self.sensor))}.{name}"
+        if group == "leg":
+            return f"leg.{self.sensor}.{name}"
+        return self.level.channel

@@ -215,3 +215,31 @@ def first_trip(past: np.ndarray, carry: int, persistence: int) -> tuple[int | No
     run = index - last_clear + np.where(last_clear < 0, carry, 0)
     hits = np.flatnonzero(run >= persistence)
     return (int(hits[0]) if len(hits) else None), int(run[-1])
+
+
+def is_past(values: np.ndarray, threshold: float, level: str) -> np.ndarray:
+    """Which of ``values`` are past ``threshold``: above it for a ``…high`` level, below it for a ``…low`` one."""
+    return values > threshold if level.endswith("high") else values < threshold
+
+
+class StatusVelocity:
+    """The plate's velocity between consecutive statuses, as the ``velocity.*`` detectors see it, on the host and
+    on the controller alike: the difference of consecutive poses over their time step (the first status of a run
+    has none; statuses with no time step between them give none)."""
+
+    def __init__(self) -> None:
+        self._last: tuple[float, np.ndarray] | None = None
+
+    def feed(self, t: np.ndarray, pose: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The statuses' times ``t`` (k,) and poses ``pose`` (k, 6) (m, rad): the velocity samples' times (≤ k,)
+        and values (≤ k, 6) (m/s, rad/s), each at the later status of its pair."""
+        if self._last is not None:
+            all_t = np.concatenate([[self._last[0]], t])
+            all_pose = np.vstack([self._last[1], pose])
+        else:
+            all_t, all_pose = t, pose
+        if len(t):
+            self._last = (float(t[-1]), np.array(pose[-1], dtype=float))  # a copy: the caller may reuse pose
+        dt = np.diff(all_t)
+        steps = dt > 0
+        return all_t[1:][steps], np.diff(all_pose, axis=0)[steps] / dt[steps, None]

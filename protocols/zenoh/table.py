@@ -232,9 +232,9 @@ class Refusal(NamedTuple):
 
 
 class LimitTripReport(NamedTuple):
-    """A level downloaded with ``set_limit`` tripped on accelerometer ``sensor``'s sample ``value`` [SI] at ``t_ns``
-    [ns, controller time]; ``code`` and ``level`` [SI] the level's ``set_limit`` parameters
-    (``analysis.table.controller_limits``)."""
+    """A level downloaded with ``set_limit`` tripped on ``sensor``'s sample ``value`` [SI] at ``t_ns`` [ns,
+    controller time] (``sensor``: the accelerometer, the leg 1–6 or 0); ``code`` and ``level`` [SI] the level's
+    ``set_limit`` parameters (``analysis.table.controller_limits``)."""
 
     t_ns: int
     sensor: int

@@ -16,7 +16,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from analysis.table.limit_detectors import CHANNELS, POSE_AXES, Detector, LimitDetectors, first_trip
+from analysis.table.limit_detectors import (
+    CHANNELS,
+    POSE_AXES,
+    Detector,
+    LimitDetectors,
+    StatusVelocity,
+    first_trip,
+    is_past,
+)
 from drivers.controller import FaultEvent
 from protocols.canopen.od import EMCY_FOLLOWING_ERROR, EMCY_REFERENCE_LIMIT
 
@@ -65,7 +73,7 @@ class ChannelWatch:
         for level, threshold in self.detector.levels():
             if level in self._tripped:
                 continue
-            past = values > threshold if level.endswith("high") else values < threshold
+            past = is_past(values, threshold, level)
             index, self._carry[level] = first_trip(past, self._carry[level], self.detector.persistence)
             if index is not None:
                 self._tripped.add(level)
@@ -81,7 +89,7 @@ class LimitWatch:
     def __init__(self, detectors: LimitDetectors) -> None:
         self._detectors = {d.channel: d for d in detectors.detectors}
         self._watches: dict[str, ChannelWatch] = {}
-        self._last_pose: tuple[float, np.ndarray] | None = None
+        self._velocity = StatusVelocity()
 
     def _watch(self, channel: str, name: str) -> ChannelWatch | None:
         detector = self._detectors.get(channel)
@@ -118,17 +126,7 @@ class LimitWatch:
         """The statuses' measured poses: ``t`` (k,) [s], ``pose`` (k, 6) (m, rad); the velocity is the difference
         of consecutive statuses over their time step (the first status of a run has none)."""
         trips = []
-        if self._last_pose is not None:
-            all_t = np.concatenate([[self._last_pose[0]], t])
-            all_pose = np.vstack([self._last_pose[1], pose])
-        else:
-            all_t, all_pose = t, pose
-        if len(t):
-            self._last_pose = (float(t[-1]), pose[-1])
-        dt = np.diff(all_t)
-        steps = dt > 0
-        velocity = np.diff(all_pose, axis=0)[steps] / dt[steps, None]
-        t_velocity = all_t[1:][steps]
+        t_velocity, velocity = self._velocity.feed(t, pose)
         for k, axis in enumerate(POSE_AXES):
             trips += self._feed(f"pose.{axis}", f"pose.{axis}", t, pose[:, k])
             trips += self._feed(f"velocity.{axis}", f"velocity.{axis}", t_velocity, velocity[:, k])

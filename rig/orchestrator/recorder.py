@@ -211,9 +211,7 @@ class RunRecorder:
     def _write_controller_trip(self, trip: ControllerTrip) -> None:
         """A trip of the controller's own levels (it has acted already): as the host's, marked ``controller``."""
         level = trip.level
-        axis = level.channel.split(".")[1]
-        sensor = self.sensors.get(trip.sensor, str(trip.sensor))
-        self._tripped([Trip(f"accel.{sensor}.{axis}", level.side, trip.value, level.threshold,
+        self._tripped([Trip(trip.instance(self.sensors), level.side, trip.value, level.threshold,
                             CHANNELS[level.channel].si, float(self._seconds(trip.t_ns)), level.action, "controller")])
 
     def _write_controller_text(self, text: ControllerText) -> None:
@@ -243,12 +241,14 @@ class RunRecorder:
     def _write_poses(self, statuses: list[TableStatus]) -> None:
         t = self._seconds(np.array([s.t_ns for s in statuses], dtype=np.int64))
         poses = np.array([s.pose for s in statuses])
+        legs = [k for k, s in enumerate(statuses) if s.following_error is not None]  # where statuses carry them
+        errors = np.array([statuses[k].following_error for k in legs]).reshape(-1, 6)
         if self.limits is not None:
             self._tripped(self.limits.poses(t, poses))
-            legs = [k for k, s in enumerate(statuses) if s.following_error is not None]
             if legs:
-                errors = np.array([statuses[k].following_error for k in legs])
                 self._tripped(self.limits.following_errors(t[legs], errors))
+        if legs:
+            self.run_log.append_following_error(t[legs], errors)
         self.run_log.append_pose(t, poses)
         self._stopped_after_trip(t, statuses)
         for when, status in zip(t.tolist(), statuses, strict=True):

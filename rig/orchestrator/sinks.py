@@ -29,6 +29,9 @@ class RunSink(Protocol):
     def append_pose(self, t: np.ndarray, pose: np.ndarray) -> None:
         """Measured table pose: ``t`` (k,) [s], ``pose`` (k, 6)."""
 
+    def append_following_error(self, t: np.ndarray, errors: np.ndarray) -> None:
+        """Each leg's following error: ``t`` (k,) [s], ``errors`` (k, 6) [m], legs 1…6."""
+
     def add_detection(self, t: float, body_id: int, direction: int, source: str) -> None:
         """An overturn at ``t`` [s]: direction +1 low side, −1 high side; source ``"sensor"``/``"operator"``."""
 

@@ -84,6 +84,8 @@ class RunData:
     """sensor → (M, 4): t, ax, ay, az [m/s², plate-frame specific force]."""
     pose: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
     """(K, 7): the measured pose from the controller's statuses, columns as ``commanded``."""
+    following_error: np.ndarray = field(default_factory=lambda: np.zeros((0, 7)))
+    """(J, 7): t [s], each leg's following error [m], legs 1…6, from the statuses that carry it."""
     bodies: list[dict[str, Any]] = field(default_factory=list)
     detections: list[dict[str, Any]] = field(default_factory=list)
     faults: list[dict[str, Any]] = field(default_factory=list)
@@ -127,6 +129,7 @@ def _run(run: dict[str, Any]) -> RunData:
         scale_factor=None if scale is None or not np.isfinite(scale) else float(scale),
         angle_deg=float(run.get("angle_deg") or 0.0), status=str(run.get("status") or ""), attrs=run["attrs"],
         commanded=run["commanded"], accel=run["accel"], pose=run.get("pose", np.zeros((0, 7))),
+        following_error=run.get("following_error", np.zeros((0, 7))),
         **{key: run[key] for key in ("bodies", "detections", "faults", "events")},
         predictions=run_predictions(run), checksum_notes=checksums.notes(run.get("checksums")),
     )

@@ -173,7 +173,7 @@ def run_section(run: RunData, names: dict[int, str], drawer: figures.RunFigure |
         parts.append('<p class="note">No commanded or measured samples in this run.</p>')
     error = fall_line_error(run.commanded, run.accel, beta)
     legs = leg_strokes(run.pose, rig_config or {})
-    if error is not None or legs is not None or run.pose.shape[0]:
+    if error is not None or legs is not None or run.pose.shape[0] or run.following_error.shape[0]:
         parts.append(_tracking(run, error, legs, tracker or figures.TrackingFigure()))
     if run.detections:
         parts.append(table(["t [s]", "body", "direction", "source"], [
@@ -229,6 +229,9 @@ def _tracking(run: RunData, error: Any, legs: Any, tracker: figures.TrackingFigu
         leg, limit = legs.closest
         facts.append(f"closest to a stroke limit: leg {leg}, {1e3 * legs.margin:.0f} mm from {limit} "
                      f"({legs.leg_min:g}–{legs.leg_max:g} m)")
+    if run.following_error.shape[0]:
+        peaks = np.abs(run.following_error[:, 1:7]).max(axis=0) * 1e3
+        facts.append("peak following error per leg 1–6 [mm]: " + " ".join(f"{peak:.2f}" for peak in peaks))
     png = tracker.render(None if error is None else (error.t, error.error, error.rms, error.peak),
                          None if legs is None else (legs.t, legs.lengths, legs.leg_min, legs.leg_max),
                          run.pose, run.commanded)

@@ -101,6 +101,8 @@ def create_run(runs: h5py.Group, name: str, *, plan_index: int, attempt: int, re
                                                  if key in group.attrs})
     _columns(_growing(group, "commanded", 7, schema.POSE_CHUNK, commanded), schema.POSE_COLUMNS, schema.POSE_UNITS)
     _columns(_growing(group, "pose", 7, schema.POSE_CHUNK), schema.POSE_COLUMNS, schema.POSE_UNITS)
+    _columns(_growing(group, "following_error", 7, schema.POSE_CHUNK), schema.FOLLOWING_ERROR_COLUMNS,
+             schema.FOLLOWING_ERROR_UNITS)
     accel = create_group(group, "accel")
     for sensor in sensors:
         dataset = _growing(accel, sensor, 4, schema.ACCEL_CHUNK)

@@ -320,6 +320,7 @@ class SessionLog:
                 group = h5["runs"][info.name]
                 datasets = {"commanded": group["commanded"], "pose": group["pose"], "events": group["events"],
                             "detections": group["detections"], "faults": group["faults"]}
+                datasets["following_error"] = group["following_error"]
                 datasets.update({f"accel/{sensor}": group["accel"][sensor] for sensor in sensors})
                 datasets.update({f"tilt/{name}": group["tilt"][name] for name in group["tilt"]})
                 writer = BlockWriter(h5, datasets, self._flush_interval, group[checksums.TABLE])

@@ -122,7 +122,7 @@ def _tree(group: h5py.Group) -> dict[str, Any]:
 def _raw_datasets(group: h5py.Group) -> dict[str, np.ndarray]:
     """The run's sample datasets as stored, by name inside the run (``accel/plate``, ``tilt/1``, ``events``…)."""
     raw: dict[str, np.ndarray] = {}
-    for key in ("commanded", "pose", "detections", "bodies", "faults", "events"):
+    for key in ("commanded", "pose", "following_error", "detections", "bodies", "faults", "events"):
         if key in group:
             raw[key] = group[key][()]
     for sub in ("accel", "tilt"):
@@ -154,7 +154,7 @@ def read_run(group: h5py.Group, name: str, data: bool = True, *, path: str | os.
     raw = _raw_datasets(group)
     found = checksums.verify(Path(path), name, blocks, raw, recording=run["status"] == schema.RUNNING)
     run["checksums"] = {"state": found.state, "unverified": {key: list(span) for key, span in found.unverified.items()}}
-    for key in ("commanded", "pose"):
+    for key in ("commanded", "pose", "following_error"):  # following_error: absent in older files, empty
         run[key] = raw.get(key, np.zeros((0, 7)))
     run["accel"] = {key.split("/", 1)[1]: rows for key, rows in raw.items() if key.startswith("accel/")}
     run["tilt"] = {int(key.split("/", 1)[1]): rows for key, rows in raw.items() if key.startswith("tilt/")}
@@ -185,8 +185,8 @@ def read_session(path: str | os.PathLike[str], *, data: bool = True, timeout: fl
     """A session file as plain data (also while it is written): ``{"path", "schema", "software_version", "created",
     "rig_config": dict, "sequence": dict, "attrs", "runs": [...]}``; each run a dict with ``name``, ``record``,
     ``scale_factor``, ``angle_deg``, ``status``, ``started``, ``ended``, ``plan_index``, ``attempt``, ``sensors``,
-    ``attrs`` and, with ``data``, ``commanded``/``pose`` (n, 7) arrays, ``accel`` {sensor: (m, 4) array},
-    ``tilt`` {body_id: (l, 2) array of t, angle} (empty without tilt sensors),
+    ``attrs`` and, with ``data``, ``commanded``/``pose``/``following_error`` (n, 7) arrays, ``accel`` {sensor:
+    (m, 4) array}, ``tilt`` {body_id: (l, 2) array of t, angle} (empty without tilt sensors),
     ``detections``/``bodies``/``faults``/``events`` as lists of dicts, ``analysis`` if present (without
     ``data``: ``samples``, the row count per accelerometer). Strings are ``str``.
 

@@ -156,6 +156,11 @@ class RunLog:
         """Measured table pose: ``t`` (k,) [s], ``pose`` (k, 6): surge, sway, heave [m], roll, pitch, yaw [rad]."""
         self._put("pose", _rows(t, pose, 6, "pose"))
 
+    def append_following_error(self, t: np.ndarray, errors: np.ndarray) -> None:
+        """Each leg's following error: ``t`` (k,) [s], ``errors`` (k, 6) [m, commanded minus measured length], legs
+        1…6."""
+        self._put("following_error", _rows(t, errors, 6, "following error"))
+
     def append_commanded(self, t: np.ndarray, pose: np.ndarray) -> None:
         """More commanded trajectory (for drives streamed in pieces), columns as `append_pose`."""
         self._put("commanded", _rows(t, pose, 6, "commanded"))

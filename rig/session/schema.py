@@ -13,10 +13,9 @@ accelerometer names), ``attribute_units`` (JSON: the units of the numeric run at
 ``rate`` in Hz, …), at the end ``clipped`` and ``tilt_clipped`` (JSON {sensor or body: samples at or beyond the full
 scale of its calibration sheet}), plus any extra attributes given by the caller.
 
-``status``: one of `FINAL_STATUSES` (their meaning: docs/orchestrator.md §The session file), or ``"running"`` while
-recorded (until `SessionLog.resume` turns a dead writer's into ``"interrupted"``), stored with ``ended`` as
-fixed-length UTF-8 (``bytes`` in h5py) so that the final values, ordinary strings, replace them in one object-header
-page (`rig.session.atomic`); `read_session` returns ``str`` in both cases.
+``status``: one of `FINAL_STATUSES` (docs/orchestrator.md §The session file), or ``"running"`` while recorded (until
+`SessionLog.resume` turns a dead writer's into ``"interrupted"``), kept with ``ended`` as fixed-length UTF-8 so the
+final values replace them in one object-header page (`rig.session.atomic`); `read_session` returns ``str``.
 
 Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock):
 
@@ -25,6 +24,7 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
 * ``tilt/<body_id>`` (L, 2): t, angle [rad]: the body's rocking angle from its tilt sensor, relative to the plate,
   > 0 when its top has moved towards +x (the low side); one per body (empty over CANopen; absent in older files);
 * ``pose`` (K, 7): measured table pose from the controller's status feedback, columns as ``commanded``;
+  ``following_error`` (J, 7): t, leg1 … leg6 [m]: commanded minus measured length, from the statuses that carry it;
 * ``detections``: compound `DETECTION`: t [s], body_id, direction (+1 towards the low side, −1 towards the
   high side, 0 none), source (``"sensor"`` | ``"operator"``);
 * ``bodies``: compound `BODY`: body_id, b, h, depth [m], mass [kg], x, y [m, plate frame], name, b_cg, h_cg [m]:
@@ -35,8 +35,8 @@ Run datasets (all float64 unless said; time ``t`` in seconds on the run's clock)
 
 Every dataset has attributes ``columns`` and ``units``, one entry per column or field, in order, comma-separated
 (``1`` dimensionless, ``-`` `NOT_A_QUANTITY`); a calibrated sensor's ``accel/<sensor>`` and a body's ``tilt/<body_id>``
-carry their sheets (docs/sensors.md). Text fields of compound datasets are fixed-length UTF-8 (``bytes`` in h5py), cut
-at the field size (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
+carry their sheets (docs/sensors.md). Compound text fields are fixed-length UTF-8 (``bytes`` in h5py), cut at the
+field size (at a character boundary). ``/runs/<NNNN>/analysis/`` is left to ``rig analyze``.
 """
 
 from __future__ import annotations
@@ -66,6 +66,8 @@ TILT_COLUMNS = ("t", "angle")
 TILT_UNITS = ("s", "rad")
 POSE_COLUMNS = ("t", "surge", "sway", "heave", "roll", "pitch", "yaw")
 POSE_UNITS = ("s", "m", "m", "m", "rad", "rad", "rad")
+FOLLOWING_ERROR_COLUMNS = ("t", "leg1", "leg2", "leg3", "leg4", "leg5", "leg6")
+FOLLOWING_ERROR_UNITS = ("s", "m", "m", "m", "m", "m", "m")
 
 #: Rows per chunk: 4096 × 4 × 8 B = 128 KiB for an accelerometer (about 4 s at 1 kHz).
 ACCEL_CHUNK = 4096

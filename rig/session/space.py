@@ -4,8 +4,9 @@ A run appends rows to its datasets while the table moves; a write that fails for
 the record. So before a run begins the orchestrator asks :func:`check_room` for what :func:`run_needs` estimates,
 from the drive's duration and what the rig logs per second (float64 rows: accelerometers ``(t, x, y, z)`` at up to
 :data:`ACCEL_RATE_BOUND` each, body tilts ``(t, angle)`` at up to :data:`TILT_RATE_BOUND` each, the achieved pose
-``(t, 6 pose)`` at up to :data:`STATUS_RATE_BOUND`, and the commanded drive ``(t, 6 pose)`` once), doubled for HDF5's
-chunk and metadata overhead, plus :data:`RESERVE_BYTES` for the run's groups, events and its end.
+``(t, 6 pose)`` and the legs' following errors ``(t, 6 legs)`` at up to :data:`STATUS_RATE_BOUND`, and the
+commanded drive ``(t, 6 pose)`` once), doubled for HDF5's chunk and metadata overhead, plus :data:`RESERVE_BYTES`
+for the run's groups, events and its end.
 """
 
 from __future__ import annotations
@@ -54,7 +55,7 @@ def run_needs(duration_s: float, commanded_rows: int, sensors: int, bodies: int)
     """Bytes a run of a drive ``duration_s`` [s] long with ``commanded_rows`` setpoints, ``sensors`` accelerometers
     and ``bodies`` bodies may write (module docstring)."""
     seconds = duration_s + LINGER_S
-    per_second = (sensors * ACCEL_RATE_BOUND * 4 + bodies * TILT_RATE_BOUND * 2 + STATUS_RATE_BOUND * 7) * _ROW
+    per_second = (sensors * ACCEL_RATE_BOUND * 4 + bodies * TILT_RATE_BOUND * 2 + STATUS_RATE_BOUND * 14) * _ROW
     samples = seconds * per_second + commanded_rows * 7 * _ROW
     return math.ceil(samples * OVERHEAD) + RESERVE_BYTES
 

@@ -1,6 +1,6 @@
 """The controller's own limit levels without sockets: the SET_LIMIT parameters a level travels in, the levels'
-evaluation on every tick's accelerometer samples (persistence, the earliest trip), and the controller core's
-command and stop (``docs/limits.md``, On the controller)."""
+evaluation on every tick's accelerometer samples and on every status's pose, velocity and following errors
+(persistence, the earliest trip), and the controller core's command and stop (``docs/limits.md``, On the controller)."""
 
 from __future__ import annotations
 
@@ -29,6 +29,9 @@ def forces(x: list[float], sensors: int = 1) -> np.ndarray:
     LEVEL,
     ControllerLevel("accel.z", "abort_low", -19.62, 10_000, "emergency_stop"),
     ControllerLevel("accel.y", "abort_high", 0.123456789, 1, "controlled_stop"),
+    ControllerLevel("pose.yaw", "abort_low", -0.5, 7, "emergency_stop"),
+    ControllerLevel("velocity.heave", "abort_high", 0.25, 3, "controlled_stop"),
+    ControllerLevel("leg.following_error", "abort_high", 0.005, 10_000, "emergency_stop"),
 ])
 def test_a_level_round_trips_through_the_two_command_parameters_in_float32(level: ControllerLevel) -> None:
     code, threshold = (float(np.float32(p)) for p in level.params())  # MAVLink's COMMAND_LONG params are float32
@@ -42,8 +45,10 @@ def test_a_level_round_trips_through_the_two_command_parameters_in_float32(level
 @pytest.mark.parametrize(("params", "problem"), [
     ((0.5, 1.0), "whole number"),
     ((float(CLEAR_CODE), 1.0), "above 0"),
-    ((float(ControllerLevel("accel.x", "abort_high", 1.0, 1, "controlled_stop").code() + 12 * 16_384), 1.0),
-     "channel 4"),
+    ((float(ControllerLevel("accel.x", "abort_high", 1.0, 1, "controlled_stop").code() + 64 * 16_384), 1.0),
+     "channel 17"),
+    ((float(ControllerLevel("pose.heave", "abort_high", 1.0, 1, "controlled_stop").code()), 3.0),
+     "not a finite level"),
     ((float(LEVEL.code() - 2), 1.0), "persistence 0"),
     ((float(LEVEL.code()), float("nan")), "not a finite level"),
     ((float(LEVEL.code()), 1e4), "not a finite level"),
@@ -59,11 +64,17 @@ def test_only_the_abort_levels_that_stop_the_table_on_controller_channels_are_do
         Detector("accel.y", abort_high=5.0, action="pause"),
         Detector("accel.z", abort_high=30.0, action="emergency_stop"),
         Detector("pose.heave", abort_high=0.1),
+        Detector("velocity.roll", warn_high=0.1, abort_low=-0.2, action="emergency_stop"),
+        Detector("leg.following_error", abort_high=0.005, persistence=2),
+        Detector("tilt.angle", abort_high=0.3),  # the bodies' tilt sensors: not the controller's
     ))
     assert controller_levels(detectors) == (
         ControllerLevel("accel.x", "abort_low", -5.0, 3, "controlled_stop"),
         ControllerLevel("accel.x", "abort_high", 5.0, 3, "controlled_stop"),
-        ControllerLevel("accel.z", "abort_high", 30.0, 1, "emergency_stop"))
+        ControllerLevel("accel.z", "abort_high", 30.0, 1, "emergency_stop"),
+        ControllerLevel("pose.heave", "abort_high", 0.1, 1, "controlled_stop"),
+        ControllerLevel("velocity.roll", "abort_low", -0.2, 1, "emergency_stop"),
+        ControllerLevel("leg.following_error", "abort_high", 0.005, 2, "controlled_stop"))
 
 
 def test_a_single_spike_does_not_trip_a_persistence_of_two_and_the_second_sample_in_a_row_does() -> None:
@@ -88,6 +99,40 @@ def test_the_earliest_trip_among_sensors_and_levels_is_the_one_reported() -> Non
     assert trip is not None and (trip.t_ns, trip.sensor, trip.level.channel) == (3 * MS, 0, "accel.z")
     levels.restart()  # a new stream: counts from zero, may trip again
     assert levels.accel(np.arange(5) * MS, samples) == trip
+
+
+def test_status_levels_count_statuses_and_name_the_leg_that_tripped() -> None:
+    level = ControllerLevel("leg.following_error", "abort_low", -0.005, 2, "controlled_stop")
+    levels = LimitLevels()
+    levels.add(level)
+    times = np.array([20, 40, 60]) * MS
+    errors = np.zeros((3, 6))
+    errors[2, 2] = -0.006  # leg 3: the last status past the level
+    assert levels.batch(times, forces([0.0] * 3), times, np.zeros((3, 6)), errors) is None
+    errors[:, 2] = [-0.007, 0.0, 0.0]  # the next batch's first status completes the persistence
+    errors[1:, 4] = -0.01  # leg 5: later
+    trip = levels.batch(times + 60 * MS, forces([0.0] * 3), times + 60 * MS, np.zeros((3, 6)), errors)
+    assert trip == ControllerTrip(80 * MS, 3, -0.007, level)
+    assert trip.instance() == "leg.3.following_error"
+
+
+def test_the_velocity_is_between_consecutive_statuses_as_on_the_host() -> None:
+    level = ControllerLevel("velocity.heave", "abort_high", 0.2, 1, "emergency_stop")
+    pose_level = ControllerLevel("pose.heave", "abort_high", 0.5, 1, "controlled_stop")
+    levels = LimitLevels()
+    levels.add(level)
+    levels.add(pose_level)
+    times = np.array([20, 40]) * MS
+    pose = np.zeros((2, 6))
+    pose[:, 2] = [0.0, 0.003]  # 0.15 m/s
+    assert levels.batch(times, forces([0.0] * 2), times, pose, np.zeros((2, 6))) is None
+    pose[:, 2] = [0.0095, 0.012]  # 0.325 m/s from the previous batch's last status
+    trip = levels.batch(times + 40 * MS, forces([0.0] * 2), times + 40 * MS, pose, np.zeros((2, 6)))
+    assert trip is not None and (trip.t_ns, trip.sensor, trip.level) == (60 * MS, 0, level)
+    assert trip.value == pytest.approx(0.325)
+    assert trip.instance() == "velocity.heave"
+    accel_trip = ControllerTrip(1, 2, 6.0, LEVEL)
+    assert accel_trip.instance({2: "A2"}) == "accel.A2.x"
 
 
 def streaming_with(level: ControllerLevel) -> ControllerCore:

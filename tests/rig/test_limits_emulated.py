@@ -3,7 +3,9 @@ level on the plate's acceleration, downloaded to the controller (MAVLink and zen
 status period of the crossing in the table's time and ends the run ``aborted: limit accel.0.x`` with the
 controller's trip event and the data up to it kept, and the controller's persistence of N ignores shorter spikes;
 the host's detectors alone (the fallback) also stop it, later; a warning level only records; a persistence of N
-on the host ignores shorter excursions and trips on the N-th sample in a row."""
+on the host ignores shorter excursions and trips on the N-th sample in a row; levels on the plate's pose and on a
+leg's following error also trip on the controller, on the status that completes the persistence, and stop the
+table within one status period."""
 
 from __future__ import annotations
 
@@ -49,11 +51,11 @@ def crossing(run: dict[str, Any], level: float) -> float:
     return float(accel[np.argmax(accel[:, 1] > level), 0])
 
 
-def stop_latency_ms(run: dict[str, Any], source: str) -> float:
+def stop_latency_ms(run: dict[str, Any], source: str, channel: str = "accel.0.x") -> float:
     """The run's event timing the stop after a trip found by ``source`` [ms, table time]."""
     [stopped] = [event["text"] for event in run["events"]
                  if f"ms after the crossing (table time; tripped by the {source})" in event["text"]]
-    assert stopped.startswith("limit accel.0.x: the table was stopping ")
+    assert stopped.startswith(f"limit {channel}: the table was stopping ")
     return float(stopped.split(" was stopping ")[1].split(" ms ")[0])
 
 
@@ -147,14 +149,38 @@ def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file:
 
 
 @pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
-def test_a_stalled_leg_trips_its_following_error(tmp_path: Path, key_file: Path, listen: str) -> None:
+def test_a_stalled_leg_trips_its_following_error_on_the_controller(tmp_path: Path, key_file: Path,
+                                                                    listen: str) -> None:
     limited = sequence(tmp_path, "abort_high_mm = 5\nabort_low_mm = -5\npersistence = 2", "leg.following_error")
-    state, _, run = play_into(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
+    state, counters, run = play_into(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit leg.2.following_error: ")
-    assert state is OrchestratorState.DONE
-    [trip] = [event for event in run["events"] if event["text"].startswith("limit leg.2.following_error: ")
-              and " past abort " in event["text"]]
-    assert trip["text"].endswith(": controlled_stop (host)")
-    value = float(trip["text"].split(": ")[1].split(" m past")[0])
+    assert state is OrchestratorState.DONE and counters["limit_trips"] == 1
+    texts = [event["text"] for event in run["events"]]
+    assert [text for text in texts if text.startswith("limit detectors on the controller: leg.following_error ")]
+    trips = {event["text"].rsplit(" ", 1)[1]: event for event in run["events"]
+             if event["text"].startswith("limit leg.2.following_error: ") and " past abort " in event["text"]}
+    assert trips["(controller)"]["text"].endswith(": controlled_stop (controller)")
+    value = float(trips["(controller)"]["text"].split(": ")[1].split(" m past")[0])
     assert abs(value) > 0.005
-    assert 0.5 < trip["t"] < run["commanded"][-1, 0]  # after the leg seized (0.5 s of controller time), mid-run
+    assert 0.5 < trips["(controller)"]["t"] < run["commanded"][-1, 0]  # after the leg seized (0.5 s), mid-run
+    if "(host)" in trips:  # the backup: the same status, when the host saw it before the stream ended
+        assert trips["(host)"]["t"] == pytest.approx(trips["(controller)"]["t"])
+    errors = run["following_error"]  # the series the trip is on, stored: (t, legs 1…6) [s, m]
+    past = np.abs(errors[:, 2]) > 0.005
+    second = np.flatnonzero(past[1:] & past[:-1])[0] + 1  # the second status in a row past the level
+    assert trips["(controller)"]["t"] == pytest.approx(float(errors[second, 0]))
+    assert 0 < stop_latency_ms(run, "controller", "leg.2.following_error") <= STATUS_PERIOD_NS * 1e-6
+
+
+def test_a_pose_level_trips_on_the_controller_within_one_status_period(tmp_path: Path, key_file: Path) -> None:
+    state, counters, run = play_into(sequence(tmp_path, "abort_high_mm = 2\nabort_low_mm = -2", "pose.surge"),
+                                     tmp_path / "s.h5", key_file)
+    assert state is OrchestratorState.DONE and counters["limit_trips"] == 1
+    assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit pose.surge: ")
+    [trip] = [event for event in run["events"]
+              if event["text"].startswith("limit pose.surge: ") and event["text"].endswith(" (controller)")]
+    assert " m past abort " in trip["text"]
+    pose = run["pose"]
+    first = int(np.argmax(np.abs(pose[:, 1]) > 0.002))  # the first status past a level, as the host has it
+    assert trip["t"] == pytest.approx(float(pose[first, 0]))
+    assert 0 < stop_latency_ms(run, "controller", "pose.surge") <= STATUS_PERIOD_NS * 1e-6

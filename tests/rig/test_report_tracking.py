@@ -103,6 +103,9 @@ def make_session(path: Path) -> Path:
         pose = np.zeros((t_pose.size, 6))
         pose[:, 0], pose[:, 4] = A * np.sin(2 * np.pi * F_CMD * t_pose), BETA
         run.append_pose(t_pose, pose)
+        errors = np.zeros((t_pose.size, 6))
+        errors[7] = [0.1e-3, -0.2e-3, 0.3e-3, 0.4e-3, -0.5e-3, 6e-3]  # leg 6 lags 6 mm once
+        run.append_following_error(t_pose, errors)
         run.add_fault(1.25, "UNDERRUN", "buffer ran dry")
         run.add_event(1.3, "degraded: the setpoint buffer ran dry for 12 ms")
         run.add_event(float("nan"), "pause requested (console)")
@@ -121,7 +124,7 @@ def test_the_report_shows_error_pose_legs_faults_and_events(tmp_path: Path) -> N
     for text in ("closest to a stroke limit: leg", "(d) the legs", "(e) plate translations", "UNDERRUN",
                  "buffer ran dry", "degraded: the setpoint buffer ran dry for 12 ms", "pause requested (console)",
                  "degraded: accelerometer 0 lost 3 batches", "degraded: the link&#x27;s delay rose to 40 ms",
-                 "Events"):
+                 "Events", "peak following error per leg 1–6 [mm]: 0.10 0.20 0.30 0.40 0.50 6.00"):
         assert text in html, text
     pngs = re.findall(r'src="data:image/png;base64,([^"]*)"', html)
     assert len(pngs) == 2  # the run's acceleration and spectra, and how the table followed it

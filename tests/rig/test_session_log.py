@@ -151,6 +151,7 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
     run.append_accel("plate", ks / RATE, accel_values(0, ks))
     run.append_pose(ks / RATE, pose_values(ks))
     run.append_tilt(2, ks[::5] / RATE, 0.001 * ks[::5])
+    run.append_following_error(ks[::20] / RATE, 1e-4 * np.outer(ks[::20], np.arange(1, 7)))
     run.add_detection(0.2, 1, +1, "sensor")
     run.add_detection(0.3, 2, -1, "operator")
     run.add_fault(0.1, "underrun", "setpoint buffer empty for 12 ms " + "é" * 400)  # cut at a character boundary
@@ -190,6 +191,9 @@ def test_layout_and_attributes_follow_the_contract(tmp_path: Path) -> None:
         assert set(g["tilt"]) == {"1", "2"} and g["tilt/1"].shape == (0, 2)  # one per body
         assert g["tilt/2"].shape == (50, 2) and g["tilt/2"].attrs["columns"] == "t,angle"
         assert g["tilt/2"].attrs["units"] == "s,rad"
+        errors = g["following_error"]  # each leg's, as the statuses carry it
+        assert errors.shape == (13, 7) and errors.attrs["columns"] == "t,leg1,leg2,leg3,leg4,leg5,leg6"
+        assert errors.attrs["units"] == "s,m,m,m,m,m,m" and errors[1, 6] == pytest.approx(20 * 6e-4)
         det = g["detections"][()]
         assert det.dtype.names == ("t", "body_id", "direction", "source")
         assert det["body_id"].tolist() == [1, 2] and det["direction"].tolist() == [1, -1]

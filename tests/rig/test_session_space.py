@@ -16,9 +16,10 @@ from tests.helpers.session_writer import WriterChild, writer_config
 
 def test_a_run_needs_its_rows_twice_over_and_the_reserve() -> None:
     # 10 s of drive at 1 kHz (10,001 setpoints), 2 accelerometers, 3 bodies, lingering 5 s: by hand,
-    # 15 s × (2 × 2000 × 4 + 3 × 400 × 2 + 1000 × 7) × 8 B = 15 × 25,400 × 8 = 3,048,000 B of samples,
-    # 10,001 × 7 × 8 = 560,056 B commanded; twice that, and 16 MiB
-    assert run_needs(10.0, 10_001, 2, 3) == 2 * (3_048_000 + 560_056) + 16 * 1024 * 1024
+    # 15 s × (2 × 2000 × 4 + 3 × 400 × 2 + 1000 × (7 + 7)) × 8 B = 15 × 32,400 × 8 = 3,888,000 B of samples
+    # (the pose and the legs' following errors at every status), 10,001 × 7 × 8 = 560,056 B commanded; twice
+    # that, and 16 MiB
+    assert run_needs(10.0, 10_001, 2, 3) == 2 * (3_888_000 + 560_056) + 16 * 1024 * 1024
 
 
 def test_the_check_refuses_below_what_is_needed_and_says_how_much(tmp_path: Path,
