@@ -246,9 +246,7 @@ class Emulator:
         self.actuators = make_actuators(config.dynamics, table, dt, config.actuators, seed=config.seed,
                                         loads=specimen_loads(config.specimens))
         self.track = PlateTrack(dt)
-        places, mountings = config.accelerometer_places()
-        self.accelerometers = Accelerometers(places, dt, mountings=mountings, noise=config.accel_noise,
-                                             seed=config.seed + 1)
+        self.accelerometers = self._new_accelerometers()
         self.profile = TickProfile()
         """The tick thread's CPU time per stage (``sim_table.tick_profile``), in the counters' ``timing``."""
         self.scene = SpecimenScene(config.specimens, profile=self.profile) if config.specimens else None
@@ -297,11 +295,20 @@ class Emulator:
         return ControllerCore(table, tick_ns=self.tick_ns, watchdog_ns=round(watchdog * config.speed * 1e9),
                               buffer_capacity=self._capacity, underrun_stops=not csp)
 
+    def _new_accelerometers(self) -> Accelerometers:
+        """The accelerometers as at power-up: nominal noise, their noise drawn from the seed's start."""
+        config = self.config
+        places, mountings = config.accelerometer_places()
+        return Accelerometers(places, self.tick_ns * 1e-9, mountings=mountings, noise=config.accel_noise,
+                              seed=config.seed + 1)
+
     def rest(self) -> dict[str, Any]:
         """Bring the table back to its state at power-up, between two tests that share one emulator (SIGUSR1,
         :func:`main`): returns the counters up to now, then the controller is idle at home with no fault, the legs
-        at home and at rest, the specimens re-seated upright, nobody owns the table, every counter (the link's, the
-        timing, the overturns) is zero and no fault injection has happened yet. Controller time runs on (it never
+        at home and at rest, the specimens re-seated upright, the accelerometers at their nominal noise drawn from
+        the seed's start (a session played after a rest measures what it would on a fresh emulator), nobody owns
+        the table, every counter (the link's, the timing, the overturns) is zero and no fault injection has
+        happened yet. Controller time runs on (it never
         goes back: the hosts' clocks stay valid) and the signatures' replay guard is kept (a message signed before
         the reset is still refused as a replay after it). Runs on the loop's thread, between two iterations.
         ValueError on an endpoint that cannot forget its hosts (CANopen: :class:`~sim_table.endpoint.Rests`)."""
@@ -314,6 +321,7 @@ class Emulator:
         self.actuators = make_actuators(config.dynamics, table, self.tick_ns * 1e-9, config.actuators,
                                         seed=config.seed, loads=specimen_loads(config.specimens))
         self.track = PlateTrack(self.tick_ns * 1e-9)
+        self.accelerometers = self._new_accelerometers()  # a noisy one (--accel-noisy) quiet again, the noise anew
         self._last_legs = (self.actuators.lengths, self.actuators.pose)
         self._last_centre = np.zeros(6)
         self._last_following = np.zeros(6)

@@ -43,6 +43,14 @@ def key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return path
 
 
+@pytest.fixture(scope="session")
+def shared_key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The signing key of the emulated tables the session shares (``tests/helpers/tables.py``; random, mode 0600)."""
+    path = tmp_path_factory.mktemp("shared-key") / "rig.key"
+    write_signing_key(path)
+    return path
+
+
 @pytest.fixture(scope="module")
 def app() -> typer.Typer:
     """A Typer app with only the ``records`` command group mounted (what `rig records …` runs)."""

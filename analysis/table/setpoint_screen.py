@@ -43,6 +43,7 @@ class SetpointScreen:
                                  g.home_height, SCREEN_MARGIN], dtype=np.float64)
         """Envelope (6) [m, rad], stroke (min, max) [m], leg speed [m/s], tilt rate [rad/s], each with its
         allowance; the home height [m]; :data:`SCREEN_MARGIN`."""
+        self.clears(np.zeros((1, 6)), 1e-3)  # compile (or load) now, not at a stream's first chunk
 
     def clears(self, samples: np.ndarray, spacing_s: float, previous: tuple[np.ndarray, float] | None = None,
                following: tuple[np.ndarray, float] | None = None) -> bool:

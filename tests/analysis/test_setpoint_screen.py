@@ -10,6 +10,7 @@ import math
 import numpy as np
 import pytest
 
+from analysis.table import setpoint_screen
 from analysis.table.model import TableModel
 from analysis.table.setpoint_screen import SetpointScreen
 from analysis.table.setpoints import POSITION_ALLOWANCE, RATE_ALLOWANCE, check_setpoints
@@ -27,6 +28,16 @@ def ramp(n: int = 8, speed: float = 0.1) -> np.ndarray:
     samples[:, 0] = speed * SPACING * np.arange(n)
     samples[:, 4] = math.radians(3.0)
     return samples
+
+
+def test_the_compiled_pass_is_run_when_the_screen_is_made(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The emulator's controller makes its screen at start, so a cold numba cache is filled then: compiled at a
+    stream's first chunk instead, the emulator sent no status for seconds and the host took the link for lost
+    ("no status for 1.2 s", a first ``rig run --emulate`` after the sources changed)."""
+    calls: list[tuple[object, ...]] = []
+    monkeypatch.setattr(setpoint_screen, "_clears", lambda *args: calls.append(args) or True)
+    SetpointScreen(TABLE)
+    assert len(calls) == 1
 
 
 def test_an_ordinary_chunk_is_cleared_with_its_neighbours() -> None:

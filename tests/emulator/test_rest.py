@@ -25,6 +25,10 @@ def test_rest_hands_over_the_counters_and_leaves_the_table_as_at_power_up() -> N
         emulator._last_centre = np.full(6, 0.01)
         emulator.endpoint._ownership.claim("a host", "a host", 0, 0.0)  # type: ignore[attr-defined]
         emulator.endpoint.counters.packets_received = 7  # type: ignore[attr-defined]
+        window = np.zeros((3, 6))
+        fresh_noise = emulator.accelerometers.measure(window)
+        emulator.accelerometers.measure(window)  # the noise drawn on
+        emulator.accelerometers.sigma[0] += 0.5  # made noisy (--accel-noisy), as a test may leave it
 
         counters = emulator.rest()
 
@@ -38,6 +42,7 @@ def test_rest_hands_over_the_counters_and_leaves_the_table_as_at_power_up() -> N
         np.testing.assert_array_equal(emulator._last_centre, np.zeros(6))
         assert np.abs(emulator.actuators.pose).max() == 0.0
         assert emulator.endpoint._ownership.owner(0) is None  # type: ignore[attr-defined]
+        np.testing.assert_array_equal(emulator.accelerometers.measure(window), fresh_noise)  # as at power-up
     finally:
         emulator.close()
 

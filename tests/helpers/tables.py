@@ -7,7 +7,8 @@ at a time, so one in all), at real time, no bodies, signed with a key of its own
 back to its power-up state (``EmulatorProcess.rest``: at home, idle, no fault, no owner, counters zero; the signing
 replay guard kept) and :func:`check_at_rest` looks at it over the link, as the test will; the test then reads what
 it did with :meth:`SharedTable.counters` (the counters :meth:`rig.emulator.EmulatorProcess.stop` would have
-returned had the emulator been its own).
+returned had the emulator been its own). A test that plays a sequence takes a table with its bodies on the plate, in
+virtual time, from a :class:`TablePool` (``body_table``, ``tests/rig/conftest.py``): one per set of bodies.
 """
 
 from __future__ import annotations
@@ -35,6 +36,8 @@ class SharedTable:
     transport: str
     emulator: EmulatorProcess
     key_file: Path
+    flags: tuple[str, ...] = ()
+    """The emulator's options (bodies, speed) beyond its listening URL and key."""
     tests_served: int = 0
 
     @property
@@ -54,9 +57,44 @@ class SharedTable:
         self.emulator.rest()
 
 
-def start_shared_table(transport: str, key_file: Path) -> SharedTable:
-    """Start the emulator a session shares on ``transport`` (``mavlink`` or ``zenoh``), real time, no bodies."""
-    return SharedTable(transport, EmulatorProcess.start(LISTEN[transport], key_file=key_file), key_file)
+def start_shared_table(transport: str, key_file: Path, *flags: str) -> SharedTable:
+    """Start the emulator a session shares on ``transport`` (``mavlink`` or ``zenoh``) with ``flags`` (none: real
+    time, no bodies)."""
+    return SharedTable(transport, EmulatorProcess.start(LISTEN[transport], *flags, key_file=key_file), key_file,
+                       flags)
+
+
+class TablePool:
+    """The shared tables with bodies on the plate (``body_table`` of ``tests/rig/conftest.py``): one emulator per
+    transport and set of options (the bodies and their places, the speed), started when a test first asks for it
+    and brought back to rest (:meth:`SharedTable.rest`: the specimens re-seated) before each later test's turn."""
+
+    def __init__(self, key_file: Path) -> None:
+        self.key_file = key_file
+        self.tables: dict[tuple[str, tuple[str, ...]], SharedTable] = {}
+
+    def take(self, transport: str, *flags: str) -> SharedTable:
+        """The table of ``transport`` with ``flags``, at rest, counters zero."""
+        table = self.tables.get((transport, flags))
+        if table is None:
+            table = self.tables[transport, flags] = start_shared_table(transport, self.key_file, *flags)
+        else:
+            table.rest()
+        table.tests_served += 1
+        return table
+
+    def stop(self) -> None:
+        """Stop every table started (the first failure raised once all were asked to stop)."""
+        tables = list(self.tables.values())
+        self.tables.clear()
+        errors = []
+        for table in tables:
+            try:
+                table.emulator.stop()
+            except Exception as error:  # the others must still stop
+                errors.append(error)
+        if errors:
+            raise errors[0]
 
 
 def check_at_rest(table: SharedTable) -> None:

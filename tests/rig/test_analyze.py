@@ -11,9 +11,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-import os
-import subprocess
-import sys
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +38,7 @@ from rig.cli import analyze as cli_analyze
 from rig.drive import prepare_drive
 from rig.records import load_record
 from rig.session import SessionLog, read_session
+from tests.helpers.cli import rig
 
 ROOT = Path(__file__).resolve().parents[2]
 RATE = 1000.0
@@ -383,12 +381,11 @@ def test_rig_run_on_the_emulator_then_rig_analyze(tmp_path: Path) -> None:
     session = tmp_path / "e2e.h5"
     args = ["run", "e2e.toml", "--emulate", "--speed", "max", "--yes", "-o", str(session)]  # virtual time
     for _attempt in range(3):  # on a loaded machine the real-time emulator may fault a run: resume the session
-        done = subprocess.run([sys.executable, "-m", "rig.cli", *args], cwd=tmp_path, capture_output=True,
-                              text=True, timeout=300, env={**os.environ, "COLUMNS": "160"})
-        if done.returncode != 1:
+        done = rig(*args, cwd=tmp_path)  # in this process: the command, not its process, is what is checked
+        if done.exit_code != 1:
             break
         args = ["run", "--resume", str(session), "--emulate", "--speed", "max", "--yes"]
-    assert done.returncode == 0, done.stderr + done.stdout
+    assert done.exit_code == 0, done.stderr + done.stdout
     data = read_session(session)
     completed = [r["name"] for r in data["runs"] if r["status"] == "completed"]
     observed = {(r["name"], d["body_id"]) for r in data["runs"] if r["status"] == "completed" for d in r["detections"]}
@@ -562,9 +559,8 @@ def tap_analysed(tmp_path: Path, sequence: str) -> SessionAnalysis:
     ``--restitution fit`` (not written)."""
     (tmp_path / "tap.toml").write_text(sequence)
     session = tmp_path / "tap.h5"
-    done = subprocess.run([sys.executable, "-m", "rig.cli", "run", "tap.toml", "--emulate", "--speed", "max", "--yes",
-                           "-o", str(session)], cwd=tmp_path, capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr + done.stdout
+    done = rig("run", "tap.toml", "--emulate", "--speed", "max", "--yes", "-o", str(session), cwd=tmp_path)
+    assert done.exit_code == 0, done.stderr + done.stdout
     return analyze_session(session, ("rocking",), restitution="fit", write=False)
 
 

@@ -1,6 +1,7 @@
-"""Limit detectors on the emulated table (its own process, MAVLink over loopback UDP, ``--speed max``): an abort
-level on the plate's acceleration, downloaded to the controller (MAVLink and zenoh), stops the table within one
-status period of the crossing in the table's time and ends the run ``aborted: limit accel.0.x`` with the
+"""Limit detectors on the emulated table in virtual time (the session's table with the sequence's bodies,
+``body_table``, rested between tests; an emulator of its own where a fault is injected), MAVLink over loopback UDP:
+an abort level on the plate's acceleration, downloaded to the controller (MAVLink and zenoh), stops the table within
+one status period of the crossing in the table's time and ends the run ``aborted: limit accel.0.x`` with the
 controller's trip event and the data up to it kept, and the controller's persistence of N ignores shorter spikes;
 the host's detectors alone (the fallback) also stop it, later; a warning level only records; a persistence of N
 on the host ignores shorter excursions and trips on the N-th sample in a row; levels on the plate's pose and on a
@@ -9,6 +10,7 @@ table within one status period."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -20,9 +22,13 @@ from rig.orchestrator import OrchestratorState
 from rig.sequence import Sequence, load_sequence
 from rig.session import read_session
 from sim_table.process import STATUS_PERIOD_NS
-from tests.helpers.sequences import TINY_ONE_RUN, new_log, play
+from tests.helpers.sequences import TINY_ONE_RUN, new_log, play, play_on
+from tests.helpers.tables import LISTEN, SharedTable
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+
+BodyTable = Callable[..., SharedTable]
+"""The ``body_table`` fixture (``tests/rig/conftest.py``)."""
 
 
 def sequence(tmp_path: Path, levels: str, channel: str = "accel.x") -> Sequence:
@@ -31,14 +37,20 @@ def sequence(tmp_path: Path, levels: str, channel: str = "accel.x") -> Sequence:
     return load_sequence(path)
 
 
-def play_into(sequence: Sequence, path: Path, key_file: Path, *flags: str, controller_limits: bool = True,
-              listen: str = "mavlink://127.0.0.1:0") -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
-    """The sequence played on a fresh emulator listening on ``listen`` (with ``flags``) into ``path``: the final
-    state, the emulator's counters, the run (``controller_limits`` False: the host's detectors act alone)."""
+def play_into(sequence: Sequence, path: Path, body_table: BodyTable, key_file: Path, *flags: str,
+              controller_limits: bool = True, transport: str = "mavlink"
+              ) -> tuple[OrchestratorState, dict[str, Any], dict[str, Any]]:
+    """The sequence played into ``path`` on the session's table with its bodies on ``transport`` (``body_table``),
+    or with ``flags`` (fault injection) on a fresh emulator of its own: the final state, the emulator's counters, the
+    run (``controller_limits`` False: the host's detectors act alone)."""
     log = new_log(sequence, path)
+    options = {"controller_limits": controller_limits}
     try:
-        state, counters = play(sequence, log, key_file, emulator_flags=flags, listen=listen,
-                               orchestrator_options={"controller_limits": controller_limits})
+        if flags:
+            state, counters = play(sequence, log, key_file, emulator_flags=flags, listen=LISTEN[transport],
+                                   orchestrator_options=options)
+        else:
+            state, counters = play_on(body_table(sequence, transport), sequence, log, orchestrator_options=options)
     finally:
         log.close()
     [run] = read_session(path)["runs"]
@@ -59,11 +71,11 @@ def stop_latency_ms(run: dict[str, Any], source: str, channel: str = "accel.0.x"
     return float(stopped.split(" was stopping ")[1].split(" ms ")[0])
 
 
-@pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
-def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path: Path, key_file: Path,
-                                                                       listen: str) -> None:
-    state, counters, run = play_into(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", key_file,
-                                listen=listen)
+@pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
+def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path: Path, body_table: BodyTable,
+                                                                       key_file: Path, transport: str) -> None:
+    state, counters, run = play_into(sequence(tmp_path, "abort_high_g = 0.05"), tmp_path / "s.h5", body_table,
+                                     key_file, transport=transport)
     assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit accel.0.x: ")
     assert counters["limit_trips"] == 1 and counters["emergency_stops"] == 0 and counters["streams_completed"] == 0
@@ -78,8 +90,10 @@ def test_the_controller_stops_within_one_status_period_of_the_crossing(tmp_path:
     assert accel[0, 0] < t_cross < accel[-1, 0]  # the data up to the trip (and the stop after it) kept
 
 
-def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: Path, key_file: Path) -> None:
-    state, _, run = play_into(sequence(tmp_path, "abort_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
+def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: Path, body_table: BodyTable,
+                                                                    key_file: Path) -> None:
+    state, _, run = play_into(sequence(tmp_path, "abort_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5",
+                              body_table, key_file)
     assert state is OrchestratorState.DONE and run["status"] == "aborted"
     accel = run["accel"]["0"]
     past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
@@ -93,9 +107,10 @@ def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: P
     assert 0 < stop_latency_ms(run, "controller") <= STATUS_PERIOD_NS * 1e-6
 
 
-def test_the_host_alone_stops_the_table_and_keeps_the_data(tmp_path: Path, key_file: Path) -> None:
+def test_the_host_alone_stops_the_table_and_keeps_the_data(tmp_path: Path, body_table: BodyTable,
+                                                           key_file: Path) -> None:
     limited = sequence(tmp_path, "abort_high_g = 0.05")
-    state, counters, run = play_into(limited, tmp_path / "s.h5", key_file, controller_limits=False)
+    state, counters, run = play_into(limited, tmp_path / "s.h5", body_table, key_file, controller_limits=False)
     assert state is OrchestratorState.DONE  # a controlled stop: the table is left home and armed, not faulted
     assert run["status"] == "aborted"
     assert run["attrs"]["reason"].startswith("limit accel.0.x: ")
@@ -119,9 +134,9 @@ def test_the_host_alone_stops_the_table_and_keeps_the_data(tmp_path: Path, key_f
     assert accel[-1, 0] < run["commanded"][-1, 0] - 0.5  # the drive did not play to its end
 
 
-def test_a_warning_level_only_records(tmp_path: Path, key_file: Path) -> None:
+def test_a_warning_level_only_records(tmp_path: Path, body_table: BodyTable, key_file: Path) -> None:
     state, counters, run = play_into(sequence(tmp_path, "warn_high_g = 0.05\nwarn_low_g = -0.05"), tmp_path / "s.h5",
-                                key_file)
+                                     body_table, key_file)
     assert state is OrchestratorState.DONE
     assert run["status"] == "completed"
     assert counters["stops"] == 0 and counters["streams_completed"] == 1
@@ -134,8 +149,9 @@ def test_a_warning_level_only_records(tmp_path: Path, key_file: Path) -> None:
     assert trips["warn low -0.4905"]["t"] == pytest.approx(float(accel[np.argmax(accel[:, 1] < -0.05 * 9.81), 0]))
 
 
-def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file: Path) -> None:
-    state, _, run = play_into(sequence(tmp_path, "warn_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5", key_file)
+def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, body_table: BodyTable, key_file: Path) -> None:
+    state, _, run = play_into(sequence(tmp_path, "warn_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5",
+                              body_table, key_file)
     assert state is OrchestratorState.DONE and run["status"] == "completed"
     accel = run["accel"]["0"]
     past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
@@ -148,11 +164,12 @@ def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, key_file:
     assert trip["t"] == pytest.approx(float(accel[first_long + 24, 0]))  # the 25th sample in a row
 
 
-@pytest.mark.parametrize("listen", ["mavlink://127.0.0.1:0", "zenoh://127.0.0.1:0/table"])
-def test_a_stalled_leg_trips_its_following_error_on_the_controller(tmp_path: Path, key_file: Path,
-                                                                    listen: str) -> None:
+@pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
+def test_a_stalled_leg_trips_its_following_error_on_the_controller(tmp_path: Path, body_table: BodyTable,
+                                                                    key_file: Path, transport: str) -> None:
     limited = sequence(tmp_path, "abort_high_mm = 5\nabort_low_mm = -5\npersistence = 2", "leg.following_error")
-    state, counters, run = play_into(limited, tmp_path / "s.h5", key_file, "--leg-stall", "2@0.5", listen=listen)
+    state, counters, run = play_into(limited, tmp_path / "s.h5", body_table, key_file, "--leg-stall", "2@0.5",
+                                     transport=transport)
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit leg.2.following_error: ")
     assert state is OrchestratorState.DONE and counters["limit_trips"] == 1
     texts = [event["text"] for event in run["events"]]
@@ -172,9 +189,10 @@ def test_a_stalled_leg_trips_its_following_error_on_the_controller(tmp_path: Pat
     assert 0 < stop_latency_ms(run, "controller", "leg.2.following_error") <= STATUS_PERIOD_NS * 1e-6
 
 
-def test_a_pose_level_trips_on_the_controller_within_one_status_period(tmp_path: Path, key_file: Path) -> None:
+def test_a_pose_level_trips_on_the_controller_within_one_status_period(tmp_path: Path, body_table: BodyTable,
+                                                                       key_file: Path) -> None:
     state, counters, run = play_into(sequence(tmp_path, "abort_high_mm = 2\nabort_low_mm = -2", "pose.surge"),
-                                     tmp_path / "s.h5", key_file)
+                                     tmp_path / "s.h5", body_table, key_file)
     assert state is OrchestratorState.DONE and counters["limit_trips"] == 1
     assert run["status"] == "aborted" and run["attrs"]["reason"].startswith("limit pose.surge: ")
     [trip] = [event for event in run["events"]

@@ -1,10 +1,12 @@
-"""The orchestrator against the emulated table (its own process, MAVLink over loopback UDP): pause at the end of
-a record, abort and emergency stop mid-record (the emulator's counters show them, the run is logged ``aborted``),
-a run that cannot be played is refused and logged, resume from the first run that did not complete."""
+"""The orchestrator against the emulated table (the session's emulator with the sequence's bodies, ``body_table``,
+rested between tests; MAVLink over loopback UDP): pause at the end of a record, abort and emergency stop mid-record
+(the emulator's counters show them, the run is logged ``aborted``), a run that cannot be played is refused and
+logged, resume from the first run that did not complete."""
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -14,7 +16,11 @@ import pytest
 from rig.orchestrator import Orchestrator, OrchestratorState
 from rig.sequence import Sequence, load_sequence
 from rig.session import SessionLog, read_session, run_needs, space
-from tests.helpers.sequences import TINY, new_log, play, wait_for
+from tests.helpers.sequences import TINY, new_log, play_on, wait_for
+from tests.helpers.tables import SharedTable
+
+BodyTable = Callable[..., SharedTable]
+"""The ``body_table`` fixture (``tests/rig/conftest.py``)."""
 
 pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
 
@@ -22,7 +28,7 @@ pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests
 
 
 def test_pause_takes_effect_at_the_end_of_the_record_and_resume_continues(tiny: Sequence, tmp_path: Path,
-                                                                         key_file: Path) -> None:
+                                                                         body_table: BodyTable) -> None:
     log = new_log(tiny, tmp_path / "s.h5")
     seen: list[tuple[int, int]] = []
 
@@ -35,7 +41,7 @@ def test_pause_takes_effect_at_the_end_of_the_record_and_resume_continues(tiny: 
         seen.append((len(log.runs()), o.progress.runs_done))
         o.resume()
 
-    state, counters = play(tiny, log, key_file, during)
+    state, counters = play_on(body_table(tiny), tiny, log, during)
     log.close()
     assert state is OrchestratorState.DONE
     assert seen == [(1, 1), (1, 1)]  # paused after the first record, which completed; the second not begun
@@ -46,7 +52,8 @@ def test_pause_takes_effect_at_the_end_of_the_record_and_resume_continues(tiny: 
 
 @pytest.mark.parametrize("kind", ["abort", "emergency_stop"])
 def test_abort_and_emergency_stop_act_at_once_and_the_run_is_logged_aborted(kind: str, tiny: Sequence,
-                                                                           tmp_path: Path, key_file: Path) -> None:
+                                                                           tmp_path: Path,
+                                                                           body_table: BodyTable) -> None:
     log = new_log(tiny, tmp_path / "s.h5")
     when: list[float] = []
 
@@ -57,7 +64,7 @@ def test_abort_and_emergency_stop_act_at_once_and_the_run_is_logged_aborted(kind
         wait_for(lambda: o.state in (OrchestratorState.DONE, OrchestratorState.FAULTED))
         when.append(time.monotonic())
 
-    state, counters = play(tiny, log, key_file, during)
+    state, counters = play_on(body_table(tiny), tiny, log, during)
     log.close()
     assert state is (OrchestratorState.DONE if kind == "abort" else OrchestratorState.FAULTED)
     runs = read_session(tmp_path / "s.h5")["runs"]
@@ -71,8 +78,7 @@ def test_abort_and_emergency_stop_act_at_once_and_the_run_is_logged_aborted(kind
     assert accel[-1, 0] < runs[0]["commanded"][-1, 0] - 0.5
 
 
-def test_resume_plays_again_what_did_not_complete(tiny: Sequence, tmp_path: Path,
-                                                                         key_file: Path) -> None:
+def test_resume_plays_again_what_did_not_complete(tiny: Sequence, tmp_path: Path, body_table: BodyTable) -> None:
     """An aborted first session is resumed: the aborted run is played again in a new attempt, the rest follow."""
     path = tmp_path / "s.h5"
     log = new_log(tiny, path)
@@ -81,11 +87,12 @@ def test_resume_plays_again_what_did_not_complete(tiny: Sequence, tmp_path: Path
         wait_for(lambda: o.progress.samples_sent > 300)
         o.abort()
 
-    play(tiny, log, key_file, abort_early)
+    table = body_table(tiny)
+    play_on(table, tiny, log, abort_early)
     log.close()
     log = SessionLog.resume(path)
     assert log.done_plan_indices() == set()
-    state, counters = play(tiny, log, key_file)
+    state, counters = play_on(table, tiny, log)  # the table at rest again, as the operator would leave it
     log.close()
     assert state is OrchestratorState.DONE and counters["streams_completed"] == 2
     runs = read_session(path)["runs"]
@@ -116,7 +123,8 @@ class ScriptedOperator:
         return [(bodies[0].body_id, -1)]
 
 
-def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_path: Path, key_file: Path) -> None:
+def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_path: Path,
+                                                                           body_table: BodyTable) -> None:
     """A stocky body that stands through a weak record: the sensors report nothing, so the operator is asked which
     bodies fell; the answer is logged with source ``operator``. Placing and confirming are asked in order."""
     text = TINY.replace("confirm_before_run = false", "confirm_before_run = true\nask_detections = true")
@@ -128,7 +136,7 @@ def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_p
     sequence = load_sequence(path)
     log = new_log(sequence, tmp_path / "s.h5")
     operator = ScriptedOperator()
-    state, counters = play(sequence, log, key_file, operator=operator)
+    state, counters = play_on(body_table(sequence), sequence, log, operator=operator)
     log.close()
     assert state is OrchestratorState.DONE and counters["overturns"] == []
     kinds = [a.split(":")[0].split(" ")[0] for a in operator.asked]
@@ -138,13 +146,20 @@ def test_the_operator_places_confirms_and_reports_falls_the_sensors_missed(tmp_p
         assert [(d["body_id"], d["direction"], d["source"]) for d in run["detections"]] == [(1, -1, "operator")]
 
 
-def _emulator_command_lines() -> list[list[str]]:
-    """The command lines of this process's ``python -m sim_table`` children (Linux /proc)."""
+def _emulator_command_lines() -> dict[str, list[str]]:
+    """The command lines of this process's ``python -m sim_table`` children (Linux /proc), by process id."""
     children = []
     for task in Path("/proc/self/task").iterdir():
         children += (task / "children").read_text().split()
-    lines = [Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0") for pid in children]
-    return [line for line in lines if "sim_table" in line]
+    lines = {pid: Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0") for pid in children}
+    return {pid: line for pid, line in lines.items() if "sim_table" in line}
+
+
+def _new_emulator_line(before: dict[str, list[str]]) -> list[str]:
+    """The command line of the one emulator started since ``before`` (the session's shared tables are children
+    too)."""
+    (line,) = [line for pid, line in _emulator_command_lines().items() if pid not in before]
+    return line
 
 
 def test_the_emulated_table_is_the_sequence_s_rig(tmp_path: Path) -> None:
@@ -159,24 +174,25 @@ def test_the_emulated_table_is_the_sequence_s_rig(tmp_path: Path) -> None:
     (tmp_path / "tiny.toml").write_text(TINY + "\n[rig.limits.surge]\nacceleration_g = 0.4\n")
     custom = load_sequence(tmp_path / "tiny.toml")
     assert custom.table != TableModel()
+    before = _emulator_command_lines()
     with table_for(custom, None, True, None, math.inf):
-        (line,) = _emulator_command_lines()
+        line = _new_emulator_line(before)
         config = Path(line[line.index("--rig-config") + 1])
         assert TableModel.from_toml(config) == custom.table
     (tmp_path / "plain.toml").write_text(TINY)
     with table_for(load_sequence(tmp_path / "plain.toml"), None, True, None, math.inf):
-        (line,) = _emulator_command_lines()
+        line = _new_emulator_line(before)
         assert "--rig-config" not in line
 
 
-def test_a_run_without_room_on_the_disk_is_not_begun(tiny: Sequence, tmp_path: Path, key_file: Path,
+def test_a_run_without_room_on_the_disk_is_not_begun(tiny: Sequence, tmp_path: Path, body_table: BodyTable,
                                                      monkeypatch: pytest.MonkeyPatch) -> None:
     """Less free on the session's file system than the first run needs: the session ends ``disk full: …`` before
     that run begins (no run in the file, no drive streamed), the table left at rest."""
     monkeypatch.setattr(space, "free_bytes", lambda where: 1 << 20)  # 1 MiB: less than the reserve alone
     log = new_log(tiny, tmp_path / "s.h5")
     orchestrators: list[Orchestrator] = []
-    state, counters = play(tiny, log, key_file, during=orchestrators.append)
+    state, counters = play_on(body_table(tiny), tiny, log, during=orchestrators.append)
     log.close()
     assert state is OrchestratorState.FAULTED
     message = orchestrators[0].progress.message

@@ -8,16 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from protocols.signing_key import write_signing_key
 from tests.helpers.tables import SharedTable, start_shared_table
-
-
-@pytest.fixture(scope="session")
-def shared_key_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """The signing key of the shared tables (random, mode 0600)."""
-    path = tmp_path_factory.mktemp("shared-key") / "rig.key"
-    write_signing_key(path)
-    return path
 
 
 def _session_table(transport: str, key_file: Path) -> Iterator[SharedTable]:

@@ -4,14 +4,12 @@ from __future__ import annotations
 
 import gc
 import weakref
-from pathlib import Path
 
 import pytest
 
 from drivers.controller import open_table
 from drivers.heap import HeapHold
-from protocols.signing_key import write_signing_key
-from rig.emulator import EmulatorProcess
+from tests.helpers.tables import SharedTable
 
 
 class Node:
@@ -70,19 +68,14 @@ def test_a_frozen_cycle_is_freed_after_the_release_a_cycle_made_while_held_at_on
     assert frozen_ref() is None
 
 
-@pytest.mark.integration  # starts the emulator (tests/conftest.py)
-def test_a_mavlink_link_holds_the_heap_from_connect_to_close(tmp_path: Path) -> None:
-    key_file = tmp_path / "rig.key"
-    write_signing_key(key_file)
-    emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", "--speed", "max", key_file=key_file)
-    try:
-        table = open_table(emulator.url, key_file=str(key_file))
-        before = Node()
-        with table:
-            assert table.heap.held and gc.get_freeze_count() > 0 and not tracked(before)
-            table.arm()
-            table.disarm()
-        assert not table.heap.held and gc.get_freeze_count() == 0 and tracked(before)
-    finally:
-        counters = emulator.stop()
-    assert counters["state"] == "idle"
+@pytest.mark.integration  # opens a link to the shared emulator (tests/conftest.py)
+def test_a_mavlink_link_holds_the_heap_from_connect_to_close(shared_mavlink_table: SharedTable) -> None:
+    table = open_table(shared_mavlink_table.url, key_file=str(shared_mavlink_table.key_file))
+    before = Node()
+    with table:
+        assert table.heap.held and gc.get_freeze_count() > 0 and not tracked(before)
+        table.arm()
+        table.disarm()
+    assert not table.heap.held and gc.get_freeze_count() == 0 and tracked(before)
+    counters = shared_mavlink_table.counters()
+    assert counters["state"] == "idle" and counters["commands_accepted"] >= 2, counters
