@@ -41,17 +41,16 @@ from protocols.mavlink import (
     TILT_PER_BATCH,
     FramingError,
     UdpLink,
-    accel_batches,
     dialect,
     enable_signing,
     follow_wall_clock,
     parse_guarded,
     replay_guard,
     signed_with_key,
-    tilt_batches,
     unpack_setpoint_chunk,
     whole_frames,
 )
+from protocols.mavlink.encode import FrameWriter
 from protocols.replay import Freshness
 from sim_table.arming import STATUS_TEXT_BYTES, heartbeat_problem
 from sim_table.controller import SIGNED_COMMANDS, Command, ControllerCore, Done, Refused, Result, Snapshot, State
@@ -176,6 +175,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._parser.robust_parsing = True
         enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
         enable_signing(self._link.mav, key, link_id=0, timestamp=self._guard.current())
+        self._writer = FrameWriter(self._link.mav)
         if self._store is not None:
             self._store.keep(self._guard)
         _enable_kernel_stamps(self._link.sock)
@@ -509,16 +509,18 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._refusals.append((message, REFUSAL_REPEATS))
 
     def _send_accel(self, batch: Batch) -> None:
-        (message,) = accel_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)
+        """One SHAKETABLE_ACCEL_BATCH, its frame written directly (``protocols.mavlink.encode``)."""
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
-        self._send(message)
+        self._send_frame(lambda: self._writer.accel_batch(batch.samples, batch.source, batch.t_start_ns,
+                                                          batch.spacing_ns, batch.seq))
 
     def _send_tilt(self, batch: Batch) -> None:
-        (message,) = tilt_batches(batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq)
+        """One SHAKETABLE_TILT_BATCH, its frame written directly (``protocols.mavlink.encode``)."""
         self.counters.tilt_batches_sent += 1
         self.counters.tilt_samples_sent += len(batch.samples)
-        self._send(message)
+        self._send_frame(lambda: self._writer.tilt_batch(batch.samples, batch.source, batch.t_start_ns,
+                                                         batch.spacing_ns, batch.seq))
 
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
         """An overturn event, now and again :data:`EVENT_RESENDS` times."""
@@ -560,7 +562,13 @@ class MavlinkEndpoint(BatchedTelemetry):
                                                               body.y))
 
     def _send(self, msg: Any, to: list[tuple[str, int]] | None = None) -> None:
-        """Frame ``msg`` and send it to ``to`` (default: the live peers), through the injected loss and delay."""
+        """Frame ``msg`` (pymavlink's ``pack``) and send it to ``to`` (default: the live peers), through the
+        injected loss and delay."""
+        self._send_frame(lambda: cast(bytes, msg.pack(self._link.mav)), to)
+
+    def _send_frame(self, write: Callable[[], bytes], to: list[tuple[str, int]] | None = None) -> None:
+        """Send the frame ``write`` makes (on the link's sequence number and signing stamps; only when there is
+        someone to send it to) to ``to`` (default: the live peers), through the injected loss and delay."""
         with self._send_lock:
             if to is None:
                 limit = time.monotonic_ns() - round(PEER_TIMEOUT * 1e9)
@@ -568,7 +576,7 @@ class MavlinkEndpoint(BatchedTelemetry):
             if not to:
                 return
             follow_wall_clock(self._link.mav, self._guard)
-            data = msg.pack(self._link.mav)
+            data = write()
             self._link.mav.seq = (self._link.mav.seq + 1) % 256
             for addr in to:
                 if self.loss and self._rng.random() < self.loss:
