@@ -92,6 +92,9 @@ MAX_DATAGRAM = 65535
 DRAIN_LIMIT = 256
 """Most datagrams one :meth:`MavlinkEndpoint.drain` reads (one tick's worth of a host's messages many times over)."""
 
+_NO_FOLLOWING_ERROR = (0.0,) * 6
+"""A status's following error when the table reports none."""
+
 _SO_TIMESTAMPNS = getattr(socket, "SO_TIMESTAMPNS", 35) if sys.platform == "linux" else None
 """Linux's socket option (and control-message type) for a nanosecond kernel receive stamp (struct timespec)."""
 
@@ -176,6 +179,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         enable_signing(self._parser, key, link_id=0, sign_outgoing=False)
         enable_signing(self._link.mav, key, link_id=0, timestamp=self._guard.current())
         self._writer = FrameWriter(self._link.mav)
+        self._states = {state: getattr(self.d, f"SHAKETABLE_STATE_{state.name}") for state in State}
         if self._store is not None:
             self._store.keep(self._guard)
         _enable_kernel_stamps(self._link.sock)
@@ -477,14 +481,14 @@ class MavlinkEndpoint(BatchedTelemetry):
         return bool(answers)
 
     def send_status(self, snap: Snapshot) -> None:
-        """One SHAKETABLE_STATUS to the peers (then the refusals still to be repeated)."""
+        """One SHAKETABLE_STATUS to the peers, its frame written directly (``protocols.mavlink.encode``); then the
+        refusals still to be repeated."""
         self.counters.status_sent += 1
-        self._send(self.d.MAVLink_shaketable_status_message(
-            snap.t_ns, getattr(self.d, f"SHAKETABLE_STATE_{snap.state.name}"), min(snap.buffer_depth, 65535),
-            snap.last_chunk_seq, snap.underruns, int(snap.faults), snap.refused_commands,
-            [float(v) for v in snap.pose], snap.buffer_capacity, min(snap.samples_late, 2**32 - 1),
-            min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs,
-            [0.0] * 6 if snap.following_error is None else [float(v) for v in snap.following_error]))
+        self._send_frame(lambda: self._writer.status(
+            snap.t_ns, self._states[snap.state], min(snap.buffer_depth, 65535), snap.last_chunk_seq, snap.underruns,
+            int(snap.faults), snap.refused_commands, snap.pose.tolist(), snap.buffer_capacity,
+            min(snap.samples_late, 2**32 - 1), min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs,
+            _NO_FOLLOWING_ERROR if snap.following_error is None else [float(v) for v in snap.following_error]))
         pending, self._refusals = self._refusals, []
         for message, left in pending:
             self._send(message)
@@ -536,7 +540,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         if now >= self._next_heartbeat:
             self._next_heartbeat = now + round(HEARTBEAT_PERIOD * 1e9)
             self._send(self.d.MAVLink_heartbeat_message(self.d.MAV_TYPE_GENERIC, self.d.MAV_AUTOPILOT_INVALID, 0,
-                                                        getattr(self.d, f"SHAKETABLE_STATE_{state.name}"),
+                                                        self._states[state],
                                                         self.d.MAV_STATE_ACTIVE, 3))
         if now >= self._next_bodies:
             self._next_bodies = now + round(BODIES_PERIOD * 1e9)
@@ -588,9 +592,11 @@ class MavlinkEndpoint(BatchedTelemetry):
                     self._sendto(data, addr)
 
     def _sendto(self, data: bytes, addr: tuple[str, int]) -> None:
-        with contextlib.suppress(OSError):  # a host that went away (ICMP unreachable) is not our failure
+        try:
             self._link.sock.sendto(data, addr)
-            self.counters.packets_sent += 1
+        except OSError:  # a host that went away (ICMP unreachable) is not our failure
+            return
+        self.counters.packets_sent += 1
 
     def close(self) -> None:
         """Stop the receive thread and close the socket."""

@@ -1,4 +1,4 @@
-"""MAVLink 2 frames written directly, for the emulator's high-rate telemetry (accelerometer and tilt batches).
+"""MAVLink 2 frames written directly, for the emulator's high-rate telemetry (accelerometer and tilt batches, statuses).
 
 pymavlink packs a message in Python, field by field (a ``SHAKETABLE_ACCEL_BATCH`` is 62 struct arguments taken
 from a list), which costs the emulator a large part of its tick. :class:`FrameWriter` writes the same bytes from a
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import hashlib
 import struct
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -50,6 +51,9 @@ class FrameWriter:
         d = dialect()
         self._accel = (d.MAVLINK_MSG_ID_SHAKETABLE_ACCEL_BATCH, d.MAVLink_shaketable_accel_batch_message.crc_extra)
         self._tilt = (d.MAVLINK_MSG_ID_SHAKETABLE_TILT_BATCH, d.MAVLink_shaketable_tilt_batch_message.crc_extra)
+        status = d.MAVLink_shaketable_status_message
+        self._status = (status.id, status.crc_extra)
+        self._status_payload = struct.Struct(status.unpacker.format)  # the fields in wire order (t_ns first)
 
     def frame(self, msg_id: int, crc_extra: int, payload: bytes) -> bytes:
         """The frame of one message whose payload (every field, in wire order) is ``payload``, with the link's
@@ -80,6 +84,17 @@ class FrameWriter:
         rounded to float32, as :func:`protocols.mavlink.framing.tilt_batches` makes it."""
         return self._batch(self._tilt, angles, TILT_PER_BATCH, t_start_ns, spacing_ns, seq,
                            _TILT_TAIL.pack(body_id, len(angles)))
+
+    def status(self, t_ns: int, state: int, buffer_depth: int, last_chunk_seq: int, underruns: int, faults: int,
+               refused_commands: int, pose: Sequence[float], buffer_capacity: int, samples_late: int,
+               virtual_watchdog_ms: int, inputs: int, following_error: Sequence[float]) -> bytes:
+        """The frame of one SHAKETABLE_STATUS, the fields as ``MAVLink_shaketable_status_message`` takes them
+        (``pose``, ``following_error``: 6 values each, rounded to float32; an integer out of its field's range is a
+        ``struct.error``)."""
+        payload = self._status_payload.pack(t_ns, last_chunk_seq, underruns, faults, refused_commands, *pose,
+                                            buffer_depth, state, buffer_capacity, samples_late, virtual_watchdog_ms,
+                                            inputs, *following_error)
+        return self.frame(*self._status, payload)
 
     def _batch(self, kind: tuple[int, int], samples: np.ndarray, size: int, t_start_ns: int, spacing_ns: int,
                seq: int, tail: bytes) -> bytes:

@@ -83,3 +83,15 @@ def test_samples_not_finite_in_float32_are_refused() -> None:
             writer.accel_batch(samples, 0, 0, 1, 0)
     with pytest.raises(ValueError, match="fit"):
         writer.tilt_batch(np.zeros(60), 0, 0, 1, 0)
+
+
+@pytest.mark.parametrize(("seq", "signed", "link_id", "stamp"), CASES)
+def test_status_frames_are_pymavlinks(seq: int, signed: bool, link_id: int, stamp: int) -> None:
+    d = dialect()
+    pose = [0.0123456789, -0.25, 1e-9, 0.0, -3.0e-3, 0.5]
+    for fields in ((1_234_567_890_123_456, d.SHAKETABLE_STATE_STREAMING, 65535, 2**32 - 1, 7, 0x1234, 3, pose, 4096,
+                    2**32 - 1, 1000, 0b101, [1e-4, -2e-5, 0.0, 3e-6, 0.0, 0.0]),
+                   (0, d.SHAKETABLE_STATE_IDLE, 0, 0, 0, 0, 0, [0.0] * 6, 0, 0, 0, 0, [0.0] * 6)):
+        ours, theirs = _pair(seq, signed=signed, link_id=link_id, timestamp=stamp)
+        expected = d.MAVLink_shaketable_status_message(*fields).pack(theirs)
+        assert FrameWriter(ours).status(*fields) == expected
