@@ -90,6 +90,12 @@ RECEIVE_BUFFER = 4 << 20
 MAX_DATAGRAM = 65535
 
 DRAIN_LIMIT = 256
+
+HELD_DATAGRAM = 1472
+"""Telemetry frames (statuses, accelerometer and tilt batches) sent one after another go out together in datagrams
+of at most this many bytes (an Ethernet MTU's UDP payload: never fragmented), one ``sendto`` for several frames
+(each costs the emulator's tick thread ~10 µs), sent before any other message and at the end of every
+:meth:`MavlinkEndpoint.service`; not with injected loss or delay, which act on each frame's own datagram."""
 """Most datagrams one :meth:`MavlinkEndpoint.drain` reads (one tick's worth of a host's messages many times over)."""
 
 _NO_FOLLOWING_ERROR = (0.0,) * 6
@@ -188,6 +194,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._inbox: deque[tuple[int, int, tuple[str, int], Any, bool]] = deque()
         self._inbox_lock = threading.Lock()
         self._outbox: list[tuple[int, int, bytes, tuple[str, int]]] = []  # delayed datagrams (due, n, data, addr)
+        self._held = bytearray()  # telemetry frames not yet sent (HELD_DATAGRAM) ...
+        self._held_to: list[tuple[str, int]] = []  # ... and where they go
         self._sent = 0
         self._peers: dict[tuple[str, int], int] = {}  # address -> host ns of its last signed heartbeat
         # (address, system, component) -> watchdog times [ns] of its previous and last signed heartbeat
@@ -484,7 +492,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         """One SHAKETABLE_STATUS to the peers, its frame written directly (``protocols.mavlink.encode``); then the
         refusals still to be repeated."""
         self.counters.status_sent += 1
-        self._send_frame(lambda: self._writer.status(
+        self._send_frame(hold=True, write=lambda: self._writer.status(
             snap.t_ns, self._states[snap.state], min(snap.buffer_depth, 65535), snap.last_chunk_seq, snap.underruns,
             int(snap.faults), snap.refused_commands, snap.pose.tolist(), snap.buffer_capacity,
             min(snap.samples_late, 2**32 - 1), min(snap.virtual_watchdog_ns // 1_000_000, 2**32 - 1), snap.inputs,
@@ -516,15 +524,15 @@ class MavlinkEndpoint(BatchedTelemetry):
         """One SHAKETABLE_ACCEL_BATCH, its frame written directly (``protocols.mavlink.encode``)."""
         self.counters.accel_batches_sent += 1
         self.counters.accel_samples_sent += len(batch.samples)
-        self._send_frame(lambda: self._writer.accel_batch(batch.samples, batch.source, batch.t_start_ns,
-                                                          batch.spacing_ns, batch.seq))
+        self._send_frame(hold=True, write=lambda: self._writer.accel_batch(
+            batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq))
 
     def _send_tilt(self, batch: Batch) -> None:
         """One SHAKETABLE_TILT_BATCH, its frame written directly (``protocols.mavlink.encode``)."""
         self.counters.tilt_batches_sent += 1
         self.counters.tilt_samples_sent += len(batch.samples)
-        self._send_frame(lambda: self._writer.tilt_batch(batch.samples, batch.source, batch.t_start_ns,
-                                                         batch.spacing_ns, batch.seq))
+        self._send_frame(hold=True, write=lambda: self._writer.tilt_batch(
+            batch.samples, batch.source, batch.t_start_ns, batch.spacing_ns, batch.seq))
 
     def send_overturn(self, event_id: int, body_id: int, direction: int, tilt: float, t_ns: int) -> None:
         """An overturn event, now and again :data:`EVENT_RESENDS` times."""
@@ -552,6 +560,7 @@ class MavlinkEndpoint(BatchedTelemetry):
             if left > 1:
                 heapq.heappush(self._resends, (due + round(EVENT_RESEND_PERIOD * 1e9), left - 1, event_id, msg))
         with self._send_lock:
+            self._send_held()
             while self._outbox and self._outbox[0][0] <= now:
                 _, _, data, addr = heapq.heappop(self._outbox)
                 self._sendto(data, addr)
@@ -570,9 +579,11 @@ class MavlinkEndpoint(BatchedTelemetry):
         injected loss and delay."""
         self._send_frame(lambda: cast(bytes, msg.pack(self._link.mav)), to)
 
-    def _send_frame(self, write: Callable[[], bytes], to: list[tuple[str, int]] | None = None) -> None:
+    def _send_frame(self, write: Callable[[], bytes], to: list[tuple[str, int]] | None = None, *,
+                    hold: bool = False) -> None:
         """Send the frame ``write`` makes (on the link's sequence number and signing stamps; only when there is
-        someone to send it to) to ``to`` (default: the live peers), through the injected loss and delay."""
+        someone to send it to) to ``to`` (default: the live peers), through the injected loss and delay; ``hold``:
+        a telemetry frame, sent with those after it (:data:`HELD_DATAGRAM`)."""
         with self._send_lock:
             if to is None:
                 limit = time.monotonic_ns() - round(PEER_TIMEOUT * 1e9)
@@ -582,6 +593,13 @@ class MavlinkEndpoint(BatchedTelemetry):
             follow_wall_clock(self._link.mav, self._guard)
             data = write()
             self._link.mav.seq = (self._link.mav.seq + 1) % 256
+            if hold and not self.loss and not self.delay_ns:
+                if to != self._held_to or len(self._held) + len(data) > HELD_DATAGRAM:
+                    self._send_held()
+                self._held += data
+                self._held_to = to
+                return
+            self._send_held()
             for addr in to:
                 if self.loss and self._rng.random() < self.loss:
                     self.counters.packets_not_sent += 1
@@ -590,6 +608,26 @@ class MavlinkEndpoint(BatchedTelemetry):
                     heapq.heappush(self._outbox, (time.monotonic_ns() + self.delay_ns, self._sent, data, addr))
                 else:
                     self._sendto(data, addr)
+
+    def _send_held(self) -> None:
+        """Send the telemetry frames held (under the send lock)."""
+        if self._held:
+            data = bytes(self._held)
+            self._held.clear()
+            for addr in self._held_to:
+                self._sendto(data, addr)
+
+    def flush_accel(self) -> None:
+        """Send the samples still short of a full batch, and every frame held."""
+        super().flush_accel()
+        with self._send_lock:
+            self._send_held()
+
+    def flush_tilt(self) -> None:
+        """Send the angles still short of a full batch, and every frame held."""
+        super().flush_tilt()
+        with self._send_lock:
+            self._send_held()
 
     def _sendto(self, data: bytes, addr: tuple[str, int]) -> None:
         try:
@@ -601,6 +639,8 @@ class MavlinkEndpoint(BatchedTelemetry):
     def close(self) -> None:
         """Stop the receive thread and close the socket."""
         self._closing = True
+        with self._send_lock:
+            self._send_held()
         if self._thread.is_alive():
             self._thread.join(timeout=1.0)
         self._link.close()
@@ -615,7 +655,7 @@ class MavlinkEndpoint(BatchedTelemetry):
             self.counters = LinkCounters()
             self._ownership = Ownership(round(PEER_TIMEOUT * 1e9))
             for kept in (self._inbox, self._outbox, self._peers, self._beats, self._last, self._requesters,
-                         self._answers, self._resends, self._refusals):
+                         self._answers, self._resends, self._refusals, self._held, self._held_to):
                 kept.clear()
             self._accel = Batcher(ACCEL_PER_BATCH)
             self._tilt = Batcher(TILT_PER_BATCH)
