@@ -260,6 +260,7 @@ class Emulator:
             replay_state=config.replay_state))
         self.url = self.endpoint.url
         self._answers = self.endpoint if isinstance(self.endpoint, HeldAnswers) else None  # checked once: slow
+        self._legs = self.endpoint if isinstance(self.endpoint, LegFeedback) else None  # checked once: slow
         self._next_tick = self.tick_ns
         self._pending: deque[tuple[int, Any]] = deque()
         self._events = 0
@@ -536,8 +537,8 @@ class Emulator:
             core.raise_fault(Fault.STROKE, int(times[-1]))
         core.observe(step.poses[-1])
         profile.lap("servo")
-        if isinstance(endpoint, LegFeedback):
-            endpoint.add_legs(int(times[0]), self.tick_ns, step.lengths, step.commanded)
+        if self._legs is not None:
+            self._legs.add_legs(int(times[0]), self.tick_ns, step.lengths, step.commanded)
         if statuses:  # the batch's measured poses in one forward-kinematics call
             rows = [i for i, _ in statuses]
             measured = self.actuators.measure(step.lengths[rows], step.poses[rows])
