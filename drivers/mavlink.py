@@ -274,6 +274,8 @@ class MavlinkTable(ChunkedStreamController):
                 "MAV_SEVERITY"] else str(msg.severity)
             self.feedback.publish_controller_text(ControllerText(now, severity.removeprefix("MAV_SEVERITY_"),
                                                                  msg.text))
+            if msg.severity <= self.d.MAV_SEVERITY_ERROR:  # why a command that follows is refused
+                self._status_text = (_text_of(msg.text), now)
         elif kind == "SHAKETABLE_LIMIT_TRIP":
             self._limit_trip(msg)
         elif kind == "SHAKETABLE_CHUNK_REFUSED":
@@ -292,8 +294,6 @@ class MavlinkTable(ChunkedStreamController):
             self.last_controller_heartbeat_ns = now
         elif kind == "SHAKETABLE_OWNER":
             self._owner_report = (msg, now)
-        elif kind == "STATUSTEXT" and msg.severity <= self.d.MAV_SEVERITY_ERROR:
-            self._status_text = (_text_of(msg.text), now)
 
     def _owner_refusal(self) -> str:
         """The owner as the SHAKETABLE_OWNER sent before the refusing ACK names it (the ACK and its SHAKETABLE_OWNER
