@@ -144,9 +144,11 @@ class LimitDetectors:
         return out
 
 
-def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_detectors") -> LimitDetectors:
+def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_detectors",
+                         link_timeout_s: float | None = None) -> LimitDetectors:
     """The ``[limit_detectors]`` table read by ``checker`` (the rig configuration's or a sequence's reader, under
-    the key ``root``); errors (the checker's) name the line, the channel and the key."""
+    the key ``root``); errors (the checker's) name the line, the channel and the key. With ``link_timeout_s`` (the
+    rig's ``[controller]``, s), a ``link.age`` level must be below it (the link is lost before it would trip)."""
     if value is None:
         return LimitDetectors()
     groups = sorted({channel.split(".")[0] for channel in CHANNELS})
@@ -155,11 +157,12 @@ def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_de
     for group, members in top.items():
         allowed = [channel.split(".")[1] for channel in CHANNELS if channel.startswith(f"{group}.")]
         for member, keys in checker.table(members, (root, group), allowed).items():
-            detectors.append(_detector(checker, (root, group, member), f"{group}.{member}", keys))
+            detectors.append(_detector(checker, (root, group, member), f"{group}.{member}", keys, link_timeout_s))
     return LimitDetectors(tuple(detectors))
 
 
-def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: Any) -> Detector:
+def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: Any,
+              link_timeout_s: float | None = None) -> Detector:
     quantity = CHANNELS[channel]
     if not isinstance(value, Mapping):
         raise checker.error(path, f"expected a table of levels, got {shown(value)}")
@@ -186,6 +189,10 @@ def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: 
         if not (math.isfinite(si) and abs(si) <= quantity.bound and (quantity.lows or si > 0)):
             raise checker.error((*path, key), f"expected {quantity.name} within {quantity.bound_text}, got "
                                               f"{shown(raw)}")
+        if channel == "link.age" and link_timeout_s is not None and si >= link_timeout_s:
+            raise checker.error((*path, key), f"{level} ({si:g} s) must be below [controller] link_timeout_s "
+                                              f"({link_timeout_s:g} s): the link is lost, and the session ends, "
+                                              "before it would trip")
         levels[level] = si
     if not levels:
         raise checker.error(path, f"no level: give at least one of {', '.join(LEVELS)} with its unit")

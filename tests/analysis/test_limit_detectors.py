@@ -96,6 +96,9 @@ def test_the_link_s_age_takes_high_levels_in_s_or_ms_and_is_never_downloaded(tmp
      r":2: limit_detectors\.link\.age\.abort_high_s: expected an age within 0 … 10 s \(above 0\), got 11"),
     ("[limit_detectors.link.age]\nabort_high_ms = 0\n",
      r":2: limit_detectors\.link\.age\.abort_high_ms: expected an age within 0 … 10 s \(above 0\), got 0"),
+    ("[controller]\nlink_timeout_s = 0.4\n\n[limit_detectors.link.age]\nabort_high_ms = 400\n",
+     r":5: limit_detectors\.link\.age\.abort_high_ms: abort_high \(0\.4 s\) must be below \[controller\] "
+     r"link_timeout_s \(0\.4 s\): the link is lost, and the session ends, before it would trip"),
     ("[limit_detectors.link.age]\nabort_high_m = 0.1\n",
      r":2: limit_detectors\.link\.age\.abort_high_m: unit 'm' does not fit link\.age, an age: expected "
      r"abort_high_s or abort_high_ms"),
@@ -141,4 +144,15 @@ def test_a_bad_override_is_refused_with_the_sequence_s_line(tmp_path: Path) -> N
                  "sequence.toml")
     with pytest.raises(SequenceError, match=rf"^{path}:13: limit_detectors\.pose\.roll\.warn_high_m: unit 'm' does "
                                             "not fit pose.roll, an angle"):
+        load_sequence(path)
+
+
+def test_a_sequence_s_link_age_level_is_checked_against_the_rig_s_link_timeout(tmp_path: Path) -> None:
+    write(tmp_path, RIG)  # the default link timeout: 0.5 s
+    ok = write(tmp_path, SEQUENCE.format(overrides="[limit_detectors.link.age]\nabort_high_ms = 150\n"), "ok.toml")
+    assert Detector("link.age", abort_high=0.15) in load_sequence(ok).table.detectors.detectors
+    path = write(tmp_path, SEQUENCE.format(overrides="[limit_detectors.link.age]\nwarn_high_s = 0.6\n"),
+                 "sequence.toml")
+    with pytest.raises(SequenceError, match=rf"^{path}:13: limit_detectors\.link\.age\.warn_high_s: warn_high "
+                                            r"\(0\.6 s\) must be below \[controller\] link_timeout_s \(0\.5 s\)"):
         load_sequence(path)
