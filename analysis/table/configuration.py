@@ -204,13 +204,15 @@ class _Reader(TomlChecker):
         tilt = self.quantities(self.table(limits.get("tilt", {}), ("limits", "tilt"), _keys(_TILT_SPEC)),
                                ("limits", "tilt"), _TILT_SPEC, vars(TABLE_IV.tilt))
         geometry = self.geometry(top["hexapod"]) if "hexapod" in top else HexapodGeometry.default()
+        link = self.link(top.get("controller", {}))
         return TableConfiguration(limits=TableLimits(**axes, tilt=TiltLimits(**tilt)), geometry=geometry,
                                   controller_rate=table["controller_rate"],
                                   dynamics=self.dynamics(top.get("dynamics", {})),
-                                  link=self.link(top.get("controller", {})),
+                                  link=link,
                                   drives=read_drives(self, top.get("drives")),
                                   sensors=read_sensors(self, top.get("sensors")),
-                                  detectors=read_limit_detectors(self, top.get("limit_detectors")),
+                                  detectors=read_limit_detectors(self, top.get("limit_detectors"),
+                                                                 link_timeout_s=link.link_timeout_s),
                                   network=read_network(self, top.get("network")))
 
     def link(self, value: Any) -> LinkSettings:

@@ -24,7 +24,8 @@ Channels (:data:`CHANNELS`) and the units their levels may be given in:
   ``rad_s``);
 - ``tilt.angle``: each body's tilt sensor, relative to the plate, > 0 towards the low side (``deg``, ``rad``);
 - ``leg.following_error``: each leg's following error as the controller's statuses report it, its commanded minus
-  its measured length (``m``, ``mm``).
+  its measured length (``m``, ``mm``);
+- ``link.age``: the age of the latest status, on the host's clock (``s``, ``ms``; high levels only, 0 … 10 s).
 
 A **high** level is passed by a value above it, a **low** level by one below it; present levels must be ordered
 ``abort_low < warn_low < warn_high < abort_high``. A level trips when ``persistence`` consecutive samples are past
@@ -70,12 +71,15 @@ class Quantity:
     si: str
     bound: float
     bound_text: str
+    lows: bool = True
+    """False: a quantity that only a high level makes sense on (levels above 0, up to ``bound``)."""
 
 
 _ACCELERATION = Quantity("an acceleration", {"g": G, "m_s2": 1.0}, "m/s²", 20 * G, "±20 g (±196.2 m/s²)")
 _LENGTH = Quantity("a length", {"m": 1.0, "mm": 1e-3}, "m", 2.0, "±2 m")
 _ANGLE = Quantity("an angle", {"deg": DEG, "rad": 1.0}, "rad", math.pi / 2, "±90° (±1.571 rad)")
 _SPEED = Quantity("a speed", {"m_s": 1.0, "mm_s": 1e-3}, "m/s", 5.0, "±5 m/s")
+_AGE = Quantity("an age", {"s": 1.0, "ms": 1e-3}, "s", 10.0, "0 … 10 s (above 0)", lows=False)
 _RATE = Quantity("an angular rate", {"deg_s": DEG, "rad_s": 1.0}, "rad/s", 2 * math.pi, "±360°/s (±6.283 rad/s)")
 
 POSE_AXES = ("surge", "sway", "heave", "roll", "pitch", "yaw")
@@ -87,6 +91,7 @@ CHANNELS: dict[str, Quantity] = {
     **{f"velocity.{axis}": _SPEED if k < 3 else _RATE for k, axis in enumerate(POSE_AXES)},
     "tilt.angle": _ANGLE,
     "leg.following_error": _LENGTH,
+    "link.age": _AGE,
 }
 """Every channel a detector may watch, with what it measures (module docstring)."""
 
@@ -139,9 +144,11 @@ class LimitDetectors:
         return out
 
 
-def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_detectors") -> LimitDetectors:
+def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_detectors",
+                         link_timeout_s: float | None = None) -> LimitDetectors:
     """The ``[limit_detectors]`` table read by ``checker`` (the rig configuration's or a sequence's reader, under
-    the key ``root``); errors (the checker's) name the line, the channel and the key."""
+    the key ``root``); errors (the checker's) name the line, the channel and the key. With ``link_timeout_s`` (the
+    rig's ``[controller]``, s), a ``link.age`` level must be below it (the link is lost before it would trip)."""
     if value is None:
         return LimitDetectors()
     groups = sorted({channel.split(".")[0] for channel in CHANNELS})
@@ -150,11 +157,12 @@ def read_limit_detectors(checker: TomlChecker, value: Any, root: str = "limit_de
     for group, members in top.items():
         allowed = [channel.split(".")[1] for channel in CHANNELS if channel.startswith(f"{group}.")]
         for member, keys in checker.table(members, (root, group), allowed).items():
-            detectors.append(_detector(checker, (root, group, member), f"{group}.{member}", keys))
+            detectors.append(_detector(checker, (root, group, member), f"{group}.{member}", keys, link_timeout_s))
     return LimitDetectors(tuple(detectors))
 
 
-def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: Any) -> Detector:
+def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: Any,
+              link_timeout_s: float | None = None) -> Detector:
     quantity = CHANNELS[channel]
     if not isinstance(value, Mapping):
         raise checker.error(path, f"expected a table of levels, got {shown(value)}")
@@ -167,6 +175,9 @@ def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: 
             raise checker.error((*path, key), f"unknown key; expected a level ({', '.join(LEVELS)}) with its unit "
                                               f"(e.g. {LEVELS[-1]}_{next(iter(quantity.units))}), persistence or "
                                               "action")
+        if not quantity.lows and level.endswith("low"):
+            raise checker.error((*path, key), f"{channel} takes no low level (a status is never too recent): "
+                                              "expected warn_high or abort_high")
         unit = key.removeprefix(f"{level}_")
         if unit not in quantity.units:
             raise checker.error((*path, key), f"unit {unit!r} does not fit {channel}, {quantity.name}: expected "
@@ -175,9 +186,13 @@ def _detector(checker: TomlChecker, path: tuple[str, ...], channel: str, value: 
             raise checker.error((*path, key), f"{level} is given twice (in two units)")
         factor = quantity.units[unit]
         si = checker.real(raw, (*path, key), f"a number in {unit}") * factor
-        if not (math.isfinite(si) and abs(si) <= quantity.bound):
+        if not (math.isfinite(si) and abs(si) <= quantity.bound and (quantity.lows or si > 0)):
             raise checker.error((*path, key), f"expected {quantity.name} within {quantity.bound_text}, got "
                                               f"{shown(raw)}")
+        if channel == "link.age" and link_timeout_s is not None and si >= link_timeout_s:
+            raise checker.error((*path, key), f"{level} ({si:g} s) must be below [controller] link_timeout_s "
+                                              f"({link_timeout_s:g} s): the link is lost, and the session ends, "
+                                              "before it would trip")
         levels[level] = si
     if not levels:
         raise checker.error(path, f"no level: give at least one of {', '.join(LEVELS)} with its unit")

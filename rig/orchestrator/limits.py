@@ -6,12 +6,18 @@ controller's statuses (pose; the velocity between consecutive statuses; the legs
 the :class:`Trip` of every level passed for its detector's persistence. Each level of each channel instance
 (``accel.0.x``: accelerometer 0's x; ``tilt.2.angle``: body 2's tilt sensor; ``pose.heave``; ``velocity.roll``;
 ``leg.3.following_error``: leg 3's) trips at most once per run. Times are the run's [s]; values and levels SI
-(m/s², m, rad, m/s, rad/s).
+(m/s², m, rad, m/s, rad/s, s).
+
+``link.age`` (:class:`LinkAge`) is the host's own: the age of the latest status on the host's clock, sampled every
+:data:`LINK_AGE_PERIOD_NS` of host time from the run's first status on, whether statuses come or not (the recorder
+calls :meth:`LimitWatch.link` from its loop, at least every 20 ms, with the statuses' arrival times).
 """
 
 from __future__ import annotations
 
 import math
+from collections import deque
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -83,6 +89,48 @@ class ChannelWatch:
         return sorted(trips, key=lambda trip: trip.t)
 
 
+LINK_AGE_PERIOD_NS = 10_000_000
+"""How often ``link.age`` is sampled [ns, host time]: half a status period at 50 statuses a second, so a
+persistence counts 10 ms steps."""
+
+
+class LinkAge:
+    """The ``link.age`` samples: at host times ``first arrival + k × period`` [ns], the age of the latest status
+    that had arrived by then [s] and the run time of the sample (that status's run time plus its age: the
+    controller's clock carried on by the host's). Samples are taken up to the ``now`` the caller gives, so a silent
+    link yields samples as well as a lively one, and the caller's loop only decides how soon they are seen."""
+
+    def __init__(self, period_ns: int = LINK_AGE_PERIOD_NS) -> None:
+        self.period_ns = period_ns
+        self._latest: tuple[int, float] | None = None  # (host ns, run time [s]) of the latest status sampled
+        self._pending: deque[tuple[int, float]] = deque()  # arrived after the last sample's host time
+        self._next_ns: int | None = None
+
+    def arrived(self, host_ns: int, t: float) -> None:
+        """A status of run time ``t`` [s] arrived at host monotonic time ``host_ns`` [ns]."""
+        if self._next_ns is None:
+            self._latest, self._next_ns = (host_ns, t), host_ns + self.period_ns
+        else:  # one stamped before a sample already taken is the latest for the samples to come, if none is newer
+            self._pending.append((host_ns, t))
+
+    def sample(self, now_ns: int) -> tuple[np.ndarray, np.ndarray]:
+        """The samples due up to host time ``now_ns`` [ns]: their run times [s] and ages [s]."""
+        times: list[float] = []
+        ages: list[float] = []
+        while self._next_ns is not None and self._next_ns <= now_ns:
+            while self._pending and self._pending[0][0] <= self._next_ns:
+                candidate = self._pending.popleft()
+                assert self._latest is not None
+                if candidate[0] >= self._latest[0]:
+                    self._latest = candidate
+            assert self._latest is not None
+            age = (self._next_ns - self._latest[0]) * 1e-9
+            times.append(self._latest[1] + age)
+            ages.append(age)
+            self._next_ns += self.period_ns
+        return np.array(times), np.array(ages)
+
+
 class LimitWatch:
     """The run's detectors (module docstring): fed by the run recorder, one instance per run."""
 
@@ -90,6 +138,7 @@ class LimitWatch:
         self._detectors = {d.channel: d for d in detectors.detectors}
         self._watches: dict[str, ChannelWatch] = {}
         self._velocity = StatusVelocity()
+        self._link_age = LinkAge()
 
     def _watch(self, channel: str, name: str) -> ChannelWatch | None:
         detector = self._detectors.get(channel)
@@ -131,6 +180,16 @@ class LimitWatch:
             trips += self._feed(f"pose.{axis}", f"pose.{axis}", t, pose[:, k])
             trips += self._feed(f"velocity.{axis}", f"velocity.{axis}", t_velocity, velocity[:, k])
         return sorted(trips, key=lambda trip: trip.t)
+
+    def link(self, arrivals: Iterable[tuple[int, float]], now_ns: int) -> list[Trip]:
+        """``link.age`` (:class:`LinkAge`) up to host monotonic time ``now_ns`` [ns], after the statuses that
+        arrived since the last call: (host ns of the arrival, run time [s]) each."""
+        if "link.age" not in self._detectors:
+            return []
+        for host_ns, t in arrivals:
+            self._link_age.arrived(host_ns, t)
+        t_samples, ages = self._link_age.sample(now_ns)
+        return self._feed("link.age", "link.age", t_samples, ages)
 
 
 FAULT_LIMITS = {

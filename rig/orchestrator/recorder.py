@@ -167,7 +167,9 @@ class RunRecorder:
         return (np.asarray(t_ns) - self._t0_ns) * 1e-9
 
     def _drain(self, first: list[AccelBatch] | None = None) -> None:
-        """Write (and check) everything received, after ``first`` (batches already taken from the queue)."""
+        """Write (and check) everything received, after ``first`` (batches already taken from the queue); then
+        the link's age up to the host time before the statuses were taken (``link.age``)."""
+        now_ns = time.monotonic_ns()
         for batch in [*(first or []), *self._accel.drain()]:
             self._write_accel(batch)
         for tilt in self._tilts.drain():
@@ -183,6 +185,9 @@ class RunRecorder:
             self._write_controller_text(text)
         for fault in self._faults.drain():
             self._write_fault(fault)
+        if self.limits is not None:
+            self._tripped(self.limits.link(
+                [(s.host_ns, float(self._seconds(s.t_ns))) for s in statuses], now_ns))
 
     def _write_accel(self, batch: AccelBatch) -> None:
         name = self.sensors.get(batch.sensor_id)

@@ -449,7 +449,7 @@ def read_mapping(data: Mapping[str, Any], source: str, lines: Mapping[KeyPath, i
         reader.string(top["source"], ("source",), empty=True)
     table = reader.rig(top["rig"]) if "rig" in top else TableModel()
     if "limit_detectors" in top:  # the sequence's detectors replace the rig's of the same channel
-        overrides = read_limit_detectors(reader, top["limit_detectors"])
+        overrides = read_limit_detectors(reader, top["limit_detectors"], link_timeout_s=table.link.link_timeout_s)
         table = replace(table, detectors=table.detectors.overridden(overrides))
     plate = reader.plate(top["plate"]) if "plate" in top else DEFAULT_PLATE
     fields: dict[str, Any] = {

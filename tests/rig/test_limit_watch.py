@@ -1,5 +1,6 @@
 """The limit detectors' evaluation on the host (rig/orchestrator/limits.py): persistence across batches, warning
-and abort levels, one trip per level and run, the channels' instances, the velocity between statuses."""
+and abort levels, one trip per level and run, the channels' instances, the velocity between statuses, the
+link's age on a stepped host clock."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import numpy as np
 import pytest
 
 from analysis.table.limit_detectors import Detector, LimitDetectors
-from rig.orchestrator.limits import ChannelWatch, LimitWatch, Trip, first_trip
+from rig.orchestrator.limits import LINK_AGE_PERIOD_NS, ChannelWatch, LimitWatch, Trip, first_trip
 
 
 @pytest.mark.parametrize(("past", "carry", "persistence", "expected"), [
@@ -78,3 +79,42 @@ def test_each_leg_s_following_error_is_its_own_instance() -> None:
     trips = watch.following_errors(np.array([0.0, 0.02, 0.04, 0.06]), errors)
     assert trips == [Trip("leg.3.following_error", "abort_high", 0.003, 0.002, "m", 0.04, "controlled_stop")]
     assert trips[0].text() == "limit leg.3.following_error: 0.003 m past abort high 0.002 m: controlled_stop (host)"
+
+
+MS = 1_000_000
+"""A millisecond [ns]."""
+
+
+def test_the_link_s_age_is_sampled_on_the_host_s_clock_whether_statuses_come_or_not() -> None:
+    """A stepped host clock: statuses every 20 ms of run and host time, the host's loop looking 3 ms after each;
+    one status 45 ms late (the age passes the warning level at one sample only), then silence."""
+    assert LINK_AGE_PERIOD_NS == 10 * MS  # samples at the first arrival + 10 ms, + 20 ms, …
+    watch = LimitWatch(LimitDetectors((
+        Detector("link.age", warn_high=0.055, abort_high=0.1, persistence=2, action="controlled_stop"),)))
+    origin = 1_000 * MS  # host monotonic time the run's status of t = 0 arrived
+    trips = watch.link([(origin, 0.0)], origin)
+    for k in range(1, 5):  # on time: ages of 0 and 10 ms
+        trips += watch.link([(origin + k * 20 * MS, k * 0.02)], origin + k * 20 * MS + 3 * MS)
+    # the status of run time 0.10 s arrives at 145 ms, not 100 ms: the samples at 130 ms (50 ms old) and 140 ms
+    # (60 ms: past the warning level, once) see it missing; the host's loop saw nothing come at 103, 123, 143 ms
+    for now in (103, 123, 143):
+        trips += watch.link([], origin + now * MS)
+    trips += watch.link([(origin + 145 * MS, 0.10), (origin + 146 * MS, 0.12)], origin + 150 * MS)
+    assert trips == []  # a single late status: a persistence of 2 ignores it
+    # then silence after the status that arrived at 146 ms: the host's own loop finds the age growing
+    assert watch.link([], origin + 210 * MS) == []  # 200 ms: 54 ms old; 210 ms: 64 ms, once
+    trips = watch.link([], origin + 230 * MS)  # 220 ms: 74 ms, twice in a row
+    assert trips == [Trip("link.age", "warn_high", pytest.approx(0.074), 0.055, "s", pytest.approx(0.194), "record")]
+    trips = watch.link([], origin + 260 * MS)  # 250 ms: 104 ms; 260 ms: 114 ms
+    assert trips == [Trip("link.age", "abort_high", pytest.approx(0.114), 0.1, "s", pytest.approx(0.234),
+                          "controlled_stop")]  # the run time: the latest status's (0.12 s) plus its age
+    assert trips[0].text() == "limit link.age: 0.114 s past abort high 0.1 s: controlled_stop (host)"
+    assert watch.link([(origin + 270 * MS, 0.24)], origin + 400 * MS) == []  # each level trips once per run
+
+
+def test_a_status_stamped_before_a_sample_already_taken_still_counts_for_the_next() -> None:
+    watch = LimitWatch(LimitDetectors((Detector("link.age", warn_high=0.015),)))
+    assert watch.link([(0, 0.0)], 15 * MS) == []  # the sample at 10 ms: 10 ms old
+    assert watch.link([(14 * MS, 0.014)], 20 * MS) == []  # at 20 ms, 6 ms old (not 20 ms)
+    assert watch.link([], 30 * MS) == [Trip("link.age", "warn_high", pytest.approx(0.016), 0.015, "s",
+                                            pytest.approx(0.030), "record")]

@@ -5,6 +5,7 @@ run log a real session file."""
 
 from __future__ import annotations
 
+import time
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -149,3 +150,28 @@ def test_a_controller_trip_that_comes_after_the_stopping_status_is_still_timed(t
                      "controller)",
                      "limit accel.0.x: the table was stopping 4.0 ms after the crossing (table time; tripped by the "
                      "host)"]
+
+
+def test_a_silent_link_trips_link_age_from_the_recorder_s_own_loop(tmp_path: Path) -> None:
+    """One status, then none: no sample arrives, yet the recorder's loop (which wakes at least every
+    ``POLL_SECONDS``) samples the link's age every 10 ms of host time, and the abort level is acted on once, at the
+    second sample past it (persistence 2), however late the loop looked."""
+    table = FeedbackTable()
+    log = SessionLog.create(tmp_path / "s.h5", rig_config={"test": True}, sequence={"name": "limits"},
+                            software_version="test")
+    run_log = log.begin_run(0, record="r", scale_factor=1.0, angle_deg=0.0, commanded=np.zeros((2, 7)), bodies=[],
+                            sensors=[])
+    acted: list[Trip] = []
+    limits = LimitWatch(LimitDetectors((Detector("link.age", abort_high=0.05, persistence=2),)))
+    recorder = RunRecorder(table, run_log, {}, [], Progress(runs_total=1),  # type: ignore[arg-type]
+                           limits=limits, on_trip=acted.append)
+    recorder.start(0)
+    table.feedback.publish_status(replace(status(1_000_000, "streaming"), host_ns=time.monotonic_ns()))
+    recorder.finish(0.3)  # the link stays silent for at least this long
+    run_log.end("aborted", reason="limit link.age")
+    log.close()
+    [trip] = acted
+    assert (trip.channel, trip.level, trip.action, trip.source) == ("link.age", "abort_high", "controlled_stop", "host")
+    assert 0.05 < trip.value < 0.08 and trip.t == pytest.approx(0.001 + trip.value)
+    (run,) = read_session(tmp_path / "s.h5")["runs"]
+    assert [event["text"] for event in run["events"]] == [trip.text()]
