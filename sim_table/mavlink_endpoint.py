@@ -145,12 +145,60 @@ class LinkCounters:
     status_sent: int = 0
 
 
+KERNEL_STAMPS_WAIT = 2.0
+"""Longest wait for the kernel to start stamping datagrams as they arrive [s, real time] (:func:`_await_kernel_stamps`;
+past it, the datagrams that came before are stamped when read)."""
+
+
 def _enable_kernel_stamps(sock: socket.socket) -> None:
     """Ask for the kernel's receive stamp on every datagram of ``sock`` where the platform gives one (without it,
-    :meth:`MavlinkEndpoint._arrival` stamps a datagram when it is read)."""
+    :meth:`MavlinkEndpoint._arrival` stamps a datagram when it is read), and wait until the kernel gives it."""
     if _SO_TIMESTAMPNS is not None:
         with contextlib.suppress(OSError):
             sock.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            _await_kernel_stamps()
+
+
+def _stamp_of(ancillary: list[tuple[int, int, bytes]]) -> int | None:
+    """The kernel's receive stamp [ns, real-time clock] among a datagram's control messages, if there is one."""
+    for level, kind, data in ancillary:
+        if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(data) >= struct.calcsize("ll"):
+            seconds, nanoseconds = struct.unpack_from("ll", data)
+            return seconds * 1_000_000_000 + nanoseconds
+    return None
+
+
+def _await_kernel_stamps() -> bool:
+    """Wait until the kernel stamps datagrams when they arrive; whether it does (False after
+    :data:`KERNEL_STAMPS_WAIT` s, or without a loopback interface).
+
+    Linux stamps arriving packets only while some socket of the machine asks for stamps, and the first one to ask
+    turns the stamping on from a kernel worker thread, later: a datagram that arrives before gets, when read, the
+    time of the read (``__sock_recv_timestamp``: "race occurred between timestamp enabling and packet receiving").
+    On a loaded machine that thread can wait long enough for a host's first datagrams to count when they are read
+    (a stall: late), not when they came (tests/emulator/test_mavlink_endpoint.py). So a datagram is sent to a probe
+    socket that asks for stamps, until one comes stamped before it was read."""
+    if _SO_TIMESTAMPNS is None:
+        return False
+    deadline = time.monotonic() + KERNEL_STAMPS_WAIT
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as probe, \
+                socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sender:
+            probe.bind(("127.0.0.1", 0))
+            probe.setsockopt(socket.SOL_SOCKET, _SO_TIMESTAMPNS, 1)
+            while True:
+                sender.sendto(b"", probe.getsockname())
+                if select.select([probe], [], [], KERNEL_STAMPS_WAIT)[0]:
+                    read_at = time.time_ns()
+                    _, ancillary, _, _ = probe.recvmsg(1, _STAMP_SPACE)
+                    stamp = _stamp_of(ancillary)
+                    if stamp is not None and stamp < read_at:  # stamped on arrival, not by the read
+                        return True
+                if time.monotonic() >= deadline:
+                    return False
+                time.sleep(0.001)
+    except OSError:
+        return False
 
 
 class MavlinkEndpoint(BatchedTelemetry):
@@ -275,11 +323,8 @@ class MavlinkEndpoint(BatchedTelemetry):
         """Host monotonic time [ns] at which a datagram with these control messages reached the socket: the
         kernel's real-time stamp moved onto the monotonic clock (never later than now), else now."""
         now = time.monotonic_ns()
-        for level, kind, data in ancillary:
-            if level == socket.SOL_SOCKET and kind == _SO_TIMESTAMPNS and len(data) >= struct.calcsize("ll"):
-                seconds, nanoseconds = struct.unpack_from("ll", data)
-                return min(now, seconds * 1_000_000_000 + nanoseconds - (time.time_ns() - now))
-        return now
+        stamp = _stamp_of(ancillary)
+        return now if stamp is None else min(now, stamp - (time.time_ns() - now))
 
     def _parse(self, data: bytes) -> list[Any]:
         """The messages of one datagram, signatures checked (flagged, not dropped: stopping needs none)."""

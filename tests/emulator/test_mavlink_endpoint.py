@@ -36,6 +36,33 @@ def arm_heartbeats_of(endpoint: MavlinkEndpoint, host: UdpLink) -> None:
     assert core.state is State.ARMED
 
 
+def test_a_heartbeat_sent_as_soon_as_the_endpoint_exists_counts_at_the_time_it_came() -> None:
+    """Linux stamps arriving packets only while a socket of the machine asks for stamps, and turns the stamping on
+    from a kernel thread after the first one asks: a datagram that comes before is stamped when it is read. The
+    endpoint waits for the stamping in its constructor, so a heartbeat sent at once and read after a stall counts
+    at the time it came (before, on a loaded machine, the first heartbeat of the test below was stamped at the
+    read, 150 ms late, and held all five back). Each round starts after a pause that lets the kernel turn the
+    stamping off again when no other socket asks for it."""
+    key = secrets.token_bytes(32)
+    d = dialect()
+    for _ in range(10):
+        time.sleep(0.1)
+        endpoint = MavlinkEndpoint(("127.0.0.1", 0), key, clock=lambda ns: ns)
+        host = UdpLink.open(peer=endpoint.address, source_system=255, source_component=190, key=key, link_id=1)
+        try:
+            before = time.monotonic_ns()
+            host.send(d.MAVLink_heartbeat_message(d.MAV_TYPE_GCS, d.MAV_AUTOPILOT_INVALID, 0, 0,
+                                                  d.MAV_STATE_ACTIVE, 3))
+            after = time.monotonic_ns()
+            time.sleep(STALL_NS * 1e-9)
+            arrivals = [arrival for arrival, _ in endpoint.take(time.monotonic_ns())]
+        finally:
+            host.sock.close()
+            endpoint.close()
+        assert len(arrivals) == 1, endpoint.counters
+        assert before - 1_000_000 <= arrivals[0] <= after + 1_000_000
+
+
 def test_heartbeats_read_after_a_stall_count_at_the_times_they_came() -> None:
     """The endpoint's receive thread not started (its process not scheduled, as on a loaded machine): five
     heartbeats 20 ms apart wait in the socket; 150 ms after the last one the tick thread's ``take`` drains them,
