@@ -54,9 +54,10 @@ def test_the_levels_that_stop_the_table_are_downloaded_before_each_run(tmp_path:
     runner, table = orchestrator(tmp_path), Controller(None)
     said = [runner._download_limits(table) for _ in range(2)]  # type: ignore[arg-type]
     assert said == ["limit detectors on the controller: accel.x abort high 0.4905 m/s², accel.z abort low "
-                    "4.905 m/s²"] * 2
+                    "4.905 m/s², pose.heave abort high 0.1 m"] * 2
     assert table.given[0] == (ControllerLevel("accel.x", "abort_high", 0.05 * 9.81, 3, "controlled_stop"),
-                              ControllerLevel("accel.z", "abort_low", 0.5 * 9.81, 1, "emergency_stop"))
+                              ControllerLevel("accel.z", "abort_low", 0.5 * 9.81, 1, "emergency_stop"),
+                              ControllerLevel("pose.heave", "abort_high", 0.1, 1, "controlled_stop"))
 
 
 def test_a_controller_that_cannot_take_them_leaves_the_host_to_act_said_once(tmp_path: Path) -> None:
