@@ -236,26 +236,37 @@ def _tilts(checker: TomlChecker, value: Any) -> dict[str, TiltSheet]:
     return tilts
 
 
+def _full_scale(checker: TomlChecker, table: Mapping[str, Any], path: tuple[str, ...], units: dict[str, float],
+                limits: tuple[float, float], kind: str, high_format: str) -> float:
+    """A sheet's ``range`` in its ``range_unit`` (one of ``units``: the SI value of one unit), checked against
+    ``limits`` [SI] and returned in SI units; ``kind`` names the unit wanted in the error."""
+    unit = table["range_unit"]
+    if unit not in units:
+        raise checker.error((*path, "range_unit"), f"expected {kind}, one of {', '.join(units)}, got {shown(unit)}")
+    factor = units[unit]
+    low, high = limits
+    return checker.ranged(table["range"], (*path, "range"), low / factor * (1 - 1e-12), high / factor * (1 + 1e-12),
+                          f"a full scale from {low / factor:.4g} to {high / factor:{high_format}} {unit}") * factor
+
+
+def _calibration_dates(checker: TomlChecker, table: Mapping[str, Any], path: tuple[str, ...]) -> tuple[date, date]:
+    """A sheet's ``calibrated`` and ``due`` dates, the due date after the calibration."""
+    calibrated = _date(checker, table["calibrated"], (*path, "calibrated"))
+    due = _date(checker, table["due"], (*path, "due"))
+    if due <= calibrated:
+        raise checker.error((*path, "due"), f"due date {due.isoformat()} is not after the calibration date "
+                                            f"{calibrated.isoformat()}")
+    return calibrated, due
+
+
 def _tilt_sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> TiltSheet:
     table = checker.table(value, path, _TILT_KEYS)
     missing = [key for key in _TILT_KEYS if key not in table]
     if missing:
         raise checker.error(path, f"missing {', '.join(missing)}")
     text = {key: _text(checker, table[key], (*path, key)) for key in ("model", "serial")}
-    unit = table["range_unit"]
-    if unit not in TILT_RANGE_UNITS:
-        raise checker.error((*path, "range_unit"), f"expected an angle unit, one of {', '.join(TILT_RANGE_UNITS)}, "
-                                                   f"got {shown(unit)}")
-    factor = TILT_RANGE_UNITS[unit]
-    low, high = TILT_RANGE_RAD
-    full_scale = checker.ranged(table["range"], (*path, "range"), low / factor * (1 - 1e-12),
-                                high / factor * (1 + 1e-12),
-                                f"a full scale from {low / factor:.4g} to {high / factor:.5g} {unit}") * factor
-    calibrated = _date(checker, table["calibrated"], (*path, "calibrated"))
-    due = _date(checker, table["due"], (*path, "due"))
-    if due <= calibrated:
-        raise checker.error((*path, "due"), f"due date {due.isoformat()} is not after the calibration date "
-                                            f"{calibrated.isoformat()}")
+    full_scale = _full_scale(checker, table, path, TILT_RANGE_UNITS, TILT_RANGE_RAD, "an angle unit", ".5g")
+    calibrated, due = _calibration_dates(checker, table, path)
     return TiltSheet(path[-1], text["model"], text["serial"], full_scale, calibrated, due, checker.source,
                      checker.line((*path, "due")))
 
@@ -272,20 +283,8 @@ def _sheet(checker: TomlChecker, path: tuple[str, ...], value: Any) -> SensorShe
                                                          f"{', '.join(SENSITIVITY_UNITS)}, got {shown(unit)}")
     sensitivity = checker.ranged(table["sensitivity"], (*path, "sensitivity"), *SENSITIVITY_RANGE,
                                  f"a sensitivity from {SENSITIVITY_RANGE[0]:g} to {SENSITIVITY_RANGE[1]:g} {unit}")
-    range_unit = table["range_unit"]
-    if range_unit not in RANGE_UNITS:
-        raise checker.error((*path, "range_unit"), f"expected an acceleration unit, one of {', '.join(RANGE_UNITS)}, "
-                                                   f"got {shown(range_unit)}")
-    factor = RANGE_UNITS[range_unit]
-    low, high = RANGE_M_S2
-    full_scale = checker.ranged(table["range"], (*path, "range"), low / factor * (1 - 1e-12),
-                                high / factor * (1 + 1e-12),
-                                f"a full scale from {low / factor:.4g} to {high / factor:.4g} {range_unit}") * factor
-    calibrated = _date(checker, table["calibrated"], (*path, "calibrated"))
-    due = _date(checker, table["due"], (*path, "due"))
-    if due <= calibrated:
-        raise checker.error((*path, "due"), f"due date {due.isoformat()} is not after the calibration date "
-                                            f"{calibrated.isoformat()}")
+    full_scale = _full_scale(checker, table, path, RANGE_UNITS, RANGE_M_S2, "an acceleration unit", ".4g")
+    calibrated, due = _calibration_dates(checker, table, path)
     place = table["place_m"]
     if not isinstance(place, list) or len(place) != 3:
         raise checker.error((*path, "place_m"), f"expected [x, y, z] in metres (plate frame), got {shown(place)}")
