@@ -18,6 +18,7 @@ import shlex
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -27,13 +28,14 @@ from typer.testing import Result
 
 from drivers.controller import open_table
 from rig.cli import app
-from rig.emulator import EmulatorProcess, specimen_flags
+from rig.emulator import EmulatorProcess
 from rig.orchestrator.bodies import mismatch
-from rig.sequence import load_sequence
+from rig.sequence import Sequence, load_sequence
 from rig.session import read_session
 from tests.helpers.cli import rig
 from tests.helpers.processes import HEAVY, start_tiny
 from tests.helpers.sequences import TINY
+from tests.helpers.tables import SharedTable
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = [sys.executable, "-m", "rig.cli"]
@@ -101,22 +103,22 @@ def test_after_a_crash_the_recover_hint_and_then_the_resume_hint_work_as_printed
 
 
 @pytest.mark.integration
-def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, key_file: Path) -> None:
-    """A session on a table URL stores it; when it stops early the hint (with its key file) reaches that table."""
-    (tmp_path / "tiny.toml").write_text(TINY)
-    sequence = load_sequence(tmp_path / "tiny.toml")
-    with EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
-                               key_file=key_file) as emulator:
-        stopped = rig("run", "tiny.toml", "--table", emulator.url, "--key-file", str(key_file), "-o", "s.h5",
-                      cwd=tmp_path, stdin="n\n")
-        assert stopped.exit_code == 1, stopped.stderr + stopped.stdout
-        hint = re.search(r"continue it with (rig run .*)$", stopped.stdout, re.MULTILINE)
-        assert hint is not None and f"--key-file {key_file}" in hint.group(1)
-        assert read_session(tmp_path / "s.h5")["attrs"]["table"] == json.dumps({"url": emulator.url})
-        done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)
+def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, tiny: Sequence,
+                                                                body_table: Callable[..., SharedTable]) -> None:
+    """A session on a table URL stores it; when it stops early the hint (with its key file) reaches that table (the
+    session's emulator with the sequence's bodies, ``body_table``)."""
+    table = body_table(tiny)
+    key_file = table.key_file
+    stopped = rig("run", "tiny.toml", "--table", table.url, "--key-file", str(key_file), "-o", "s.h5",
+                  cwd=tmp_path, stdin="n\n")
+    assert stopped.exit_code == 1, stopped.stderr + stopped.stdout
+    hint = re.search(r"continue it with (rig run .*)$", stopped.stdout, re.MULTILINE)
+    assert hint is not None and f"--key-file {key_file}" in hint.group(1)
+    assert read_session(tmp_path / "s.h5")["attrs"]["table"] == json.dumps({"url": table.url})
+    done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)
     assert done.exit_code == 0, done.stderr + done.stdout  # the hint reached the table and played on it
     runs = read_session(tmp_path / "s.h5")["runs"]
-    assert {r["attrs"]["table_url"] for r in runs} == {emulator.url}
+    assert {r["attrs"]["table_url"] for r in runs} == {table.url}
     assert [r["status"] for r in runs] == ["completed", "completed"]
 
 
