@@ -469,6 +469,39 @@ class ControllerCore:
         self._p = pose
         return pose, False
 
+    def play_buffered(self, times: list[int], start: int, stop: int) -> list[np.ndarray]:
+        """Tick through ``times[start:stop]`` [ns] while each tick is a plain stream tick: streaming, no gap
+        awaited, the watchdogs quiet, the buffer's first sample due at the tick itself and another buffered after
+        it. Such a tick is what :meth:`tick` does (its reference is that sample, never braked) and nothing else:
+        no event, fault or state change. The references (6,) of the ticks run, from ``times[start]`` on; stops at
+        the first tick that is not plain (for :meth:`tick`), so the caller runs that one through :meth:`tick`."""
+        if self.state is not State.STREAMING or self._gaps:
+            return []
+        buffer = self._buffer
+        watchdog, heartbeat, silent = self.watchdog_ns, self._last_heartbeat, self._last_chunk
+        if heartbeat is None:
+            return []
+        if self._end_ns is not None:  # the last chunk came: STREAM_SILENT no longer watches
+            silent = None
+        link_clock = self._link_clock
+        played: list[np.ndarray] = []
+        anchor = self._anchor
+        for t in times[start:stop]:
+            if len(buffer) < 2 or buffer[0][0] != t:
+                break
+            now = t if link_clock is None else link_clock()
+            if now - heartbeat > watchdog or (silent is not None and now - silent > watchdog):
+                break
+            anchor = buffer.popleft()
+            played.append(anchor[1])
+        if played:  # the state the last of these ticks leaves, as tick() leaves it
+            count = len(played)
+            before, p_before = (self._t, self._p) if count == 1 else (times[start + count - 2], played[-2])
+            self._dt = (times[start + count - 1] - before) * 1e-9 if before is not None else self.tick_ns * 1e-9
+            self._p_before, self._p = p_before, played[-1]
+            self._anchor, self._t, self._dry = anchor, times[start + count - 1], False
+        return played
+
     def take_events(self) -> list[StateChange | Done | Refused | ControllerTrip]:
         """State changes, completed commands, refused chunks and limit trips since the last call, in order."""
         events, self._events = self._events, []
