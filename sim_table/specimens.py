@@ -47,6 +47,10 @@ LYING = 0.5 * math.pi - 0.05
 """Cap of the overturn threshold [rad]: a body within 0.05 rad of lying on its side has overturned."""
 
 
+_CONTROL = mujoco.mjtState.mjSTATE_QFRC_APPLIED.value
+"""What a rollout's controls are: each step's generalised applied force (nv,)."""
+
+
 class Overturn(NamedTuple):
     """One detected overturn: time [s], index of the specimen, direction (+1 low side / −1 high side)."""
 
@@ -80,6 +84,10 @@ class SpecimenScene:
                                      min(s.body.alpha_minus + overturn_margin, LYING)] for s in self.specimens])
         """|θ| at which each specimen counts as overturned [rad], (n, 2): leaning towards +x (column 0) or −x."""
         self._order = np.array(PLATE_QPOS_ORDER)
+        self._state_size = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        self._roller = rollout.Rollout(nthread=0)
+        """``mujoco.rollout`` on this thread, kept: each batch's call skips the wrapper's checks and allocations
+        (the arrays are made to its shapes here), the same C rollout."""
         self._plate = self.model.body("plate").id
         self._bodies = np.array([self.model.body(f"specimen{i}").id for i in range(len(self.specimens))])
         self._sample = (0.0, np.zeros(6), np.zeros(6))
@@ -248,14 +256,17 @@ class SpecimenScene:
         step, the impact scaled, and the rest of the batch stepped from there."""
         m, d = self.model, self.data
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        state = np.empty(mujoco.mj_stateSize(m, spec))
+        state = np.empty((1, self._state_size))
         parts, angle_parts = [], []
         start = 0
         while start < len(force):
-            mujoco.mj_getState(m, d, state, spec)
-            states = rollout.rollout(m, d, state[None], force[None, start:],
-                                     control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED,
-                                     initial_warmstart=d.qacc_warmstart.copy()[None])[0][0]
+            mujoco.mj_getState(m, d, state[0], spec)
+            steps = len(force) - start
+            rolled = np.empty((1, steps, self._state_size))
+            self._roller.rollout([m], [d], state, np.ascontiguousarray(force[None, start:]), control_spec=_CONTROL,
+                                 skip_checks=True, nstep=steps, initial_warmstart=d.qacc_warmstart.copy()[None],
+                                 state=rolled, sensordata=np.empty((1, steps, m.nsensordata)))
+            states = rolled[0]
             self._lap("physics")
             angles = _specimen_angles(states[:, 1:1 + m.nq], len(self.specimens))
             hit = self._impacts.first(angles, self._standing) if self._impacts.active else None
