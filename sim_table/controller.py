@@ -391,9 +391,12 @@ class ControllerCore:
                                                "spaced > 0 ns")
         t_end_ns = t_start_ns + spacing_ns * (len(samples) - 1)
         buffer = self._buffer
-        i = bisect.bisect_left(buffer, t_start_ns, key=lambda item: item[0])
+        if not buffer or t_start_ns > buffer[-1][0]:  # the usual chunk, after everything buffered: as the bisects
+            i = j = len(buffer)
+        else:
+            i = bisect.bisect_left(buffer, t_start_ns, key=lambda item: item[0])
+            j = bisect.bisect_right(buffer, t_end_ns, key=lambda item: item[0])
         before = buffer[i - 1] if i > 0 else self._anchor
-        j = bisect.bisect_right(buffer, t_end_ns, key=lambda item: item[0])
         after = buffer[j] if j < len(buffer) else None
         previous = None if before is None else (before[1], (t_start_ns - before[0]) * 1e-9)
         following = None if after is None else (after[1], (after[0] - t_end_ns) * 1e-9)
