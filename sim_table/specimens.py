@@ -88,9 +88,9 @@ class SpecimenScene:
         self._order = np.array(PLATE_QPOS_ORDER)
         self._state_size = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
         self._roller = rollout.Rollout(nthread=0)
-        load_plate_path()
         """``mujoco.rollout`` on this thread, kept: each batch's call skips the wrapper's checks and allocations
         (the arrays are made to its shapes here), the same C rollout."""
+        load_plate_path()  # compiled (or loaded) now, not in the first batch
         self._plate = self.model.body("plate").id
         self._bodies = np.array([self.model.body(f"specimen{i}").id for i in range(len(self.specimens))])
         self._sample = (0.0, np.zeros(6), np.zeros(6))
