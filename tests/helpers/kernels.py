@@ -17,8 +17,10 @@ import numpy as np
 from analysis import Body
 from analysis.simulate import simulate
 from analysis.table.model import TableModel
+from analysis.table.setpoint_screen import SetpointScreen
 from sim_table.actuators import ActuatorSettings
 from sim_table.dynamics import make_actuators
+from sim_table.forward_kinematics import ForwardKinematics
 
 
 def general_engine() -> None:
@@ -27,7 +29,10 @@ def general_engine() -> None:
 
 
 def rocking_engine_and_legs() -> None:
-    """The rocking model's fast engine, the emulator's servo and lag legs and its forward kinematics."""
+    """The rocking model's fast engine, the emulator's servo and lag legs, its forward kinematics and the setpoint
+    screen (the last two compile in their constructors)."""
+    ForwardKinematics(TableModel())
+    SetpointScreen(TableModel())
     simulate(Body.from_p_alpha(2.0, 0.2), np.zeros(3), 0.01, model="rocking", solver="fast", theta0=0.1)
     for kind in ("servo", "lag"):
         legs = make_actuators(kind, TableModel(), 1e-3, ActuatorSettings(noise=0.0), payload=50.0)
