@@ -391,9 +391,12 @@ class ControllerCore:
                                                "spaced > 0 ns")
         t_end_ns = t_start_ns + spacing_ns * (len(samples) - 1)
         buffer = self._buffer
-        i = bisect.bisect_left(buffer, t_start_ns, key=lambda item: item[0])
+        if not buffer or t_start_ns > buffer[-1][0]:  # the usual chunk, after everything buffered: as the bisects
+            i = j = len(buffer)
+        else:
+            i = bisect.bisect_left(buffer, t_start_ns, key=lambda item: item[0])
+            j = bisect.bisect_right(buffer, t_end_ns, key=lambda item: item[0])
         before = buffer[i - 1] if i > 0 else self._anchor
-        j = bisect.bisect_right(buffer, t_end_ns, key=lambda item: item[0])
         after = buffer[j] if j < len(buffer) else None
         previous = None if before is None else (before[1], (t_start_ns - before[0]) * 1e-9)
         following = None if after is None else (after[1], (after[0] - t_end_ns) * 1e-9)
@@ -468,6 +471,39 @@ class ControllerCore:
         self._p_before, self._dt = self._p, dt
         self._p = pose
         return pose, False
+
+    def play_buffered(self, times: list[int], start: int, stop: int) -> list[np.ndarray]:
+        """Tick through ``times[start:stop]`` [ns] while each tick is a plain stream tick: streaming, no gap
+        awaited, the watchdogs quiet, the buffer's first sample due at the tick itself and another buffered after
+        it. Such a tick is what :meth:`tick` does (its reference is that sample, never braked) and nothing else:
+        no event, fault or state change. The references (6,) of the ticks run, from ``times[start]`` on; stops at
+        the first tick that is not plain (for :meth:`tick`), so the caller runs that one through :meth:`tick`."""
+        if self.state is not State.STREAMING or self._gaps:
+            return []
+        buffer = self._buffer
+        watchdog, heartbeat, silent = self.watchdog_ns, self._last_heartbeat, self._last_chunk
+        if heartbeat is None:
+            return []
+        if self._end_ns is not None:  # the last chunk came: STREAM_SILENT no longer watches
+            silent = None
+        link_clock = self._link_clock
+        played: list[np.ndarray] = []
+        anchor = self._anchor
+        for t in times[start:stop]:
+            if len(buffer) < 2 or buffer[0][0] != t:
+                break
+            now = t if link_clock is None else link_clock()
+            if now - heartbeat > watchdog or (silent is not None and now - silent > watchdog):
+                break
+            anchor = buffer.popleft()
+            played.append(anchor[1])
+        if played:  # the state the last of these ticks leaves, as tick() leaves it
+            count = len(played)
+            before, p_before = (self._t, self._p) if count == 1 else (times[start + count - 2], played[-2])
+            self._dt = (times[start + count - 1] - before) * 1e-9 if before is not None else self.tick_ns * 1e-9
+            self._p_before, self._p = p_before, played[-1]
+            self._anchor, self._t, self._dry = anchor, times[start + count - 1], False
+        return played
 
     def take_events(self) -> list[StateChange | Done | Refused | ControllerTrip]:
         """State changes, completed commands, refused chunks and limit trips since the last call, in order."""

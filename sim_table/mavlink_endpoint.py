@@ -85,6 +85,11 @@ does not lose the reason; the fault bit ``SETPOINT_REFUSED`` is in every status 
 REASON_BYTES = 120
 """SHAKETABLE_CHUNK_REFUSED.reason's length: a longer reason is cut."""
 
+UNPACKED_KEPT = 2
+"""The newest setpoint chunks kept unpacked, by payload: the host sends chunk k, then k − 1 again
+(``drivers.chunked``), so a copy arrives after the next chunk and is not unpacked again (chunk_seq is in the
+payload: only a copy of the same chunk matches)."""
+
 RECEIVE_BUFFER = 4 << 20
 """Requested socket receive buffer [bytes] (the kernel caps it at net.core.rmem_max)."""
 
@@ -243,7 +248,7 @@ class MavlinkEndpoint(BatchedTelemetry):
         self._inbox: deque[tuple[int, int, tuple[str, int], Any, bool]] = deque()
         self._inbox_lock = threading.Lock()
         self._outbox: list[tuple[int, int, bytes, tuple[str, int]]] = []  # delayed datagrams (due, n, data, addr)
-        self._unpacked: tuple[bytes, Series] | None = None  # the last chunk's payload, unpacked
+        self._unpacked: deque[tuple[bytes, Series]] = deque(maxlen=UNPACKED_KEPT)  # newest chunks' payloads, unpacked
         self._held = bytearray()  # telemetry frames not yet sent (HELD_DATAGRAM) ...
         self._held_to: list[tuple[str, int]] = []  # ... and where they go
         self._sent = 0
@@ -416,16 +421,14 @@ class MavlinkEndpoint(BatchedTelemetry):
             self.counters.chunks_stalled += 1
             return None
         payload = msg.get_payload()
-        last = self._unpacked
-        if last is not None and payload == last[0]:  # the host sends each chunk twice: the copy is not unpacked
-            series = last[1]
-        else:
+        series = next((kept for known, kept in self._unpacked if known == payload), None)
+        if series is None:  # not a copy of a chunk just unpacked (UNPACKED_KEPT)
             try:
                 series = unpack_setpoint_chunk(msg)
             except FramingError:
                 self.counters.bad_chunks += 1
                 return None
-            self._unpacked = (payload, series)
+            self._unpacked.append((payload, series))
         end = bool(msg.flags & END_OF_STREAM)
 
         def play(core: ControllerCore) -> None:
@@ -713,7 +716,7 @@ class MavlinkEndpoint(BatchedTelemetry):
             self._accel = Batcher(ACCEL_PER_BATCH)
             self._tilt = Batcher(TILT_PER_BATCH)
             self._next_bodies = 0
-            self._unpacked = None
+            self._unpacked.clear()
 
     def counters_dict(self) -> dict[str, int]:
         ownership = self._ownership

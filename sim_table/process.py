@@ -29,6 +29,7 @@ The loop's steps, its wake periods and virtual time: docs/table-controller.md §
 
 from __future__ import annotations
 
+import bisect
 import contextlib
 import gc
 import itertools
@@ -41,7 +42,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -123,6 +124,10 @@ _AT_REST = frozenset({State.IDLE, State.ARMED, State.FAULTED, State.EMERGENCY_ST
 STATUS_PERIOD_NS = 20_000_000
 """Status period [ns, controller time] (50 Hz)."""
 
+INJECTED = {"injected": True}
+"""Metadata of the :class:`EmulatorConfig` fields that inject a fault (``Emulator._inject_faults`` acts on them):
+a tick looks for injected faults only when one of them is set."""
+
 
 VIRTUAL_WATCHDOG_SECONDS = 1.0
 """Stream and heartbeat watchdogs in virtual time [s, host time]: the table waits, still, for setpoints it has not
@@ -173,12 +178,12 @@ class EmulatorConfig:
     accel_noise: float = 0.02
     loss: float = 0.0
     delay: float = 0.0
-    drive_fault_at: float | None = None
-    stall_at: float | None = None
-    leg_stall: tuple[int, float] | None = None
-    door_open: tuple[float, float] | None = None
+    drive_fault_at: float | None = field(default=None, metadata=INJECTED)
+    stall_at: float | None = field(default=None, metadata=INJECTED)
+    leg_stall: tuple[int, float] | None = field(default=None, metadata=INJECTED)
+    door_open: tuple[float, float] | None = field(default=None, metadata=INJECTED)
     """The enclosure door open from S s after the first stream start for D s (controller time): (S, D)."""
-    accel_noisy: tuple[int, float, float] | None = None
+    accel_noisy: tuple[int, float, float] | None = field(default=None, metadata=INJECTED)
     """Accelerometer ID noisy (σ :data:`NOISY_ACCEL_SIGMA` more) from S s after the first stream start for D s
     (controller time): (ID, S, D)."""
     seed: int = 0
@@ -266,6 +271,9 @@ class Emulator:
         self._events = 0
         self._drive_fault_done = False
         self._leg_stalled = False
+        self._injecting = any(getattr(config, option.name) is not None for option in fields(config)
+                              if option.metadata.get("injected"))
+        """Whether a fault is injected (:meth:`_inject_faults` looks at every tick; else it has nothing to do)."""
         self._batches: deque[tuple[int, int]] = deque(maxlen=TIMING_WINDOW)  # (ticks, busy ns)
         self._batches_lock = threading.Lock()  # counters() may be read from another thread (in-process emulator)
         self._ticks = 0
@@ -510,10 +518,28 @@ class Emulator:
         statuses: list[tuple[int, Snapshot]] = []  # (tick index, status without the pose)
         placements: list[int] = []
         streaming_statuses: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None  # for the status levels
-        for i, t in enumerate(times.tolist()):
+        ticks = times.tolist()
+        status_ticks = np.flatnonzero(times % STATUS_PERIOD_NS == 0).tolist()  # a status after each
+        i = 0
+        while i < n:
+            t = ticks[i]
             while self._pending and self._pending[0][0] <= t:
                 self._pending.popleft()[1](core)
-            self._inject_faults(t)
+            if not self._injecting:  # plain stream ticks up to the next status or host message in one call
+                k = bisect.bisect_left(status_ticks, i)
+                stop = status_ticks[k] + 1 if k < len(status_ticks) else n
+                if self._pending:
+                    stop = min(stop, bisect.bisect_left(ticks, self._pending[0][0], lo=i))
+                played = core.play_buffered(ticks, i, stop)
+                if played:
+                    reference[i:i + len(played)] = played
+                    braked[i:i + len(played)] = False
+                    i += len(played)
+                    if ticks[i - 1] % STATUS_PERIOD_NS == 0:
+                        statuses.append((i - 1, core.snapshot(ticks[i - 1], np.zeros(6))))
+                    continue
+            else:
+                self._inject_faults(t)
             reference[i], braked[i] = core.tick(t)
             changed = False
             for event in core.take_events():
@@ -529,6 +555,7 @@ class Emulator:
                         placements.append(i)
             if changed or t % STATUS_PERIOD_NS == 0:
                 statuses.append((i, core.snapshot(t, np.zeros(6))))
+            i += 1
         profile.lap("controller")
         step = self.actuators.step(reference, braked)
         if step.setpoint_limited:

@@ -30,6 +30,8 @@ from mujoco import rollout
 from numpy.typing import NDArray
 
 from analysis.table.model import rotation_matrices
+from sim_table.plate_path import load as load_plate_path
+from sim_table.plate_path import plate_steps
 from sim_table.scene import PLATE_ARMATURE, PLATE_QPOS_ORDER, ContactSettings, Specimen, SpecimenError, build_model
 from sim_table.tick_profile import TickProfile
 
@@ -45,6 +47,10 @@ impact (the impact model, module docstring)."""
 
 LYING = 0.5 * math.pi - 0.05
 """Cap of the overturn threshold [rad]: a body within 0.05 rad of lying on its side has overturned."""
+
+
+_CONTROL = mujoco.mjtState.mjSTATE_QFRC_APPLIED.value
+"""What a rollout's controls are: each step's generalised applied force (nv,)."""
 
 
 class Overturn(NamedTuple):
@@ -80,6 +86,11 @@ class SpecimenScene:
                                      min(s.body.alpha_minus + overturn_margin, LYING)] for s in self.specimens])
         """|θ| at which each specimen counts as overturned [rad], (n, 2): leaning towards +x (column 0) or −x."""
         self._order = np.array(PLATE_QPOS_ORDER)
+        self._state_size = mujoco.mj_stateSize(self.model, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        self._roller = rollout.Rollout(nthread=0)
+        """``mujoco.rollout`` on this thread, kept: each batch's call skips the wrapper's checks and allocations
+        (the arrays are made to its shapes here), the same C rollout."""
+        load_plate_path()  # compiled (or loaded) now, not in the first batch
         self._plate = self.model.body("plate").id
         self._bodies = np.array([self.model.body(f"specimen{i}").id for i in range(len(self.specimens))])
         self._sample = (0.0, np.zeros(6), np.zeros(6))
@@ -202,34 +213,20 @@ class SpecimenScene:
         if not (times[0] > t0 and np.all(np.diff(times) > 0)):
             raise SpecimenError(f"advance_many: times must increase, got {times[0]!r} s after {t0!r} s …")
         m, d, dt = self.model, self.data, self.model.opt.timestep
-        order = self._order
-        starts = np.concatenate([[t0], times[:-1]])
-        spans = (times - starts)[:, None]
-        paths = _hermite(np.vstack([pose0[None, order], poses[:-1, order]]),
-                         spans * np.vstack([vel0[None, order], rates[:-1, order]]),
-                         poses[:, order], spans * rates[:, order])  # each (k, 6): one curve an interval
         # the physics steps of each interval, as advance() takes them: each step's start (the clock advanced by
-        # dt, step after step, as advance() advances it) in the first interval whose end is at least half a step on
+        # dt, step after step, as advance() advances it) in the first interval whose end is at least half a step
+        # on; the plate on the Hermite curve of its interval (sim_table.plate_path)
         count = max(0, math.ceil((times[-1] - d.time) / dt) + 2)
-        clocks = np.cumsum(np.concatenate([[d.time], np.full(count, dt)]))
-        clocks = clocks[clocks + 0.5 * dt <= times[-1]]
-        interval = np.searchsorted(times, clocks + 0.5 * dt)
+        interval, here, force, last_rate = plate_steps(times, poses, rates, t0, pose0, vel0, d.time, dt, count,
+                                                       self._order, self._plate_rate, PLATE_ARMATURE / dt, m.nv)
         found: list[Overturn] = []
         angles = self.specimen_angles()[None, :]  # before the batch, then after each step
         if len(interval):
-            steps = [c[interval] for c in paths]
-            start, span = starts[interval], spans[interval, 0]
-            here_array = _evaluate(steps, ((clocks - start) / span)[:, None])
-            there_array = _evaluate(steps, ((clocks + dt - start) / span)[:, None])
-            step_rates = (there_array - here_array) / dt
-            previous_rates = np.vstack([self._plate_rate[None, :], step_rates[:-1]])
-            force = np.zeros((len(interval), m.nv))
-            force[:, :6] = (PLATE_ARMATURE / dt) * (step_rates - previous_rates)
-            d.qpos[:6] = here_array[0]
+            d.qpos[:6] = here
             d.qvel[:6] = self._plate_rate
             self._lap("specimens")
             states, step_angles = self._rollout(force)
-            self._plate_rate = step_rates[-1]
+            self._plate_rate = last_rate
             if self._standing.any():
                 found = self._detect_steps(states[:, 0], step_angles, dt)
             self._theta = self.specimen_angles()
@@ -248,14 +245,17 @@ class SpecimenScene:
         step, the impact scaled, and the rest of the batch stepped from there."""
         m, d = self.model, self.data
         spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
-        state = np.empty(mujoco.mj_stateSize(m, spec))
+        state = np.empty((1, self._state_size))
         parts, angle_parts = [], []
         start = 0
         while start < len(force):
-            mujoco.mj_getState(m, d, state, spec)
-            states = rollout.rollout(m, d, state[None], force[None, start:],
-                                     control_spec=mujoco.mjtState.mjSTATE_QFRC_APPLIED,
-                                     initial_warmstart=d.qacc_warmstart.copy()[None])[0][0]
+            mujoco.mj_getState(m, d, state[0], spec)
+            steps = len(force) - start
+            rolled = np.empty((1, steps, self._state_size))
+            self._roller.rollout([m], [d], state, np.ascontiguousarray(force[None, start:]), control_spec=_CONTROL,
+                                 skip_checks=True, nstep=steps, initial_warmstart=d.qacc_warmstart.copy()[None],
+                                 state=rolled, sensordata=np.empty((1, steps, m.nsensordata)))
+            states = rolled[0]
             self._lap("physics")
             angles = _specimen_angles(states[:, 1:1 + m.nq], len(self.specimens))
             hit = self._impacts.first(angles, self._standing) if self._impacts.active else None

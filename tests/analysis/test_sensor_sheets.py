@@ -13,34 +13,16 @@ from analysis.body import G
 from analysis.table.configuration import configuration_dict, configuration_from_dict, read_configuration
 from analysis.table.limits import TableModelError
 from analysis.table.sensors import clipped_rows, overdue
+from tests.helpers.sensor_sheets import accelerometer, sensors_toml, tilt_sensor, write_rig
 
-SHEET = """\
-[sensors]
-overdue = "refuse"
-
-[sensors.0]
-model = "PCB 356A16"
-serial = "LW231455"
-sensitivity = 100.0
-sensitivity_unit = "mV/g"
-range = 5.0
-range_unit = "g"
-calibrated = 2026-01-15
-due = 2027-01-15
-place_m = [0.30, -0.20, 0.05]
-axes = ["+x", "-y", "+z"]
-noise_floor_m_s2 = 0.03
-"""
-
-
-def _write(tmp_path: Path, text: str) -> Path:
-    path = tmp_path / "rig.toml"
-    path.write_text(text)
-    return path
+ACCELEROMETER = accelerometer(0, model="PCB 356A16", serial="LW231455", range=5.0, calibrated=date(2026, 1, 15),
+                              due=date(2027, 1, 15), place_m=[0.30, -0.20, 0.05], axes=["+x", "-y", "+z"],
+                              noise_floor_m_s2=0.03)
+SHEET = sensors_toml(ACCELEROMETER, overdue="refuse")
 
 
 def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) -> None:
-    configuration = read_configuration(_write(tmp_path, SHEET))
+    configuration = read_configuration(write_rig(tmp_path, SHEET))
     sheets = configuration.sensors
     assert sheets.overdue == "refuse"
     sheet = sheets.sheets["0"]
@@ -54,6 +36,15 @@ def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) 
     assert configuration_from_dict(stored) == configuration
 
 
+def _assert_refused(path: Path, line: int, key: str, words: str) -> None:
+    """Reading the rig configuration at ``path`` is refused on one line: ``PATH:LINE: KEY: `` and then ``words``."""
+    with pytest.raises(TableModelError) as caught:
+        read_configuration(path)
+    message = str(caught.value)
+    assert message.startswith(f"{path}:{line}: {key}: "), message
+    assert words in message and "\n" not in message
+
+
 @pytest.mark.parametrize(("old", "new", "line", "key", "words"), [
     ("due = 2027-01-15", 'due = "next spring"', 12, "sensors.0.due", "expected a date"),
     ("due = 2027-01-15", "due = 2027-01-15T10:00:00", 12, "sensors.0.due", "expected a date"),
@@ -63,7 +54,7 @@ def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) 
      "sensitivity unit"),
     ("range = 5.0", "range = 5000.0", 9, "sensors.0.range", "full scale from"),
     ('axes = ["+x", "-y", "+z"]', 'axes = ["+x", "+x", "+z"]', 14, "sensors.0.axes", "each of x, y, z once"),
-    ("place_m = [0.30, -0.20, 0.05]", "place_m = [30, 0, 0]", 13, "sensors.0.place_m", "within ±20 m"),
+    ("place_m = [0.3, -0.2, 0.05]", "place_m = [30, 0, 0]", 13, "sensors.0.place_m", "within ±20 m"),
     ("noise_floor_m_s2 = 0.03", "noise_floor_m_s2 = 3.0", 15, "sensors.0.noise_floor_m_s2",
      "a noise floor from 1e-06 to 1 m/s² RMS"),
     ("noise_floor_m_s2 = 0.03", "noise_floor_m_s2 = 0.0", 15, "sensors.0.noise_floor_m_s2", "a noise floor from"),
@@ -75,16 +66,11 @@ def test_a_sheet_is_read_in_si_and_kept_through_the_json_layout(tmp_path: Path) 
 def test_bad_input_is_refused_with_file_line_and_key(tmp_path: Path, old: str, new: str, line: int, key: str,
                                                      words: str) -> None:
     assert old in SHEET
-    path = _write(tmp_path, SHEET.replace(old, new))
-    with pytest.raises(TableModelError) as caught:
-        read_configuration(path)
-    message = str(caught.value)
-    assert message.startswith(f"{path}:{line}: {key}: "), message
-    assert words in message and "\n" not in message
+    _assert_refused(write_rig(tmp_path, SHEET.replace(old, new)), line, key, words)
 
 
 def test_overdue_finds_the_sheets_due_on_or_before_a_day(tmp_path: Path) -> None:
-    sheets = read_configuration(_write(tmp_path, SHEET)).sensors
+    sheets = read_configuration(write_rig(tmp_path, SHEET)).sensors
     assert overdue(sheets, date(2027, 1, 14)) == []
     assert overdue(sheets, date(2027, 1, 15)) == [sheets.sheets["0"]]
     assert sheets.sheets["0"].overdue_problem() == ("accelerometer 0 (PCB 356A16, serial LW231455) was due for "
@@ -97,7 +83,7 @@ def test_a_reading_at_its_full_scale_is_clipped() -> None:
 
 
 def test_the_noise_floor_may_be_left_out(tmp_path: Path) -> None:
-    configuration = read_configuration(_write(tmp_path, SHEET.replace("noise_floor_m_s2 = 0.03\n", "")))
+    configuration = read_configuration(write_rig(tmp_path, SHEET.replace("noise_floor_m_s2 = 0.03\n", "")))
     assert configuration.sensors.sheets["0"].noise_floor_m_s2 is None
     assert "noise_floor_m_s2" not in configuration_dict(configuration)["sensors"]["0"]
     assert configuration_from_dict(configuration_dict(configuration)) == configuration
@@ -105,25 +91,18 @@ def test_the_noise_floor_may_be_left_out(tmp_path: Path) -> None:
 
 def test_a_noise_floor_at_the_full_scale_is_refused(tmp_path: Path) -> None:
     text = SHEET.replace("range = 5.0", "range = 0.05").replace("floor_m_s2 = 0.03", "floor_m_s2 = 0.6")
-    path = _write(tmp_path, text)
+    path = write_rig(tmp_path, text)
     with pytest.raises(TableModelError, match=r"rig.toml:15: sensors.0.noise_floor_m_s2: noise floor 0.6 m/s² RMS is "
                                               r"not below the sensor's full scale 0.4905 m/s²$"):
         read_configuration(path)
 
 
-TILT = """\
-[sensors.tilt.2]
-model = "Jewell A602"
-serial = "T-0423"
-range = 90.0
-range_unit = "deg"
-calibrated = 2026-02-01
-due = 2027-02-01
-"""
+TILT = tilt_sensor(2, model="Jewell A602", serial="T-0423", range=90.0, calibrated=date(2026, 2, 1),
+                   due=date(2027, 2, 1))
 
 
 def test_a_tilt_sensor_s_sheet_is_read_in_rad_and_kept_through_the_json_layout(tmp_path: Path) -> None:
-    configuration = read_configuration(_write(tmp_path, SHEET + "\n" + TILT))
+    configuration = read_configuration(write_rig(tmp_path, sensors_toml(ACCELEROMETER, TILT, overdue="refuse")))
     tilt = configuration.sensors.tilts["2"]
     assert tilt.range_rad == pytest.approx(np.pi / 2)
     assert (tilt.model, tilt.serial, tilt.calibrated, tilt.due) == ("Jewell A602", "T-0423", date(2026, 2, 1),
@@ -152,9 +131,4 @@ def test_a_tilt_sensor_s_sheet_is_read_in_rad_and_kept_through_the_json_layout(t
 def test_a_bad_tilt_sheet_is_refused_with_file_line_and_key(tmp_path: Path, old: str, new: str, line: int, key: str,
                                                              words: str) -> None:
     assert old in TILT
-    path = _write(tmp_path, TILT.replace(old, new))
-    with pytest.raises(TableModelError) as caught:
-        read_configuration(path)
-    message = str(caught.value)
-    assert message.startswith(f"{path}:{line}: {key}: "), message
-    assert words in message and "\n" not in message
+    _assert_refused(write_rig(tmp_path, TILT.replace(old, new)), line, key, words)

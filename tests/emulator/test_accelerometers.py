@@ -15,28 +15,15 @@ from drivers.feedback import AccelBatch
 from drivers.hub import Feedback
 from sim_table.accelerometers import Accelerometers, sheet_accelerometers
 from sim_table.process import EmulatorConfig
-
-SHEET = """\
-[sensors.{id}]
-model = "PCB 356A16"
-serial = "LW23145{id}"
-sensitivity = 100.0
-sensitivity_unit = "mV/g"
-range = 5.0
-range_unit = "g"
-calibrated = 2026-01-15
-due = 2099-01-15
-place_m = {place}
-axes = {axes}
-"""
+from tests.helpers.sensor_sheets import accelerometer, sensors_toml, write_rig
 
 DT = 1e-3
 
 
-def _table(tmp_path: Path, *sheets: tuple[int, str, str]) -> TableModel:
-    path = tmp_path / "rig.toml"
-    path.write_text("\n".join(SHEET.format(id=i, place=place, axes=axes) for i, place, axes in sheets))
-    return TableModel.from_toml(path)
+def _table(tmp_path: Path, *sheets: tuple[int, list[float], list[str]]) -> TableModel:
+    """A table with accelerometer sheets (id, place_m, axes)."""
+    text = sensors_toml(*(accelerometer(i, place_m=place, axes=axes) for i, place, axes in sheets))
+    return TableModel.from_toml(write_rig(tmp_path, text))
 
 
 def _yaw(omega0: float, alpha: float, steps: int = 12) -> np.ndarray:
@@ -49,8 +36,7 @@ def _yaw(omega0: float, alpha: float, steps: int = 12) -> np.ndarray:
 
 def test_a_sensor_off_the_axis_of_a_turning_plate_reads_the_centripetal_and_tangential_terms(tmp_path: Path) -> None:
     radius, height, omega0, alpha = 0.8, 0.05, 2.0, 3.0
-    places, mountings = sheet_accelerometers(_table(tmp_path, (0, f"[{radius}, 0.0, {height}]", '["-y", "+x", "+z"]')
-                                                    ).sensors)
+    places, mountings = sheet_accelerometers(_table(tmp_path, (0, [radius, 0.0, height], ["-y", "+x", "+z"])).sensors)
     sensors = Accelerometers(places, DT, mountings=mountings, noise=0.0)
     window = _yaw(omega0, alpha)
     reading = sensors.measure(window)[:, 0, :]  # (k, 3), the sensor's own axes
@@ -62,21 +48,21 @@ def test_a_sensor_off_the_axis_of_a_turning_plate_reads_the_centripetal_and_tang
     np.testing.assert_allclose(reading, expected, rtol=1e-5, atol=1e-6)
     # the host turns it back into the plate frame with the sheet
     feedback = Feedback()
-    feedback.mount(_table(tmp_path, (0, f"[{radius}, 0.0, {height}]", '["-y", "+x", "+z"]')).sensors)
+    feedback.mount(_table(tmp_path, (0, [radius, 0.0, height], ["-y", "+x", "+z"])).sensors)
     with feedback.subscribe("accel") as received:
         feedback.publish_accel(AccelBatch(0, 0, 0, 1_000_000, reading))
         np.testing.assert_allclose(received.get(1.0).samples, plate, rtol=1e-5, atol=1e-6)
 
 
 def test_a_sensor_on_the_axis_reads_no_centripetal_term(tmp_path: Path) -> None:
-    places, mountings = sheet_accelerometers(_table(tmp_path, (0, "[0.0, 0.0, 0.3]", '["+x", "+y", "+z"]')).sensors)
+    places, mountings = sheet_accelerometers(_table(tmp_path, (0, [0.0, 0.0, 0.3], ["+x", "+y", "+z"])).sensors)
     reading = Accelerometers(places, DT, mountings=mountings, noise=0.0).measure(_yaw(2.0, 0.0))
     np.testing.assert_allclose(reading[:, 0, :], np.tile([0.0, 0.0, G], (10, 1)), atol=1e-9)
 
 
 def test_the_sheets_place_the_emulated_accelerometers_up_to_the_largest_id(tmp_path: Path) -> None:
-    table = _table(tmp_path, (0, "[0.3, -0.2, 0.05]", '["+x", "-y", "-z"]'),
-                   (2, "[-0.5, 0.4, 0.0]", '["+z", "+x", "+y"]'))
+    table = _table(tmp_path, (0, [0.3, -0.2, 0.05], ["+x", "-y", "-z"]),
+                   (2, [-0.5, 0.4, 0.0], ["+z", "+x", "+y"]))
     places, mountings = EmulatorConfig(listen="mavlink://127.0.0.1:0", key=bytes(32), table=table
                                        ).accelerometer_places()
     np.testing.assert_array_equal(places, [[0.3, -0.2, 0.05], [0.0, 0.0, 0.0], [-0.5, 0.4, 0.0]])
@@ -89,7 +75,7 @@ def test_the_sheets_place_the_emulated_accelerometers_up_to_the_largest_id(tmp_p
 
 
 def test_places_given_twice_are_refused(tmp_path: Path) -> None:
-    table = _table(tmp_path, (0, "[0.3, -0.2, 0.05]", '["+x", "+y", "+z"]'))
+    table = _table(tmp_path, (0, [0.3, -0.2, 0.05], ["+x", "+y", "+z"]))
     with pytest.raises(ValueError, match=r"^--accel places accelerometers the rig configuration's \[sensors\] sheets"):
         EmulatorConfig(listen="mavlink://127.0.0.1:0", key=bytes(32), table=table, sensors=((0.0, 0.0, 0.0),))
     with pytest.raises(ValueError, match=r"^--accel-noisy: no accelerometer 1 on the emulated plate \(it has 1: "):

@@ -2,7 +2,8 @@
 from the shipped XML as a user would (beside pymavlink's bundled definitions, ArduPilot's included), a pymavlink
 ``mavutil`` client signing with SHA-256 of a passphrase (ArduPilot's convention); its ARM refused at once, with a
 STATUSTEXT saying why, while its heartbeat is too slow for the watchdog, and accepted when it keeps it up. The rule
-itself (``sim_table.arming``) in process."""
+itself (``sim_table.arming``) in process. One emulator keyed with the passphrase's key serves the module, brought
+back to rest before each ground station (``tests/helpers/tables.py``)."""
 
 from __future__ import annotations
 
@@ -12,14 +13,15 @@ import os
 import shutil
 import subprocess
 import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pymavlink.dialects.v20 as bundled
 import pytest
 
 from protocols.mavlink.codegen import XML_PATH
-from rig.emulator import EmulatorProcess
 from sim_table.arming import STATUS_TEXT_BYTES, heartbeat_problem
+from tests.helpers.tables import SharedTable, start_shared_table
 
 S = 1_000_000_000  # ns per s
 PASSPHRASE = "shake table lab passphrase 2026"
@@ -88,21 +90,38 @@ def generated(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return output
 
 
+@pytest.fixture(scope="module")
+def _passphrase_table(tmp_path_factory: pytest.TempPathFactory) -> Iterator[SharedTable]:
+    key_file = tmp_path_factory.mktemp("passphrase") / "passphrase.key"  # the key a passphrase gives, as the
+    fd = os.open(key_file, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)  # table controller is set up with it
+    with os.fdopen(fd, "w") as file:
+        file.write(hashlib.sha256(PASSPHRASE.encode()).hexdigest() + "\n")
+    table = start_shared_table("mavlink", key_file)
+    try:
+        yield table
+    finally:
+        table.emulator.stop()
+
+
+@pytest.fixture
+def passphrase_table(_passphrase_table: SharedTable) -> SharedTable:
+    """The module's emulated table (real time) keyed with the passphrase's key, at rest (``tests/helpers/tables.py``:
+    no owner, no heartbeat remembered, counters zero)."""
+    _passphrase_table.rest()
+    _passphrase_table.tests_served += 1
+    return _passphrase_table
+
+
 @pytest.mark.integration  # starts the emulator and a ground-station process
 @pytest.mark.parametrize(("rate", "expected"), [(1.0, "MAV_RESULT_TEMPORARILY_REJECTED"), (5.0, "MAV_RESULT_ACCEPTED")])
 def test_a_pymavlink_ground_station_arms_only_while_keeping_its_heartbeat_up(
-        generated: Path, tmp_path: Path, rate: float, expected: str) -> None:
-    key_file = tmp_path / "passphrase.key"  # the key a passphrase gives, as the table controller is set up with it
-    fd = os.open(key_file, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    with os.fdopen(fd, "w") as file:
-        file.write(hashlib.sha256(PASSPHRASE.encode()).hexdigest() + "\n")
-    emulator = EmulatorProcess.start("mavlink://127.0.0.1:0", key_file=key_file)
+        generated: Path, passphrase_table: SharedTable, rate: float, expected: str) -> None:
     try:
-        port = emulator.url.rsplit(":", 1)[1]
+        port = passphrase_table.url.rsplit(":", 1)[1]
         done = subprocess.run([sys.executable, "-c", CLIENT, str(generated), port, str(rate), PASSPHRASE],
                               capture_output=True, text=True, timeout=120)
     finally:
-        counters = emulator.stop()
+        counters = passphrase_table.counters()
     assert done.returncode == 0, done.stderr
     reply = json.loads(done.stdout.strip().splitlines()[-1])
     assert reply["ack"] == expected, reply

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import secrets
 import time
-from typing import Any
+from typing import Any, cast
 
+import numpy as np
 import pytest
 
 from analysis.table.model import TableModel
-from protocols.mavlink import UdpLink, dialect
+from protocols.mavlink import UdpLink, dialect, setpoint_chunks, unpack_setpoint_chunk
 from sim_table.controller import ControllerCore, State
 from sim_table.mavlink_endpoint import MavlinkEndpoint
 
@@ -93,3 +94,45 @@ def test_heartbeats_read_after_a_stall_count_at_the_times_they_came() -> None:
     for arrival, (before, after) in zip(arrivals, windows, strict=True):
         assert before - slack <= arrival <= after + slack
     assert read_at - arrivals[-1] >= STALL_NS
+
+
+def test_a_chunks_second_copy_after_the_next_chunk_is_not_unpacked_again(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The host sends chunk k, then k − 1 again (``drivers.chunked``): chunks 0, 1, 0, 2, 1 are unpacked once
+    each (three unpacks, not five), and every copy plays the same samples as its first."""
+    import sim_table.mavlink_endpoint as module
+
+    unpacked: list[int] = []
+
+    def counting(msg: Any) -> Any:
+        unpacked.append(msg.chunk_seq)
+        return unpack_setpoint_chunk(msg)
+
+    monkeypatch.setattr(module, "unpack_setpoint_chunk", counting)
+    key = secrets.token_bytes(32)
+    endpoint = MavlinkEndpoint(("127.0.0.1", 0), key, clock=lambda ns: ns)
+    host = UdpLink.open(peer=endpoint.address, source_system=255, source_component=190, key=key, link_id=1)
+    poses = np.linspace(0.0, 0.01, 3 * 8 * 6).reshape(-1, 6)
+    chunks = setpoint_chunks(poses, 1_000_000_000, 1_000_000)
+    try:
+        for k in (0, 1, 0, 2, 1):
+            host.send(chunks[k])
+        deadline = time.monotonic() + 5.0
+        actions: list[Any] = []
+        while len(actions) < 5:
+            assert time.monotonic() < deadline, f"{len(actions)} of the 5 chunks arrived: {endpoint.counters}"
+            actions += endpoint.take(time.monotonic_ns())
+    finally:
+        host.sock.close()
+        endpoint.close()
+    assert unpacked == [0, 1, 2]
+    played: list[tuple[int, np.ndarray]] = []
+
+    class Recorder:
+        def chunk(self, seq: int, t_start_ns: int, spacing_ns: int, samples: np.ndarray, *_: Any) -> None:
+            played.append((seq, samples))
+
+    for _, action in actions:
+        action(cast(ControllerCore, Recorder()))
+    assert [seq for seq, _ in played] == [0, 1, 0, 2, 1]
+    for seq, samples in played:
+        np.testing.assert_array_equal(samples, poses[8 * seq: 8 * seq + 8].astype(np.float32))

@@ -14,12 +14,17 @@ from rig.sequence import Sequence
 from rig.session import SessionLog
 from tests.helpers.tables import SharedTable
 
-TINY = """\
+
+def tiny(run_s: float = 3.0) -> str:
+    """A small sequence of two runs at 0°, ``run_s`` [s] of each record (NORTHR/RRS_032 from 0.5 s, KOBE/NIS000
+    from 5 s), the paper's Table V body 5 at the plate's centre, no confirmation asked. Longer runs for a test that must
+    watch one for a while (a browser that starts, unlocks and looks on before the session ends)."""
+    return f"""\
 name = "tiny"
 angles_deg = [0]
 records = [
-    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 3.5] },
-    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },
+    {{ record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, {0.5 + run_s}] }},
+    {{ record = "fema-farfield:KOBE/NIS000", window_s = [5.0, {5.0 + run_s}] }},
 ]
 
 [drive]
@@ -34,6 +39,10 @@ table5 = 5
 x = 0.0
 y = 0.0
 """
+
+
+TINY = tiny()
+""":func:`tiny` of 3 s runs, the sequence most tests play."""
 
 TINY_ONE_RUN = TINY.replace('    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },\n', "")
 """:data:`TINY` with its first record only: one run."""

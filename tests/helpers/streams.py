@@ -45,6 +45,12 @@ def smooth_ramp(t: np.ndarray, distance: float, duration: float) -> np.ndarray:
     return distance * tau**3 * (10 - 15 * tau + 6 * tau**2)
 
 
+def there_and_back(duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """A surge of 20 mm out and back in ``duration`` s at 1 kHz (ends where it began)."""
+    half = duration / 2
+    return surge(duration, lambda t: smooth_ramp(t, 0.02, half) - smooth_ramp(t - half, 0.02, half))
+
+
 def assert_pose_follows(drive: Drive, report: StreamReport, statuses: list[TableStatus], pose_noise: float) -> None:
     """The achieved pose of the statuses inside the stream follows the command within the actuators' lag:
     |error| <= τ·max|v| over the last 50 ms + ``pose_noise`` [m, rad], and the lag is visible."""

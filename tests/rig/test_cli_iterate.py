@@ -1,34 +1,28 @@
 """``rig iterate`` end to end on the emulated table (``--dynamics servo``, MAVLink on loopback): the identification
 and iterations are runs of the session with their errors, ``/compensation`` holds the response and the iterations,
-the drive file plays; ``rig report`` shows them."""
+the drive file plays; ``rig report`` shows them. The command in this process (``tests.helpers.cli.rig``); its
+refusals of bad input before the table is contacted in the fast tier."""
 
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 
 import h5py
 import pytest
 
 from rig.drive.file import load_drive
-
-pytestmark = pytest.mark.integration  # starts processes or opens sockets (tests/conftest.py)
+from tests.helpers.cli import rig
 
 ITERATE = ["fema:KOBE/NIS000", "--angle", "4", "--emulate", "--window", "5,10", "--corner", "1",
            "--identify-seconds", "10", "--iterations", "1"]
 
 
-def _rig(*args: str) -> subprocess.CompletedProcess[str]:
-    code = "import sys; from rig.cli import app; sys.exit(app())"
-    return subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=600)
-
-
+@pytest.mark.integration  # starts the emulator's process
 @pytest.mark.slow
 def test_iterate_on_the_emulator(tmp_path):
     session = tmp_path / "s.h5"
-    done = _rig("iterate", *ITERATE, "-o", str(session), "--json")
-    assert done.returncode == 0, done.stderr
+    done = rig("iterate", *ITERATE, "-o", str(session), "--json")
+    assert done.exit_code == 0, done.stderr
     out = json.loads(done.stdout)
     assert set(out) >= {"iterations", "converged", "drive"} and out["law"] == "mimo"
     errors = [it["rms_error_pct"] for it in out["iterations"]]
@@ -48,19 +42,20 @@ def test_iterate_on_the_emulator(tmp_path):
         assert list(group["iterations"]["level_db"]) == [-12.0, -6.0, 0.0]
     drive = load_drive(out["drive"])
     assert drive.angle == pytest.approx(0.0698, abs=1e-4)
-    report = _rig("report", str(session), "-o", str(tmp_path / "s.html"), "--json")
-    assert report.returncode == 0, report.stderr
+    report = rig("report", str(session), "-o", str(tmp_path / "s.html"), "--json")
+    assert report.exit_code == 0, report.stderr
     html = (tmp_path / "s.html").read_text()
     assert "Drive compensation" in html and "coherence" in html and "TRAC" in html
 
 
+@pytest.mark.integration  # starts the emulator's process
 @pytest.mark.slow
 def test_a_first_level_whose_predicted_response_leaves_the_table_is_refused_with_the_level_that_fits(tmp_path):
     """The coupled plate amplifies this excerpt about twice near its surge mode: at -6 dB the prediction passes
     0.6 g, so nothing is played and the error names the breach and the ramp that fits, which then plays."""
     session = tmp_path / "s.h5"
-    done = _rig("iterate", *ITERATE, "--levels", "-6,0", "-o", str(session))
-    assert done.returncode == 3, done.stderr
+    done = rig("iterate", *ITERATE, "--levels", "-6,0", "-o", str(session))
+    assert done.exit_code == 3, done.stderr
     assert "as prepared at -6 dB not played" in done.stderr and "(0.600 g)" in done.stderr
     assert "hint: run it again with --levels=-12,-6,0 and a new -o file" in done.stderr
     with h5py.File(session, "r") as h5:
@@ -68,12 +63,12 @@ def test_a_first_level_whose_predicted_response_leaves_the_table_is_refused_with
 
 
 def test_iterate_refuses_bad_input(tmp_path):
-    done = _rig("iterate", "fema:KOBE/NIS000", "--angle", "4")
-    assert done.returncode == 2 and "either --table URL or --emulate" in done.stderr
-    done = _rig("iterate", "fema:NO/SUCH", "--angle", "4", "--emulate")
-    assert done.returncode == 2 and "NO/SUCH" in done.stderr
+    done = rig("iterate", "fema:KOBE/NIS000", "--angle", "4", cwd=tmp_path)
+    assert done.exit_code == 2 and "either --table URL or --emulate" in done.stderr
+    done = rig("iterate", "fema:NO/SUCH", "--angle", "4", "--emulate", cwd=tmp_path)
+    assert done.exit_code == 2 and "NO/SUCH" in done.stderr
     for option, value in (("--law", "lms"), ("--levels", "-6,-12"), ("--levels", "-12,-6"), ("--speed", "fast"),
                           ("--headroom", "70%")):
-        done = _rig("iterate", "fema:KOBE/NIS000", "--emulate", option, value)
-        assert done.returncode == 2 and option.lstrip("-") in done.stderr, (option, done.stderr)
+        done = rig("iterate", "fema:KOBE/NIS000", "--emulate", option, value, cwd=tmp_path)
+        assert done.exit_code == 2 and option.lstrip("-") in done.stderr, (option, done.stderr)
     assert not list(tmp_path.iterdir())

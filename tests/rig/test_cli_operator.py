@@ -2,8 +2,9 @@
 sequence before any motion, errors before anything heavy is imported or written, and the CLI's manners
 (``--version``, completion, ``--json``, ``iterate --speed max``, ``prepare -o``, ``emulate --help`` and counters).
 
-Each hint the CLI prints here is run exactly as printed (``shlex.split``; ``rig`` is this interpreter's
-``-m rig.cli``), its operator prompts answered by their defaults (empty lines on stdin).
+Each hint the CLI prints here is run exactly as printed (``shlex.split``; ``rig`` is the command in this process,
+``tests.helpers.cli.rig``), its operator prompts answered by their defaults (empty lines on stdin). As processes:
+``rig run`` killed with ``kill -9``, what a fresh interpreter imports, and ``rig emulate`` stopped by SIGINT.
 """
 
 from __future__ import annotations
@@ -17,33 +18,31 @@ import shlex
 import signal
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 import pytest
 import typer
+from typer.testing import Result
 
 from drivers.controller import open_table
 from rig.cli import app
-from rig.emulator import EmulatorProcess, specimen_flags
+from rig.emulator import EmulatorProcess
 from rig.orchestrator.bodies import mismatch
-from rig.sequence import load_sequence
+from rig.sequence import Sequence, load_sequence
 from rig.session import read_session
-from tests.helpers.cli import rig as rig_in_process
+from tests.helpers.cli import rig
 from tests.helpers.processes import HEAVY, start_tiny
 from tests.helpers.sequences import TINY
+from tests.helpers.tables import SharedTable
 
 ROOT = Path(__file__).resolve().parents[2]
 RIG = [sys.executable, "-m", "rig.cli"]
 QUICK = ROOT / "examples" / "quick.toml"
 
 
-def rig(*args: str, cwd: Path, stdin: str = "", timeout: float = 600) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*RIG, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout, input=stdin,
-                          env={**os.environ, "COLUMNS": "160"})
-
-
-def run_hint(hint: str, cwd: Path, stdin: str = "") -> subprocess.CompletedProcess[str]:
+def run_hint(hint: str, cwd: Path, stdin: str = "") -> Result:
     """The printed command ``rig …`` run as printed."""
     words = shlex.split(hint)
     assert words[0] == "rig", hint
@@ -69,12 +68,12 @@ def test_the_printed_resume_hint_continues_on_the_same_emulated_table(tmp_path: 
     bodies at the session's speed (max), and completes the session."""
     (tmp_path / "tiny.toml").write_text(TINY)
     stopped = rig("run", "tiny.toml", "--emulate", "--speed", "max", "-o", "s.h5", cwd=tmp_path, stdin="n\n")
-    assert stopped.returncode == 1, stopped.stderr + stopped.stdout
+    assert stopped.exit_code == 1, stopped.stderr + stopped.stdout
     hint = re.search(r"continue it with (rig run .*)$", stopped.stdout, re.MULTILINE)
     assert hint is not None, stopped.stdout
     assert read_session(tmp_path / "s.h5")["runs"] == []
     done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)  # every prompt answered by its default
-    assert done.returncode == 0, done.stderr + done.stdout
+    assert done.exit_code == 0, done.stderr + done.stdout
     runs = read_session(tmp_path / "s.h5")["runs"]
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "completed"), (1, "completed")]
     counters = json.loads((tmp_path / "s.emulator.json").read_text())
@@ -94,32 +93,32 @@ def test_after_a_crash_the_recover_hint_and_then_the_resume_hint_work_as_printed
         with contextlib.suppress(ProcessLookupError):
             os.killpg(proc.pid, signal.SIGKILL)  # the emulator it started
     recovered = rig("sessions", "recover", str(session), cwd=tmp_path)
-    assert recovered.returncode == 0, recovered.stderr
+    assert recovered.exit_code == 0, recovered.stderr
     hint = re.search(r"continue the session with (rig run .*)$", recovered.stdout, re.MULTILINE)
     assert hint is not None, recovered.stdout
     done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)  # as printed: on the session's emulator, at 1x
-    assert done.returncode == 0, done.stderr + done.stdout
+    assert done.exit_code == 0, done.stderr + done.stdout
     runs = read_session(session)["runs"]
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"), (1, "completed")]
 
 
 @pytest.mark.integration
-def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, key_file: Path) -> None:
-    """A session on a table URL stores it; when it stops early the hint (with its key file) reaches that table."""
-    (tmp_path / "tiny.toml").write_text(TINY)
-    sequence = load_sequence(tmp_path / "tiny.toml")
-    with EmulatorProcess.start("mavlink://127.0.0.1:0", *specimen_flags(sequence.bodies), "--speed", "max",
-                               key_file=key_file) as emulator:
-        stopped = rig("run", "tiny.toml", "--table", emulator.url, "--key-file", str(key_file), "-o", "s.h5",
-                      cwd=tmp_path, stdin="n\n")
-        assert stopped.returncode == 1, stopped.stderr + stopped.stdout
-        hint = re.search(r"continue it with (rig run .*)$", stopped.stdout, re.MULTILINE)
-        assert hint is not None and f"--key-file {key_file}" in hint.group(1)
-        assert read_session(tmp_path / "s.h5")["attrs"]["table"] == json.dumps({"url": emulator.url})
-        done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)
-    assert done.returncode == 0, done.stderr + done.stdout  # the hint reached the table and played on it
+def test_resume_on_a_real_table_url_reuses_it_and_names_the_key(tmp_path: Path, tiny: Sequence,
+                                                                body_table: Callable[..., SharedTable]) -> None:
+    """A session on a table URL stores it; when it stops early the hint (with its key file) reaches that table (the
+    session's emulator with the sequence's bodies, ``body_table``)."""
+    table = body_table(tiny)
+    key_file = table.key_file
+    stopped = rig("run", "tiny.toml", "--table", table.url, "--key-file", str(key_file), "-o", "s.h5",
+                  cwd=tmp_path, stdin="n\n")
+    assert stopped.exit_code == 1, stopped.stderr + stopped.stdout
+    hint = re.search(r"continue it with (rig run .*)$", stopped.stdout, re.MULTILINE)
+    assert hint is not None and f"--key-file {key_file}" in hint.group(1)
+    assert read_session(tmp_path / "s.h5")["attrs"]["table"] == json.dumps({"url": table.url})
+    done = run_hint(hint.group(1), tmp_path, stdin="\n" * 40)
+    assert done.exit_code == 0, done.stderr + done.stdout  # the hint reached the table and played on it
     runs = read_session(tmp_path / "s.h5")["runs"]
-    assert {r["attrs"]["table_url"] for r in runs} == {emulator.url}
+    assert {r["attrs"]["table_url"] for r in runs} == {table.url}
     assert [r["status"] for r in runs] == ["completed", "completed"]
 
 
@@ -153,7 +152,7 @@ def test_a_table_holding_other_bodies_is_refused_before_any_motion(tmp_path: Pat
         done = rig("run", str(QUICK), "--table", emulator.url, "--key-file", str(key_file), "--yes", "-o", "s.h5",
                    cwd=tmp_path)
         counters = emulator.stop()
-    assert done.returncode == 2, done.stderr + done.stdout
+    assert done.exit_code == 2, done.stderr + done.stdout
     assert "T5-4 0.039x0.200 m" in done.stderr and "T5-5 0.049x0.200 m" in done.stderr  # the sequence's
     assert "body 0 0.100x0.500 m (depth 0.300 m) at (0.050, 0.020) m" in done.stderr  # the table's
     assert "the sequence has 2 bodies, the table 1" in done.stderr
@@ -216,7 +215,7 @@ def test_a_missing_file_is_said_before_anything_heavy_is_imported(tmp_path: Path
 @pytest.mark.integration  # opens a socket
 def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key_file: Path) -> None:
     (tmp_path / "tiny.toml").write_text(TINY)
-    done = rig_in_process("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--key-file", str(key_file),
+    done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--key-file", str(key_file),
                           "--yes", "-o", "s.h5", cwd=tmp_path)
     assert done.exit_code == 2, done.stderr + done.stdout
     assert "mavlink://127.0.0.1:9 did not answer" in done.stderr
@@ -226,15 +225,15 @@ def test_a_table_that_does_not_answer_leaves_no_session_file(tmp_path: Path, key
 # ----- item 6: CLI manners ----------------------------------------------------------------------------------------
 
 
-@pytest.mark.integration
-def test_version_and_shell_completion() -> None:
+def test_version_and_shell_completion(monkeypatch: pytest.MonkeyPatch) -> None:
     from rig import __version__
 
-    assert rig_in_process("--version", cwd=ROOT).stdout == f"rig {__version__}\n"
+    assert rig("--version", cwd=ROOT).stdout == f"rig {__version__}\n"
     assert {"--install-completion", "--show-completion", "--version"} <= options_of()
-    script = subprocess.run([*RIG, "--show-completion", "bash"], capture_output=True, text=True, cwd=ROOT,
-                            env={**os.environ, "_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION": "1"}, timeout=120)
-    assert script.returncode == 0 and "complete" in script.stdout and "rig" in script.stdout
+    # the shell named, not detected from the parent processes; read as the command is built, before CliRunner's env
+    monkeypatch.setenv("_TYPER_COMPLETE_TEST_DISABLE_SHELL_DETECTION", "1")
+    script = rig("--show-completion", "bash", cwd=ROOT)
+    assert script.exit_code == 0 and "complete" in script.stdout and "rig" in script.stdout
 
 
 @pytest.mark.integration
@@ -244,15 +243,15 @@ def test_json_options_print_one_object(tmp_path: Path) -> None:
         assert "--json" in options_of(*command), command
     done = rig("run", "tiny.toml", "--emulate", "--speed", "max", "--yes", "--json", "-o", "s.h5", cwd=tmp_path)
     run = json.loads(done.stdout)  # exactly one object (json.loads refuses anything after it), whatever the outcome
-    assert done.returncode == (0 if run["complete"] else 1), done.stderr
+    assert done.exit_code == (0 if run["complete"] else 1), done.stderr
     assert run["runs_total"] == 2 and run["session"].endswith("s.h5") and "session file: s.h5" in done.stderr
     assert run["resume"] == (None if run["complete"] else "rig run --resume s.h5 --yes")
     if run["complete"]:
         assert run["runs_done"] == 2 and run["state"] == "done"
-    shown = json.loads(rig_in_process("sessions", "show", "s.h5", "--json", cwd=tmp_path).stdout)
+    shown = json.loads(rig("sessions", "show", "s.h5", "--json", cwd=tmp_path).stdout)
     assert [r["status"] for r in shown["runs"]] == [r["status"] for r in read_session(tmp_path / "s.h5")["runs"]]
     assert shown["table"] == {"emulate": True, "speed": "max"} and shown["sequence"] == "tiny"
-    listed = json.loads(rig_in_process("sessions", "list", ".", "--json", cwd=tmp_path).stdout)
+    listed = json.loads(rig("sessions", "list", ".", "--json", cwd=tmp_path).stdout)
     assert [Path(s["path"]).name for s in listed["sessions"]] == ["s.h5"]
 
 
@@ -260,12 +259,12 @@ def test_iterate_takes_speed_max() -> None:
     from rig.cli.iterate import _Table
 
     assert _Table(None, True, None, None, "lag", [], math.inf).flags[-2:] == ["--speed", "max"]
-    refused = rig_in_process("iterate", "fema:NORTHR/MUL009", "--emulate", "--speed", "fast", cwd=ROOT)
+    refused = rig("iterate", "fema:NORTHR/MUL009", "--emulate", "--speed", "fast", cwd=ROOT)
     assert refused.exit_code == 2 and "expected a factor > 0 or max" in refused.stderr
 
 
 def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_path: Path) -> None:
-    done = rig_in_process("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5", cwd=tmp_path)
+    done = rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5", cwd=tmp_path)
     assert done.exit_code == 0, done.stderr
     for header in ("displacement [m]", "velocity [m/s]", "acceleration [g]"):
         assert header in done.stdout, done.stdout
@@ -277,17 +276,17 @@ def test_prepare_saves_a_drive_a_sequence_plays_and_its_table_shows_units(tmp_pa
     sequence = load_sequence(tmp_path / "seq.toml")
     (planned,) = sequence.plan()
     played = sequence.prepare(planned)
-    fresh = json.loads(rig_in_process("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "--json",
+    fresh = json.loads(rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "--json",
                                       cwd=tmp_path).stdout)
     assert played.scale_factor == pytest.approx(fresh["scale_factor"]) and len(played.t) == fresh["samples"]
-    again = rig_in_process("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5",
+    again = rig("prepare", "fema-farfield:KOBE/NIS000", "--angle", "4", "-o", "kobe.drive.h5",
                            cwd=tmp_path)
     assert again.exit_code == 2 and "never overwritten" in again.stderr
 
 
 @pytest.mark.integration
 def test_emulate_help_and_counters_table(tmp_path: Path, key_file: Path) -> None:
-    help_text = rig_in_process("emulate", "--help", cwd=ROOT).stdout
+    help_text = rig("emulate", "--help", cwd=ROOT).stdout
     assert help_text.startswith("Usage: rig emulate [OPTIONS]")
     for option in ("--listen URL", "--body", "--speed FACTOR|max", "--json", "--counters FILE"):
         assert option in help_text, option

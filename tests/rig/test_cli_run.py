@@ -1,6 +1,10 @@
-"""``rig run`` end to end: the real command line, the emulator as its own process over loopback UDP (MAVLink),
-the session file read back. The quick sequence unattended; ``kill -9`` mid-record and ``--resume``; bad
-sequence files refused before the table moves."""
+"""``rig run`` end to end: the command line, the emulator as its own process over loopback UDP (MAVLink), the
+session file read back. The quick sequence unattended; ``kill -9`` mid-record and ``--resume``; Ctrl-C; bad
+sequence files refused before the table moves; a full disk.
+
+``rig`` runs in this process (``tests.helpers.cli.rig``) except where its process is what is checked: ``kill -9``
+and what it leaves, Ctrl-C sent to its process group, and a full disk (a file-size limit of the process; the
+session then ends with ``os._exit``, which would end the test's own process)."""
 
 from __future__ import annotations
 
@@ -19,18 +23,12 @@ from typing import Any
 import h5py
 import numpy as np
 import pytest
-from typer.testing import CliRunner
 
-from rig.cli import app
 from rig.sequence import load_sequence
 from rig.session import read_session
+from tests.helpers.cli import rig
 from tests.helpers.processes import RIG, ROOT, child_of, running, start_tiny
 from tests.helpers.sequences import TINY
-
-
-def rig(*args: str, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess[str]:
-    return subprocess.run([*RIG, *args], cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          env={**os.environ, "COLUMNS": "160"})
 
 
 @pytest.mark.integration
@@ -38,7 +36,7 @@ def test_the_quick_sequence_runs_unattended_and_logs_every_run(tmp_path: Path) -
     session = tmp_path / "quick.h5"
     done = rig("run", str(ROOT / "examples" / "quick.toml"), "--emulate", "--speed", "max", "--yes", "-o", str(session),
                cwd=tmp_path)  # virtual time: the same session contents as at 1x (docs/table-controller.md)
-    assert done.returncode == 0, done.stderr + done.stdout
+    assert done.exit_code == 0, done.stderr + done.stdout
     sequence = load_sequence(ROOT / "examples" / "quick.toml")
     plan = sequence.plan()
     data = read_session(session)
@@ -95,7 +93,7 @@ def test_kill_9_mid_record_keeps_the_samples_and_resume_finishes_the_session(tmp
     assert last >= seen + (killed_at - seen_at) - 1.0  # at most the last second lost
 
     done = rig("run", "--resume", str(session), "--emulate", "--yes", cwd=tmp_path)
-    assert done.returncode == 0, done.stderr + done.stdout
+    assert done.exit_code == 0, done.stderr + done.stdout
     runs = read_session(session)["runs"]
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "interrupted"), (0, "completed"),
                                                               (1, "completed")]
@@ -185,12 +183,10 @@ def test_the_emulator_rig_started_ends_when_rig_is_killed(tmp_path: Path) -> Non
     (lambda text: text.replace('KOBE/NIS000', 'KOBE/NOPE'), "tiny.toml:5: records[2]"),
     (lambda text: text.replace('table5 = 5', 'table5 = "five"'), "tiny.toml:16: bodies[1].table5"),
 ])
-def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path, edit: object, where: str,
-                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    """In-process (typer's CliRunner): the conftest's guard fails the test if anything opens a socket."""
+def test_bad_sequences_are_refused_before_the_table_is_contacted(tmp_path: Path, edit: object, where: str) -> None:
+    """In-process: the conftest's guard fails the test if anything opens a socket."""
     (tmp_path / "tiny.toml").write_text(edit(TINY))  # type: ignore[operator]
-    monkeypatch.chdir(tmp_path)
-    done = CliRunner().invoke(app, ["run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--yes", "-o", "s.h5"])
+    done = rig("run", "tiny.toml", "--table", "mavlink://127.0.0.1:9", "--yes", "-o", "s.h5", cwd=tmp_path)
     assert done.exit_code == 2, done.output
     assert where in done.stderr, done.stderr
     assert not (tmp_path / "s.h5").exists()  # nothing written, nothing contacted
@@ -246,7 +242,7 @@ def test_a_disk_full_mid_run_stops_the_table_and_keeps_the_rows_written(tmp_path
     kept = cut["accel"]["0"]
     assert len(kept) > 100
     recovered = rig("sessions", "recover", str(session), cwd=tmp_path)
-    assert recovered.returncode == 0, recovered.stderr + recovered.stdout
+    assert recovered.exit_code == 0, recovered.stderr + recovered.stdout
     (after,) = read_session(session)["runs"]
     assert after["status"] == "interrupted"
     np.testing.assert_array_equal(after["accel"]["0"], kept)

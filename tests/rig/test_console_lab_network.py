@@ -24,6 +24,7 @@ from rig.certs import fingerprint, make_identity
 from rig.session import read_session
 from tests.helpers.console import CHROMIUM
 from tests.helpers.netns import NO_NAMESPACES, can_make_namespaces
+from tests.helpers.sequences import tiny
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow,  # processes, sockets, a browser; a whole session at 1x
               pytest.mark.skipif(not CHROMIUM.exists(),
@@ -31,28 +32,6 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow,  # processes, sockets, 
 
 ROOT = Path(__file__).parents[2]
 RIG_ADDRESS, VIEWER_ADDRESS, PORT = "10.231.0.1", "10.231.0.9", 8443
-
-SEQUENCE = """\
-name = "watched"
-angles_deg = [0]
-records = [
-    { record = "fema-nearfield:NORTHR/RRS_032", window_s = [0.5, 6.5] },
-    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 11.0] },
-]
-
-[drive]
-corner_hz = 1.0
-settle_s = 0.3
-
-[operator]
-confirm_before_run = false
-
-[[bodies]]
-table5 = 5
-x = 0.0
-y = 0.0
-"""
-
 
 @pytest.fixture(scope="module")
 def namespaces() -> None:
@@ -91,7 +70,7 @@ def test_a_viewer_on_another_machine_watches_over_https_and_cannot_command(tmp_p
                       f'[[token]]\nname = "control-room"\nrole = "operator"\ntoken = "{secrets.token_urlsafe(32)}"\n')
     tokens.chmod(0o600)
     sequence = tmp_path / "watched.toml"
-    sequence.write_text(SEQUENCE)
+    sequence.write_text(tiny(run_s=6.0))  # the session still runs when the viewer has looked on and sent its pause
     session, rig_log, viewer_out, ready = (tmp_path / "session.h5", tmp_path / "rig.log", tmp_path / "viewer.json",
                                           tmp_path / "viewer-ready")
     url = f"https://{RIG_ADDRESS}:{PORT}/"

@@ -1,7 +1,7 @@
 """``rig run … --console HOST:PORT`` without a separate service: the console serves the run's state from the
 in-process service's telemetry while the emulated table plays the tiny sequence, and the run ends as ``rig run
 --service`` does (exit code 0 when every run is done) — at once with ``--console-linger 0``, else once the operator
-closes the console that outlived the run."""
+closes the console that outlived the run. ``rig run`` in this process, except where a signal is what is checked."""
 
 from __future__ import annotations
 
@@ -9,6 +9,7 @@ import json
 import os
 import subprocess
 import sys
+import threading
 import time
 import urllib.error
 import urllib.request
@@ -17,6 +18,7 @@ from typing import Any
 
 import pytest
 
+from tests.helpers.cli import rig
 from tests.helpers.processes import free_port
 from tests.helpers.sequences import TINY
 
@@ -32,36 +34,40 @@ def state(url: str) -> dict[str, Any] | None:
 
 
 @pytest.mark.slow  # a whole session at 1x through an in-process service and the console
-def test_rig_run_with_a_console(tmp_path: Path) -> None:
+def test_rig_run_with_a_console(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """``rig`` in this process (``tests.helpers.cli.rig``), the console watched from a thread as the run plays."""
     sequence = tmp_path / "tiny.toml"
     sequence.write_text(TINY)
     url = f"http://127.0.0.1:{free_port()}/"
-    env = {k: v for k, v in os.environ.items() if k != "SHAKETABLE_MAVLINK_KEY"}
-    run = subprocess.Popen([str(Path(sys.executable).with_name("rig")), "run", str(sequence), "--emulate", "--yes",
-                            "--console", url.removeprefix("http://").rstrip("/"), "--console-linger", "0"],
-                           cwd=tmp_path, env=env,
-                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    monkeypatch.delenv("SHAKETABLE_MAVLINK_KEY", raising=False)
     seen: set[str] = set()
-    frames = 0
-    try:
-        deadline = time.monotonic() + 180
-        while run.poll() is None and time.monotonic() < deadline:
+    frames = [0]
+    over = threading.Event()
+
+    def watch() -> None:
+        while not over.is_set():
             current = state(url)
             if current is not None and current["status"] is not None:
                 seen.add(current["status"]["state"])
-                frames = max(frames, len(current["accel"]["t"]))
-            time.sleep(0.2)
-        output, _ = run.communicate(timeout=60)
+                frames[0] = max(frames[0], len(current["accel"]["t"]))
+            over.wait(0.2)
+
+    watcher = threading.Thread(target=watch, name="console watcher", daemon=True)
+    watcher.start()
+    try:
+        run = rig("run", str(sequence), "--emulate", "--yes", "--console", url.removeprefix("http://").rstrip("/"),
+                  "--console-linger", "0", cwd=tmp_path)
     finally:
-        if run.poll() is None:
-            run.kill()
+        over.set()
+        watcher.join(10)
+    output = run.stdout + run.stderr
     assert "operator console: " + url in output and "operator token " in output
     assert "running" in seen, seen  # the page's server followed the session
-    assert frames > 0  # and received its live data
+    assert frames[0] > 0  # and received its live data
     sessions = list(tmp_path.glob("session-*-tiny.h5"))
     assert len(sessions) == 1, output  # the session file where rig run writes it
-    assert run.returncode in (0, 1), output  # 1: the emulator faulted under load (the message says so)
-    if run.returncode == 0:
+    assert run.exit_code in (0, 1), output  # 1: the emulator faulted under load (the message says so)
+    if run.exit_code == 0:
         assert "done: 2 of 2 runs done" in output
 
 

@@ -63,6 +63,19 @@ def crossing(run: dict[str, Any], level: float) -> float:
     return float(accel[np.argmax(accel[:, 1] > level), 0])
 
 
+def nth_in_a_row(run: dict[str, Any], level: float, n: int) -> float:
+    """The time of the ``n``-th sample in a row of accelerometer 0's x above ``level`` [m/s²] in its first excursion
+    that long, after shorter ones (what a persistence of ``n`` ignores)."""
+    accel = run["accel"]["0"]
+    past = np.concatenate([[False], accel[:, 1] > level])
+    starts = np.flatnonzero(~past[:-1] & past[1:])  # where each excursion past the level begins
+    ends = np.flatnonzero(past[:-1] & ~past[1:])
+    lengths = np.append(ends, len(accel))[:len(starts)] - starts
+    assert lengths[0] < n  # the first excursions are short spikes: ignored
+    first_long = starts[np.argmax(lengths >= n)]
+    return float(accel[first_long + n - 1, 0])
+
+
 def stop_latency_ms(run: dict[str, Any], source: str, channel: str = "accel.0.x") -> float:
     """The run's event timing the stop after a trip found by ``source`` [ms, table time]."""
     [stopped] = [event["text"] for event in run["events"]
@@ -95,15 +108,8 @@ def test_the_controller_ignores_a_spike_shorter_than_the_persistence(tmp_path: P
     state, _, run = play_into(sequence(tmp_path, "abort_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5",
                               body_table, key_file)
     assert state is OrchestratorState.DONE and run["status"] == "aborted"
-    accel = run["accel"]["0"]
-    past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
-    starts = np.flatnonzero(~past[:-1] & past[1:])
-    ends = np.flatnonzero(past[:-1] & ~past[1:])
-    lengths = np.append(ends, len(accel))[:len(starts)] - starts
-    assert lengths[0] < 25  # the first excursions are short spikes: ignored
-    first_long = starts[np.argmax(lengths >= 25)]
     [trip] = [event for event in run["events"] if event["text"].endswith("controlled_stop (controller)")]
-    assert trip["t"] == pytest.approx(float(accel[first_long + 24, 0]))  # the 25th sample in a row
+    assert trip["t"] == pytest.approx(nth_in_a_row(run, 0.05 * 9.81, 25))
     assert 0 < stop_latency_ms(run, "controller") <= STATUS_PERIOD_NS * 1e-6
 
 
@@ -153,15 +159,8 @@ def test_a_persistence_of_n_ignores_shorter_excursions(tmp_path: Path, body_tabl
     state, _, run = play_into(sequence(tmp_path, "warn_high_g = 0.05\npersistence = 25"), tmp_path / "s.h5",
                               body_table, key_file)
     assert state is OrchestratorState.DONE and run["status"] == "completed"
-    accel = run["accel"]["0"]
-    past = np.concatenate([[False], accel[:, 1] > 0.05 * 9.81])
-    starts = np.flatnonzero(~past[:-1] & past[1:])  # where each excursion past the level begins
-    ends = np.flatnonzero(past[:-1] & ~past[1:])
-    lengths = np.append(ends, len(accel))[:len(starts)] - starts
-    assert lengths[0] < 25  # the first excursions are short spikes: ignored
-    first_long = starts[np.argmax(lengths >= 25)]
     [trip] = [event for event in run["events"] if event["text"].startswith("limit accel.0.x: ")]
-    assert trip["t"] == pytest.approx(float(accel[first_long + 24, 0]))  # the 25th sample in a row
+    assert trip["t"] == pytest.approx(nth_in_a_row(run, 0.05 * 9.81, 25))
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])

@@ -8,7 +8,6 @@ import contextlib
 import os
 import signal
 import subprocess
-import sys
 import time
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -24,6 +23,7 @@ from protocols.zenoh.auth import Signer
 from rig.service import ServiceClient, ServiceError, ServiceKeys, ServiceUnavailableError
 from rig.service.wire import decode_reply, encode_request, sign
 from rig.session import read_session
+from tests.helpers.cli import rig
 from tests.helpers.processes import child_of, free_port, running, serve_command
 from tests.helpers.sequences import TINY
 
@@ -280,10 +280,9 @@ def test_rig_run_service_drives_the_service_to_the_end(service: Service, client:
     time: ``--speed max`` travels in the start request), the command line follows its telemetry and exits 0 when
     every run is done."""
     output = tmp_path / "via-service.h5"
-    done = subprocess.run([str(Path(sys.executable).with_name("rig")), "run", str(tiny), "--service",
-                           service.endpoint, "--emulate", "--speed", "max", "--yes", "--key-file",
-                           str(service.key_file), "-o", str(output)], capture_output=True, text=True, timeout=120)
-    assert done.returncode == 0, done.stdout + done.stderr
+    done = rig("run", str(tiny), "--service", service.endpoint, "--emulate", "--speed", "max", "--yes", "--key-file",
+               str(service.key_file), "-o", str(output))
+    assert done.exit_code == 0, done.stdout + done.stderr
     runs = read_session(output, data=False)["runs"]
     assert [(r["plan_index"], r["status"]) for r in runs] == [(0, "completed"), (1, "completed")]
 
@@ -320,10 +319,9 @@ def test_a_queued_attended_session_is_started_and_answered_and_logged_as_the_tra
     control is in the session's events with the source the transport vouches for: an unsigned request's claimed
     source is not written, a signed one's is, escaped on one line."""
     output = tmp_path / "attended.h5"
-    queued = subprocess.run([str(Path(sys.executable).with_name("rig")), "service", "queue", str(tiny), "--connect",
-                             service.endpoint, "--key-file", str(service.key_file), "--emulate", "--attended",
-                             "--speed", "max", "-o", str(output)], capture_output=True, text=True, timeout=120)
-    assert queued.returncode == 0, queued.stdout + queued.stderr
+    queued = rig("service", "queue", str(tiny), "--connect", service.endpoint, "--key-file", str(service.key_file),
+                 "--emulate", "--attended", "--speed", "max", "-o", str(output))
+    assert queued.exit_code == 0, queued.stdout + queued.stderr
     number = int(queued.stdout.split("queued as session ")[1].split(":")[0])
     state = client.state()
     assert state["queue"] == [{"id": number, "name": "tiny.toml", "emulate": True, "attended": True}]

@@ -26,29 +26,20 @@ from rig.report.sensors import sensors_table
 from rig.report.session_report import session_body
 from rig.sequence import SequenceError, load_sequence
 from rig.session import SessionLog, read_session
-from tests.helpers.sequences import TINY, new_log, play
+from tests.helpers.sensor_sheets import accelerometer, sensors_toml, tilt_sensor, write_rig
+from tests.helpers.sequences import TINY_ONE_RUN, new_log, play
 
-SHEET = """\
-[sensors.0]
-model = "PCB 356A16"
-serial = "LW231455"
-sensitivity = 100.0
-sensitivity_unit = "mV/g"
-range = 2.0
-range_unit = "g"
-calibrated = 2026-01-15
-due = 2027-01-15
-place_m = [0.30, -0.20, 0.05]
-axes = ["+x", "-y", "+z"]
-"""
+SHEET = accelerometer(0, model="PCB 356A16", serial="LW231455", sensitivity=100.0, sensitivity_unit="mV/g", range=2.0,
+                      range_unit="g", calibrated=date(2026, 1, 15), due=date(2027, 1, 15),
+                      place_m=[0.30, -0.20, 0.05], axes=["+x", "-y", "+z"])
+"""Accelerometer 0's sheet, every value stated: the record and the report show them all."""
 BODY = {"body_id": 1, "b": 0.1, "h": 0.5, "depth": 0.1, "mass": 5.0, "x": 0.0, "y": 0.0, "name": "B1"}
 RATE = 200.0
 
 
-def _rig(tmp_path: Path, extra: str = "") -> Path:
-    path = tmp_path / "rig.toml"
-    path.write_text(extra + SHEET)
-    return path
+def _rig(tmp_path: Path, *before: str, overdue: str | None = None) -> Path:
+    """The rig configuration ``rig.toml``: the sheets ``before``, then :data:`SHEET`."""
+    return write_rig(tmp_path, sensors_toml(*before, SHEET, overdue=overdue))
 
 
 def _session(tmp_path: Path, spike: float) -> Path:
@@ -125,8 +116,8 @@ def test_pyfive_reads_the_session_files_description(tmp_path: Path) -> None:
     assert json.loads(attrs["rig_config"])["sensors"]["0"]["place_m"] == [0.30, -0.20, 0.05]
 
 
-def _sequence(tmp_path: Path, extra: str) -> Path:
-    rig = _rig(tmp_path, extra)
+def _sequence(tmp_path: Path, *before: str, overdue: str | None = None) -> Path:
+    rig = _rig(tmp_path, *before, overdue=overdue)
     path = tmp_path / "sequence.toml"
     path.write_text(f'name = "sheets"\nangles_deg = [0]\nrecords = [{{ record = "fema-farfield:KOBE/NIS000" }}]\n'
                     f'[rig]\nconfig = "{rig}"\n[[bodies]]\ntable5 = 4\nx = 0.0\ny = 0.0\n')
@@ -134,7 +125,7 @@ def _sequence(tmp_path: Path, extra: str) -> Path:
 
 
 def test_an_overdue_sensor_warns_at_start(tmp_path: Path) -> None:
-    sequence = load_sequence(_sequence(tmp_path, ""))
+    sequence = load_sequence(_sequence(tmp_path))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         check_sensors(sequence, date(2027, 1, 14))  # due tomorrow: nothing said
@@ -144,8 +135,8 @@ def test_an_overdue_sensor_warns_at_start(tmp_path: Path) -> None:
 
 
 def test_an_overdue_sensor_is_refused_where_the_configuration_says_so(tmp_path: Path) -> None:
-    sequence = load_sequence(_sequence(tmp_path, '[sensors]\noverdue = "refuse"\n'))
-    with pytest.raises(SequenceError, match=r"rig.toml:11: sensors.0.due: .*due for calibration on 2027-01-15; the rig "
+    sequence = load_sequence(_sequence(tmp_path, overdue="refuse"))
+    with pytest.raises(SequenceError, match=r"rig.toml:12: sensors.0.due: .*due for calibration on 2027-01-15; the rig "
                                             r"configuration refuses overdue sensors"):
         check_sensors(sequence, date(2030, 1, 1))
 
@@ -170,15 +161,8 @@ def test_the_report_prints_the_sheets_and_the_clipped_samples(tmp_path: Path) ->
     assert "LW231455" in session_body(str(path))[1]
 
 
-TILT_SHEET = """\
-[sensors.tilt.1]
-model = "Jewell A602"
-serial = "T-0423"
-range = 45.0
-range_unit = "deg"
-calibrated = 2026-02-01
-due = 2027-02-01
-"""
+TILT_SHEET = tilt_sensor(1, model="Jewell A602", serial="T-0423", range=45.0, range_unit="deg",
+                         calibrated=date(2026, 2, 1), due=date(2027, 2, 1))
 
 
 def _tilt_session(tmp_path: Path, angles: list[float]) -> Path:
@@ -226,40 +210,16 @@ def test_an_overdue_tilt_sensor_warns_at_start(tmp_path: Path) -> None:
                         "serial T-0423) was due for calibration on 2027-02-01: recalibrate it (docs/sensors.md)")
 
 
-PLACED = """\
-[sensors.0]
-model = "PCB 356A16"
-serial = "LW231455"
-sensitivity = 100.0
-sensitivity_unit = "mV/g"
-range = 5.0
-range_unit = "g"
-calibrated = 2026-01-15
-due = 2099-01-15
-place_m = [0.30, -0.20, 0.05]
-axes = ["-y", "+x", "+z"]
-
-[sensors.1]
-model = "PCB 356A16"
-serial = "LW231456"
-sensitivity = 100.0
-sensitivity_unit = "mV/g"
-range = 5.0
-range_unit = "g"
-calibrated = 2026-01-15
-due = 2099-01-15
-place_m = [-0.40, 0.30, 0.0]
-axes = ["+x", "-y", "-z"]
-"""
+PLACED = sensors_toml(accelerometer(0, place_m=[0.30, -0.20, 0.05], axes=["-y", "+x", "+z"]),
+                      accelerometer(1, place_m=[-0.40, 0.30, 0.0], axes=["+x", "-y", "-z"]))
 
 
 @pytest.mark.integration  # starts the emulator
 def test_the_emulated_sensors_sit_where_their_sheets_say_and_are_recorded_in_the_plate_frame(
         tmp_path: Path, key_file: Path) -> None:
-    (tmp_path / "rig.toml").write_text(PLACED)
+    write_rig(tmp_path, PLACED)
     path = tmp_path / "placed.toml"
-    path.write_text(TINY.replace('    { record = "fema-farfield:KOBE/NIS000", window_s = [5.0, 8.0] },\n', "")
-                    + '\n[rig]\nconfig = "rig.toml"\n')
+    path.write_text(TINY_ONE_RUN + '\n[rig]\nconfig = "rig.toml"\n')
     sequence = load_sequence(path)
     rig = tmp_path / "emulated-rig.toml"
     rig.write_text(tomli_w.dumps(sequence.table.to_dict()))

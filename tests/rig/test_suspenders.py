@@ -22,22 +22,11 @@ from rig.orchestrator.noise import WINDOW_S, NoiseWatch, axis_rms
 from rig.orchestrator.suspenders import conditions, suspensions
 from rig.sequence import load_sequence
 from rig.session import SessionLog, read_session
+from tests.helpers.sensor_sheets import accelerometer, sensors_toml, write_rig
 from tests.helpers.sequences import TINY
 
-RIG = """\
-[sensors.0]
-model = "PCB 356A16"
-serial = "LW231455"
-sensitivity = 100.0
-sensitivity_unit = "mV/g"
-range = 5.0
-range_unit = "g"
-calibrated = 2026-01-15
-due = 2099-01-15
-place_m = [0.0, 0.0, 0.0]
-axes = ["+x", "+y", "+z"]
-noise_floor_m_s2 = 0.05
-"""
+RIG = sensors_toml(accelerometer(0, noise_floor_m_s2=0.05))
+"""Accelerometer 0, watched at rest: its noise floor 0.05 m/s² RMS."""
 
 
 def status(host_ns: int, inputs: tuple[str, ...] = ()) -> TableStatus:
@@ -62,9 +51,7 @@ def test_the_rms_is_taken_about_the_mean() -> None:
 
 
 def _sheets(tmp_path: Path) -> SensorSheets:
-    path = tmp_path / "rig.toml"
-    path.write_text(RIG)
-    return read_configuration(path).sensors
+    return read_configuration(write_rig(tmp_path, RIG)).sensors
 
 
 class _Table:
@@ -108,8 +95,7 @@ def test_a_sensor_that_sends_nothing_is_not_judged(tmp_path: Path, monkeypatch: 
 
 
 def test_a_sheet_without_a_noise_floor_is_not_watched(tmp_path: Path) -> None:
-    path = tmp_path / "rig.toml"
-    path.write_text(RIG.replace("noise_floor_m_s2 = 0.05\n", ""))
+    path = write_rig(tmp_path, sensors_toml(accelerometer(0, noise_floor_m_s2=None)))
     table = _Table()
     with NoiseWatch(table, read_configuration(path).sensors) as watch:
         assert watch.reasons() == []
@@ -168,7 +154,7 @@ def test_an_open_door_holds_the_sequence_until_it_closes(tmp_path: Path) -> None
 
 @pytest.mark.integration  # starts the emulator
 def test_a_noisy_accelerometer_holds_the_sequence_until_it_is_quiet(tmp_path: Path) -> None:
-    (tmp_path / "rig.toml").write_text(RIG)  # accelerometer 0's floor 0.05 m/s² RMS; the emulator's noise 0.02
+    write_rig(tmp_path, RIG)  # accelerometer 0's floor 0.05 m/s² RMS; the emulator's noise 0.02
     # accelerometer 0 turns noisy 1 s after the first stream starts and quiet 15 s later (as the door above)
     (first, second), messages = _play_suspended(tmp_path, TINY + '\n[rig]\nconfig = "rig.toml"\n',
                                                 "--accel-noisy", "0@1:15")

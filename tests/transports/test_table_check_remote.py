@@ -12,25 +12,18 @@ from __future__ import annotations
 import json
 import os
 import subprocess
-import threading
 from pathlib import Path
-from typing import Any
 
 import pytest
 
-from drivers.controller import StreamReport, open_table
+from drivers.controller import open_table
 from tests.helpers.cli import rig
+from tests.helpers.owner import owner_streaming
 from tests.helpers.processes import RIG, ROOT
-from tests.helpers.streams import smooth_ramp, surge
+from tests.helpers.streams import there_and_back
 from tests.helpers.tables import SharedTable
 
 pytestmark = pytest.mark.integration  # opens sockets to emulator processes (tests/conftest.py)
-
-
-def there_and_back(duration: float) -> tuple[Any, Any]:
-    """A surge of 20 mm out and back in ``duration`` s at 1 kHz (ends where it began)."""
-    half = duration / 2
-    return surge(duration, lambda t: smooth_ramp(t, 0.02, half) - smooth_ramp(t - half, 0.02, half))
 
 
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
@@ -70,29 +63,11 @@ def test_table_check_on_a_table_another_host_streams_observes_and_the_run_plays_
     emulator, key_file = shared_table.emulator, shared_table.key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as owner:
-            owner.arm()
-            t, poses = there_and_back(12.0)
-            reports: list[StreamReport] = []
-            errors: list[BaseException] = []
-
-            def play() -> None:
-                try:
-                    reports.append(owner.stream(t, poses))
-                except BaseException as exc:  # handed to the test's thread
-                    errors.append(exc)
-
-            streaming = threading.Thread(target=play)
-            streaming.start()
-            owner.wait_for_state("streaming", 10)
-            checked = check_as_another_host(emulator.url, key_file, "--json")
-            streaming_after = owner.status().state
-            streaming.join(60)
-            assert not errors and len(reports) == 1, errors
-            assert reports[0].underruns == 0 and reports[0].final is not None
-            assert reports[0].final.state == "armed" and not reports[0].final.faults
+            with owner_streaming(owner, 12.0):  # the owner's run plays in full
+                checked = check_as_another_host(emulator.url, key_file, "--json")
+                streaming_after = owner.status().state
             armed = check_as_another_host(emulator.url, key_file)
-            t, poses = there_and_back(2.0)
-            again = owner.stream(t, poses)  # the owner's next run
+            again = owner.stream(*there_and_back(2.0))  # the owner's next run
             assert again.underruns == 0 and again.final is not None and again.final.state == "armed"
             owner.disarm()
     finally:

@@ -14,15 +14,14 @@ import signal
 import subprocess
 import sys
 import textwrap
-import threading
 import time
-from typing import Any
 
 import pytest
 
-from drivers.controller import StreamReport, TableInUseError, open_table
+from drivers.controller import TableInUseError, open_table
 from sim_table.ownership import OWNER_TIMEOUT
-from tests.helpers.streams import smooth_ramp, surge
+from tests.helpers.owner import owner_streaming
+from tests.helpers.streams import there_and_back
 from tests.helpers.tables import SharedTable
 
 pytestmark = pytest.mark.integration  # starts processes and opens sockets (tests/conftest.py)
@@ -30,41 +29,18 @@ pytestmark = pytest.mark.integration  # starts processes and opens sockets (test
 IN_USE = r"table in use by .+ since \d{4}-\d\d-\d\d \d\d:\d\d:\d\d UTC"
 
 
-def there_and_back(duration: float) -> tuple[Any, Any]:
-    """A surge of 20 mm out and back in ``duration`` s at 1 kHz (ends where it began)."""
-    half = duration / 2
-    return surge(duration, lambda t: smooth_ramp(t, 0.02, half) - smooth_ramp(t - half, 0.02, half))
-
-
 @pytest.mark.parametrize("transport", ["mavlink", "zenoh"])
 def test_a_second_host_is_refused_and_the_first_never_notices(transport: str, shared_table: SharedTable) -> None:
     emulator, key_file = shared_table.emulator, shared_table.key_file
     try:
         with open_table(emulator.url, key_file=str(key_file)) as first:
-            first.arm()
-            t, poses = there_and_back(3.0)
-            reports: list[StreamReport] = []
-            errors: list[BaseException] = []
+            with owner_streaming(first, 3.0):  # the first host's run plays in full
+                second = open_table(emulator.url, key_file=str(key_file))
+                with pytest.raises(TableInUseError, match=IN_USE) as refused:
+                    second.connect()
+                assert first.status().state == "streaming"  # the refusal changed nothing
 
-            def play() -> None:
-                try:
-                    reports.append(first.stream(t, poses))
-                except BaseException as exc:  # handed to the test's thread
-                    errors.append(exc)
-
-            streaming = threading.Thread(target=play)
-            streaming.start()
-            first.wait_for_state("streaming", 10)
-            second = open_table(emulator.url, key_file=str(key_file))
-            with pytest.raises(TableInUseError, match=IN_USE) as refused:
-                second.connect()
-            assert first.status().state == "streaming"  # the refusal changed nothing
-            streaming.join(30)
-            assert not errors and len(reports) == 1
-            assert reports[0].underruns == 0 and reports[0].final is not None
-            assert reports[0].final.state == "armed" and not reports[0].final.faults
-
-            again = first.stream(t, poses)  # the first host's next run
+            again = first.stream(*there_and_back(3.0))  # the first host's next run
             assert again.underruns == 0 and again.final is not None and again.final.state == "armed"
             first.disarm()
     finally:
