@@ -9,8 +9,9 @@ never compiles the general model.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
+from analysis.compiled_index import njit
 from analysis.envelope import BLOCK
 from analysis.fast_rocking import simulate_rocking
 

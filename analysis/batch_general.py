@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, prange
+from numba import prange
 
 from analysis.batch import fall_angles
+from analysis.compiled_index import njit
 from analysis.envelope import BLOCK
 from analysis.fast_general import simulate_general
 

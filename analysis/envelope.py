@@ -12,9 +12,9 @@ blocks and read every sample of the others exactly as before, so they find the s
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from analysis.body import G
+from analysis.compiled_index import njit
 
 BLOCK = 32
 """Samples per block."""

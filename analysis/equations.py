@@ -33,7 +33,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from analysis.compiled_index import njit
 
 G = 9.81
 

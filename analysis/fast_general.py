@@ -37,9 +37,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from analysis import hermite
+from analysis.compiled_index import njit
 from analysis.envelope import BLOCK, block_slack, margin_bound
 from analysis.equations import (
     plate_gravity,

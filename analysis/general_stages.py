@@ -26,8 +26,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
+from analysis.compiled_index import njit
 from analysis.equations import (
     pivot_reactions_cs,
     plate_gravity,

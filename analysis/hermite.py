@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
+from analysis.compiled_index import njit
 
 
 @njit(cache=True, inline="always")

@@ -24,12 +24,11 @@ from __future__ import annotations
 
 import math
 
-import numba
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.signal import lfilter
 
-import analysis  # noqa: F401  (points numba's cache at the project's directory before the kernel below is defined)
+from analysis.compiled_index import njit
 
 DAMPING = 0.05
 """The damping ratio of design spectra [-]."""
@@ -83,7 +82,7 @@ def relative_displacement(acc: ArrayLike, dt: float, period: float, damping: flo
     return lfilter(b, a, np.asarray(acc, dtype=float))
 
 
-@numba.njit(cache=True)
+@njit(cache=True)
 def _peak_displacements(acc: NDArray[np.float64], a: NDArray[np.float64], b: NDArray[np.float64]
                         ) -> NDArray[np.float64]:  # pragma: no cover - compiled
     """max |u| of every oscillator (one-step matrices ``a[k]``, ``b[k]``, each 2×2) under ``acc``, all run

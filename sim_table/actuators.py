@@ -28,8 +28,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from analysis.compiled_index import njit
 from analysis.table.model import TableModel
 from sim_table.forward_kinematics import ForwardKinematics
 

@@ -29,8 +29,8 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import numpy as np
-from numba import njit
 
+from analysis.compiled_index import njit
 from analysis.table.dynamics import PlateLoad, TableDynamics
 from analysis.table.model import TableModel
 from sim_table.actuators import Actuators, ActuatorSettings, ActuatorStep

@@ -16,8 +16,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from analysis.compiled_index import njit
 from analysis.table.model import TableModel
 
 

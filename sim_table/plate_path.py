@@ -13,7 +13,8 @@ plate joints' order ``order`` (``sim_table.scene.PLATE_QPOS_ORDER``); forces in 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from analysis.compiled_index import njit
 
 
 @njit(cache=True)

@@ -10,6 +10,8 @@ does either, so ``-m "not integration"`` is a suite of in-process unit tests.
 
 from __future__ import annotations
 
+import fcntl
+import os
 import socket
 import subprocess
 import sys
@@ -62,6 +64,29 @@ def app() -> typer.Typer:
 
     register_records(app)
     return app
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _kernels_compiled_once(tmp_path_factory: pytest.TempPathFactory) -> None:
+    """Under xdist, the workers compile the kernels of ``tests/helpers/kernels.py`` between them before their first
+    test: worker k starts with group k, then takes each other group's lock in turn (waiting while the worker that
+    holds it compiles), so each group is compiled once and loaded from numba's cache by the others. One process
+    alone compiles each kernel at its first use, as before."""
+    workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
+    if workers < 2:
+        return
+    from tests.helpers.kernels import GROUPS
+
+    first = int(os.environ["PYTEST_XDIST_WORKER"].removeprefix("gw"))
+    shared = tmp_path_factory.getbasetemp().parent  # the run's directory, above each worker's popen-gw<k>
+    for k in range(len(GROUPS)):
+        group = (first + k) % len(GROUPS)
+        fd = os.open(shared / f"kernels-{group}.lock", os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX)
+            GROUPS[group]()
+        finally:
+            os.close(fd)
 
 
 _emulator_starts = [0]

@@ -12,9 +12,9 @@ from dataclasses import dataclass
 from typing import cast
 
 import numpy as np
-from numba import njit
 
 from analysis.body import G
+from analysis.compiled_index import njit
 from analysis.errors import AnalysisInputError
 from analysis.table.kinematics import HexapodGeometry, legs_at
 from analysis.table.limits import AXES, DEG, TILTS, TableLimits

@@ -19,8 +19,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from analysis.compiled_index import njit
 from analysis.table.model import TableModel
 from analysis.table.setpoints import POSITION_ALLOWANCE, RATE_ALLOWANCE
 

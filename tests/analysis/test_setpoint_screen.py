@@ -16,7 +16,15 @@ from analysis.table.setpoint_screen import SetpointScreen
 from analysis.table.setpoints import POSITION_ALLOWANCE, RATE_ALLOWANCE, check_setpoints
 
 TABLE = TableModel()
-SCREEN = SetpointScreen(TABLE)
+
+
+@pytest.fixture(scope="module")
+def screen() -> SetpointScreen:
+    """The default table's screen, made (its kernel compiled or loaded) by the first test that needs it, not
+    at collection, which every xdist worker does for every module."""
+    return SetpointScreen(TABLE)
+
+
 SPACING = 1e-3  # s
 SHORT_STROKE = dataclasses.replace(TABLE, geometry=dataclasses.replace(TABLE.geometry, leg_min=2.1, leg_max=2.35))
 """A table whose legs' stroke [m] the envelope reaches (the default one's it does not)."""
@@ -40,39 +48,39 @@ def test_the_compiled_pass_is_run_when_the_screen_is_made(monkeypatch: pytest.Mo
     assert len(calls) == 1
 
 
-def test_an_ordinary_chunk_is_cleared_with_its_neighbours() -> None:
+def test_an_ordinary_chunk_is_cleared_with_its_neighbours(screen: SetpointScreen) -> None:
     samples = ramp()
     previous = (samples[0] - (samples[1] - samples[0]), SPACING)
     following = (samples[-1] + (samples[1] - samples[0]), SPACING)
     assert check_setpoints(TABLE, samples, SPACING, previous, following) is None
-    assert SCREEN.clears(samples, SPACING, previous, following)
+    assert screen.clears(samples, SPACING, previous, following)
 
 
 @pytest.mark.parametrize("column, value", [(2, math.nan), (0, math.inf), (2, 0.3), (4, 0.5)])
-def test_a_sample_the_check_refuses_is_not_cleared(column: int, value: float) -> None:
+def test_a_sample_the_check_refuses_is_not_cleared(column: int, value: float, screen: SetpointScreen) -> None:
     samples = ramp()
     samples[3, column] = value
     assert check_setpoints(TABLE, samples, SPACING) is not None
-    assert not SCREEN.clears(samples, SPACING)
+    assert not screen.clears(samples, SPACING)
 
 
-def test_a_step_too_fast_from_either_neighbour_is_not_cleared() -> None:
+def test_a_step_too_fast_from_either_neighbour_is_not_cleared(screen: SetpointScreen) -> None:
     samples = ramp()
     jump = samples[0].copy()
     jump[0] -= 0.01  # 10 mm in 1 ms: 10 m/s
     problem = check_setpoints(TABLE, samples, SPACING, previous=(jump, SPACING))
     assert problem is not None and problem.kind == "rate"
-    assert not SCREEN.clears(samples, SPACING, previous=(jump, SPACING))
-    assert SCREEN.clears(samples, SPACING, previous=(jump, 1.0))  # 10 mm in 1 s
-    assert not SCREEN.clears(samples, SPACING, following=(samples[-1] + (samples[0] - jump), SPACING))
-    assert SCREEN.clears(samples, SPACING, previous=(jump, 0.0))  # over no time: not a step, as the check
+    assert not screen.clears(samples, SPACING, previous=(jump, SPACING))
+    assert screen.clears(samples, SPACING, previous=(jump, 1.0))  # 10 mm in 1 s
+    assert not screen.clears(samples, SPACING, following=(samples[-1] + (samples[0] - jump), SPACING))
+    assert screen.clears(samples, SPACING, previous=(jump, 0.0))  # over no time: not a step, as the check
 
 
-def test_a_chunk_at_a_limit_is_left_to_the_check() -> None:
+def test_a_chunk_at_a_limit_is_left_to_the_check(screen: SetpointScreen) -> None:
     samples = ramp()
     samples[:, 2] = TABLE.limits.heave.displacement + POSITION_ALLOWANCE  # exactly on the allowance: may be played
     assert check_setpoints(TABLE, samples, SPACING) is None
-    assert not SCREEN.clears(samples, SPACING)
+    assert not screen.clears(samples, SPACING)
 
 
 @pytest.mark.parametrize("table, reach", [(TABLE, 1.02), (SHORT_STROKE, 0.6)], ids=["table", "short stroke"])
