@@ -38,7 +38,7 @@ class LockedIndexDataCacheFile(caching.IndexDataCacheFile):
         """Save ``data`` (a compiled signature) under ``key`` (signature, target, bytecode hashes)."""
         digest = hashlib.sha256(repr((self._source_stamp, key)).encode()).digest()
         name = self._data_name(int.from_bytes(digest[:8], "big"))
-        with _exclusive(self._index_path + ".lock"):
+        with exclusive(self._index_path + ".lock"):
             overloads = self._load_index()
             if not overloads:
                 self._remove_data_files(keep=name)
@@ -54,7 +54,7 @@ class LockedIndexDataCacheFile(caching.IndexDataCacheFile):
 
 
 @contextmanager
-def _exclusive(path: str) -> Iterator[None]:
+def exclusive(path: str | os.PathLike[str]) -> Iterator[None]:
     """Hold an exclusive advisory lock on the file at ``path`` (created if missing) while the block runs."""
     fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
     try:

@@ -10,7 +10,6 @@ does either, so ``-m "not integration"`` is a suite of in-process unit tests.
 
 from __future__ import annotations
 
-import fcntl
 import os
 import socket
 import subprocess
@@ -75,18 +74,15 @@ def _kernels_compiled_once(tmp_path_factory: pytest.TempPathFactory) -> None:
     workers = int(os.environ.get("PYTEST_XDIST_WORKER_COUNT", "1"))
     if workers < 2:
         return
+    from analysis.compiled_index import exclusive
     from tests.helpers.kernels import GROUPS
 
     first = int(os.environ["PYTEST_XDIST_WORKER"].removeprefix("gw"))
     shared = tmp_path_factory.getbasetemp().parent  # the run's directory, above each worker's popen-gw<k>
     for k in range(len(GROUPS)):
         group = (first + k) % len(GROUPS)
-        fd = os.open(shared / f"kernels-{group}.lock", os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX)
+        with exclusive(shared / f"kernels-{group}.lock"):
             GROUPS[group]()
-        finally:
-            os.close(fd)
 
 
 _emulator_starts = [0]

@@ -21,7 +21,7 @@ import numba
 import pytest
 from numba.core import caching, types
 
-from analysis.compiled_index import LockedIndexDataCacheFile, _exclusive
+from analysis.compiled_index import LockedIndexDataCacheFile, exclusive
 
 ROOT = Path(__file__).resolve().parents[2]
 STOCK = LockedIndexDataCacheFile.__mro__[1]  # numba's own IndexDataCacheFile
@@ -152,7 +152,7 @@ def test_a_new_source_starts_the_index_afresh_and_removes_the_old_machine_code(k
 
 def test_the_lock_excludes_a_second_holder(tmp_path: Path) -> None:
     path = str(tmp_path / "x.nbi.lock")
-    with _exclusive(path):
+    with exclusive(path):
         fd = os.open(path, os.O_RDWR)
         try:
             with pytest.raises(BlockingIOError):
